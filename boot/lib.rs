@@ -1,0 +1,9 @@
+//! The host side: the disk images, QEMU, and the pictures it takes. The runner
+//! (`boot/main.rs`) and the integration tests (`tests/`) share all of it.
+
+pub mod image;
+pub mod images;
+pub mod qemu;
+
+pub use image::RgbImage;
+pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};

@@ -1,0 +1,351 @@
+//! Starting and driving QEMU: the runner's engine and the test harness in one.
+//!
+//! A `Qemu` owns the emulator process. Its serial console is collected (and,
+//! for the runner, echoed) by a reader thread; its human monitor listens on a
+//! unix socket and gives us `sendkey` and `screendump`. Dropping a `Qemu` kills
+//! the process, so no test can leave an emulator behind.
+
+use crate::image::RgbImage;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::{Duration, Instant};
+
+/// QEMU exits with `(code << 1) | 1` for a write of `code` to isa-debug-exit.
+pub const EXIT_SUCCESS: i32 = (0x10 << 1) | 1;
+pub const EXIT_FAILURE: i32 = (0x11 << 1) | 1;
+
+/// OVMF from Debian's `ovmf` package.
+pub const OVMF_CODE: &str = "/usr/share/OVMF/OVMF_CODE.fd";
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Firmware {
+    Bios,
+    Uefi,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Display {
+    /// No window: `-display none`.
+    Headless,
+    /// QEMU's default window.
+    Window,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Graphics {
+    /// QEMU's standard VGA, with the legacy VGA registers.
+    StdVga,
+    /// A framebuffer-only adapter with no legacy VGA at all.
+    BochsDisplay,
+}
+
+#[derive(Clone, Debug)]
+pub struct QemuOptions {
+    pub image: PathBuf,
+    pub firmware: Firmware,
+    pub display: Display,
+    pub graphics: Graphics,
+    /// Make QEMU time Input Status 1's retrace bits from the CRTC timings
+    /// (about 60 Hz in Mode X) instead of toggling them on every read.
+    pub precise_retrace: bool,
+    /// Passed to the kernel through fw_cfg as `opt/modex/boot`.
+    pub boot_option: Option<String>,
+    /// Echo the serial console to this process's stdout as it arrives.
+    pub echo_serial: bool,
+}
+
+impl QemuOptions {
+    pub fn new(image: impl Into<PathBuf>) -> Self {
+        QemuOptions {
+            image: image.into(),
+            firmware: Firmware::Bios,
+            display: Display::Headless,
+            graphics: Graphics::StdVga,
+            precise_retrace: true,
+            boot_option: None,
+            echo_serial: false,
+        }
+    }
+}
+
+#[derive(Debug)]
+pub enum QemuError {
+    /// The executable is missing: how to install it.
+    NotInstalled(String),
+    Io(String),
+    Timeout(String),
+    Exited(String),
+    Monitor(String),
+}
+
+impl std::fmt::Display for QemuError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            QemuError::NotInstalled(s)
+            | QemuError::Io(s)
+            | QemuError::Timeout(s)
+            | QemuError::Exited(s)
+            | QemuError::Monitor(s) => f.write_str(s),
+        }
+    }
+}
+
+impl std::error::Error for QemuError {}
+
+type Result<T> = std::result::Result<T, QemuError>;
+
+pub const QEMU_BINARY: &str = "qemu-system-x86_64";
+
+/// Fails with an actionable message when QEMU (or OVMF, for UEFI) is missing.
+pub fn check_installed(firmware: Firmware) -> Result<()> {
+    let found = Command::new(QEMU_BINARY)
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !found {
+        return Err(QemuError::NotInstalled(format!(
+            "{QEMU_BINARY} was not found. Install it with `boot/setup.sh` \
+             (or `sudo apt-get install qemu-system-x86`)."
+        )));
+    }
+    if firmware == Firmware::Uefi && !Path::new(OVMF_CODE).exists() {
+        return Err(QemuError::NotInstalled(format!(
+            "{OVMF_CODE} was not found. Install OVMF with `boot/setup.sh` (or `sudo apt-get install ovmf`)."
+        )));
+    }
+    Ok(())
+}
+
+/// The serial console so far, and a signal for each new chunk of it.
+#[derive(Default)]
+struct SerialLog {
+    text: Mutex<String>,
+    grew: Condvar,
+}
+
+pub struct Qemu {
+    child: Child,
+    serial: Arc<SerialLog>,
+    monitor: BufReader<UnixStream>,
+    scratch: tempdir::Dir,
+}
+
+impl Qemu {
+    pub fn start(options: &QemuOptions) -> Result<Qemu> {
+        check_installed(options.firmware)?;
+        let scratch = tempdir::Dir::new().map_err(|e| QemuError::Io(format!("cannot make a scratch dir: {e}")))?;
+        let monitor_path = scratch.path().join("monitor.sock");
+
+        let mut command = Command::new(QEMU_BINARY);
+        command
+            .arg("-drive")
+            .arg(format!("format=raw,file={},snapshot=on", options.image.display()))
+            .args(["-m", "256M", "-no-reboot", "-serial", "stdio"])
+            .args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"])
+            .arg("-monitor")
+            .arg(format!("unix:{},server=on,wait=off", monitor_path.display()));
+        match options.graphics {
+            Graphics::StdVga if options.precise_retrace => command.args(["-vga", "std,retrace=precise"]),
+            Graphics::StdVga => command.args(["-vga", "std"]),
+            Graphics::BochsDisplay => command.args(["-vga", "none", "-device", "bochs-display"]),
+        };
+        if options.firmware == Firmware::Uefi {
+            command.args(["-bios", OVMF_CODE]);
+        }
+        if options.display == Display::Headless {
+            command.args(["-display", "none"]);
+        }
+        if let Some(option) = &options.boot_option {
+            command.arg("-fw_cfg").arg(format!("name=opt/modex/boot,string={option}"));
+        }
+        command.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+
+        let mut child = command
+            .spawn()
+            .map_err(|e| QemuError::NotInstalled(format!("cannot start {QEMU_BINARY}: {e}")))?;
+        let serial = Arc::new(SerialLog::default());
+        spawn_reader(child.stdout.take().expect("stdout is piped"), Arc::clone(&serial), options.echo_serial);
+        spawn_reader(child.stderr.take().expect("stderr is piped"), Arc::clone(&serial), true);
+
+        let monitor = connect_monitor(&monitor_path, &mut child, &serial)?;
+        let mut qemu = Qemu { child, serial, monitor: BufReader::new(monitor), scratch };
+        qemu.read_until_prompt()?;
+        Ok(qemu)
+    }
+
+    /// Everything the kernel has printed on serial so far.
+    pub fn serial(&self) -> String {
+        self.serial.text.lock().unwrap().clone()
+    }
+
+    /// Waits until the serial console contains `needle`; returns the console.
+    pub fn wait_for_serial(&mut self, needle: &str, timeout: Duration) -> Result<String> {
+        self.wait_for_serial_count(needle, 1, timeout)
+    }
+
+    /// Waits until `needle` has appeared `count` times on the serial console.
+    pub fn wait_for_serial_count(&mut self, needle: &str, count: usize, timeout: Duration) -> Result<String> {
+        let deadline = Instant::now() + timeout;
+        let mut text = self.serial.text.lock().unwrap();
+        loop {
+            if text.matches(needle).count() >= count {
+                return Ok(text.clone());
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                return Err(QemuError::Timeout(format!(
+                    "timed out after {timeout:?} waiting for {needle:?} (x{count}) on serial; console so far:\n{text}"
+                )));
+            }
+            if let Ok(Some(status)) = self.child.try_wait() {
+                return Err(QemuError::Exited(format!(
+                    "QEMU exited ({status}) before {needle:?} appeared; console:\n{text}"
+                )));
+            }
+            let wait = (deadline - now).min(Duration::from_millis(100));
+            text = self.serial.grew.wait_timeout(text, wait).unwrap().0;
+        }
+    }
+
+    /// Sends one monitor command and returns its output.
+    pub fn monitor(&mut self, command: &str) -> Result<String> {
+        self.monitor
+            .get_mut()
+            .write_all(format!("{command}\n").as_bytes())
+            .map_err(|e| QemuError::Monitor(format!("monitor write failed: {e}")))?;
+        self.read_until_prompt()
+    }
+
+    /// Presses and releases a key, named as QEMU's `sendkey` names keys
+    /// (`a`, `4`, `kp_4`, `f1`, `left`, `esc`, `spc`, `shift-a`, ...).
+    pub fn send_key(&mut self, key: &str) -> Result<()> {
+        let reply = self.monitor(&format!("sendkey {key}"))?;
+        if reply.contains("unknown key") || reply.contains("rror") {
+            return Err(QemuError::Monitor(format!("sendkey {key}: {}", reply.trim())));
+        }
+        Ok(())
+    }
+
+    /// QEMU's own rendering of the display, from its VGA emulation.
+    pub fn screendump(&mut self) -> Result<RgbImage> {
+        let path = self.scratch.path().join("screen.ppm");
+        let _ = std::fs::remove_file(&path);
+        let reply = self.monitor(&format!("screendump {}", path.display()))?;
+        let bytes = std::fs::read(&path)
+            .map_err(|e| QemuError::Monitor(format!("screendump wrote no file ({e}); monitor said: {}", reply.trim())))?;
+        RgbImage::from_ppm(&bytes).map_err(QemuError::Monitor)
+    }
+
+    /// Waits for QEMU to exit by itself; `None` if it is still running.
+    pub fn wait_exit(&mut self, timeout: Duration) -> Result<Option<ExitStatus>> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(status) = self.child.try_wait().map_err(|e| QemuError::Io(e.to_string()))? {
+                return Ok(Some(status));
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    pub fn is_running(&mut self) -> bool {
+        matches!(self.child.try_wait(), Ok(None))
+    }
+
+    fn read_until_prompt(&mut self) -> Result<String> {
+        const PROMPT: &[u8] = b"(qemu) ";
+        let mut reply = Vec::new();
+        let mut byte = [0u8; 1];
+        while !reply.ends_with(PROMPT) {
+            match self.monitor.read(&mut byte) {
+                Ok(1) => reply.push(byte[0]),
+                Ok(_) => return Err(QemuError::Exited(format!("QEMU closed its monitor; console:\n{}", self.serial()))),
+                Err(e) => return Err(QemuError::Monitor(format!("monitor read failed: {e}"))),
+            }
+        }
+        reply.truncate(reply.len() - PROMPT.len());
+        Ok(String::from_utf8_lossy(&reply).into_owned())
+    }
+}
+
+impl Drop for Qemu {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn spawn_reader(stream: impl Read + Send + 'static, log: Arc<SerialLog>, echo: bool) {
+    std::thread::spawn(move || {
+        let mut reader = BufReader::new(stream);
+        let mut line = Vec::new();
+        while reader.read_until(b'\n', &mut line).is_ok_and(|n| n > 0) {
+            let text = String::from_utf8_lossy(&line).replace('\r', "");
+            if echo {
+                print!("{text}");
+                let _ = std::io::stdout().flush();
+            }
+            log.text.lock().unwrap().push_str(&text);
+            log.grew.notify_all();
+            line.clear();
+        }
+    });
+}
+
+fn connect_monitor(path: &Path, child: &mut Child, log: &SerialLog) -> Result<UnixStream> {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        match UnixStream::connect(path) {
+            Ok(stream) => {
+                stream.set_read_timeout(Some(Duration::from_secs(60))).ok();
+                return Ok(stream);
+            }
+            Err(e) => {
+                if let Ok(Some(status)) = child.try_wait() {
+                    std::thread::sleep(Duration::from_millis(100)); // let the reader collect stderr
+                    let output = log.text.lock().unwrap().clone();
+                    return Err(QemuError::Exited(format!("QEMU exited at start ({status}): {output}")));
+                }
+                if Instant::now() >= deadline {
+                    return Err(QemuError::Timeout(format!("QEMU's monitor socket never opened: {e}")));
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            }
+        }
+    }
+}
+
+/// A scratch directory removed on drop (the monitor socket and screendumps).
+mod tempdir {
+    use std::path::{Path, PathBuf};
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    pub struct Dir(PathBuf);
+
+    impl Dir {
+        pub fn new() -> std::io::Result<Dir> {
+            static NEXT: AtomicU32 = AtomicU32::new(0);
+            let name = format!("modex-cube-{}-{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed));
+            let path = std::env::temp_dir().join(name);
+            std::fs::create_dir_all(&path)?;
+            Ok(Dir(path))
+        }
+
+        pub fn path(&self) -> &Path {
+            &self.0
+        }
+    }
+
+    impl Drop for Dir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}

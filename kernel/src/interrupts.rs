@@ -1,0 +1,102 @@
+//! The IDT: CPU exceptions (reported, then a clean halt) and the two hardware
+//! interrupts the kernel uses, the PIT tick (IRQ 0) and the keyboard (IRQ 1),
+//! routed through the remapped 8259 PICs.
+
+use crate::{fault, gdt, keyboard, pit};
+use pic8259::ChainedPics;
+use spin::{Lazy, Mutex};
+use x86_64::structures::idt::{InterruptDescriptorTable, InterruptStackFrame, PageFaultErrorCode};
+
+/// The PICs' vectors start after the 32 the CPU reserves for exceptions.
+pub const PIC_1_OFFSET: u8 = 32;
+pub const PIC_2_OFFSET: u8 = PIC_1_OFFSET + 8;
+const TIMER_VECTOR: u8 = PIC_1_OFFSET;
+const KEYBOARD_VECTOR: u8 = PIC_1_OFFSET + 1;
+/// IRQ 7 and 15 fire spuriously when an interrupt goes away before the CPU
+/// acknowledges it; they must not be acknowledged like real ones.
+const SPURIOUS_MASTER_VECTOR: u8 = PIC_1_OFFSET + 7;
+
+// SAFETY: the offsets map the PICs above the CPU's exception vectors, so no
+// IRQ is ever mistaken for an exception.
+static PICS: Mutex<ChainedPics> = Mutex::new(unsafe { ChainedPics::new(PIC_1_OFFSET, PIC_2_OFFSET) });
+
+static IDT: Lazy<InterruptDescriptorTable> = Lazy::new(|| {
+    let mut idt = InterruptDescriptorTable::new();
+    idt.divide_error.set_handler_fn(divide_error);
+    idt.breakpoint.set_handler_fn(breakpoint);
+    idt.invalid_opcode.set_handler_fn(invalid_opcode);
+    idt.general_protection_fault.set_handler_fn(general_protection);
+    idt.stack_segment_fault.set_handler_fn(stack_segment);
+    idt.page_fault.set_handler_fn(page_fault);
+    // SAFETY: the IST index names the stack that gdt::init puts in the TSS,
+    // used by nothing else.
+    unsafe {
+        idt.double_fault
+            .set_handler_fn(double_fault)
+            .set_stack_index(gdt::DOUBLE_FAULT_IST_INDEX);
+    }
+    idt[TIMER_VECTOR].set_handler_fn(timer);
+    idt[KEYBOARD_VECTOR].set_handler_fn(keyboard_irq);
+    idt[SPURIOUS_MASTER_VECTOR].set_handler_fn(spurious);
+    idt
+});
+
+pub fn init() {
+    IDT.load();
+    // SAFETY: the IDT is loaded with handlers for every vector the PICs can
+    // raise from the lines left unmasked below.
+    unsafe {
+        let mut pics = PICS.lock();
+        pics.initialize();
+        // Unmask only IRQ 0 (timer), 1 (keyboard) and 2 (the slave's cascade).
+        pics.write_masks(0b1111_1000, 0b1111_1111);
+    }
+}
+
+fn end_of_interrupt(vector: u8) {
+    // SAFETY: called once at the end of the handler of `vector`, which the
+    // PICs raised.
+    unsafe { PICS.lock().notify_end_of_interrupt(vector) };
+}
+
+extern "x86-interrupt" fn timer(_frame: InterruptStackFrame) {
+    pit::tick();
+    end_of_interrupt(TIMER_VECTOR);
+}
+
+extern "x86-interrupt" fn keyboard_irq(_frame: InterruptStackFrame) {
+    keyboard::on_interrupt();
+    end_of_interrupt(KEYBOARD_VECTOR);
+}
+
+extern "x86-interrupt" fn spurious(_frame: InterruptStackFrame) {}
+
+extern "x86-interrupt" fn breakpoint(frame: InterruptStackFrame) {
+    // A breakpoint is a request to look, not an error: report and go on.
+    crate::serial_println!("EXCEPTION: breakpoint at {:#x}", frame.instruction_pointer.as_u64());
+}
+
+extern "x86-interrupt" fn divide_error(frame: InterruptStackFrame) {
+    fault::halt_with("divide error", &frame, None, None);
+}
+
+extern "x86-interrupt" fn invalid_opcode(frame: InterruptStackFrame) {
+    fault::halt_with("invalid opcode", &frame, None, None);
+}
+
+extern "x86-interrupt" fn general_protection(frame: InterruptStackFrame, error: u64) {
+    fault::halt_with("general protection fault", &frame, Some(error), None);
+}
+
+extern "x86-interrupt" fn stack_segment(frame: InterruptStackFrame, error: u64) {
+    fault::halt_with("stack-segment fault", &frame, Some(error), None);
+}
+
+extern "x86-interrupt" fn page_fault(frame: InterruptStackFrame, error: PageFaultErrorCode) {
+    let address = x86_64::registers::control::Cr2::read_raw();
+    fault::halt_with("page fault", &frame, Some(error.bits()), Some(address));
+}
+
+extern "x86-interrupt" fn double_fault(frame: InterruptStackFrame, error: u64) -> ! {
+    fault::halt_with("double fault (kernel stack overflow?)", &frame, Some(error), None);
+}

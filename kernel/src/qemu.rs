@@ -1,0 +1,103 @@
+//! What the kernel can learn from and say to QEMU, and nothing else: the
+//! `isa-debug-exit` device ends the emulator with a status, and `fw_cfg` carries
+//! a boot option from the QEMU command line (`-fw_cfg name=opt/modex/boot,string=...`).
+//! Both are probed only when CPUID says a hypervisor is present, so on a real PC
+//! not one of these ports is touched.
+
+use x86_64::instructions::port::Port;
+
+/// `-device isa-debug-exit,iobase=0xf4,iosize=0x04`: QEMU exits with
+/// `(code << 1) | 1`, so the host sees 33 for success and 35 for failure.
+const DEBUG_EXIT_PORT: u16 = 0xF4;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum ExitCode {
+    Success = 0x10,
+    Failure = 0x11,
+}
+
+/// Ends QEMU if the debug-exit device is fitted; returns if it is not.
+pub fn exit(code: ExitCode) {
+    if !hypervisor_present() {
+        return;
+    }
+    // SAFETY: with a hypervisor present the port is QEMU's isa-debug-exit (or
+    // unassigned, when a write is ignored).
+    unsafe { Port::<u32>::new(DEBUG_EXIT_PORT).write(code as u32) };
+}
+
+/// CPUID leaf 1, ECX bit 31: set by every hypervisor, clear on real hardware.
+pub fn hypervisor_present() -> bool {
+    const HYPERVISOR_BIT: u32 = 1 << 31;
+    let leaf1 = core::arch::x86_64::__cpuid(1);
+    leaf1.ecx & HYPERVISOR_BIT != 0
+}
+
+const FW_CFG_SELECTOR: u16 = 0x510;
+const FW_CFG_DATA: u16 = 0x511;
+const FW_CFG_SIGNATURE: u16 = 0x0000;
+const FW_CFG_FILE_DIR: u16 = 0x0019;
+const FILE_NAME_LEN: usize = 56;
+const BOOT_OPTION_FILE: &[u8] = b"opt/modex/boot";
+
+/// The boot option given on the QEMU command line, copied into `buffer`.
+pub fn boot_option(buffer: &mut [u8; 64]) -> Option<&str> {
+    if !hypervisor_present() {
+        return None;
+    }
+    let mut fw_cfg = FwCfg::new();
+    fw_cfg.select(FW_CFG_SIGNATURE);
+    if fw_cfg.read_array::<4>() != *b"QEMU" {
+        return None;
+    }
+    fw_cfg.select(FW_CFG_FILE_DIR);
+    let count = u32::from_be_bytes(fw_cfg.read_array());
+    for _ in 0..count {
+        let size = u32::from_be_bytes(fw_cfg.read_array()) as usize;
+        let select = u16::from_be_bytes(fw_cfg.read_array());
+        let _reserved: [u8; 2] = fw_cfg.read_array();
+        let name: [u8; FILE_NAME_LEN] = fw_cfg.read_array();
+        let name_len = name.iter().position(|&b| b == 0).unwrap_or(FILE_NAME_LEN);
+        if &name[..name_len] == BOOT_OPTION_FILE {
+            fw_cfg.select(select);
+            let len = size.min(buffer.len());
+            for byte in &mut buffer[..len] {
+                *byte = fw_cfg.read_byte();
+            }
+            return core::str::from_utf8(&buffer[..len]).ok().map(|s| s.trim_end_matches('\0').trim());
+        }
+    }
+    None
+}
+
+struct FwCfg {
+    selector: Port<u16>,
+    data: Port<u8>,
+}
+
+impl FwCfg {
+    fn new() -> Self {
+        FwCfg { selector: Port::new(FW_CFG_SELECTOR), data: Port::new(FW_CFG_DATA) }
+    }
+
+    fn select(&mut self, key: u16) {
+        // SAFETY: only reached under a hypervisor, where 0x510 is QEMU's fw_cfg
+        // selector (or unassigned).
+        unsafe { self.selector.write(key) };
+    }
+
+    fn read_byte(&mut self) -> u8 {
+        // SAFETY: as for `select`; reading fw_cfg data has no side effect but
+        // advancing its offset.
+        unsafe { self.data.read() }
+    }
+
+    fn read_array<const N: usize>(&mut self) -> [u8; N] {
+        let mut bytes = [0; N];
+        for byte in &mut bytes {
+            *byte = self.read_byte();
+        }
+        bytes
+    }
+}

@@ -1,0 +1,61 @@
+//! Deliberate failures, asked for by a QEMU test through the boot option
+//! (`fault=...`, `exit=...`). They prove that each kind of fault is reported and
+//! ends in a clean halt. A real PC has no fw_cfg, so it can never take this path.
+
+use crate::qemu::{self, ExitCode};
+
+pub fn run(request: &str) {
+    match request {
+        "fault=invalid-opcode" => invalid_opcode(),
+        "fault=page" => page_fault(),
+        "fault=general-protection" => general_protection(),
+        "fault=stack-overflow" => {
+            stack_overflow(0);
+        }
+        "fault=divide" => divide_error(),
+        "fault=panic" => panic!("panic requested by the boot option"),
+        "fault=breakpoint" => {
+            x86_64::instructions::interrupts::int3();
+            crate::serial_println!("breakpoint: resumed");
+        }
+        "exit=success" => qemu::exit(ExitCode::Success),
+        "exit=failure" => qemu::exit(ExitCode::Failure),
+        _ => crate::serial_println!("selftest: unknown request {:?}", request),
+    }
+}
+
+fn invalid_opcode() {
+    // SAFETY: `ud2` raises #UD, whose handler reports it and never returns.
+    unsafe { core::arch::asm!("ud2") };
+}
+
+fn page_fault() {
+    // Canonical, but far from anything the bootloader maps.
+    let unmapped = 0x0000_7f00_dead_0000 as *const u64;
+    // SAFETY: the read faults, and the page-fault handler never returns.
+    let _ = unsafe { unmapped.read_volatile() };
+}
+
+fn general_protection() {
+    // A non-canonical address raises #GP rather than #PF.
+    let non_canonical = 0x8000_0000_0000_0000u64 as *const u64;
+    // SAFETY: the read faults, and the #GP handler never returns.
+    let _ = unsafe { non_canonical.read_volatile() };
+}
+
+fn divide_error() {
+    // SAFETY: `div` by zero raises #DE, whose handler never returns; the
+    // registers it clobbers are declared.
+    unsafe {
+        core::arch::asm!("xor edx, edx", "xor ecx, ecx", "div ecx", out("eax") _, out("edx") _, out("ecx") _);
+    }
+}
+
+/// Recurses until it runs into the guard page below the kernel stack; the page
+/// fault then cannot be delivered on that stack, which makes it a double fault
+/// handled on its own IST stack.
+#[allow(unconditional_recursion)]
+fn stack_overflow(depth: u64) -> u64 {
+    let frame = core::hint::black_box([depth; 64]);
+    stack_overflow(depth + 1) + frame[0]
+}

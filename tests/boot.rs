@@ -1,0 +1,74 @@
+//! The foundation, booted in QEMU: the banner, clean halts on faults, and the
+//! isa-debug-exit codes. QEMU must be installed: these tests fail (never skip)
+//! without it, and say how to install it.
+
+use boot::qemu::{EXIT_FAILURE, EXIT_SUCCESS};
+use boot::{Qemu, QemuOptions};
+use std::time::Duration;
+
+const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
+
+fn boot(option: Option<&str>) -> Qemu {
+    let images = boot::images::publish().expect("the build script made the images");
+    let mut options = QemuOptions::new(images.bios);
+    options.boot_option = option.map(str::to_owned);
+    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn kernel_boots_and_prints_its_banner() {
+    let mut qemu = boot(None);
+    let console = qemu.wait_for_serial("kernel: initialised", BOOT_TIMEOUT).unwrap();
+    assert!(console.contains(&format!("modex-cube kernel v{}", env!("CARGO_PKG_VERSION"))), "{console}");
+}
+
+/// Each fault is reported on serial, then the kernel halts: QEMU (started with
+/// -no-reboot, so a triple fault would end it) keeps running.
+fn assert_reported_and_halted(option: &str, report: &str) {
+    let mut qemu = boot(Some(option));
+    let console = qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
+    assert!(console.contains(report), "expected {report:?} for {option}; console:\n{console}");
+    assert_eq!(qemu.wait_exit(Duration::from_secs(2)).unwrap(), None, "QEMU ended: the kernel rebooted or died");
+    assert!(qemu.is_running());
+}
+
+#[test]
+fn invalid_opcode_is_reported_and_the_kernel_halts() {
+    assert_reported_and_halted("fault=invalid-opcode", "EXCEPTION: invalid opcode");
+}
+
+#[test]
+fn page_fault_is_reported_with_its_address() {
+    assert_reported_and_halted("fault=page", "address=0x7f00dead0000");
+}
+
+#[test]
+fn general_protection_fault_is_reported() {
+    assert_reported_and_halted("fault=general-protection", "EXCEPTION: general protection fault");
+}
+
+#[test]
+fn stack_overflow_becomes_a_reported_double_fault() {
+    assert_reported_and_halted("fault=stack-overflow", "EXCEPTION: double fault");
+}
+
+#[test]
+fn panic_is_reported_and_the_kernel_halts() {
+    assert_reported_and_halted("fault=panic", "panic requested by the boot option");
+}
+
+#[test]
+fn breakpoint_is_reported_and_execution_resumes() {
+    let mut qemu = boot(Some("fault=breakpoint"));
+    let console = qemu.wait_for_serial("breakpoint: resumed", BOOT_TIMEOUT).unwrap();
+    assert!(console.contains("EXCEPTION: breakpoint"), "{console}");
+}
+
+#[test]
+fn the_host_sees_the_debug_exit_codes() {
+    for (option, code) in [("exit=success", EXIT_SUCCESS), ("exit=failure", EXIT_FAILURE)] {
+        let mut qemu = boot(Some(option));
+        let status = qemu.wait_exit(BOOT_TIMEOUT).unwrap().expect("the kernel ended QEMU");
+        assert_eq!(status.code(), Some(code), "{option}");
+    }
+}
