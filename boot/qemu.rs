@@ -1,9 +1,11 @@
 //! Starting and driving QEMU: the runner's engine and the test harness in one.
 //!
 //! A `Qemu` owns the emulator process. Its serial console is collected (and,
-//! for the runner, echoed) by a reader thread; its human monitor listens on a
-//! unix socket and gives us `sendkey` and `screendump`. Dropping a `Qemu` kills
-//! the process, so no test can leave an emulator behind.
+//! for the runner, echoed) by a reader thread; its QMP monitor listens on a
+//! unix socket and gives us `sendkey` and `screendump`. (QMP rather than the
+//! human monitor: only QMP's screendump refreshes the display before saving
+//! it, so an HMP screendump can show a frame that is already gone.) Dropping a
+//! `Qemu` kills the process, so no test can leave an emulator behind.
 
 use crate::image::RgbImage;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -147,7 +149,7 @@ impl Qemu {
             .arg(format!("format=raw,file={},snapshot=on", options.image.display()))
             .args(["-m", "256M", "-no-reboot", "-serial", "stdio"])
             .args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"])
-            .arg("-monitor")
+            .arg("-qmp")
             .arg(format!("unix:{},server=on,wait=off", monitor_path.display()));
         match options.graphics {
             Graphics::StdVga if options.precise_retrace => command.args(["-vga", "std,retrace=precise"]),
@@ -174,7 +176,8 @@ impl Qemu {
 
         let monitor = connect_monitor(&monitor_path, &mut child, &serial)?;
         let mut qemu = Qemu { child, serial, monitor: BufReader::new(monitor), scratch };
-        qemu.read_until_prompt()?;
+        qemu.read_reply()?; // the greeting
+        qemu.execute(r#"{"execute":"qmp_capabilities"}"#)?;
         Ok(qemu)
     }
 
@@ -212,32 +215,46 @@ impl Qemu {
         }
     }
 
-    /// Sends one monitor command and returns its output.
-    pub fn monitor(&mut self, command: &str) -> Result<String> {
+    /// Sends one QMP command (a JSON object) and returns its reply line.
+    fn execute(&mut self, command: &str) -> Result<String> {
         self.monitor
             .get_mut()
             .write_all(format!("{command}\n").as_bytes())
-            .map_err(|e| QemuError::Monitor(format!("monitor write failed: {e}")))?;
-        self.read_until_prompt()
+            .map_err(|e| QemuError::Monitor(format!("QMP write failed: {e}")))?;
+        let reply = self.read_reply()?;
+        if reply.contains("\"error\"") {
+            return Err(QemuError::Monitor(format!("QEMU refused {command}: {reply}")));
+        }
+        Ok(reply)
     }
 
     /// Presses and releases a key, named as QEMU's `sendkey` names keys
     /// (`a`, `4`, `kp_4`, `f1`, `left`, `esc`, `spc`, `shift-a`, ...).
     pub fn send_key(&mut self, key: &str) -> Result<()> {
-        let reply = self.monitor(&format!("sendkey {key}"))?;
-        if reply.contains("unknown key") || reply.contains("rror") {
-            return Err(QemuError::Monitor(format!("sendkey {key}: {}", reply.trim())));
+        if !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
+            return Err(QemuError::Monitor(format!("{key:?} is not a QEMU key name")));
         }
-        Ok(())
+        let command = format!(
+            r#"{{"execute":"human-monitor-command","arguments":{{"command-line":"sendkey {key}"}}}}"#
+        );
+        let reply = self.execute(&command)?;
+        // HMP's answer comes back as the "return" string: empty on success.
+        if reply.contains("\"return\": \"\"") || reply.contains("\"return\":\"\"") {
+            Ok(())
+        } else {
+            Err(QemuError::Monitor(format!("sendkey {key}: {reply}")))
+        }
     }
 
-    /// QEMU's own rendering of the display, from its VGA emulation.
+    /// QEMU's own rendering of the display, from its VGA emulation, brought up
+    /// to date first.
     pub fn screendump(&mut self) -> Result<RgbImage> {
         let path = self.scratch.path().join("screen.ppm");
         let _ = std::fs::remove_file(&path);
-        let reply = self.monitor(&format!("screendump {}", path.display()))?;
+        let command = format!(r#"{{"execute":"screendump","arguments":{{"filename":"{}"}}}}"#, path.display());
+        let reply = self.execute(&command)?;
         let bytes = std::fs::read(&path)
-            .map_err(|e| QemuError::Monitor(format!("screendump wrote no file ({e}); monitor said: {}", reply.trim())))?;
+            .map_err(|e| QemuError::Monitor(format!("screendump wrote no file ({e}); QEMU said: {reply}")))?;
         RgbImage::from_ppm(&bytes).map_err(QemuError::Monitor)
     }
 
@@ -259,19 +276,17 @@ impl Qemu {
         matches!(self.child.try_wait(), Ok(None))
     }
 
-    fn read_until_prompt(&mut self) -> Result<String> {
-        const PROMPT: &[u8] = b"(qemu) ";
-        let mut reply = Vec::new();
-        let mut byte = [0u8; 1];
-        while !reply.ends_with(PROMPT) {
-            match self.monitor.read(&mut byte) {
-                Ok(1) => reply.push(byte[0]),
-                Ok(_) => return Err(QemuError::Exited(format!("QEMU closed its monitor; console:\n{}", self.serial()))),
-                Err(e) => return Err(QemuError::Monitor(format!("monitor read failed: {e}"))),
+    /// The next QMP line that is not an asynchronous event.
+    fn read_reply(&mut self) -> Result<String> {
+        loop {
+            let mut line = String::new();
+            match self.monitor.read_line(&mut line) {
+                Ok(0) => return Err(QemuError::Exited(format!("QEMU closed its monitor; console:\n{}", self.serial()))),
+                Ok(_) if line.starts_with("{\"event\"") => continue,
+                Ok(_) => return Ok(line.trim_end().to_owned()),
+                Err(e) => return Err(QemuError::Monitor(format!("QMP read failed: {e}"))),
             }
         }
-        reply.truncate(reply.len() - PROMPT.len());
-        Ok(String::from_utf8_lossy(&reply).into_owned())
     }
 }
 

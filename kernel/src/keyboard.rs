@@ -22,8 +22,14 @@ const FLUSH_LIMIT: u32 = 64;
 pub static SCANCODES: ScancodeQueue = ScancodeQueue::new();
 
 pub fn on_interrupt() {
-    // SAFETY: IRQ 1 means the controller's output buffer holds a byte; reading
-    // port 0x60 takes it and touches nothing else.
+    // An IRQ 1 can be stale: `init` polls the controller's answers with
+    // interrupts off, but the PIC still latches the IRQ they raised. Only a
+    // full output buffer holds a byte that nobody has taken yet.
+    if status() & STATUS_OUTPUT_FULL == 0 {
+        return;
+    }
+    // SAFETY: the output buffer is full; reading port 0x60 takes that byte and
+    // touches nothing else.
     let byte = unsafe { Port::<u8>::new(DATA_PORT).read() };
     SCANCODES.push(byte);
 }

@@ -5,6 +5,7 @@
 #![no_main]
 #![feature(abi_x86_interrupt)]
 
+mod diagnostics;
 mod fault;
 mod gdt;
 mod interrupts;
@@ -13,7 +14,7 @@ mod pit;
 mod qemu;
 mod selftest;
 mod serial;
-// mod vga_bus;
+mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
@@ -37,7 +38,6 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     }
     x86_64::instructions::interrupts::enable();
     serial_println!("kernel: initialised");
-    let _ = boot_info;
 
     let mut option_buffer = [0u8; 64];
     let option = qemu::boot_option(&mut option_buffer);
@@ -46,6 +46,21 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         if option.starts_with("fault=") || option.starts_with("exit=") {
             selftest::run(option);
         }
+    }
+
+    let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
+        panic!("the bootloader did not map physical memory, so VGA memory is out of reach");
+    };
+    // SAFETY: the bootloader maps all physical memory at this offset (asked for
+    // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
+    let bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
+    let mut vga = modex::ModeX::new(bus);
+    vga.set_mode();
+    serial_println!("vga: Mode X 320x240 set");
+    match option {
+        Some("test-pattern") => diagnostics::test_pattern(&mut vga),
+        Some("flip-rate") => diagnostics::flip_rate(&mut vga),
+        _ => {}
     }
     fault::halt_forever()
 }

@@ -1,1 +1,50 @@
+//! VGA Mode X for a bare-metal kernel: 320x240, 256 colours, unchained, with
+//! three pages in video memory to draw into and flip between.
+//!
+//! The crate has three parts:
+//!
+//! * [`VgaBus`], the narrow interface to a VGA: port I/O and the 64 KiB CPU
+//!   window at 0xA0000. The kernel implements it with `in`/`out` and volatile
+//!   stores; nothing here is `unsafe`.
+//! * [`ModeX`], the driver written against the bus: mode set from any prior
+//!   state, rectangle and span fills with Map Mask edges, page flips locked to
+//!   vertical retrace, and a fallback 80x25 text mode.
+//! * [`soft::SoftVga`], a software VGA implementing the bus, so that host tests
+//!   can see every pixel, count every bus operation and run a simulated clock.
+//!
+//! Mode X memory layout: pixel (x, y) of a page lives in plane `x % 4` at byte
+//! `page.base() + y * 80 + x / 4`.
+
 #![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+#[cfg(test)]
+extern crate std;
+
+mod bus;
+mod draw;
+mod driver;
+pub mod mode;
+mod page;
+pub mod palette;
+pub mod regs;
+pub mod soft;
+mod text;
+
+pub use bus::{VgaBus, CPU_WINDOW_BYTES};
+pub use driver::ModeX;
+pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
+pub use text::{TEXT_COLUMNS, TEXT_ROWS};
+
+/// Visible width of a Mode X page, in pixels.
+pub const SCREEN_WIDTH: i32 = 320;
+/// Visible height of a Mode X page, in pixels.
+pub const SCREEN_HEIGHT: i32 = 240;
+/// One scan line in each plane: four pixels per byte.
+pub const BYTES_PER_LINE: u16 = 80;
+/// One page in each plane.
+pub const PAGE_BYTES: u16 = 19200;
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,58 @@
+//! The interface between the driver and a VGA: byte port I/O, one 16-bit OUT
+//! for an index/data pair, and the CPU's 64 KiB window at 0xA0000.
+
+/// Size of the CPU window onto video memory at 0xA0000.
+pub const CPU_WINDOW_BYTES: u32 = 0x1_0000;
+
+/// A VGA as the CPU sees it.
+///
+/// Every method is one bus operation (a fill is one per byte), so a software
+/// implementation can count and time them.
+pub trait VgaBus {
+    /// One 8-bit OUT.
+    fn write_port8(&mut self, port: u16, value: u8);
+    /// One 16-bit OUT: low byte to `port`, high byte to `port + 1` (index/data
+    /// pairs in one bus op). Ports with 16-bit registers (Bochs VBE DISPI at
+    /// 0x1CE/0x1CF) take the value whole.
+    fn write_port16(&mut self, port: u16, value: u16);
+    /// One 8-bit IN.
+    fn read_port8(&mut self, port: u16) -> u8;
+    /// `offset` is within the 64 KiB CPU window at 0xA0000.
+    fn write_vram8(&mut self, offset: u16, value: u8);
+    /// `offset` is within the 64 KiB CPU window at 0xA0000. On a VGA every
+    /// read also loads the four latches.
+    fn read_vram8(&mut self, offset: u16) -> u8;
+    /// Writes `value` to `count` consecutive CPU addresses from `offset` (a
+    /// fill through the current Map Mask); addresses past the end of the window
+    /// are dropped. Default: a loop of `write_vram8`. The hardware bus may use
+    /// wider stores.
+    fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
+        let end = (u32::from(offset) + u32::from(count)).min(CPU_WINDOW_BYTES);
+        for address in u32::from(offset)..end {
+            // `address` < CPU_WINDOW_BYTES, so it fits.
+            self.write_vram8(address as u16, value);
+        }
+    }
+}
+
+/// A borrowed bus is a bus, so a large software VGA can stay in its `Box`.
+impl<T: VgaBus + ?Sized> VgaBus for &mut T {
+    fn write_port8(&mut self, port: u16, value: u8) {
+        (**self).write_port8(port, value);
+    }
+    fn write_port16(&mut self, port: u16, value: u16) {
+        (**self).write_port16(port, value);
+    }
+    fn read_port8(&mut self, port: u16) -> u8 {
+        (**self).read_port8(port)
+    }
+    fn write_vram8(&mut self, offset: u16, value: u8) {
+        (**self).write_vram8(offset, value);
+    }
+    fn read_vram8(&mut self, offset: u16) -> u8 {
+        (**self).read_vram8(offset)
+    }
+    fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
+        (**self).fill_vram(offset, count, value);
+    }
+}

@@ -1,0 +1,122 @@
+//! Filled rectangles, spans, pixels and page clears in unchained memory.
+//!
+//! A horizontal run of pixels covers whole 4-pixel columns (one byte in each
+//! plane) in its middle, written with all planes enabled, one byte per four
+//! pixels; at its ragged ends the Map Mask enables only the covered planes.
+
+use crate::regs::ALL_PLANES;
+use crate::{ModeX, Page, VgaBus, BYTES_PER_LINE, PAGE_BYTES, SCREEN_HEIGHT, SCREEN_WIDTH};
+
+/// Pixels per byte address: one in each plane.
+const PIXELS_PER_BYTE: i32 = 4;
+
+/// Bytes on consecutive lines written through one Map Mask: a ragged edge
+/// column or the whole-column middle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Run {
+    /// First byte within the line.
+    byte: u16,
+    /// Bytes per line.
+    bytes: u16,
+    /// Map Mask.
+    planes: u8,
+}
+
+/// The runs that cover [x0, x1) on a line, left to right; 0 < x1 - x0 and
+/// both within the screen.
+fn runs(x0: i32, x1: i32) -> [Option<Run>; 3] {
+    let first = x0 / PIXELS_PER_BYTE;
+    let last = (x1 - 1) / PIXELS_PER_BYTE;
+    // Planes from x0's onwards, and up to and including x1 - 1's.
+    let left_planes = (ALL_PLANES << (x0 % PIXELS_PER_BYTE)) & ALL_PLANES;
+    let right_planes = ALL_PLANES >> (PIXELS_PER_BYTE - 1 - (x1 - 1) % PIXELS_PER_BYTE);
+    let column = |byte: i32, planes| Run {
+        byte: byte as u16,
+        bytes: 1,
+        planes,
+    };
+
+    if first == last {
+        return [Some(column(first, left_planes & right_planes)), None, None];
+    }
+    let (left, middle_start) = if left_planes == ALL_PLANES {
+        (None, first)
+    } else {
+        (Some(column(first, left_planes)), first + 1)
+    };
+    let (right, middle_end) = if right_planes == ALL_PLANES {
+        (None, last + 1)
+    } else {
+        (Some(column(last, right_planes)), last)
+    };
+    let middle = (middle_end > middle_start).then(|| Run {
+        byte: middle_start as u16,
+        bytes: (middle_end - middle_start) as u16,
+        planes: ALL_PLANES,
+    });
+    [left, middle, right]
+}
+
+/// The part of [lo, hi) within [0, limit), if any.
+fn clip(lo: i32, hi: i32, limit: i32) -> Option<(i32, i32)> {
+    let (lo, hi) = (lo.max(0), hi.min(limit));
+    (lo < hi).then_some((lo, hi))
+}
+
+/// Offset of line `y` (on screen) of `page` in the CPU window.
+fn line_offset(page: Page, y: i32) -> u16 {
+    page.base() + y as u16 * BYTES_PER_LINE
+}
+
+impl<B: VgaBus> ModeX<B> {
+    /// Fills the half-open rectangle [x0, x1) x [y0, y1) of `page`, clipped to
+    /// the screen; an empty or inverted rectangle draws nothing.
+    pub fn fill_rect(&mut self, page: Page, x0: i32, y0: i32, x1: i32, y1: i32, color: u8) {
+        let (Some((x0, x1)), Some((y0, y1))) =
+            (clip(x0, x1, SCREEN_WIDTH), clip(y0, y1, SCREEN_HEIGHT))
+        else {
+            return;
+        };
+        self.fill_runs(line_offset(page, y0), (y1 - y0) as u16, runs(x0, x1), color);
+    }
+
+    /// Fills the half-open span [x0, x1) of line `y` of `page`, clipped to the screen.
+    pub fn fill_span(&mut self, page: Page, y: i32, x0: i32, x1: i32, color: u8) {
+        // Checked first, so that y + 1 cannot overflow.
+        if (0..SCREEN_HEIGHT).contains(&y) {
+            self.fill_rect(page, x0, y, x1, y + 1, color);
+        }
+    }
+
+    /// Sets one pixel, if it is on the screen.
+    pub fn put_pixel(&mut self, page: Page, x: i32, y: i32, color: u8) {
+        if (0..SCREEN_WIDTH).contains(&x) && (0..SCREEN_HEIGHT).contains(&y) {
+            self.set_map_mask(1 << (x % PIXELS_PER_BYTE));
+            self.bus
+                .write_vram8(line_offset(page, y) + (x / PIXELS_PER_BYTE) as u16, color);
+        }
+    }
+
+    /// Fills the whole of `page` with `color`.
+    pub fn clear_page(&mut self, page: Page, color: u8) {
+        self.set_map_mask(ALL_PLANES);
+        self.bus.fill_vram(page.base(), PAGE_BYTES, color);
+    }
+
+    /// Writes each run down `lines` lines from `top`, one Map Mask per run.
+    /// The runs go right to left when the Map Mask already suits the right
+    /// edge, as after a previous span with the same ragged ends.
+    fn fill_runs(&mut self, top: u16, lines: u16, mut runs: [Option<Run>; 3], color: u8) {
+        let last_planes = runs.iter().rev().flatten().next().map(|run| run.planes);
+        if last_planes.is_some() && self.cached_map_mask() == last_planes {
+            runs.reverse();
+        }
+        for run in runs.into_iter().flatten() {
+            self.set_map_mask(run.planes);
+            for line in 0..lines {
+                self.bus
+                    .fill_vram(top + line * BYTES_PER_LINE + run.byte, run.bytes, color);
+            }
+        }
+    }
+}

@@ -1,0 +1,293 @@
+//! A software VGA: enough of the IBM VGA (and of QEMU's emulation of it, the
+//! reference for its choices) to run the Mode X driver on the host and see
+//! every pixel.
+//!
+//! * `registers`: the register files and I/O port decoding;
+//! * `memory`: four 64 KiB planes, latches, the CPU read and write paths;
+//! * `scanout`: the displayed picture, in 256-colour graphics modes;
+//! * `timing`: a deterministic clock, the beam, Input Status 1, and the
+//!   start address latched at the start of each vertical retrace;
+//! * `probe`: bus operation counts and a write guard.
+//!
+//! It is `no_std` and heap-free, and large (~260 KiB): keep it in a `Box` and
+//! drive it through `&mut SoftVga`, which is a [`VgaBus`] too.
+//!
+//! Where the model and QEMU (7.2, the installed oracle) part ways, and why:
+//!
+//! * Input Status 1 is timed from the CRTC like real hardware: vertical
+//!   retrace lasts until the line matching Vertical Retrace End's low 4 bits
+//!   (2 lines in Mode X; QEMU's `retrace=precise` reports 14, its default
+//!   `dumb` mode just toggles the bits on every read), and bit 0 covers all
+//!   blanking (QEMU: horizontal retrace only). The start address is latched
+//!   at the start of vertical retrace; QEMU shows it at its next refresh.
+//! * Bochs VBE: only the enable is modelled; while it is on, memory behaves
+//!   as chain-4 through all planes and there is no scan-out.
+//! * The DAC keeps 6 bits per component (QEMU keeps 8 and masks on
+//!   display); the pixel mask is applied on scan-out (QEMU ignores it).
+//! * The sequencer's reset register is stored but does not stop anything.
+//! * Power-on is the BIOS's mode 3 with video memory cleared (no BIOS font).
+
+mod memory;
+mod probe;
+mod registers;
+mod scanout;
+mod timing;
+
+use core::ops::Range;
+
+use crate::mode::TEXT_80X25;
+use crate::palette::{Rgb6, EGA_PALETTE};
+use crate::regs::{ac, crtc, gc, seq, status, PLANE_COUNT, VBE_DISPI_DATA, VBE_DISPI_INDEX};
+use crate::{VgaBus, CPU_WINDOW_BYTES};
+
+use memory::VideoMemory;
+use probe::WriteGuard;
+use registers::Registers;
+
+pub use memory::PLANE_BYTES;
+pub use probe::BusCounts;
+pub use scanout::dac_6_to_8;
+pub use timing::{CrtTiming, PORT_ACCESS_NS, VRAM_ACCESS_NS};
+
+/// The software VGA.
+#[derive(Clone)]
+pub struct SoftVga {
+    registers: Registers,
+    memory: VideoMemory,
+    timing: CrtTiming,
+    now_ns: u64,
+    /// The start address the CRTC latched at the last vertical retrace.
+    displayed_start: u16,
+    frame_count: u64,
+    retrace_stuck: Option<bool>,
+    counts: BusCounts,
+    guard: WriteGuard,
+}
+
+impl Default for SoftVga {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SoftVga {
+    /// A VGA as the BIOS leaves it at boot: mode 3 (80x25 colour text)
+    /// registers, the EGA palette in the DAC, Bochs VBE off; video memory
+    /// cleared (the model has no BIOS font), clock at 0.
+    pub fn new() -> Self {
+        let registers = Registers::with_mode(&TEXT_80X25, &EGA_PALETTE);
+        let timing = CrtTiming::from_registers(&registers);
+        Self {
+            displayed_start: registers.start_address(),
+            registers,
+            memory: VideoMemory::new(),
+            timing,
+            now_ns: 0,
+            frame_count: 0,
+            retrace_stuck: None,
+            counts: BusCounts::default(),
+            guard: WriteGuard::default(),
+        }
+    }
+
+    // --- Registers, as the hardware holds them.
+
+    /// Miscellaneous Output.
+    pub fn misc_output(&self) -> u8 {
+        self.registers.misc_output
+    }
+
+    /// Sequencer register `index` (0..=4).
+    pub fn sequencer(&self, index: u8) -> u8 {
+        self.registers.sequencer[usize::from(index) % seq::COUNT]
+    }
+
+    /// CRTC register `index` (0..=0x18).
+    pub fn crtc(&self, index: u8) -> u8 {
+        self.registers.crtc[usize::from(index) % crtc::COUNT]
+    }
+
+    /// Graphics Controller register `index` (0..=8).
+    pub fn graphics(&self, index: u8) -> u8 {
+        self.registers.graphics[usize::from(index) % gc::COUNT]
+    }
+
+    /// Attribute Controller register `index` (0..=0x14).
+    pub fn attribute(&self, index: u8) -> u8 {
+        self.registers.attribute[usize::from(index) % ac::COUNT]
+    }
+
+    /// DAC entry `index`, 6 bits per component.
+    pub fn dac_entry(&self, index: u8) -> Rgb6 {
+        self.registers.dac.palette[usize::from(index)]
+    }
+
+    /// The DAC pixel mask.
+    pub fn dac_pixel_mask(&self) -> u8 {
+        self.registers.dac.pixel_mask
+    }
+
+    /// Whether Bochs VBE (DISPI) is enabled.
+    pub fn vbe_enabled(&self) -> bool {
+        self.registers.vbe_enabled()
+    }
+
+    // --- Video memory.
+
+    /// Plane `plane` (0..=3).
+    pub fn plane(&self, plane: usize) -> &[u8; PLANE_BYTES] {
+        &self.memory.planes[plane]
+    }
+
+    /// The four latches, as the last planar read loaded them.
+    pub fn latches(&self) -> [u8; PLANE_COUNT] {
+        self.memory.latches
+    }
+
+    // --- Time.
+
+    /// The simulated clock.
+    pub fn now_ns(&self) -> u64 {
+        self.now_ns
+    }
+
+    /// Lets time pass without bus activity.
+    pub fn advance_ns(&mut self, ns: u64) {
+        let until = self.now_ns.saturating_add(ns);
+        let retraces =
+            self.timing.retraces_started_by(until) - self.timing.retraces_started_by(self.now_ns);
+        self.now_ns = until;
+        if retraces > 0 {
+            // The CRTC latches the start address at the start of vertical retrace.
+            self.frame_count += retraces;
+            self.displayed_start = self.registers.start_address();
+        }
+    }
+
+    /// The frame timing the registers program now.
+    pub fn timing(&self) -> CrtTiming {
+        self.timing
+    }
+
+    /// The start address latched at the last vertical retrace: the one displayed.
+    pub fn displayed_start(&self) -> u16 {
+        self.displayed_start
+    }
+
+    /// Vertical retraces started so far.
+    pub fn frame_count(&self) -> u64 {
+        self.frame_count
+    }
+
+    /// Forces Input Status 1's vertical retrace bit to a constant (None: follow
+    /// the clock), to test that waits on it are bounded. The CRT itself keeps
+    /// time: start addresses are still latched by the clock, so the picture
+    /// still follows page flips.
+    pub fn set_retrace_stuck(&mut self, stuck: Option<bool>) {
+        self.retrace_stuck = stuck;
+    }
+
+    // --- Probes.
+
+    /// Bus operations so far.
+    pub fn counts(&self) -> BusCounts {
+        self.counts
+    }
+
+    /// Zeroes the bus operation counts.
+    pub fn reset_counts(&mut self) {
+        self.counts = BusCounts::default();
+    }
+
+    /// Video memory writes outside `allowed` (CPU offsets) are counted as
+    /// violations from now on; None allows everything. Clears past violations.
+    pub fn set_write_guard(&mut self, allowed: Option<Range<u16>>) {
+        self.guard.set(allowed);
+    }
+
+    /// Writes outside the guarded range since it was set.
+    pub fn guard_violations(&self) -> u64 {
+        self.guard.violations()
+    }
+
+    /// The offset of the first write outside the guarded range.
+    pub fn first_violation(&self) -> Option<u16> {
+        self.guard.first_violation()
+    }
+
+    // --- Bus internals.
+
+    fn port_write(&mut self, port: u16, value: u8) {
+        self.registers.write_port(port, value);
+        // Misc Output, Clocking Mode and the CRTC set the timing.
+        self.timing = CrtTiming::from_registers(&self.registers);
+    }
+
+    fn input_status_1(&mut self) -> u8 {
+        self.registers.reset_attribute_flip_flop();
+        let bits = self.timing.status_at(self.now_ns);
+        match self.retrace_stuck {
+            None => bits,
+            Some(true) => bits | status::VERTICAL_RETRACE,
+            Some(false) => bits & !status::VERTICAL_RETRACE,
+        }
+    }
+
+    fn vram_write(&mut self, offset: u16, value: u8) {
+        self.guard.check(offset);
+        self.memory.write(&self.registers, offset, value);
+    }
+}
+
+impl VgaBus for SoftVga {
+    fn write_port8(&mut self, port: u16, value: u8) {
+        self.counts.port_writes += 1;
+        self.advance_ns(PORT_ACCESS_NS);
+        self.port_write(port, value);
+    }
+
+    fn write_port16(&mut self, port: u16, value: u16) {
+        self.counts.port_writes += 1;
+        self.advance_ns(PORT_ACCESS_NS);
+        if port == VBE_DISPI_INDEX || port == VBE_DISPI_DATA {
+            self.registers.write_dispi(port, value);
+        } else {
+            let [low, high] = value.to_le_bytes();
+            self.port_write(port, low);
+            self.port_write(port.wrapping_add(1), high);
+        }
+    }
+
+    fn read_port8(&mut self, port: u16) -> u8 {
+        self.counts.port_reads += 1;
+        self.advance_ns(PORT_ACCESS_NS);
+        if port == self.registers.input_status_1_port() {
+            self.input_status_1()
+        } else {
+            self.registers.read_port(port)
+        }
+    }
+
+    fn write_vram8(&mut self, offset: u16, value: u8) {
+        self.counts.vram_writes += 1;
+        self.advance_ns(VRAM_ACCESS_NS);
+        self.vram_write(offset, value);
+    }
+
+    fn read_vram8(&mut self, offset: u16) -> u8 {
+        self.counts.vram_reads += 1;
+        self.advance_ns(VRAM_ACCESS_NS);
+        self.memory.read(&self.registers, offset)
+    }
+
+    fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
+        let end = (u32::from(offset) + u32::from(count)).min(CPU_WINDOW_BYTES);
+        let bytes = u64::from(end.saturating_sub(u32::from(offset)));
+        self.counts.vram_writes += bytes;
+        self.advance_ns(bytes * VRAM_ACCESS_NS);
+        for address in u32::from(offset)..end {
+            // Below CPU_WINDOW_BYTES, so it fits.
+            self.vram_write(address as u16, value);
+        }
+    }
+}

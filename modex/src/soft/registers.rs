@@ -1,0 +1,387 @@
+//! The register files of the software VGA and the decoding of its I/O ports.
+//!
+//! Unimplemented register bits read back as zero, as on QEMU's VGA. The CRTC
+//! and Input Status 1 answer at 0x3Dx or 0x3Bx as Misc Output bit 0 selects;
+//! the other range is not decoded (writes ignored, reads 0xFF).
+
+use crate::mode::ModeRegisters;
+use crate::palette::Rgb6;
+use crate::regs::{
+    ac, crtc, gc, misc, seq, vbe, ATTRIBUTE_DATA_READ, ATTRIBUTE_INDEX, CRTC_DATA, CRTC_DATA_MONO,
+    CRTC_INDEX, CRTC_INDEX_MONO, DAC_DATA, DAC_PIXEL_MASK, DAC_READ_INDEX, DAC_WRITE_INDEX,
+    GRAPHICS_DATA, GRAPHICS_INDEX, INPUT_STATUS_0, INPUT_STATUS_1, INPUT_STATUS_1_MONO,
+    MISC_OUTPUT_READ, MISC_OUTPUT_WRITE, SEQUENCER_DATA, SEQUENCER_INDEX, VBE_DISPI_DATA,
+    VBE_DISPI_INDEX,
+};
+
+/// Implemented bits of each sequencer register.
+const SEQUENCER_BITS: [u8; seq::COUNT] = [0x03, 0x3D, 0x0F, 0x3F, 0x0E];
+/// Implemented bits of each graphics controller register.
+const GRAPHICS_BITS: [u8; gc::COUNT] = [0x0F, 0x0F, 0x0F, 0x1F, 0x03, 0x7B, 0x0F, 0x0F, 0xFF];
+/// Implemented bits of the index registers.
+const SEQUENCER_INDEX_BITS: u8 = 0x07;
+const GRAPHICS_INDEX_BITS: u8 = 0x0F;
+const ATTRIBUTE_INDEX_BITS: u8 = 0x3F;
+/// Misc Output bit 4 does not exist.
+const MISC_OUTPUT_BITS: u8 = 0xEF;
+/// The DAC stores 6 bits per component.
+const DAC_COMPONENT_BITS: u8 = 0x3F;
+/// Feature Control: only bit 4 is kept (as QEMU does).
+const FEATURE_CONTROL_BITS: u8 = 0x10;
+/// DAC state register values: the last index written was the write or the read index.
+const DAC_STATE_WRITING: u8 = 0x00;
+const DAC_STATE_READING: u8 = 0x03;
+
+/// The monochrome and colour register ranges, 16 ports each.
+const MONO_PORT_RANGE: u16 = 0x3B0;
+const COLOR_PORT_RANGE: u16 = 0x3D0;
+const ADDRESSING_RANGE_OFFSET_BITS: u16 = 0x0F;
+
+/// Implemented bits of an Attribute Controller register.
+fn attribute_bits(index: u8) -> u8 {
+    match index {
+        ac::MODE_CONTROL => 0xEF,
+        ac::OVERSCAN_COLOR => 0xFF,
+        ac::HORIZONTAL_PIXEL_PANNING | ac::COLOR_SELECT => 0x0F,
+        // The palette registers and Color Plane Enable have 6 bits.
+        _ => 0x3F,
+    }
+}
+
+/// The 256-entry colour lookup and its index/data protocol.
+#[derive(Clone, Debug)]
+pub(super) struct Dac {
+    pub(super) palette: [Rgb6; 256],
+    pub(super) pixel_mask: u8,
+    write_index: u8,
+    read_index: u8,
+    /// Which of red, green, blue the next data access is (shared by reads and writes).
+    component: usize,
+    pending: Rgb6,
+    state: u8,
+}
+
+/// The Bochs VBE (DISPI) interface, modelled only as far as its enable.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Dispi {
+    index: u16,
+    pub(super) enable: u16,
+}
+
+/// Every VGA register.
+#[derive(Clone, Debug)]
+pub(super) struct Registers {
+    pub(super) misc_output: u8,
+    feature_control: u8,
+    sequencer_index: u8,
+    pub(super) sequencer: [u8; seq::COUNT],
+    crtc_index: u8,
+    pub(super) crtc: [u8; crtc::COUNT],
+    graphics_index: u8,
+    pub(super) graphics: [u8; gc::COUNT],
+    /// The Attribute Controller index as last written, Palette Address Source included.
+    pub(super) attribute_index: u8,
+    /// The flip-flop: the next write to 0x3C0 is data (else index).
+    attribute_expects_data: bool,
+    pub(super) attribute: [u8; ac::COUNT],
+    pub(super) dac: Dac,
+    pub(super) dispi: Dispi,
+}
+
+impl Registers {
+    /// The registers as `mode` programs them, the DAC loaded with `palette`
+    /// from entry 0 and the rest black.
+    pub(super) fn with_mode(mode: &ModeRegisters, palette: &[Rgb6]) -> Self {
+        let mut dac_palette = [[0; 3]; 256];
+        dac_palette[..palette.len()].copy_from_slice(palette);
+        Self {
+            misc_output: mode.misc_output,
+            feature_control: 0,
+            sequencer_index: 0,
+            sequencer: mode.sequencer,
+            crtc_index: 0,
+            crtc: mode.crtc,
+            graphics_index: 0,
+            graphics: mode.graphics,
+            attribute_index: ac::PALETTE_ADDRESS_SOURCE,
+            attribute_expects_data: false,
+            attribute: mode.attribute,
+            dac: Dac {
+                palette: dac_palette,
+                pixel_mask: 0xFF,
+                write_index: 0,
+                read_index: 0,
+                component: 0,
+                pending: [0; 3],
+                state: DAC_STATE_WRITING,
+            },
+            dispi: Dispi::default(),
+        }
+    }
+
+    /// The port of Input Status 1 under the current I/O addressing.
+    pub(super) fn input_status_1_port(&self) -> u16 {
+        if self.color_addressing() {
+            INPUT_STATUS_1
+        } else {
+            INPUT_STATUS_1_MONO
+        }
+    }
+
+    /// Reading Input Status 1 resets the attribute flip-flop to "index".
+    pub(super) fn reset_attribute_flip_flop(&mut self) {
+        self.attribute_expects_data = false;
+    }
+
+    fn color_addressing(&self) -> bool {
+        self.misc_output & misc::COLOR_IO_ADDRESSING != 0
+    }
+
+    /// Whether `port` answers: of the monochrome (0x3Bx) and colour (0x3Dx)
+    /// ranges, only the one Misc Output selects does.
+    fn decodes(&self, port: u16) -> bool {
+        let range = port & !ADDRESSING_RANGE_OFFSET_BITS;
+        let ignored = if self.color_addressing() {
+            MONO_PORT_RANGE
+        } else {
+            COLOR_PORT_RANGE
+        };
+        range != ignored
+    }
+
+    /// One byte written to `port` (Input Status 1 / Feature Control included).
+    pub(super) fn write_port(&mut self, port: u16, value: u8) {
+        if !self.decodes(port) {
+            return;
+        }
+        match port {
+            ATTRIBUTE_INDEX => self.write_attribute_port(value),
+            MISC_OUTPUT_WRITE => self.misc_output = value & MISC_OUTPUT_BITS,
+            SEQUENCER_INDEX => self.sequencer_index = value & SEQUENCER_INDEX_BITS,
+            SEQUENCER_DATA => {
+                let index = usize::from(self.sequencer_index);
+                if let (Some(register), Some(bits)) =
+                    (self.sequencer.get_mut(index), SEQUENCER_BITS.get(index))
+                {
+                    *register = value & bits;
+                }
+            }
+            DAC_PIXEL_MASK => self.dac.pixel_mask = value,
+            DAC_READ_INDEX => self.dac.start(value, DAC_STATE_READING),
+            DAC_WRITE_INDEX => self.dac.start(value, DAC_STATE_WRITING),
+            DAC_DATA => self.dac.write(value),
+            GRAPHICS_INDEX => self.graphics_index = value & GRAPHICS_INDEX_BITS,
+            GRAPHICS_DATA => {
+                let index = usize::from(self.graphics_index);
+                if let (Some(register), Some(bits)) =
+                    (self.graphics.get_mut(index), GRAPHICS_BITS.get(index))
+                {
+                    *register = value & bits;
+                }
+            }
+            CRTC_INDEX | CRTC_INDEX_MONO => self.crtc_index = value,
+            CRTC_DATA | CRTC_DATA_MONO => self.write_crtc(value),
+            INPUT_STATUS_1 | INPUT_STATUS_1_MONO => {
+                self.feature_control = value & FEATURE_CONTROL_BITS
+            }
+            VBE_DISPI_INDEX | VBE_DISPI_DATA => self.write_dispi(port, value.into()),
+            _ => {}
+        }
+    }
+
+    /// One byte read from `port`, except Input Status 1, which needs the clock.
+    pub(super) fn read_port(&mut self, port: u16) -> u8 {
+        if !self.decodes(port) {
+            return 0xFF;
+        }
+        match port {
+            ATTRIBUTE_INDEX if !self.attribute_expects_data => self.attribute_index,
+            ATTRIBUTE_DATA_READ => self
+                .attribute
+                .get(usize::from(self.attribute_index & ac::INDEX_MASK))
+                .copied()
+                .unwrap_or(0),
+            INPUT_STATUS_0 => 0,
+            SEQUENCER_INDEX => self.sequencer_index,
+            SEQUENCER_DATA => self
+                .sequencer
+                .get(usize::from(self.sequencer_index))
+                .copied()
+                .unwrap_or(0),
+            DAC_PIXEL_MASK => self.dac.pixel_mask,
+            DAC_READ_INDEX => self.dac.state,
+            DAC_WRITE_INDEX => self.dac.write_index,
+            DAC_DATA => self.dac.read(),
+            MISC_OUTPUT_READ => self.misc_output,
+            GRAPHICS_INDEX => self.graphics_index,
+            GRAPHICS_DATA => self
+                .graphics
+                .get(usize::from(self.graphics_index))
+                .copied()
+                .unwrap_or(0),
+            CRTC_INDEX | CRTC_INDEX_MONO => self.crtc_index,
+            CRTC_DATA | CRTC_DATA_MONO => self
+                .crtc
+                .get(usize::from(self.crtc_index))
+                .copied()
+                .unwrap_or(0),
+            VBE_DISPI_INDEX => self.dispi.index as u8,
+            VBE_DISPI_DATA => self.read_dispi() as u8,
+            _ => 0,
+        }
+    }
+
+    /// A 16-bit DISPI register access; VGA ports never get here.
+    pub(super) fn write_dispi(&mut self, port: u16, value: u16) {
+        match port {
+            VBE_DISPI_INDEX => self.dispi.index = value,
+            VBE_DISPI_DATA if self.dispi.index == vbe::INDEX_ENABLE => self.dispi.enable = value,
+            _ => {}
+        }
+    }
+
+    fn read_dispi(&self) -> u16 {
+        if self.dispi.index == vbe::INDEX_ENABLE {
+            self.dispi.enable
+        } else {
+            0
+        }
+    }
+
+    fn write_attribute_port(&mut self, value: u8) {
+        if self.attribute_expects_data {
+            let index = self.attribute_index & ac::INDEX_MASK;
+            if let Some(register) = self.attribute.get_mut(usize::from(index)) {
+                *register = value & attribute_bits(index);
+            }
+        } else {
+            self.attribute_index = value & ATTRIBUTE_INDEX_BITS;
+        }
+        self.attribute_expects_data = !self.attribute_expects_data;
+    }
+
+    fn write_crtc(&mut self, value: u8) {
+        let index = self.crtc_index;
+        let protected = self.crtc[usize::from(crtc::VERTICAL_RETRACE_END)] & crtc::PROTECT_0_7 != 0;
+        if protected && index <= crtc::OVERFLOW {
+            if index == crtc::OVERFLOW {
+                let overflow = &mut self.crtc[usize::from(crtc::OVERFLOW)];
+                *overflow = (*overflow & !crtc::OVERFLOW_LINE_COMPARE_8)
+                    | (value & crtc::OVERFLOW_LINE_COMPARE_8);
+            }
+            return;
+        }
+        if let Some(register) = self.crtc.get_mut(usize::from(index)) {
+            *register = value;
+        }
+    }
+
+    pub(super) fn sequencer(&self, index: u8) -> u8 {
+        self.sequencer[usize::from(index)]
+    }
+
+    pub(super) fn graphics(&self, index: u8) -> u8 {
+        self.graphics[usize::from(index)]
+    }
+
+    pub(super) fn crtc(&self, index: u8) -> u8 {
+        self.crtc[usize::from(index)]
+    }
+
+    /// The CRTC start address registers as they stand (not yet latched).
+    pub(super) fn start_address(&self) -> u16 {
+        u16::from_be_bytes([
+            self.crtc(crtc::START_ADDRESS_HIGH),
+            self.crtc(crtc::START_ADDRESS_LOW),
+        ])
+    }
+
+    /// A 10-bit vertical count: the `low` register, with bit 8 from Overflow
+    /// and bit 9 from another register (Overflow, or Maximum Scan Line for
+    /// line compare).
+    fn vertical_count(&self, low: u8, overflow_bit_8: u8, (high_register, bit_9): (u8, u8)) -> u16 {
+        let bit = |register: u8, mask: u8, value: u16| {
+            if self.crtc(register) & mask != 0 {
+                value
+            } else {
+                0
+            }
+        };
+        u16::from(self.crtc(low))
+            | bit(crtc::OVERFLOW, overflow_bit_8, 1 << 8)
+            | bit(high_register, bit_9, 1 << 9)
+    }
+
+    /// Vertical Total: lines per frame - 2.
+    pub(super) fn vertical_total(&self) -> u16 {
+        self.vertical_count(
+            crtc::VERTICAL_TOTAL,
+            crtc::OVERFLOW_VERTICAL_TOTAL_8,
+            (crtc::OVERFLOW, crtc::OVERFLOW_VERTICAL_TOTAL_9),
+        )
+    }
+
+    /// Vertical Display End: displayed lines - 1.
+    pub(super) fn vertical_display_end(&self) -> u16 {
+        self.vertical_count(
+            crtc::VERTICAL_DISPLAY_END,
+            crtc::OVERFLOW_VERTICAL_DISPLAY_END_8,
+            (crtc::OVERFLOW, crtc::OVERFLOW_VERTICAL_DISPLAY_END_9),
+        )
+    }
+
+    /// Vertical Retrace Start: the first line of vertical sync.
+    pub(super) fn vertical_retrace_start(&self) -> u16 {
+        self.vertical_count(
+            crtc::VERTICAL_RETRACE_START,
+            crtc::OVERFLOW_VERTICAL_RETRACE_START_8,
+            (crtc::OVERFLOW, crtc::OVERFLOW_VERTICAL_RETRACE_START_9),
+        )
+    }
+
+    /// Line Compare: after this scan line the display address restarts at 0.
+    pub(super) fn line_compare(&self) -> u16 {
+        self.vertical_count(
+            crtc::LINE_COMPARE,
+            crtc::OVERFLOW_LINE_COMPARE_8,
+            (crtc::MAXIMUM_SCAN_LINE, crtc::LINE_COMPARE_9),
+        )
+    }
+
+    /// Bochs VBE owns the display and the memory window.
+    pub(super) fn vbe_enabled(&self) -> bool {
+        self.dispi.enable & vbe::ENABLED != 0
+    }
+}
+
+impl Dac {
+    fn start(&mut self, index: u8, state: u8) {
+        if state == DAC_STATE_READING {
+            self.read_index = index;
+        } else {
+            self.write_index = index;
+        }
+        self.component = 0;
+        self.state = state;
+    }
+
+    fn write(&mut self, value: u8) {
+        self.pending[self.component] = value & DAC_COMPONENT_BITS;
+        self.component += 1;
+        if self.component == self.pending.len() {
+            self.palette[usize::from(self.write_index)] = self.pending;
+            self.write_index = self.write_index.wrapping_add(1);
+            self.component = 0;
+        }
+    }
+
+    fn read(&mut self) -> u8 {
+        let value = self.palette[usize::from(self.read_index)][self.component];
+        self.component += 1;
+        if self.component == self.pending.len() {
+            self.read_index = self.read_index.wrapping_add(1);
+            self.component = 0;
+        }
+        value
+    }
+}

@@ -1,0 +1,151 @@
+//! Scan-out: the picture the CRTC, Attribute Controller and DAC make of video
+//! memory, in 256-colour graphics modes (Mode X, and mode 13h by QEMU's
+//! compact chain-4 mapping).
+//!
+//! The model follows QEMU's renderer: memory is fetched at plane offset
+//! `start + line * Offset * 2 + x / 4`, plane `x % 4`, whatever the byte,
+//! word or doubleword addressing mode (QEMU applies those on CPU access), and
+//! each row is repeated Maximum Scan Line + 1 times (twice more with scan
+//! doubling). Line Compare resets the address to 0 as in QEMU. Not modelled:
+//! horizontal panning, preset row scan, the CGA/Hercules address wrapping of
+//! CRTC Mode Control bits 0-1, and the Attribute Controller's palette
+//! registers, which 256-colour modes bypass on QEMU (Mode X sets them to the
+//! identity anyway).
+
+use crate::regs::{ac, crtc, gc, seq, PLANE_COUNT};
+
+use super::memory::PLANE_BYTES;
+use super::SoftVga;
+
+/// In 256-colour modes each character clock (8 dots) shows 4 pixels, each 2 dots wide.
+const PIXELS_PER_CHARACTER: usize = 4;
+/// The Offset register counts words: two plane addresses each.
+const ADDRESSES_PER_OFFSET_UNIT: usize = 2;
+
+/// The displayed picture's layout in memory.
+struct Raster {
+    width: usize,
+    height: usize,
+    /// Displayed scan lines, each row repeated.
+    scan_lines: usize,
+    scan_lines_per_row: usize,
+    addresses_per_row: usize,
+    line_compare: usize,
+    start: usize,
+}
+
+/// QEMU's screendump expansion of a 6-bit DAC component to 8 bits: the six
+/// bits shifted up, the low bit copied into the two new ones.
+pub fn dac_6_to_8(component: u8) -> u8 {
+    let value = component & 0x3F;
+    let low_bit = value & 1;
+    (value << 2) | (low_bit << 1) | low_bit
+}
+
+impl SoftVga {
+    /// The displayed picture as DAC indices (pixel data before the DAC's pixel
+    /// mask), row by row; returns (width, height), or (0, 0) when the VGA is
+    /// not in a 256-colour graphics mode or Bochs VBE is on. Blanking does not
+    /// affect the indices (see [`SoftVga::video_enabled`]).
+    ///
+    /// # Panics
+    /// If `out` is smaller than width * height.
+    pub fn scanout_indices(&self, out: &mut [u8]) -> (usize, usize) {
+        let capacity = out.len();
+        self.scan(|pixel, index| out[pixel] = index, capacity)
+    }
+
+    /// The displayed picture as 8-bit RGB, expanded from the DAC's 6 bits as
+    /// QEMU's screendump does; black while video is blanked. Returns (width,
+    /// height) as [`SoftVga::scanout_indices`] does.
+    ///
+    /// # Panics
+    /// If `out` is smaller than width * height.
+    pub fn scanout_rgb(&self, out: &mut [[u8; 3]]) -> (usize, usize) {
+        let dac = &self.registers.dac;
+        let enabled = self.video_enabled();
+        let capacity = out.len();
+        self.scan(
+            |pixel, index| {
+                out[pixel] = if enabled {
+                    dac.palette[usize::from(index & dac.pixel_mask)].map(dac_6_to_8)
+                } else {
+                    [0; 3]
+                }
+            },
+            capacity,
+        )
+    }
+
+    /// Whether the screen shows video: the Attribute Controller's Palette
+    /// Address Source is set and the sequencer's screen-off bit is clear.
+    pub fn video_enabled(&self) -> bool {
+        self.registers.attribute_index & ac::PALETTE_ADDRESS_SOURCE != 0
+            && self.registers.sequencer(seq::CLOCKING_MODE) & seq::CLOCKING_SCREEN_OFF == 0
+    }
+
+    fn raster(&self) -> Option<Raster> {
+        let registers = &self.registers;
+        let graphics = registers.graphics(gc::MISC) & gc::MISC_GRAPHICS != 0;
+        let shift_256 = registers.graphics(gc::MODE) & gc::MODE_SHIFT_256 != 0;
+        if registers.vbe_enabled() || !graphics || !shift_256 {
+            return None;
+        }
+        let maximum_scan_line = registers.crtc(crtc::MAXIMUM_SCAN_LINE);
+        let doubling = if maximum_scan_line & crtc::SCAN_DOUBLING != 0 {
+            2
+        } else {
+            1
+        };
+        let scan_lines_per_row =
+            (usize::from(maximum_scan_line & crtc::MAXIMUM_SCAN_LINE_MASK) + 1) * doubling;
+        let scan_lines = usize::from(registers.vertical_display_end()) + 1;
+        Some(Raster {
+            width: (usize::from(registers.crtc(crtc::HORIZONTAL_DISPLAY_END)) + 1)
+                * PIXELS_PER_CHARACTER,
+            height: scan_lines / scan_lines_per_row,
+            scan_lines,
+            scan_lines_per_row,
+            addresses_per_row: usize::from(registers.crtc(crtc::OFFSET))
+                * ADDRESSES_PER_OFFSET_UNIT,
+            line_compare: usize::from(registers.line_compare()),
+            start: usize::from(self.displayed_start),
+        })
+    }
+
+    /// Calls `put(pixel number, DAC index)` for every displayed pixel.
+    fn scan(&self, mut put: impl FnMut(usize, u8), capacity: usize) -> (usize, usize) {
+        let Some(raster) = self.raster() else {
+            return (0, 0);
+        };
+        assert!(
+            capacity >= raster.width * raster.height,
+            "scan-out needs {} x {} pixels, the buffer holds {capacity}",
+            raster.width,
+            raster.height
+        );
+        let planes = &self.memory.planes;
+        let mut address = raster.start;
+        let mut repeats_left = raster.scan_lines_per_row - 1;
+        for scan_line in 0..raster.scan_lines {
+            let row = scan_line / raster.scan_lines_per_row;
+            // Each row once, from the first of its repeated scan lines.
+            if scan_line % raster.scan_lines_per_row == 0 && row < raster.height {
+                for x in 0..raster.width {
+                    let offset = (address + x / PLANE_COUNT) % PLANE_BYTES;
+                    put(row * raster.width + x, planes[x % PLANE_COUNT][offset]);
+                }
+            }
+            if repeats_left == 0 {
+                address += raster.addresses_per_row;
+                repeats_left = raster.scan_lines_per_row - 1;
+            } else {
+                repeats_left -= 1;
+            }
+            if scan_line == raster.line_compare {
+                address = 0;
+            }
+        }
+        (raster.width, raster.height)
+    }
+}

@@ -1,0 +1,132 @@
+//! The simulated clock's view of the CRT: frame timing derived from the
+//! registers, the beam position at a given time, and the Input Status 1 bits.
+//!
+//! The beam starts at the top left at time 0 and runs continuously; a change
+//! of timing registers re-times the whole history (as QEMU's precise retrace
+//! does), which may move the beam.
+
+use crate::regs::{crtc, misc, seq, status};
+
+use super::registers::Registers;
+
+/// Simulated cost of one port access (IN or OUT, 8 or 16 bits): ISA-speed I/O.
+pub const PORT_ACCESS_NS: u64 = 1000;
+/// Simulated cost of one byte of video memory access.
+pub const VRAM_ACCESS_NS: u64 = 100;
+
+const NANOS_PER_SECOND: u128 = 1_000_000_000;
+/// The dot clocks Misc Output selects; 2 and 3 are card-specific, and like
+/// QEMU the model gives them the 25 MHz clock.
+const DOT_CLOCK_HZ: [u64; 4] = [25_175_000, 28_322_000, 25_175_000, 25_175_000];
+/// Horizontal Total counts characters - 5.
+const HORIZONTAL_TOTAL_BIAS: u64 = 5;
+/// Vertical Total counts lines - 2.
+const VERTICAL_TOTAL_BIAS: u64 = 2;
+/// Vertical retrace ends on the line whose low 4 bits match Vertical Retrace
+/// End, so it lasts 1 to 16 lines.
+const RETRACE_END_COMPARE_LINES: u64 = 16;
+
+/// Frame timing in dots, characters and lines.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CrtTiming {
+    /// Dot clock, Hz.
+    pub dot_clock_hz: u64,
+    /// Dots per character clock (8 or 9).
+    pub dots_per_character: u64,
+    /// Characters per scan line, blanking included.
+    pub characters_per_line: u64,
+    /// Characters displayed per line.
+    pub display_characters: u64,
+    /// Scan lines per frame, blanking included.
+    pub lines_per_frame: u64,
+    /// Scan lines displayed.
+    pub display_lines: u64,
+    /// First line of vertical retrace.
+    pub retrace_start_line: u64,
+    /// Lines of vertical retrace.
+    pub retrace_lines: u64,
+}
+
+impl CrtTiming {
+    pub(super) fn from_registers(registers: &Registers) -> Self {
+        let clock_select =
+            (registers.misc_output & misc::CLOCK_SELECT_MASK) >> misc::CLOCK_SELECT_SHIFT;
+        let eight_dot = registers.sequencer(seq::CLOCKING_MODE) & seq::CLOCKING_8_DOT != 0;
+        let retrace_start_line = u64::from(registers.vertical_retrace_start());
+        let retrace_end_bits =
+            u64::from(registers.crtc(crtc::VERTICAL_RETRACE_END) & crtc::VERTICAL_RETRACE_END_MASK);
+        let retrace_lines =
+            match retrace_end_bits.wrapping_sub(retrace_start_line) % RETRACE_END_COMPARE_LINES {
+                0 => RETRACE_END_COMPARE_LINES,
+                lines => lines,
+            };
+        Self {
+            dot_clock_hz: DOT_CLOCK_HZ[usize::from(clock_select)],
+            dots_per_character: if eight_dot { 8 } else { 9 },
+            characters_per_line: u64::from(registers.crtc(crtc::HORIZONTAL_TOTAL))
+                + HORIZONTAL_TOTAL_BIAS,
+            display_characters: u64::from(registers.crtc(crtc::HORIZONTAL_DISPLAY_END)) + 1,
+            lines_per_frame: u64::from(registers.vertical_total()) + VERTICAL_TOTAL_BIAS,
+            display_lines: u64::from(registers.vertical_display_end()) + 1,
+            retrace_start_line,
+            retrace_lines,
+        }
+    }
+
+    fn dots_per_line(&self) -> u64 {
+        self.characters_per_line * self.dots_per_character
+    }
+
+    fn dots_per_frame(&self) -> u64 {
+        self.dots_per_line() * self.lines_per_frame
+    }
+
+    /// Length of a frame, rounded down to a nanosecond.
+    pub fn frame_ns(&self) -> u64 {
+        (u128::from(self.dots_per_frame()) * NANOS_PER_SECOND / u128::from(self.dot_clock_hz))
+            as u64
+    }
+
+    /// Dots since time 0.
+    fn dots_at(&self, ns: u64) -> u128 {
+        u128::from(ns) * u128::from(self.dot_clock_hz) / NANOS_PER_SECOND
+    }
+
+    /// (line, character) of the beam at `ns`.
+    fn beam_at(&self, ns: u64) -> (u64, u64) {
+        let dot_in_frame = (self.dots_at(ns) % u128::from(self.dots_per_frame())) as u64;
+        (
+            dot_in_frame / self.dots_per_line(),
+            dot_in_frame % self.dots_per_line() / self.dots_per_character,
+        )
+    }
+
+    /// Input Status 1 bits 0 (display disabled) and 3 (vertical retrace) at `ns`.
+    pub(super) fn status_at(&self, ns: u64) -> u8 {
+        let (line, character) = self.beam_at(ns);
+        let retrace =
+            (self.retrace_start_line..self.retrace_start_line + self.retrace_lines).contains(&line);
+        let blanking = line >= self.display_lines || character >= self.display_characters;
+        (if retrace { status::VERTICAL_RETRACE } else { 0 })
+            | (if blanking {
+                status::DISPLAY_DISABLED
+            } else {
+                0
+            })
+    }
+
+    /// Vertical retraces started in (0, `ns`]. A retrace start line beyond
+    /// the frame never comes.
+    pub(super) fn retraces_started_by(&self, ns: u64) -> u64 {
+        if self.retrace_start_line >= self.lines_per_frame {
+            return 0;
+        }
+        let first = u128::from(self.retrace_start_line * self.dots_per_line());
+        let dots = self.dots_at(ns);
+        if dots < first {
+            0
+        } else {
+            ((dots - first) / u128::from(self.dots_per_frame()) + 1) as u64
+        }
+    }
+}

@@ -1,0 +1,140 @@
+//! The fallback 80x25 colour text mode, set from scratch without the BIOS,
+//! with a caller-supplied 8x8 font shown in 9x16 cells.
+
+use crate::mode::TEXT_80X25;
+use crate::palette::EGA_PALETTE;
+use crate::regs::{crtc, gc, seq};
+use crate::{ModeX, VgaBus};
+
+/// Text columns.
+pub const TEXT_COLUMNS: u8 = 80;
+/// Text rows.
+pub const TEXT_ROWS: u8 = 25;
+
+const CELLS: u16 = TEXT_COLUMNS as u16 * TEXT_ROWS as u16;
+/// Each cell is a character byte (plane 0) and an attribute byte (plane 1),
+/// interleaved even/odd in the CPU's view.
+const BYTES_PER_CELL: u16 = 2;
+/// The font's glyphs are 8 rows high; each is shown twice to fill 16 scan lines.
+const GLYPH_ROWS: usize = 8;
+const SCAN_LINES_PER_GLYPH_ROW: u16 = 2;
+/// Plane 2 has room for 32 scan lines per character whatever the cell height.
+const GLYPH_SLOT_BYTES: u16 = 32;
+const GLYPH_SLOTS: u16 = 256;
+/// The font covers ASCII; other characters show as this.
+const REPLACEMENT_CHARACTER: u8 = b'?';
+const BLANK: u8 = b' ';
+/// Light grey on black.
+const DEFAULT_ATTRIBUTE: u8 = 0x07;
+
+/// Planes 0 and 1: characters and attributes.
+const TEXT_PLANES: u8 = 0x03;
+const CHARACTER_PLANE: u8 = 0x01;
+const ATTRIBUTE_PLANE: u8 = 0x02;
+/// Plane 2: the font.
+const FONT_PLANE: u8 = 0x04;
+const FONT_PLANE_INDEX: u8 = 2;
+
+/// Memory Mode for the font load: sequential addressing, no odd/even, no chain-4.
+const MEMORY_MODE_SEQUENTIAL: u8 = seq::MEMORY_EXTENDED | seq::MEMORY_ODD_EVEN_DISABLE;
+/// Graphics Misc while the CPU touches text memory: A0000 (64 KiB), because
+/// the bus reaches only that window. The text mode's own B8000 is restored
+/// after each access, so other code can use the standard address.
+const MISC_TEXT_AT_A0000: u8 = 0x06;
+/// Graphics Misc for the font load: A0000 (64 KiB), no odd/even chaining.
+const MISC_FONT_AT_A0000: u8 = 0x04;
+
+impl<B: VgaBus> ModeX<B> {
+    /// Switches to 80x25 colour text from any state, without the BIOS: the
+    /// standard mode 3 registers and EGA palette, `font` (128 ASCII glyphs,
+    /// row bit 7 leftmost) in plane 2 with each row shown twice, a blank
+    /// light-grey screen, and the cursor parked off screen.
+    pub fn set_text_mode(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
+        self.program(&TEXT_80X25);
+        self.load_dac(0, &EGA_PALETTE);
+        self.load_font(font);
+        self.with_text_window(|vga| {
+            vga.set_map_mask(CHARACTER_PLANE);
+            vga.bus.fill_vram(0, CELLS * BYTES_PER_CELL, BLANK);
+            vga.set_map_mask(ATTRIBUTE_PLANE);
+            vga.bus
+                .fill_vram(0, CELLS * BYTES_PER_CELL, DEFAULT_ATTRIBUTE);
+            vga.set_map_mask(TEXT_PLANES);
+        });
+        let [high, low] = CELLS.to_be_bytes();
+        self.write_crtc(crtc::CURSOR_LOCATION_HIGH, high);
+        self.write_crtc(crtc::CURSOR_LOCATION_LOW, low);
+    }
+
+    /// Writes `text` at (`row`, `col`) in text mode with `attribute`
+    /// (background << 4 | foreground), cut at the end of the line. Characters
+    /// outside ASCII show as '?'; a position off screen writes nothing.
+    pub fn write_text(&mut self, row: u8, col: u8, text: &str, attribute: u8) {
+        if row >= TEXT_ROWS || col >= TEXT_COLUMNS {
+            return;
+        }
+        let start = (u16::from(row) * u16::from(TEXT_COLUMNS) + u16::from(col)) * BYTES_PER_CELL;
+        let room = usize::from(TEXT_COLUMNS - col);
+        self.with_text_window(|vga| {
+            vga.set_map_mask(TEXT_PLANES);
+            for (offset, character) in (start..)
+                .step_by(usize::from(BYTES_PER_CELL))
+                .zip(text.chars().take(room))
+            {
+                let glyph = if character.is_ascii() {
+                    character as u8
+                } else {
+                    REPLACEMENT_CHARACTER
+                };
+                // Odd/even addressing: the even byte goes to plane 0, the odd to plane 1.
+                vga.bus.write_vram8(offset, glyph);
+                vga.bus.write_vram8(offset + 1, attribute);
+            }
+        });
+    }
+
+    /// Runs `access` with text memory mapped at A0000.
+    fn with_text_window(&mut self, access: impl FnOnce(&mut Self)) {
+        let misc = TEXT_80X25.graphics[usize::from(gc::MISC)];
+        self.set_graphics(gc::MISC, MISC_TEXT_AT_A0000);
+        access(self);
+        self.set_graphics(gc::MISC, misc);
+    }
+
+    /// Loads the font into plane 2 (glyph n at n * 32), rows doubled and the
+    /// unused slots blank, then restores text addressing.
+    fn load_font(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
+        // Plane 2 as plain sequential memory, the way the BIOS loads fonts.
+        self.write_sequencer(seq::RESET, seq::RESET_SYNCHRONOUS);
+        self.write_sequencer(seq::MAP_MASK, FONT_PLANE);
+        self.write_sequencer(seq::MEMORY_MODE, MEMORY_MODE_SEQUENTIAL);
+        self.write_sequencer(seq::RESET, seq::RESET_RUNNING);
+        self.write_graphics(gc::READ_MAP_SELECT, FONT_PLANE_INDEX);
+        self.write_graphics(gc::MODE, 0x00);
+        self.write_graphics(gc::MISC, MISC_FONT_AT_A0000);
+
+        self.bus.fill_vram(0, GLYPH_SLOTS * GLYPH_SLOT_BYTES, 0);
+        for (slot, glyph) in (0..)
+            .step_by(usize::from(GLYPH_SLOT_BYTES))
+            .zip(font.iter())
+        {
+            for (row, &bits) in (0..)
+                .step_by(usize::from(SCAN_LINES_PER_GLYPH_ROW))
+                .zip(glyph.iter())
+            {
+                self.bus
+                    .fill_vram(slot + row, SCAN_LINES_PER_GLYPH_ROW, bits);
+            }
+        }
+
+        // Back to the text mode's odd/even addressing.
+        self.write_sequencer(seq::RESET, seq::RESET_SYNCHRONOUS);
+        for index in [seq::MAP_MASK, seq::MEMORY_MODE] {
+            self.write_sequencer(index, TEXT_80X25.sequencer[usize::from(index)]);
+        }
+        self.write_sequencer(seq::RESET, seq::RESET_RUNNING);
+        for index in [gc::READ_MAP_SELECT, gc::MODE, gc::MISC] {
+            self.write_graphics(index, TEXT_80X25.graphics[usize::from(index)]);
+        }
+    }
+}
