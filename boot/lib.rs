@@ -7,3 +7,7 @@ pub mod qemu;
 
 pub use image::RgbImage;
 pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};
+
+/// The line the kernel prints on serial once its first picture is on screen
+/// and it is reading keys.
+pub const READY_LINE: &str = "screen: ready";

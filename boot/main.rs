@@ -94,7 +94,7 @@ fn run(args: Args) -> Result<ExitCode, String> {
 
     if !args.keys.is_empty() || args.screenshot.is_some() {
         let boot_time = if args.firmware == Firmware::Uefi { 120 } else { 60 };
-        qemu.wait_for_serial(READY_LINE, Duration::from_secs(boot_time)).map_err(|e| e.to_string())?;
+        qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(boot_time)).map_err(|e| e.to_string())?;
         for key in &args.keys {
             qemu.send_key(key).map_err(|e| format!("{e} (QEMU key names: a-z, 0-9, kp_0-kp_9, f1-f12, left, right, up, down, spc, esc, ret)"))?;
             std::thread::sleep(Duration::from_millis(150));
@@ -126,8 +126,6 @@ fn run(args: Args) -> Result<ExitCode, String> {
     })
 }
 
-/// The line the kernel prints once the demo is on screen and reading keys.
-const READY_LINE: &str = "demo: ready";
 
 fn main() -> ExitCode {
     match parse_args(std::env::args().skip(1)) {
