@@ -9,7 +9,8 @@ use std::path::PathBuf;
 fn main() {
     let out_dir = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let kernel = PathBuf::from(
-        std::env::var_os("CARGO_BIN_FILE_KERNEL_kernel").expect("cargo sets the kernel artifact path"),
+        std::env::var_os("CARGO_BIN_FILE_KERNEL_kernel")
+            .expect("cargo sets the kernel artifact path"),
     );
 
     let mut config = bootloader::BootConfig::default();
@@ -21,8 +22,12 @@ fn main() {
     builder.set_boot_config(&config);
     let bios = out_dir.join("bios.img");
     let uefi = out_dir.join("uefi.img");
-    builder.create_bios_image(&bios).expect("failed to create the BIOS disk image");
-    builder.create_uefi_image(&uefi).expect("failed to create the UEFI disk image");
+    builder
+        .create_bios_image(&bios)
+        .expect("failed to create the BIOS disk image");
+    builder
+        .create_uefi_image(&uefi)
+        .expect("failed to create the UEFI disk image");
 
     println!("cargo:rustc-env=BIOS_IMAGE={}", bios.display());
     println!("cargo:rustc-env=UEFI_IMAGE={}", uefi.display());

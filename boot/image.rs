@@ -20,8 +20,16 @@ impl fmt::Debug for RgbImage {
 
 impl RgbImage {
     pub fn new(width: usize, height: usize, pixels: Vec<[u8; 3]>) -> Self {
-        assert_eq!(pixels.len(), width * height, "pixel count must match the size");
-        RgbImage { width, height, pixels }
+        assert_eq!(
+            pixels.len(),
+            width * height,
+            "pixel count must match the size"
+        );
+        RgbImage {
+            width,
+            height,
+            pixels,
+        }
     }
 
     pub fn pixel(&self, x: usize, y: usize) -> [u8; 3] {
@@ -53,22 +61,37 @@ impl RgbImage {
         }
         at += 1; // the single whitespace byte before the raster
         if fields[0] != "P6" || fields[3] != "255" {
-            return Err(format!("not a binary 8-bit PPM (magic {}, maxval {})", fields[0], fields[3]));
+            return Err(format!(
+                "not a binary 8-bit PPM (magic {}, maxval {})",
+                fields[0], fields[3]
+            ));
         }
-        let parse = |s: &str| s.parse::<usize>().map_err(|_| format!("bad PPM size field {s:?}"));
+        let parse = |s: &str| {
+            s.parse::<usize>()
+                .map_err(|_| format!("bad PPM size field {s:?}"))
+        };
         let (width, height) = (parse(&fields[1])?, parse(&fields[2])?);
-        let raster = bytes.get(at..at + width * height * 3).ok_or("PPM raster is truncated")?;
+        let raster = bytes
+            .get(at..at + width * height * 3)
+            .ok_or("PPM raster is truncated")?;
         let pixels = raster.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
         Ok(RgbImage::new(width, height, pixels))
     }
 
     pub fn write_png(&self, path: &Path) -> Result<(), String> {
-        let file = std::fs::File::create(path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
-        let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), self.width as u32, self.height as u32);
+        let file = std::fs::File::create(path)
+            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+        let mut encoder = png::Encoder::new(
+            std::io::BufWriter::new(file),
+            self.width as u32,
+            self.height as u32,
+        );
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
         let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-        writer.write_image_data(self.pixels.as_flattened()).map_err(|e| e.to_string())
+        writer
+            .write_image_data(self.pixels.as_flattened())
+            .map_err(|e| e.to_string())
     }
 
     /// Undoes QEMU's doubling of a 320x240 Mode X picture into 640x480: every
@@ -94,7 +117,10 @@ impl RgbImage {
     }
 
     /// Where two pictures of the same size differ: the count and the first few.
-    pub fn differences(&self, other: &RgbImage) -> Result<Vec<(usize, usize, [u8; 3], [u8; 3])>, String> {
+    pub fn differences(
+        &self,
+        other: &RgbImage,
+    ) -> Result<Vec<(usize, usize, [u8; 3], [u8; 3])>, String> {
         if (self.width, self.height) != (other.width, other.height) {
             return Err(format!(
                 "sizes differ: {}x{} and {}x{}",
@@ -103,7 +129,14 @@ impl RgbImage {
         }
         Ok((0..self.pixels.len())
             .filter(|&i| self.pixels[i] != other.pixels[i])
-            .map(|i| (i % self.width, i / self.width, self.pixels[i], other.pixels[i]))
+            .map(|i| {
+                (
+                    i % self.width,
+                    i / self.width,
+                    self.pixels[i],
+                    other.pixels[i],
+                )
+            })
             .collect())
     }
 }
@@ -130,7 +163,17 @@ mod tests {
     #[test]
     fn halving_recovers_the_small_picture() {
         let small = RgbImage::new(2, 1, vec![[1, 2, 3], [4, 5, 6]]);
-        let big = RgbImage::new(4, 2, [small.pixels[0], small.pixels[0], small.pixels[1], small.pixels[1]].repeat(2));
+        let big = RgbImage::new(
+            4,
+            2,
+            [
+                small.pixels[0],
+                small.pixels[0],
+                small.pixels[1],
+                small.pixels[1],
+            ]
+            .repeat(2),
+        );
         assert_eq!(big.halve().unwrap(), small);
         assert_eq!(big.differences(&big).unwrap().len(), 0);
     }

@@ -31,20 +31,25 @@ pub fn publish() -> Result<Images, String> {
 fn publish_now() -> Result<Images, String> {
     let dir = images_dir();
     std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    let images = Images { bios: dir.join("bios.img"), uefi: dir.join("uefi.img") };
+    let images = Images {
+        bios: dir.join("bios.img"),
+        uefi: dir.join("uefi.img"),
+    };
     copy_if_changed(Path::new(BUILT_BIOS_IMAGE), &images.bios)?;
     copy_if_changed(Path::new(BUILT_UEFI_IMAGE), &images.uefi)?;
     Ok(images)
 }
 
 fn copy_if_changed(from: &Path, to: &Path) -> Result<(), String> {
-    let fresh = std::fs::read(from).map_err(|e| format!("cannot read the built image {}: {e}", from.display()))?;
+    let fresh = std::fs::read(from)
+        .map_err(|e| format!("cannot read the built image {}: {e}", from.display()))?;
     if std::fs::read(to).is_ok_and(|old| old == fresh) {
         return Ok(());
     }
     // Write then rename, so a concurrent reader (another test process) never
     // sees half an image.
     let partial = to.with_extension(format!("img.{}", std::process::id()));
-    std::fs::write(&partial, &fresh).map_err(|e| format!("cannot write {}: {e}", partial.display()))?;
+    std::fs::write(&partial, &fresh)
+        .map_err(|e| format!("cannot write {}: {e}", partial.display()))?;
     std::fs::rename(&partial, to).map_err(|e| format!("cannot rename to {}: {e}", to.display()))
 }

@@ -44,20 +44,30 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
         boot_option: None,
     };
     while let Some(arg) = args.next() {
-        let mut value = |name: &str| args.next().ok_or_else(|| format!("{name} needs a value; see --help"));
+        let mut value = |name: &str| {
+            args.next()
+                .ok_or_else(|| format!("{name} needs a value; see --help"))
+        };
         match arg.as_str() {
             "-h" | "--help" => return Ok(None),
             "--uefi" => parsed.firmware = Firmware::Uefi,
             "--headless" => parsed.headless = true,
             "--screenshot" => parsed.screenshot = Some(PathBuf::from(value("--screenshot")?)),
-            "--keys" => parsed.keys = value("--keys")?.split_whitespace().map(str::to_lowercase).collect(),
+            "--keys" => {
+                parsed.keys = value("--keys")?
+                    .split_whitespace()
+                    .map(str::to_lowercase)
+                    .collect()
+            }
             "--timeout" => {
                 let text = value("--timeout")?;
                 let seconds: f64 = text
                     .parse()
                     .ok()
                     .filter(|s: &f64| s.is_finite() && *s > 0.0)
-                    .ok_or_else(|| format!("--timeout takes a positive number of seconds, not {text:?}"))?;
+                    .ok_or_else(|| {
+                        format!("--timeout takes a positive number of seconds, not {text:?}")
+                    })?;
                 parsed.timeout = Some(Duration::from_secs_f64(seconds));
             }
             "--boot-option" => parsed.boot_option = Some(value("--boot-option")?),
@@ -68,7 +78,9 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
 }
 
 fn has_display() -> bool {
-    ["DISPLAY", "WAYLAND_DISPLAY"].iter().any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
 }
 
 fn run(args: Args) -> Result<ExitCode, String> {
@@ -86,15 +98,24 @@ fn run(args: Args) -> Result<ExitCode, String> {
     }
     let mut options = QemuOptions::new(&image);
     options.firmware = args.firmware;
-    options.display = if headless { Display::Headless } else { Display::Window };
+    options.display = if headless {
+        Display::Headless
+    } else {
+        Display::Window
+    };
     options.boot_option = args.boot_option.clone();
     options.echo_serial = true;
     println!("Booting {} ({:?})", image.display(), args.firmware);
     let mut qemu = Qemu::start(&options).map_err(|e| e.to_string())?;
 
     if !args.keys.is_empty() || args.screenshot.is_some() {
-        let boot_time = if args.firmware == Firmware::Uefi { 120 } else { 60 };
-        qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(boot_time)).map_err(|e| e.to_string())?;
+        let boot_time = if args.firmware == Firmware::Uefi {
+            120
+        } else {
+            60
+        };
+        qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(boot_time))
+            .map_err(|e| e.to_string())?;
         for key in &args.keys {
             qemu.send_key(key).map_err(|e| format!("{e} (QEMU key names: a-z, 0-9, kp_0-kp_9, f1-f12, left, right, up, down, spc, esc, ret)"))?;
             std::thread::sleep(Duration::from_millis(150));
@@ -104,7 +125,12 @@ fn run(args: Args) -> Result<ExitCode, String> {
             std::thread::sleep(Duration::from_millis(500));
             let picture = qemu.screendump().map_err(|e| e.to_string())?;
             picture.write_png(path)?;
-            println!("Saved a {}x{} screenshot to {}", picture.width, picture.height, path.display());
+            println!(
+                "Saved a {}x{} screenshot to {}",
+                picture.width,
+                picture.height,
+                path.display()
+            );
             return Ok(ExitCode::SUCCESS);
         }
     }
@@ -125,7 +151,6 @@ fn run(args: Args) -> Result<ExitCode, String> {
         }
     })
 }
-
 
 fn main() -> ExitCode {
     match parse_args(std::env::args().skip(1)) {

@@ -140,19 +140,28 @@ pub struct Qemu {
 impl Qemu {
     pub fn start(options: &QemuOptions) -> Result<Qemu> {
         check_installed(options.firmware)?;
-        let scratch = tempdir::Dir::new().map_err(|e| QemuError::Io(format!("cannot make a scratch dir: {e}")))?;
+        let scratch = tempdir::Dir::new()
+            .map_err(|e| QemuError::Io(format!("cannot make a scratch dir: {e}")))?;
         let monitor_path = scratch.path().join("monitor.sock");
 
         let mut command = Command::new(QEMU_BINARY);
         command
             .arg("-drive")
-            .arg(format!("format=raw,file={},snapshot=on", options.image.display()))
+            .arg(format!(
+                "format=raw,file={},snapshot=on",
+                options.image.display()
+            ))
             .args(["-m", "256M", "-no-reboot", "-serial", "stdio"])
             .args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"])
             .arg("-qmp")
-            .arg(format!("unix:{},server=on,wait=off", monitor_path.display()));
+            .arg(format!(
+                "unix:{},server=on,wait=off",
+                monitor_path.display()
+            ));
         match options.graphics {
-            Graphics::StdVga if options.precise_retrace => command.args(["-vga", "std,retrace=precise"]),
+            Graphics::StdVga if options.precise_retrace => {
+                command.args(["-vga", "std,retrace=precise"])
+            }
             Graphics::StdVga => command.args(["-vga", "std"]),
             Graphics::BochsDisplay => command.args(["-vga", "none", "-device", "bochs-display"]),
         };
@@ -163,19 +172,37 @@ impl Qemu {
             command.args(["-display", "none"]);
         }
         if let Some(option) = &options.boot_option {
-            command.arg("-fw_cfg").arg(format!("name=opt/modex/boot,string={option}"));
+            command
+                .arg("-fw_cfg")
+                .arg(format!("name=opt/modex/boot,string={option}"));
         }
-        command.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+        command
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
 
         let mut child = command
             .spawn()
             .map_err(|e| QemuError::NotInstalled(format!("cannot start {QEMU_BINARY}: {e}")))?;
         let serial = Arc::new(SerialLog::default());
-        spawn_reader(child.stdout.take().expect("stdout is piped"), Arc::clone(&serial), options.echo_serial);
-        spawn_reader(child.stderr.take().expect("stderr is piped"), Arc::clone(&serial), true);
+        spawn_reader(
+            child.stdout.take().expect("stdout is piped"),
+            Arc::clone(&serial),
+            options.echo_serial,
+        );
+        spawn_reader(
+            child.stderr.take().expect("stderr is piped"),
+            Arc::clone(&serial),
+            true,
+        );
 
         let monitor = connect_monitor(&monitor_path, &mut child, &serial)?;
-        let mut qemu = Qemu { child, serial, monitor: BufReader::new(monitor), scratch };
+        let mut qemu = Qemu {
+            child,
+            serial,
+            monitor: BufReader::new(monitor),
+            scratch,
+        };
         qemu.read_reply()?; // the greeting
         qemu.execute(r#"{"execute":"qmp_capabilities"}"#)?;
         Ok(qemu)
@@ -192,7 +219,12 @@ impl Qemu {
     }
 
     /// Waits until `needle` has appeared `count` times on the serial console.
-    pub fn wait_for_serial_count(&mut self, needle: &str, count: usize, timeout: Duration) -> Result<String> {
+    pub fn wait_for_serial_count(
+        &mut self,
+        needle: &str,
+        count: usize,
+        timeout: Duration,
+    ) -> Result<String> {
         let deadline = Instant::now() + timeout;
         let mut text = self.serial.text.lock().unwrap();
         loop {
@@ -223,7 +255,9 @@ impl Qemu {
             .map_err(|e| QemuError::Monitor(format!("QMP write failed: {e}")))?;
         let reply = self.read_reply()?;
         if reply.contains("\"error\"") {
-            return Err(QemuError::Monitor(format!("QEMU refused {command}: {reply}")));
+            return Err(QemuError::Monitor(format!(
+                "QEMU refused {command}: {reply}"
+            )));
         }
         Ok(reply)
     }
@@ -231,8 +265,13 @@ impl Qemu {
     /// Presses and releases a key, named as QEMU's `sendkey` names keys
     /// (`a`, `4`, `kp_4`, `f1`, `left`, `esc`, `spc`, `shift-a`, ...).
     pub fn send_key(&mut self, key: &str) -> Result<()> {
-        if !key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') {
-            return Err(QemuError::Monitor(format!("{key:?} is not a QEMU key name")));
+        if !key
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+        {
+            return Err(QemuError::Monitor(format!(
+                "{key:?} is not a QEMU key name"
+            )));
         }
         let command = format!(
             r#"{{"execute":"human-monitor-command","arguments":{{"command-line":"sendkey {key}"}}}}"#
@@ -251,10 +290,16 @@ impl Qemu {
     pub fn screendump(&mut self) -> Result<RgbImage> {
         let path = self.scratch.path().join("screen.ppm");
         let _ = std::fs::remove_file(&path);
-        let command = format!(r#"{{"execute":"screendump","arguments":{{"filename":"{}"}}}}"#, path.display());
+        let command = format!(
+            r#"{{"execute":"screendump","arguments":{{"filename":"{}"}}}}"#,
+            path.display()
+        );
         let reply = self.execute(&command)?;
-        let bytes = std::fs::read(&path)
-            .map_err(|e| QemuError::Monitor(format!("screendump wrote no file ({e}); QEMU said: {reply}")))?;
+        let bytes = std::fs::read(&path).map_err(|e| {
+            QemuError::Monitor(format!(
+                "screendump wrote no file ({e}); QEMU said: {reply}"
+            ))
+        })?;
         RgbImage::from_ppm(&bytes).map_err(QemuError::Monitor)
     }
 
@@ -262,7 +307,11 @@ impl Qemu {
     pub fn wait_exit(&mut self, timeout: Duration) -> Result<Option<ExitStatus>> {
         let deadline = Instant::now() + timeout;
         loop {
-            if let Some(status) = self.child.try_wait().map_err(|e| QemuError::Io(e.to_string()))? {
+            if let Some(status) = self
+                .child
+                .try_wait()
+                .map_err(|e| QemuError::Io(e.to_string()))?
+            {
                 return Ok(Some(status));
             }
             if Instant::now() >= deadline {
@@ -281,7 +330,12 @@ impl Qemu {
         loop {
             let mut line = String::new();
             match self.monitor.read_line(&mut line) {
-                Ok(0) => return Err(QemuError::Exited(format!("QEMU closed its monitor; console:\n{}", self.serial()))),
+                Ok(0) => {
+                    return Err(QemuError::Exited(format!(
+                        "QEMU closed its monitor; console:\n{}",
+                        self.serial()
+                    )))
+                }
                 Ok(_) if line.starts_with("{\"event\"") => continue,
                 Ok(_) => return Ok(line.trim_end().to_owned()),
                 Err(e) => return Err(QemuError::Monitor(format!("QMP read failed: {e}"))),
@@ -326,10 +380,14 @@ fn connect_monitor(path: &Path, child: &mut Child, log: &SerialLog) -> Result<Un
                 if let Ok(Some(status)) = child.try_wait() {
                     std::thread::sleep(Duration::from_millis(100)); // let the reader collect stderr
                     let output = log.text.lock().unwrap().clone();
-                    return Err(QemuError::Exited(format!("QEMU exited at start ({status}): {output}")));
+                    return Err(QemuError::Exited(format!(
+                        "QEMU exited at start ({status}): {output}"
+                    )));
                 }
                 if Instant::now() >= deadline {
-                    return Err(QemuError::Timeout(format!("QEMU's monitor socket never opened: {e}")));
+                    return Err(QemuError::Timeout(format!(
+                        "QEMU's monitor socket never opened: {e}"
+                    )));
                 }
                 std::thread::sleep(Duration::from_millis(20));
             }
@@ -347,7 +405,11 @@ mod tempdir {
     impl Dir {
         pub fn new() -> std::io::Result<Dir> {
             static NEXT: AtomicU32 = AtomicU32::new(0);
-            let name = format!("modex-cube-{}-{}", std::process::id(), NEXT.fetch_add(1, Ordering::Relaxed));
+            let name = format!(
+                "modex-cube-{}-{}",
+                std::process::id(),
+                NEXT.fetch_add(1, Ordering::Relaxed)
+            );
             let path = std::env::temp_dir().join(name);
             std::fs::create_dir_all(&path)?;
             Ok(Dir(path))

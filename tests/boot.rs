@@ -18,8 +18,13 @@ fn boot(option: Option<&str>) -> Qemu {
 #[test]
 fn kernel_boots_and_prints_its_banner() {
     let mut qemu = boot(None);
-    let console = qemu.wait_for_serial("kernel: initialised", BOOT_TIMEOUT).unwrap();
-    assert!(console.contains(&format!("modex-cube kernel v{}", env!("CARGO_PKG_VERSION"))), "{console}");
+    let console = qemu
+        .wait_for_serial("kernel: initialised", BOOT_TIMEOUT)
+        .unwrap();
+    assert!(
+        console.contains(&format!("modex-cube kernel v{}", env!("CARGO_PKG_VERSION"))),
+        "{console}"
+    );
 }
 
 /// Each fault is reported on serial, then the kernel halts: QEMU (started with
@@ -27,8 +32,15 @@ fn kernel_boots_and_prints_its_banner() {
 fn assert_reported_and_halted(option: &str, report: &str) {
     let mut qemu = boot(Some(option));
     let console = qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
-    assert!(console.contains(report), "expected {report:?} for {option}; console:\n{console}");
-    assert_eq!(qemu.wait_exit(Duration::from_secs(2)).unwrap(), None, "QEMU ended: the kernel rebooted or died");
+    assert!(
+        console.contains(report),
+        "expected {report:?} for {option}; console:\n{console}"
+    );
+    assert_eq!(
+        qemu.wait_exit(Duration::from_secs(2)).unwrap(),
+        None,
+        "QEMU ended: the kernel rebooted or died"
+    );
     assert!(qemu.is_running());
 }
 
@@ -44,7 +56,10 @@ fn page_fault_is_reported_with_its_address() {
 
 #[test]
 fn general_protection_fault_is_reported() {
-    assert_reported_and_halted("fault=general-protection", "EXCEPTION: general protection fault");
+    assert_reported_and_halted(
+        "fault=general-protection",
+        "EXCEPTION: general protection fault",
+    );
 }
 
 #[test]
@@ -60,15 +75,23 @@ fn panic_is_reported_and_the_kernel_halts() {
 #[test]
 fn breakpoint_is_reported_and_execution_resumes() {
     let mut qemu = boot(Some("fault=breakpoint"));
-    let console = qemu.wait_for_serial("breakpoint: resumed", BOOT_TIMEOUT).unwrap();
+    let console = qemu
+        .wait_for_serial("breakpoint: resumed", BOOT_TIMEOUT)
+        .unwrap();
     assert!(console.contains("EXCEPTION: breakpoint"), "{console}");
 }
 
 #[test]
 fn the_host_sees_the_debug_exit_codes() {
-    for (option, code) in [("exit=success", EXIT_SUCCESS), ("exit=failure", EXIT_FAILURE)] {
+    for (option, code) in [
+        ("exit=success", EXIT_SUCCESS),
+        ("exit=failure", EXIT_FAILURE),
+    ] {
         let mut qemu = boot(Some(option));
-        let status = qemu.wait_exit(BOOT_TIMEOUT).unwrap().expect("the kernel ended QEMU");
+        let status = qemu
+            .wait_exit(BOOT_TIMEOUT)
+            .unwrap()
+            .expect("the kernel ended QEMU");
         assert_eq!(status.code(), Some(code), "{option}");
     }
 }

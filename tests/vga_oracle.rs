@@ -35,8 +35,14 @@ fn model_picture(flips: u8) -> RgbImage {
 }
 
 fn assert_same_picture(qemu_picture: &RgbImage, model: &RgbImage, what: &str) {
-    assert_eq!((qemu_picture.width, qemu_picture.height), (640, 480), "{what}: QEMU is not showing 640x480");
-    let halved = qemu_picture.halve().unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert_eq!(
+        (qemu_picture.width, qemu_picture.height),
+        (640, 480),
+        "{what}: QEMU is not showing 640x480"
+    );
+    let halved = qemu_picture
+        .halve()
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
     let differences = halved.differences(model).unwrap();
     if !differences.is_empty() {
         let dir = boot::images::images_dir();
@@ -54,16 +60,27 @@ fn assert_same_picture(qemu_picture: &RgbImage, model: &RgbImage, what: &str) {
 #[test]
 fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
     let mut qemu = boot("test-pattern");
-    qemu.wait_for_serial("pattern: page 0 shown", BOOT_TIMEOUT).unwrap();
+    qemu.wait_for_serial("pattern: page 0 shown", BOOT_TIMEOUT)
+        .unwrap();
     assert_same_picture(&qemu.screendump().unwrap(), &model_picture(0), "page 0");
 
     qemu.send_key("spc").unwrap();
-    qemu.wait_for_serial("pattern: page 1 shown", BOOT_TIMEOUT).unwrap();
-    assert_same_picture(&qemu.screendump().unwrap(), &model_picture(1), "page 1 after a flip");
+    qemu.wait_for_serial("pattern: page 1 shown", BOOT_TIMEOUT)
+        .unwrap();
+    assert_same_picture(
+        &qemu.screendump().unwrap(),
+        &model_picture(1),
+        "page 1 after a flip",
+    );
 
     qemu.send_key("spc").unwrap();
-    qemu.wait_for_serial_count("pattern: page 0 shown", 2, BOOT_TIMEOUT).unwrap();
-    assert_same_picture(&qemu.screendump().unwrap(), &model_picture(2), "page 0 after flipping back");
+    qemu.wait_for_serial_count("pattern: page 0 shown", 2, BOOT_TIMEOUT)
+        .unwrap();
+    assert_same_picture(
+        &qemu.screendump().unwrap(),
+        &model_picture(2),
+        "page 0 after flipping back",
+    );
 }
 
 /// With `-vga std,retrace=precise` QEMU times Input Status 1 from the CRTC
@@ -72,7 +89,10 @@ fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
 fn page_flips_follow_vertical_retrace_at_about_60_hz() {
     let mut qemu = boot("flip-rate");
     let console = qemu.wait_for_serial("wait timeouts", BOOT_TIMEOUT).unwrap();
-    let line = console.lines().find(|l| l.starts_with("flip-rate:")).expect("a flip-rate line");
+    let line = console
+        .lines()
+        .find(|l| l.starts_with("flip-rate:"))
+        .expect("a flip-rate line");
     let hertz: f64 = line
         .split(" = ")
         .nth(1)
@@ -80,6 +100,9 @@ fn page_flips_follow_vertical_retrace_at_about_60_hz() {
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("cannot read the rate from {line:?}"));
     println!("{line}");
-    assert!((50.0..=62.0).contains(&hertz), "flip rate {hertz} Hz is not about 60 Hz: {line}");
+    assert!(
+        (50.0..=62.0).contains(&hertz),
+        "flip rate {hertz} Hz is not about 60 Hz: {line}"
+    );
     assert!(line.ends_with(", 0 wait timeouts"), "{line}");
 }

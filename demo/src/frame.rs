@@ -8,7 +8,12 @@ use engine::{fill_convex_polygon, ClipRect, Point};
 use modex::{FlipReport, ModeX, Page, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 const BACKGROUND: u8 = 0;
-pub const SCREEN_CLIP: ClipRect = ClipRect { x0: 0, y0: 0, x1: SCREEN_WIDTH, y1: SCREEN_HEIGHT };
+pub const SCREEN_CLIP: ClipRect = ClipRect {
+    x0: 0,
+    y0: 0,
+    x1: SCREEN_WIDTH,
+    y1: SCREEN_HEIGHT,
+};
 
 /// A half-open screen rectangle [x0, x1) x [y0, y1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -23,7 +28,12 @@ impl Extent {
     /// The pixels a polygon's fill can touch: its vertices' bounding box (right
     /// and bottom edges excluded, as the filler excludes them), clipped.
     fn of_polygon(points: &[Point]) -> Option<Extent> {
-        let mut extent = Extent { x0: i32::MAX, y0: i32::MAX, x1: i32::MIN, y1: i32::MIN };
+        let mut extent = Extent {
+            x0: i32::MAX,
+            y0: i32::MAX,
+            x1: i32::MIN,
+            y1: i32::MIN,
+        };
         for p in points {
             extent.x0 = extent.x0.min(p.x);
             extent.y0 = extent.y0.min(p.y);
@@ -73,7 +83,10 @@ impl Default for Renderer {
 impl Renderer {
     /// Expects both pages blank and page 0 shown, as `ModeX::set_mode` leaves them.
     pub const fn new() -> Self {
-        Renderer { shown: Page(0), drawn: [None, None] }
+        Renderer {
+            shown: Page(0),
+            drawn: [None, None],
+        }
     }
 
     pub fn shown_page(&self) -> Page {

@@ -1,7 +1,17 @@
 //! The culled-cube demo, free of hardware: the scene, the key-to-command map,
-//! the scancode queue and the frame loop. The kernel supplies a bus and keys.
+//! the scancode queue, the frame renderer and the app that ties them together.
+//! The kernel supplies a VGA bus and scancodes; the host tests supply a
+//! software VGA and the same scancodes.
 
 #![no_std]
+#![forbid(unsafe_code)]
 
+#[cfg(test)]
+extern crate std;
+
+pub mod app;
+pub mod frame;
+pub mod keymap;
 pub mod pattern;
 pub mod queue;
+pub mod scene;

@@ -20,7 +20,10 @@ pub fn draw<B: VgaBus>(vga: &mut ModeX<B>, page: Page) {
     vga.clear_page(page, 0);
     // All 256 palette colours, 32 to a row.
     for colour in 0..=255u8 {
-        let (column, row) = (i32::from(colour) % SWATCH_COLUMNS, i32::from(colour) / SWATCH_COLUMNS);
+        let (column, row) = (
+            i32::from(colour) % SWATCH_COLUMNS,
+            i32::from(colour) / SWATCH_COLUMNS,
+        );
         let (x, y) = (column * SWATCH_WIDTH, SWATCH_TOP + row * SWATCH_HEIGHT);
         vga.fill_rect(page, x, y, x + SWATCH_WIDTH, y + SWATCH_HEIGHT, colour);
     }
@@ -35,10 +38,31 @@ pub fn draw<B: VgaBus>(vga: &mut ModeX<B>, page: Page) {
     }
     // A marker whose place says which page this is.
     let marker_x = 20 + 40 * i32::from(page.0);
-    vga.fill_rect(page, marker_x, MARKER_TOP, marker_x + MARKER_SIZE, MARKER_TOP + MARKER_SIZE, 40 + page.0);
+    vga.fill_rect(
+        page,
+        marker_x,
+        MARKER_TOP,
+        marker_x + MARKER_SIZE,
+        MARKER_TOP + MARKER_SIZE,
+        40 + page.0,
+    );
     // The frame, one pixel wide, on the outermost rows and columns.
     vga.fill_rect(page, 0, 0, SCREEN_WIDTH, 1, WHITE);
-    vga.fill_rect(page, 0, SCREEN_HEIGHT - 1, SCREEN_WIDTH, SCREEN_HEIGHT, WHITE);
+    vga.fill_rect(
+        page,
+        0,
+        SCREEN_HEIGHT - 1,
+        SCREEN_WIDTH,
+        SCREEN_HEIGHT,
+        WHITE,
+    );
     vga.fill_rect(page, 0, 0, 1, SCREEN_HEIGHT, WHITE);
-    vga.fill_rect(page, SCREEN_WIDTH - 1, 0, SCREEN_WIDTH, SCREEN_HEIGHT, WHITE);
+    vga.fill_rect(
+        page,
+        SCREEN_WIDTH - 1,
+        0,
+        SCREEN_WIDTH,
+        SCREEN_HEIGHT,
+        WHITE,
+    );
 }

@@ -37,7 +37,8 @@ impl ScancodeQueue {
             return false;
         }
         self.bytes[written % CAPACITY].store(byte, Ordering::Relaxed);
-        self.written.store(written.wrapping_add(1), Ordering::Release);
+        self.written
+            .store(written.wrapping_add(1), Ordering::Release);
         true
     }
 

@@ -1,1 +1,28 @@
+//! The portable 3-D core, in the order a vertex meets it: an object's vertices
+//! are transformed from object space to world (= view) space, perspective
+//! projected to screen coordinates, faces that point away from the viewer are
+//! culled, and the rest are scan-converted into clipped horizontal spans.
+//!
+//! No hardware, no heap, no `unsafe`: the kernel and the host tests run the
+//! very same code.
+
 #![no_std]
+#![forbid(unsafe_code)]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod cull;
+pub mod math;
+pub mod object;
+pub mod project;
+pub mod raster;
+pub mod reference;
+pub mod xform;
+
+pub use cull::is_front_facing;
+pub use math::{Point, Vec3};
+pub use object::{Face, Model, Object, MAX_FACE_VERTICES, MAX_VERTICES};
+pub use project::{project_to_screen, PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
+pub use raster::{fill_convex_polygon, ClipRect};
+pub use xform::Xform;

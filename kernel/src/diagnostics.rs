@@ -42,7 +42,8 @@ pub fn flip_rate<B: VgaBus>(vga: &mut ModeX<B>) {
     while pit::millis() - start < FLIP_RATE_MILLIS {
         let report = vga.show_page(Page((flips % 2) as u8));
         flips += 1;
-        timeouts += u64::from(report.display_wait_timed_out) + u64::from(report.retrace_wait_timed_out);
+        timeouts +=
+            u64::from(report.display_wait_timed_out) + u64::from(report.retrace_wait_timed_out);
     }
     let elapsed = pit::millis() - start;
     let millihertz = flips * 1_000_000 / elapsed.max(1);

@@ -1,14 +1,66 @@
 //! The end of the line: every CPU exception that cannot be resumed, and every
-//! panic, is reported here on serial and the CPU halts for good. Halting (rather
-//! than returning or rebooting) keeps the report readable and avoids a triple
-//! fault's reboot loop.
+//! panic, is reported here on serial and on screen (80x25 text, white on red),
+//! and the CPU halts for good. Halting, rather than returning or rebooting,
+//! keeps the report readable and avoids a triple fault's reboot loop.
 
+use core::fmt::{self, Write};
+use core::sync::atomic::{AtomicU64, Ordering};
 use x86_64::structures::idt::InterruptStackFrame;
 
-pub fn halt_with(kind: &str, frame: &InterruptStackFrame, error: Option<u64>, address: Option<u64>) -> ! {
-    crate::serial::force_unlock();
-    crate::serial_println!("EXCEPTION: {}", kind);
-    crate::serial_println!(
+/// Where physical memory is mapped, once the kernel knows that a legacy VGA is
+/// there to show a report on; zero until then.
+static SCREEN_PHYSICAL_OFFSET: AtomicU64 = AtomicU64::new(0);
+
+/// From now on, fault reports also go to the VGA screen.
+pub fn report_on_screen(physical_memory_offset: u64) {
+    SCREEN_PHYSICAL_OFFSET.store(physical_memory_offset, Ordering::Relaxed);
+}
+
+const REPORT_LINES: usize = 4;
+const LINE_BYTES: usize = modex::TEXT_COLUMNS as usize;
+const WHITE_ON_RED: u8 = 0x4F;
+
+/// A screen line built without a heap; text past the line's end is cut.
+struct Line {
+    bytes: [u8; LINE_BYTES],
+    len: usize,
+}
+
+impl Line {
+    const fn new() -> Self {
+        Line {
+            bytes: [b' '; LINE_BYTES],
+            len: 0,
+        }
+    }
+
+    fn as_str(&self) -> &str {
+        core::str::from_utf8(&self.bytes[..self.len]).unwrap_or("?")
+    }
+}
+
+impl Write for Line {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        for &byte in s.as_bytes() {
+            if self.len < LINE_BYTES && byte.is_ascii() {
+                self.bytes[self.len] = byte;
+                self.len += 1;
+            }
+        }
+        Ok(())
+    }
+}
+
+pub fn halt_with(
+    kind: &str,
+    frame: &InterruptStackFrame,
+    error: Option<u64>,
+    address: Option<u64>,
+) -> ! {
+    let mut lines = [const { Line::new() }; REPORT_LINES];
+    let _ = write!(lines[0], "EXCEPTION: {}", kind);
+    let _ = write!(
+        lines[1],
         "  rip={:#x} cs={:#x} rflags={:#x} rsp={:#x} ss={:#x}",
         frame.instruction_pointer.as_u64(),
         frame.code_segment.0,
@@ -17,12 +69,66 @@ pub fn halt_with(kind: &str, frame: &InterruptStackFrame, error: Option<u64>, ad
         frame.stack_segment.0
     );
     if let Some(error) = error {
-        crate::serial_println!("  error code={:#x}", error);
+        let _ = write!(lines[2], "  error code={:#x}", error);
     }
     if let Some(address) = address {
-        crate::serial_println!("  address={:#x}", address);
+        let _ = write!(lines[3], "  address={:#x}", address);
     }
+    report(&lines)
+}
+
+pub fn halt_with_panic(info: &core::panic::PanicInfo) -> ! {
+    let mut lines = [const { Line::new() }; REPORT_LINES];
+    let _ = write!(lines[0], "PANIC: {}", info.message());
+    if let Some(location) = info.location() {
+        let _ = write!(
+            lines[1],
+            "  at {}:{}:{}",
+            location.file(),
+            location.line(),
+            location.column()
+        );
+    }
+    report(&lines)
+}
+
+fn report(lines: &[Line]) -> ! {
+    crate::serial::force_unlock();
+    for line in lines.iter().filter(|l| l.len > 0) {
+        crate::serial_println!("{}", line.as_str());
+    }
+    show_on_screen(lines);
     halt_forever()
+}
+
+/// Switches the VGA to text mode and writes the report, if a VGA is known to
+/// be there. The interrupted code may have been half-way through a register
+/// write; the mode set starts from scratch, so that does not matter.
+fn show_on_screen(lines: &[Line]) {
+    let offset = SCREEN_PHYSICAL_OFFSET.swap(0, Ordering::Relaxed);
+    if offset == 0 {
+        return;
+    }
+    // SAFETY: the offset was recorded by the kernel after it found legacy VGA
+    // through this mapping; nothing else runs after a fault, so the bus is ours.
+    let bus = unsafe { crate::vga_bus::PortBus::new(offset) };
+    let mut vga = modex::ModeX::new(bus);
+    vga.set_text_mode(&crate::goodbye::FONT);
+    vga.write_text(
+        1,
+        2,
+        "modex-cube stopped. The report (also on serial):",
+        WHITE_ON_RED,
+    );
+    for (row, line) in lines.iter().enumerate() {
+        vga.write_text(3 + row as u8, 2, line.as_str(), WHITE_ON_RED);
+    }
+    vga.write_text(
+        3 + lines.len() as u8 + 1,
+        2,
+        "The CPU is halted. Reset the machine to start again.",
+        WHITE_ON_RED,
+    );
 }
 
 /// Stops the CPU with interrupts off; only a reset or power-off leaves.

@@ -7,7 +7,7 @@ use modex::{ModeX, VgaBus};
 
 /// font8x8's glyphs keep the leftmost pixel in bit 0; the VGA's character
 /// generator reads it from bit 7.
-static FONT: [[u8; 8]; 128] = {
+pub static FONT: [[u8; 8]; 128] = {
     let mut font = font8x8::legacy::BASIC_LEGACY;
     let mut glyph = 0;
     while glyph < font.len() {

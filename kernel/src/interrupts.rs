@@ -18,14 +18,16 @@ const SPURIOUS_MASTER_VECTOR: u8 = PIC_1_OFFSET + 7;
 
 // SAFETY: the offsets map the PICs above the CPU's exception vectors, so no
 // IRQ is ever mistaken for an exception.
-static PICS: Mutex<ChainedPics> = Mutex::new(unsafe { ChainedPics::new(PIC_1_OFFSET, PIC_2_OFFSET) });
+static PICS: Mutex<ChainedPics> =
+    Mutex::new(unsafe { ChainedPics::new(PIC_1_OFFSET, PIC_2_OFFSET) });
 
 static IDT: Lazy<InterruptDescriptorTable> = Lazy::new(|| {
     let mut idt = InterruptDescriptorTable::new();
     idt.divide_error.set_handler_fn(divide_error);
     idt.breakpoint.set_handler_fn(breakpoint);
     idt.invalid_opcode.set_handler_fn(invalid_opcode);
-    idt.general_protection_fault.set_handler_fn(general_protection);
+    idt.general_protection_fault
+        .set_handler_fn(general_protection);
     idt.stack_segment_fault.set_handler_fn(stack_segment);
     idt.page_fault.set_handler_fn(page_fault);
     // SAFETY: the IST index names the stack that gdt::init puts in the TSS,
@@ -73,7 +75,10 @@ extern "x86-interrupt" fn spurious(_frame: InterruptStackFrame) {}
 
 extern "x86-interrupt" fn breakpoint(frame: InterruptStackFrame) {
     // A breakpoint is a request to look, not an error: report and go on.
-    crate::serial_println!("EXCEPTION: breakpoint at {:#x}", frame.instruction_pointer.as_u64());
+    crate::serial_println!(
+        "EXCEPTION: breakpoint at {:#x}",
+        frame.instruction_pointer.as_u64()
+    );
 }
 
 extern "x86-interrupt" fn divide_error(frame: InterruptStackFrame) {
@@ -98,5 +103,10 @@ extern "x86-interrupt" fn page_fault(frame: InterruptStackFrame, error: PageFaul
 }
 
 extern "x86-interrupt" fn double_fault(frame: InterruptStackFrame, error: u64) -> ! {
-    fault::halt_with("double fault (kernel stack overflow?)", &frame, Some(error), None);
+    fault::halt_with(
+        "double fault (kernel stack overflow?)",
+        &frame,
+        Some(error),
+        None,
+    );
 }

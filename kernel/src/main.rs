@@ -8,10 +8,12 @@
 mod diagnostics;
 mod fault;
 mod gdt;
+mod goodbye;
 mod interrupts;
 mod keyboard;
 mod pit;
 mod qemu;
+mod run;
 mod selftest;
 mod serial;
 mod vga_bus;
@@ -43,9 +45,6 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     let option = qemu::boot_option(&mut option_buffer);
     if let Some(option) = option {
         serial_println!("boot option: {}", option);
-        if option.starts_with("fault=") || option.starts_with("exit=") {
-            selftest::run(option);
-        }
     }
 
     let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
@@ -56,18 +55,28 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     let bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
     let mut vga = modex::ModeX::new(bus);
     vga.set_mode();
+    fault::report_on_screen(physical_memory_offset);
     serial_println!("vga: Mode X 320x240 set");
+    run_screen(&mut vga, option)
+}
+
+/// What the screen shows: the cube, or a diagnostic asked for by a boot option.
+fn run_screen<B: modex::VgaBus>(vga: &mut modex::ModeX<B>, option: Option<&str>) -> ! {
     match option {
-        Some("test-pattern") => diagnostics::test_pattern(&mut vga),
-        Some("flip-rate") => diagnostics::flip_rate(&mut vga),
-        _ => {}
+        Some("test-pattern") => diagnostics::test_pattern(vga),
+        Some("flip-rate") => {
+            diagnostics::flip_rate(vga);
+            run::run_demo(vga)
+        }
+        Some(request) if request.starts_with("fault=") || request.starts_with("exit=") => {
+            selftest::run(request);
+            run::run_demo(vga)
+        }
+        _ => run::run_demo(vga),
     }
-    fault::halt_forever()
 }
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    serial::force_unlock();
-    serial_println!("PANIC: {}", info);
-    fault::halt_forever()
+    fault::halt_with_panic(info)
 }

@@ -65,7 +65,9 @@ pub fn boot_option(buffer: &mut [u8; 64]) -> Option<&str> {
             for byte in &mut buffer[..len] {
                 *byte = fw_cfg.read_byte();
             }
-            return core::str::from_utf8(&buffer[..len]).ok().map(|s| s.trim_end_matches('\0').trim());
+            return core::str::from_utf8(&buffer[..len])
+                .ok()
+                .map(|s| s.trim_end_matches('\0').trim());
         }
     }
     None
@@ -78,7 +80,10 @@ struct FwCfg {
 
 impl FwCfg {
     fn new() -> Self {
-        FwCfg { selector: Port::new(FW_CFG_SELECTOR), data: Port::new(FW_CFG_DATA) }
+        FwCfg {
+            selector: Port::new(FW_CFG_SELECTOR),
+            data: Port::new(FW_CFG_DATA),
+        }
     }
 
     fn select(&mut self, key: u16) {

@@ -18,7 +18,9 @@ impl PortBus {
     /// physical memory (at least up to 0xB0000) is mapped, and no other code may
     /// use the VGA ports or window while this bus exists.
     pub unsafe fn new(physical_memory_offset: u64) -> Self {
-        PortBus { window: (physical_memory_offset + VGA_WINDOW_PHYSICAL) as *mut u8 }
+        PortBus {
+            window: (physical_memory_offset + VGA_WINDOW_PHYSICAL) as *mut u8,
+        }
     }
 }
 

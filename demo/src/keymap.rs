@@ -1,0 +1,144 @@
+//! From decoded keys to commands: the seed's keys, plus Space, R and Esc.
+//! The numeric keypad rotates with NumLock on (it then types digits, like the
+//! top row); with NumLock off its 4/6/8/2 are arrows and move the cube.
+
+use crate::scene::{Axis, Command};
+use pc_keyboard::{DecodedKey, KeyCode};
+
+/// The command for a key press, or `None` for keys that must not count as a
+/// press at all (modifiers and lock keys).
+pub fn command_for(key: DecodedKey) -> Option<Command> {
+    match key {
+        DecodedKey::Unicode(character) => Some(command_for_character(character)),
+        DecodedKey::RawKey(code) => command_for_raw(code),
+    }
+}
+
+fn command_for_character(character: char) -> Command {
+    match character {
+        'a' | 'A' => Command::Away,
+        't' | 'T' => Command::Toward,
+        '4' => Command::Rotate(Axis::Y, false),
+        '6' => Command::Rotate(Axis::Y, true),
+        '8' => Command::Rotate(Axis::X, false),
+        '2' => Command::Rotate(Axis::X, true),
+        ' ' => Command::ToggleSpin,
+        'r' | 'R' => Command::Reset,
+        '\u{1b}' => Command::Quit,
+        _ => Command::Pause,
+    }
+}
+
+fn command_for_raw(code: KeyCode) -> Option<Command> {
+    Some(match code {
+        KeyCode::ArrowLeft => Command::MoveLeft,
+        KeyCode::ArrowRight => Command::MoveRight,
+        KeyCode::ArrowUp => Command::MoveUp,
+        KeyCode::ArrowDown => Command::MoveDown,
+        KeyCode::F1 => Command::Rotate(Axis::Z, true),
+        KeyCode::F2 => Command::Rotate(Axis::Z, false),
+        KeyCode::Escape => Command::Quit,
+        KeyCode::LShift
+        | KeyCode::RShift
+        | KeyCode::LControl
+        | KeyCode::RControl
+        | KeyCode::RControl2
+        | KeyCode::LAlt
+        | KeyCode::RAltGr
+        | KeyCode::RAlt2
+        | KeyCode::LWin
+        | KeyCode::RWin
+        | KeyCode::CapsLock
+        | KeyCode::NumpadLock
+        | KeyCode::ScrollLock => return None,
+        _ => Command::Pause,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use pc_keyboard::{layouts::Us104Key, HandleControl, PS2Keyboard as Keyboard, ScancodeSet1};
+    use std::vec::Vec;
+
+    /// Runs scancode-set-1 bytes through the same decoder the kernel uses.
+    fn commands_for_bytes(bytes: &[u8]) -> Vec<Command> {
+        let mut keyboard = Keyboard::new(ScancodeSet1::new(), Us104Key, HandleControl::Ignore);
+        let mut commands = Vec::new();
+        for &byte in bytes {
+            if let Ok(Some(event)) = keyboard.add_byte(byte) {
+                if let Some(command) = keyboard.process_keyevent(event).and_then(command_for) {
+                    commands.push(command);
+                }
+            }
+        }
+        commands
+    }
+
+    #[test]
+    fn the_seeds_keys_map_to_its_commands() {
+        use Command::*;
+        let table = [
+            (DecodedKey::RawKey(KeyCode::ArrowLeft), MoveLeft),
+            (DecodedKey::RawKey(KeyCode::ArrowRight), MoveRight),
+            (DecodedKey::RawKey(KeyCode::ArrowUp), MoveUp),
+            (DecodedKey::RawKey(KeyCode::ArrowDown), MoveDown),
+            (DecodedKey::Unicode('a'), Away),
+            (DecodedKey::Unicode('A'), Away),
+            (DecodedKey::Unicode('t'), Toward),
+            (DecodedKey::Unicode('T'), Toward),
+            (DecodedKey::RawKey(KeyCode::F1), Rotate(Axis::Z, true)),
+            (DecodedKey::RawKey(KeyCode::F2), Rotate(Axis::Z, false)),
+            (DecodedKey::Unicode('4'), Rotate(Axis::Y, false)),
+            (DecodedKey::Unicode('6'), Rotate(Axis::Y, true)),
+            (DecodedKey::Unicode('8'), Rotate(Axis::X, false)),
+            (DecodedKey::Unicode('2'), Rotate(Axis::X, true)),
+            (DecodedKey::Unicode(' '), ToggleSpin),
+            (DecodedKey::Unicode('r'), Reset),
+            (DecodedKey::Unicode('\u{1b}'), Quit),
+            (DecodedKey::Unicode('x'), Pause),
+            (DecodedKey::Unicode('5'), Pause),
+            (DecodedKey::RawKey(KeyCode::F3), Pause),
+        ];
+        for (key, command) in table {
+            assert_eq!(command_for(key), Some(command), "{key:?}");
+        }
+    }
+
+    #[test]
+    fn modifiers_and_lock_keys_are_not_presses() {
+        for code in [
+            KeyCode::LShift,
+            KeyCode::RControl,
+            KeyCode::NumpadLock,
+            KeyCode::CapsLock,
+            KeyCode::LAlt,
+        ] {
+            assert_eq!(command_for(DecodedKey::RawKey(code)), None, "{code:?}");
+        }
+    }
+
+    #[test]
+    fn raw_scancodes_decode_to_commands() {
+        use Command::*;
+        // Left (keypad 4 with NumLock off), extended Left, F1 and its release,
+        // A, keypad 6 after NumLock on, top-row 8, Shift (nothing), Esc.
+        let bytes = [
+            0x4B, 0xCB, 0xE0, 0x4B, 0xE0, 0xCB, 0x3B, 0xBB, 0x1E, 0x9E, 0x45, 0xC5, 0x4D, 0xCD,
+            0x09, 0x89, 0x2A, 0xAA, 0x01, 0x81,
+        ];
+        // pc-keyboard starts with NumLock on: the first 0x4B is keypad '4'.
+        assert_eq!(
+            commands_for_bytes(&bytes),
+            [
+                Rotate(Axis::Y, false),
+                MoveLeft,
+                Rotate(Axis::Z, true),
+                Away,
+                MoveRight, // NumLock toggled off: keypad 6 is Right
+                Rotate(Axis::X, false),
+                Quit
+            ]
+        );
+    }
+}

@@ -1,0 +1,65 @@
+//! Perspective projection from view space to the screen, exactly as the seed
+//! does it: the viewpoint at the origin looking toward -Z, right-handed.
+
+use crate::math::{Point, Vec3};
+
+pub const SCREEN_WIDTH: i32 = 320;
+pub const SCREEN_HEIGHT: i32 = 240;
+/// Distance from the viewpoint to the projection plane over the plane's
+/// width; negative because the view looks toward -Z.
+pub const PROJECTION_RATIO: f64 = -2.0;
+/// Projected coordinates are clamped to this magnitude, so a vertex at or
+/// behind the viewpoint gives a far-off point rather than an overflow.
+const PROJECTED_LIMIT: f64 = 1_000_000.0;
+
+/// X = x/z · ratio · width/2, Y likewise; then rounded with floor(v + 0.5)
+/// (floor, so negative values round the same way as positive ones), centred,
+/// and Y flipped to increase downward.
+pub fn project_to_screen(view: Vec3) -> Point {
+    let scale = PROJECTION_RATIO * f64::from(SCREEN_WIDTH / 2);
+    let clamp = |v: f64| {
+        if v.is_nan() {
+            0.0
+        } else {
+            v.clamp(-PROJECTED_LIMIT, PROJECTED_LIMIT)
+        }
+    };
+    let x = clamp(view.x / view.z * scale);
+    let y = clamp(view.y / view.z * scale);
+    Point::new(
+        libm::floor(x + 0.5) as i32 + SCREEN_WIDTH / 2,
+        -(libm::floor(y + 0.5) as i32) + SCREEN_HEIGHT / 2,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn projects_like_the_seed() {
+        // (15, 15, -85): X = 15/-85 · -2 · 160 = 56.47 -> 56 -> 216; Y -> 120 - 56 = 64.
+        assert_eq!(
+            project_to_screen(Vec3::new(15.0, 15.0, -85.0)),
+            Point::new(216, 64)
+        );
+        // Negative values round with floor(v + 0.5): -56.47 -> -56.
+        assert_eq!(
+            project_to_screen(Vec3::new(-15.0, -15.0, -85.0)),
+            Point::new(104, 176)
+        );
+        // Exactly half rounds up in both directions: X = 0.5 -> 1, X = -0.5 -> 0.
+        assert_eq!(project_to_screen(Vec3::new(0.5, 0.0, -320.0)).x, 161);
+        assert_eq!(project_to_screen(Vec3::new(-0.5, 0.0, -320.0)).x, 160);
+    }
+
+    #[test]
+    fn a_vertex_at_the_viewpoint_does_not_overflow() {
+        let p = project_to_screen(Vec3::new(1.0, -1.0, 0.0));
+        assert!(p.x.abs() <= 1_000_200 && p.y.abs() <= 1_000_200, "{p:?}");
+        assert_eq!(
+            project_to_screen(Vec3::new(0.0, 0.0, 0.0)),
+            Point::new(160, 120)
+        );
+    }
+}
