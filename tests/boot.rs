@@ -2,18 +2,11 @@
 //! isa-debug-exit codes. QEMU must be installed: these tests fail (never skip)
 //! without it, and say how to install it.
 
+mod common;
+
 use boot::qemu::{EXIT_FAILURE, EXIT_SUCCESS};
-use boot::{Qemu, QemuOptions};
+use common::{boot_bios as boot, BOOT_TIMEOUT};
 use std::time::Duration;
-
-const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
-
-fn boot(option: Option<&str>) -> Qemu {
-    let images = boot::images::publish().expect("the build script made the images");
-    let mut options = QemuOptions::new(images.bios);
-    options.boot_option = option.map(str::to_owned);
-    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
-}
 
 #[test]
 fn kernel_boots_and_prints_its_banner() {

@@ -3,73 +3,38 @@
 //! runs against the software VGA on the host; QEMU's screendump (640x480, each
 //! Mode X pixel doubled) must equal the model's scan-out pixel for pixel.
 
-use boot::{Qemu, QemuOptions, RgbImage};
-use modex::soft::SoftVga;
+mod common;
+
+use common::{assert_same_picture, boot_bios, model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
 use modex::{ModeX, Page};
-use std::time::Duration;
 
-const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
-
-fn boot(option: &str) -> Qemu {
-    let images = boot::images::publish().expect("the build script made the images");
-    let mut options = QemuOptions::new(images.bios);
-    options.boot_option = Some(option.to_owned());
-    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// The software VGA's picture after the kernel's test-pattern sequence.
-fn model_picture(flips: u8) -> RgbImage {
-    let mut soft = Box::new(SoftVga::new());
+/// The software VGA's picture after the kernel's test-pattern sequence: both
+/// pages drawn, page 0 shown, then `flips` flips.
+fn pattern_picture(flips: u8) -> boot::RgbImage {
+    let mut soft = soft_vga_in_mode_x();
     let mut vga = ModeX::new(&mut *soft);
-    vga.set_mode();
     demo::pattern::draw(&mut vga, Page(0));
     demo::pattern::draw(&mut vga, Page(1));
     vga.show_page(Page(0));
     for flip in 1..=flips {
         vga.show_page(Page(flip % 2));
     }
-    let mut rgb = vec![[0u8; 3]; 320 * 240];
-    let (width, height) = soft.scanout_rgb(&mut rgb);
-    assert_eq!((width, height), (320, 240), "the model is not in 320x240");
-    RgbImage::new(width, height, rgb)
-}
-
-fn assert_same_picture(qemu_picture: &RgbImage, model: &RgbImage, what: &str) {
-    assert_eq!(
-        (qemu_picture.width, qemu_picture.height),
-        (640, 480),
-        "{what}: QEMU is not showing 640x480"
-    );
-    let halved = qemu_picture
-        .halve()
-        .unwrap_or_else(|e| panic!("{what}: {e}"));
-    let differences = halved.differences(model).unwrap();
-    if !differences.is_empty() {
-        let dir = boot::images::images_dir();
-        let _ = qemu_picture.write_png(&dir.join("oracle-qemu.png"));
-        let _ = model.write_png(&dir.join("oracle-model.png"));
-        panic!(
-            "{what}: {} pixels differ, first (x, y, qemu, model): {:?}; pictures in {}",
-            differences.len(),
-            &differences[..differences.len().min(5)],
-            dir.display()
-        );
-    }
+    model_picture(&soft)
 }
 
 #[test]
 fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
-    let mut qemu = boot("test-pattern");
+    let mut qemu = boot_bios(Some("test-pattern"));
     qemu.wait_for_serial("pattern: page 0 shown", BOOT_TIMEOUT)
         .unwrap();
-    assert_same_picture(&qemu.screendump().unwrap(), &model_picture(0), "page 0");
+    assert_same_picture(&qemu.screendump().unwrap(), &pattern_picture(0), "page 0");
 
     qemu.send_key("spc").unwrap();
     qemu.wait_for_serial("pattern: page 1 shown", BOOT_TIMEOUT)
         .unwrap();
     assert_same_picture(
         &qemu.screendump().unwrap(),
-        &model_picture(1),
+        &pattern_picture(1),
         "page 1 after a flip",
     );
 
@@ -78,7 +43,7 @@ fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
         .unwrap();
     assert_same_picture(
         &qemu.screendump().unwrap(),
-        &model_picture(2),
+        &pattern_picture(2),
         "page 0 after flipping back",
     );
 }
@@ -87,7 +52,7 @@ fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
 /// values, so page flips locked to vertical retrace run at the refresh rate.
 #[test]
 fn page_flips_follow_vertical_retrace_at_about_60_hz() {
-    let mut qemu = boot("flip-rate");
+    let mut qemu = boot_bios(Some("flip-rate"));
     let console = qemu.wait_for_serial("wait timeouts", BOOT_TIMEOUT).unwrap();
     let line = console
         .lines()

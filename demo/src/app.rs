@@ -84,6 +84,11 @@ impl App {
         &self.scene
     }
 
+    /// The page on screen; the next frame is drawn into the other one.
+    pub fn shown_page(&self) -> modex::Page {
+        self.renderer.shown_page()
+    }
+
     /// Advances the spin and draws a frame if anything moved; `None` when there
     /// was nothing to draw (the caller can sleep until the next interrupt).
     pub fn step<B: VgaBus>(&mut self, vga: &mut ModeX<B>) -> Option<FlipReport> {
