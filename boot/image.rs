@@ -4,6 +4,9 @@
 use std::fmt;
 use std::path::Path;
 
+/// One differing pixel: x, y, this picture's colour, the other's.
+pub type PixelDifference = (usize, usize, [u8; 3], [u8; 3]);
+
 #[derive(Clone, PartialEq, Eq)]
 pub struct RgbImage {
     pub width: usize,
@@ -97,7 +100,7 @@ impl RgbImage {
     /// Undoes QEMU's doubling of a 320x240 Mode X picture into 640x480: every
     /// 2x2 block must be one colour, or the picture was not a doubled one.
     pub fn halve(&self) -> Result<RgbImage, String> {
-        if self.width % 2 != 0 || self.height % 2 != 0 {
+        if !self.width.is_multiple_of(2) || !self.height.is_multiple_of(2) {
             return Err(format!("{}x{} cannot be halved", self.width, self.height));
         }
         let (width, height) = (self.width / 2, self.height / 2);
@@ -117,10 +120,7 @@ impl RgbImage {
     }
 
     /// Where two pictures of the same size differ: the count and the first few.
-    pub fn differences(
-        &self,
-        other: &RgbImage,
-    ) -> Result<Vec<(usize, usize, [u8; 3], [u8; 3])>, String> {
+    pub fn differences(&self, other: &RgbImage) -> Result<Vec<PixelDifference>, String> {
         if (self.width, self.height) != (other.width, other.height) {
             return Err(format!(
                 "sizes differ: {}x{} and {}x{}",

@@ -179,7 +179,10 @@ impl Scene {
             Axis::Z => xform.append_rotation_z(angle),
         }
         self.rotations += 1;
-        if self.rotations % ROTATIONS_PER_REORTHONORMALIZATION == 0 {
+        if self
+            .rotations
+            .is_multiple_of(ROTATIONS_PER_REORTHONORMALIZATION)
+        {
             xform.reorthonormalize();
         }
     }
@@ -323,7 +326,7 @@ mod tests {
             scene.apply(Command::Toward);
         }
         let z = scene.cube().object_to_world().translation_part().z;
-        assert!(z >= NEAREST_Z && z < NEAREST_Z + MOVE_STEP, "z = {z}");
+        assert!((NEAREST_Z..NEAREST_Z + MOVE_STEP).contains(&z), "z = {z}");
     }
 
     #[test]

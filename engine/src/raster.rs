@@ -131,7 +131,7 @@ mod tests {
             .map(|_| Point::new(rng.range(lo, hi), rng.range(lo, hi)))
             .collect();
         let mut hull = convex_hull(points);
-        if rng.next() % 2 == 0 {
+        if rng.next().is_multiple_of(2) {
             hull.reverse();
         }
         hull

@@ -28,7 +28,11 @@ pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     vga.set_text_mode(&FONT);
     let column = (modex::TEXT_COLUMNS as usize - MESSAGE.len()) / 2;
     vga.write_text(modex::TEXT_ROWS / 2, column as u8, MESSAGE, WHITE_ON_BLACK);
-    serial_println!("demo: goodbye");
+    serial_println!(
+        "demo: goodbye ({} scancodes dropped by a full queue, {} serial characters dropped)",
+        crate::keyboard::SCANCODES.dropped(),
+        crate::serial::dropped()
+    );
     qemu::exit(qemu::ExitCode::Success);
     fault::halt_forever()
 }
