@@ -1,7 +1,7 @@
 //! The demo as the kernel runs it: scancodes in, frames out. Everything here is
 //! portable, so the host tests drive exactly what the kernel drives.
 
-use crate::frame::Renderer;
+use crate::frame::{FrameDrawer, Renderer};
 use crate::keymap::command_for;
 use crate::scene::{Command, Scene};
 use modex::{FlipReport, ModeX, VgaBus};

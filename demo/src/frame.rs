@@ -1,13 +1,18 @@
-//! One frame, the seed's way: on the page not shown, erase what was drawn there
-//! last time, fill the faces that face the viewer, then show the page in step
-//! with vertical retrace. Each page remembers its own erase extent because the
-//! two pages hold different frames.
+//! One frame, at the lowest bus cost: all the work that needs no bus is done
+//! first (transform, cull, scan conversion into a RAM image of the frame),
+//! then the hidden page is brought up to date by writing only the pixels that
+//! differ from what that page holds — which the renderer remembers, one shadow
+//! image per page, since the two pages hold different frames — and the page is
+//! shown in step with vertical retrace.
+//!
+//! The seed's own method (erase the last extent, fill every visible face) is
+//! kept in `baseline` for comparison; it writes every visible pixel every frame.
 
 use crate::scene::Scene;
-use engine::{fill_convex_polygon, ClipRect, Point};
-use modex::{FlipReport, ModeX, Page, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
+use engine::{fill_convex_polygon, ClipRect};
+use modex::{FlipReport, ModeX, Page, PageImage, VgaBus, PAGE_PIXELS, SCREEN_HEIGHT, SCREEN_WIDTH};
 
-const BACKGROUND: u8 = 0;
+pub const BACKGROUND: u8 = 0;
 pub const SCREEN_CLIP: ClipRect = ClipRect {
     x0: 0,
     y0: 0,
@@ -15,63 +20,38 @@ pub const SCREEN_CLIP: ClipRect = ClipRect {
     y1: SCREEN_HEIGHT,
 };
 
-/// A half-open screen rectangle [x0, x1) x [y0, y1).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Extent {
-    pub x0: i32,
-    pub y0: i32,
-    pub x1: i32,
-    pub y1: i32,
-}
+/// Something that draws a scene into the hidden page: this renderer and the
+/// baselines it is measured against.
+pub trait FrameDrawer {
+    /// Draws the scene into the page not shown, returns that page, and from
+    /// then on counts it as shown (the caller flips to it, or not, as it likes).
+    fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page;
 
-impl Extent {
-    /// The pixels a polygon's fill can touch: its vertices' bounding box (right
-    /// and bottom edges excluded, as the filler excludes them), clipped.
-    fn of_polygon(points: &[Point]) -> Option<Extent> {
-        let mut extent = Extent {
-            x0: i32::MAX,
-            y0: i32::MAX,
-            x1: i32::MIN,
-            y1: i32::MIN,
-        };
-        for p in points {
-            extent.x0 = extent.x0.min(p.x);
-            extent.y0 = extent.y0.min(p.y);
-            extent.x1 = extent.x1.max(p.x);
-            extent.y1 = extent.y1.max(p.y);
-        }
-        extent.clipped()
-    }
-
-    fn clipped(self) -> Option<Extent> {
-        let clipped = Extent {
-            x0: self.x0.max(SCREEN_CLIP.x0),
-            y0: self.y0.max(SCREEN_CLIP.y0),
-            x1: self.x1.min(SCREEN_CLIP.x1),
-            y1: self.y1.min(SCREEN_CLIP.y1),
-        };
-        (clipped.x0 < clipped.x1 && clipped.y0 < clipped.y1).then_some(clipped)
-    }
-
-    fn union(a: Option<Extent>, b: Option<Extent>) -> Option<Extent> {
-        match (a, b) {
-            (Some(a), Some(b)) => Some(Extent {
-                x0: a.x0.min(b.x0),
-                y0: a.y0.min(b.y0),
-                x1: a.x1.max(b.x1),
-                y1: a.y1.max(b.y1),
-            }),
-            (a, None) => a,
-            (None, b) => b,
-        }
+    /// Draws and shows the frame.
+    fn draw_frame<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> FlipReport {
+        let page = self.draw(vga, scene);
+        vga.show_page(page)
     }
 }
 
-/// Double-buffered drawing of a scene into Mode X pages 0 and 1.
+/// The scene as colour indices in RAM, background first.
+pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) {
+    image.fill(BACKGROUND);
+    scene.visible_faces(|polygon, colour| {
+        fill_convex_polygon(polygon, SCREEN_CLIP, |y, x_start, x_end| {
+            let row = (y * SCREEN_WIDTH) as usize;
+            image[row + x_start as usize..row + x_end as usize].fill(colour);
+        });
+    });
+}
+
+/// Double-buffered drawing that writes each frame's changes only.
 pub struct Renderer {
     shown: Page,
-    /// What each page holds that the next frame drawn there must erase.
-    drawn: [Option<Extent>; 2],
+    /// What pages 0 and 1 hold.
+    shadows: [PageImage; 2],
+    /// The frame being drawn.
+    next: PageImage,
 }
 
 impl Default for Renderer {
@@ -81,34 +61,27 @@ impl Default for Renderer {
 }
 
 impl Renderer {
-    /// Expects both pages blank and page 0 shown, as `ModeX::set_mode` leaves them.
+    /// Expects both pages blank and page 0 shown, as `ModeX::set_mode` leaves
+    /// them.
     pub const fn new() -> Self {
         Renderer {
             shown: Page(0),
-            drawn: [None, None],
+            shadows: [[BACKGROUND; PAGE_PIXELS]; 2],
+            next: [BACKGROUND; PAGE_PIXELS],
         }
     }
 
     pub fn shown_page(&self) -> Page {
         self.shown
     }
+}
 
-    /// Draws the scene's visible faces on the hidden page and shows it.
-    pub fn draw_frame<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> FlipReport {
+impl FrameDrawer for Renderer {
+    fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page {
+        render_to_image(scene, &mut self.next);
         let page = Page(1 - self.shown.0);
-        let slot = usize::from(page.0);
-        if let Some(old) = self.drawn[slot].take() {
-            vga.fill_rect(page, old.x0, old.y0, old.x1, old.y1, BACKGROUND);
-        }
-        let mut drawn = None;
-        scene.visible_faces(|polygon: &[Point], colour: u8| {
-            drawn = Extent::union(drawn, Extent::of_polygon(polygon));
-            fill_convex_polygon(polygon, SCREEN_CLIP, |y, x_start, x_end| {
-                vga.fill_span(page, y, x_start, x_end, colour)
-            });
-        });
-        self.drawn[slot] = drawn;
+        vga.update_page(page, &mut self.shadows[usize::from(page.0)], &self.next);
         self.shown = page;
-        vga.show_page(page)
+        page
     }
 }

@@ -10,6 +10,7 @@
 extern crate std;
 
 pub mod app;
+pub mod baseline;
 pub mod frame;
 pub mod keymap;
 pub mod pattern;

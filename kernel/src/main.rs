@@ -25,6 +25,9 @@ const BOOTLOADER_CONFIG: BootloaderConfig = {
     let mut config = BootloaderConfig::new_default();
     // VGA memory at 0xA0000 is reached through the map of all physical memory.
     config.mappings.physical_memory = Some(Mapping::Dynamic);
+    // The demo keeps three 75 KiB images of the screen (the next frame and a
+    // shadow of each page) in its state on the stack.
+    config.kernel_stack_size = 1024 * 1024;
     config
 };
 entry_point!(kernel_main, config = &BOOTLOADER_CONFIG);

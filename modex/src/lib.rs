@@ -31,11 +31,13 @@ pub mod palette;
 pub mod regs;
 pub mod soft;
 mod text;
+mod update;
 
 pub use bus::{VgaBus, CPU_WINDOW_BYTES};
 pub use driver::ModeX;
 pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
 pub use text::{TEXT_COLUMNS, TEXT_ROWS};
+pub use update::{PageImage, PAGE_PIXELS};
 
 /// Visible width of a Mode X page, in pixels.
 pub const SCREEN_WIDTH: i32 = 320;
