@@ -19,7 +19,8 @@ use std::time::{Duration, Instant};
 /// One frame of the set: a command first, or none (the spin alone).
 fn frame_set() -> Vec<Option<Command>> {
     let mut frames: Vec<Option<Command>> = vec![None; 360];
-    let mut repeat = |command: Command, times: usize| frames.extend(std::iter::repeat_n(Some(command), times));
+    let mut repeat =
+        |command: Command, times: usize| frames.extend(std::iter::repeat_n(Some(command), times));
     repeat(Command::ToggleSpin, 1);
     repeat(Command::Rotate(Axis::X, true), 4);
     repeat(Command::MoveLeft, 45); // past the left edge
@@ -40,7 +41,10 @@ struct Totals {
 
 impl Totals {
     fn bus_ops(&self) -> u64 {
-        self.counts.port_writes + self.counts.port_reads + self.counts.vram_writes + self.counts.vram_reads
+        self.counts.port_writes
+            + self.counts.port_reads
+            + self.counts.vram_writes
+            + self.counts.vram_reads
     }
 }
 
@@ -84,7 +88,11 @@ fn lower_bound(old: &[u8], new: &[u8]) -> u64 {
 
 /// Renders the set with `drawer`; returns its totals and, if asked, the
 /// lower bound summed over the frames.
-fn run<D: FrameDrawer>(mut drawer: D, frames: &[Option<Command>], with_bound: bool) -> (Totals, u64) {
+fn run<D: FrameDrawer>(
+    mut drawer: D,
+    frames: &[Option<Command>],
+    with_bound: bool,
+) -> (Totals, u64) {
     let mut soft = Box::new(SoftVga::new());
     ModeX::new(&mut *soft).set_mode();
     let mut scene = Scene::new();
@@ -109,7 +117,10 @@ fn run<D: FrameDrawer>(mut drawer: D, frames: &[Option<Command>], with_bound: bo
         // Every method must leave the page showing the frame.
         render_to_image(&mut scene, &mut expected);
         let after_image = page_image(&soft, back);
-        assert!(after_image == expected.to_vec(), "a renderer drew a wrong frame");
+        assert!(
+            after_image == expected.to_vec(),
+            "a renderer drew a wrong frame"
+        );
         if let Some(before_image) = before_image {
             bound += lower_bound(&before_image, &after_image);
         }
@@ -137,7 +148,10 @@ fn main() {
     let (seed, _) = run(SeedMethod::default(), &frames, false);
     let (per_pixel, _) = run(PerPixel::default(), &frames, false);
 
-    println!("{} frames; per frame, drawing only (flips excluded), on the software VGA:", frames.len());
+    println!(
+        "{} frames; per frame, drawing only (flips excluded), on the software VGA:",
+        frames.len()
+    );
     println!(
         "{:<22} {:>12} {:>12} {:>12} {:>12} {:>12} {:>10}",
         "method", "vram writes", "port writes", "port reads", "vram reads", "bus ops", "host µs"
@@ -145,7 +159,11 @@ fn main() {
     report("ours (changes only)", &ours, frames.len());
     report("seed method (b)", &seed, frames.len());
     report("per-pixel (a)", &per_pixel, frames.len());
-    println!("{:<22} {:>12.1}", "lower bound", bound as f64 / frames.len() as f64);
+    println!(
+        "{:<22} {:>12.1}",
+        "lower bound",
+        bound as f64 / frames.len() as f64
+    );
     println!(
         "SUMMARY vram_writes_over_bound={:.3} bus_ops_vs_per_pixel={:.2} bus_ops_vs_seed_method={:.2}",
         ours.counts.vram_writes as f64 / bound as f64,

@@ -5,6 +5,7 @@
 #![no_main]
 #![feature(abi_x86_interrupt)]
 
+mod bench;
 mod diagnostics;
 mod fault;
 mod gdt;
@@ -67,6 +68,10 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
 fn run_screen<B: modex::VgaBus>(vga: &mut modex::ModeX<B>, option: Option<&str>) -> ! {
     match option {
         Some("test-pattern") => diagnostics::test_pattern(vga),
+        Some("bench") => {
+            bench::run(vga);
+            run::run_demo(vga)
+        }
         Some("flip-rate") => {
             diagnostics::flip_rate(vga);
             run::run_demo(vga)
