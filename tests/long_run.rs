@@ -57,17 +57,33 @@ fn a_million_frames_of_random_commands() {
         let start = u16::from(back) * PAGE_BYTES;
         soft.set_write_guard(Some(start..start + PAGE_BYTES));
         renderer.draw(&mut ModeX::new(&mut *soft), &mut scene);
-        assert_eq!(soft.guard_violations(), 0, "frame {frame}: write outside page {back}");
+        assert_eq!(
+            soft.guard_violations(),
+            0,
+            "frame {frame}: write outside page {back}"
+        );
 
         let xform = scene.cube().object_to_world();
         worst_orthonormality = worst_orthonormality.max(xform.orthonormality_error());
-        assert!(xform.orthonormality_error() < 1e-6, "frame {frame}: {}", xform.orthonormality_error());
-        assert!(xform.translation_part().z <= NEAREST_Z, "frame {frame}: nearer than allowed");
+        assert!(
+            xform.orthonormality_error() < 1e-6,
+            "frame {frame}: {}",
+            xform.orthonormality_error()
+        );
+        assert!(
+            xform.translation_part().z <= NEAREST_Z,
+            "frame {frame}: nearer than allowed"
+        );
 
         if frame % 50_000 == 0 {
             render_to_image(&mut scene, &mut expected);
-            let page: Vec<u8> = (0..PIXELS).map(|i| soft.plane(i % 4)[usize::from(start) + i / 4]).collect();
-            assert!(page == expected.to_vec(), "frame {frame}: the page does not show the scene");
+            let page: Vec<u8> = (0..PIXELS)
+                .map(|i| soft.plane(i % 4)[usize::from(start) + i / 4])
+                .collect();
+            assert!(
+                page == expected.to_vec(),
+                "frame {frame}: the page does not show the scene"
+            );
         }
     }
     println!("{FRAMES} frames, {drawn_commands} commands, worst orthonormality error {worst_orthonormality:e}");
@@ -82,8 +98,13 @@ fn frames_keep_coming_with_the_retrace_bit_stuck() {
         soft.set_retrace_stuck(Some(stuck));
         let mut app = App::new();
         for frame in 0..5 {
-            let report = app.step(&mut ModeX::new(&mut *soft)).expect("the spinning cube draws every step");
-            assert!(report.timed_out(), "stuck={stuck} frame {frame}: a wait should have given up");
+            let report = app
+                .step(&mut ModeX::new(&mut *soft))
+                .expect("the spinning cube draws every step");
+            assert!(
+                report.timed_out(),
+                "stuck={stuck} frame {frame}: a wait should have given up"
+            );
         }
     }
 }
