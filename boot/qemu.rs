@@ -22,6 +22,9 @@ pub const EXIT_FAILURE: i32 = (0x11 << 1) | 1;
 /// OVMF from Debian's `ovmf` package.
 pub const OVMF_CODE: &str = "/usr/share/OVMF/OVMF_CODE.fd";
 
+/// How long `send_key` holds a key down, as QEMU's own default.
+const DEFAULT_HOLD_MILLIS: u32 = 100;
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Firmware {
     Bios,
@@ -265,16 +268,20 @@ impl Qemu {
     /// Presses and releases a key, named as QEMU's `sendkey` names keys
     /// (`a`, `4`, `kp_4`, `f1`, `left`, `esc`, `spc`, `shift-a`, ...).
     pub fn send_key(&mut self, key: &str) -> Result<()> {
-        if !key
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
-        {
+        self.send_key_held(key, DEFAULT_HOLD_MILLIS)
+    }
+
+    /// Like [`Qemu::send_key`], holding the key down for `hold_millis` (long
+    /// holds make the keyboard repeat). QEMU plays keys one after another.
+    pub fn send_key_held(&mut self, key: &str, hold_millis: u32) -> Result<()> {
+        let is_name = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '-';
+        if key.is_empty() || !key.chars().all(is_name) {
             return Err(QemuError::Monitor(format!(
                 "{key:?} is not a QEMU key name"
             )));
         }
         let command = format!(
-            r#"{{"execute":"human-monitor-command","arguments":{{"command-line":"sendkey {key}"}}}}"#
+            r#"{{"execute":"human-monitor-command","arguments":{{"command-line":"sendkey {key} {hold_millis}"}}}}"#
         );
         let reply = self.execute(&command)?;
         // HMP's answer comes back as the "return" string: empty on success.

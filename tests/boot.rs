@@ -20,8 +20,9 @@ fn kernel_boots_and_prints_its_banner() {
     );
 }
 
-/// Each fault is reported on serial, then the kernel halts: QEMU (started with
-/// -no-reboot, so a triple fault would end it) keeps running.
+/// Each fault is reported on serial and on screen (a white-on-red panel in
+/// 80x25 text), then the kernel halts: QEMU (started with -no-reboot, so a
+/// triple fault would end it) keeps running.
 fn assert_reported_and_halted(option: &str, report: &str) {
     let mut qemu = boot(Some(option));
     let console = qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
@@ -35,6 +36,29 @@ fn assert_reported_and_halted(option: &str, report: &str) {
         "QEMU ended: the kernel rebooted or died"
     );
     assert!(qemu.is_running());
+
+    let screen = qemu.screendump().unwrap();
+    assert_eq!(
+        (screen.width, screen.height),
+        (720, 400),
+        "{option}: the screen is not in 80x25 text"
+    );
+    let count = |is: fn([u8; 3]) -> bool| screen.pixels.iter().filter(|&&p| is(p)).count();
+    let (red, white) = (count(is_red), count(is_white));
+    assert!(
+        red > 5000 && white > 500,
+        "{option}: no report panel on screen ({red} red, {white} white pixels)"
+    );
+}
+
+/// The panel's background, EGA red (0x2A, 0, 0 in the DAC).
+fn is_red([r, g, b]: [u8; 3]) -> bool {
+    r >= 128 && g < 64 && b < 64
+}
+
+/// The panel's text, EGA bright white.
+fn is_white([r, g, b]: [u8; 3]) -> bool {
+    r >= 200 && g >= 200 && b >= 200
 }
 
 #[test]
