@@ -68,9 +68,10 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
             // Tests wait for this line before they look at the screen.
             reported_commands = app.commands();
             serial_println!(
-                "demo: command {} done, paused={}",
+                "demo: command {} done, paused={}, scancodes dropped={}",
                 reported_commands,
-                app.paused()
+                app.paused(),
+                keyboard::SCANCODES.dropped()
             );
         }
         match flip {
