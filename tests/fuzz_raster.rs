@@ -125,4 +125,27 @@ proptest! {
         }
         prop_assert_eq!(soft.guard_violations(), 0);
     }
+
+    /// A fan of triangles from one corner tiles a convex polygon: together
+    /// they must cover exactly its pixels, none twice (no gaps at shared
+    /// edges, no seams drawn twice).
+    #[test]
+    fn polygons_sharing_edges_cover_their_union_exactly_once(points in prop::collection::vec(near_point(), 3..10)) {
+        let hull = convex_hull(points);
+        prop_assume!(hull.len() >= 3);
+        let screen = ClipRect { x0: 0, y0: 0, x1: 320, y1: 240 };
+        let mut seen = std::collections::HashSet::new();
+        for i in 1..hull.len() - 1 {
+            for pixel in spans(&[hull[0], hull[i], hull[i + 1]], screen) {
+                prop_assert!(seen.insert(pixel), "pixel {:?} drawn twice", pixel);
+            }
+        }
+        let whole = spans(&hull, screen);
+        prop_assert_eq!(seen.len(), whole.len());
+        prop_assert!(whole.iter().all(|p| seen.contains(p)));
+    }
+}
+
+fn near_point() -> impl Strategy<Value = Point> {
+    (-60i32..380, -60i32..300).prop_map(|(x, y)| Point::new(x, y))
 }
