@@ -203,13 +203,13 @@ fn a_burst_of_two_thousand_keys_leaves_the_kernel_running_and_r_resets_it() {
 fn commands_done(console: &str) -> usize {
     console
         .lines()
-        .filter_map(|l| {
+        .rev()
+        .find_map(|l| {
             l.strip_prefix("demo: command ")?
                 .split(' ')
                 .next()?
                 .parse()
                 .ok()
         })
-        .last()
         .unwrap_or(0)
 }

@@ -44,9 +44,9 @@ fn a_million_frames_of_random_commands() {
         state ^= state << 17;
         // Mostly short bursts of movement, so the cube wanders far and wide;
         // Reset is rare, so long runs without it happen.
-        if state % 3 == 0 {
+        if state.is_multiple_of(3) {
             let command = COMMANDS[((state >> 8) % COMMANDS.len() as u64) as usize];
-            if command != Command::Reset || (state >> 32) % 500 == 0 {
+            if command != Command::Reset || (state >> 32).is_multiple_of(500) {
                 scene.apply(command);
                 drawn_commands += 1;
             }

@@ -127,7 +127,7 @@ mod tests {
             // A random mix of solid runs and scattered pixels.
             for (i, pixel) in target.iter_mut().enumerate() {
                 seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-                if (seed >> 24) % 8 == 0 || (i / 320 + round) % 37 == 0 {
+                if (seed >> 24).is_multiple_of(8) || (i / 320 + round).is_multiple_of(37) {
                     *pixel = ((seed >> 16) % 4) as u8 + if i % 320 > 150 { 9 } else { 0 };
                 }
             }
