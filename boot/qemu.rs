@@ -332,7 +332,9 @@ impl Qemu {
         matches!(self.child.try_wait(), Ok(None))
     }
 
-    /// The next QMP line that is not an asynchronous event.
+    /// The next QMP line that answers a command (or greets): events, which
+    /// QEMU sends whenever they happen (`{"timestamp": ..., "event": ...}`),
+    /// are skipped.
     fn read_reply(&mut self) -> Result<String> {
         loop {
             let mut line = String::new();
@@ -343,8 +345,14 @@ impl Qemu {
                         self.serial()
                     )))
                 }
-                Ok(_) if line.starts_with("{\"event\"") => continue,
-                Ok(_) => return Ok(line.trim_end().to_owned()),
+                Ok(_)
+                    if ["{\"return\"", "{\"error\"", "{\"QMP\""]
+                        .iter()
+                        .any(|s| line.starts_with(s)) =>
+                {
+                    return Ok(line.trim_end().to_owned())
+                }
+                Ok(_) => continue,
                 Err(e) => return Err(QemuError::Monitor(format!("QMP read failed: {e}"))),
             }
         }
