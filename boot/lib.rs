@@ -4,6 +4,7 @@
 pub mod image;
 pub mod images;
 pub mod qemu;
+pub mod usb;
 
 pub use image::RgbImage;
 pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};

@@ -19,7 +19,11 @@ Options:
                         e.g. \"r 4 4 kp_8 a f1 left spc esc\"
   --timeout SECS        stop QEMU after SECS seconds
   --boot-option OPTION  hand OPTION to the kernel via fw_cfg (see README: test-pattern,
-                        flip-rate, fault=...)
+                        flip-rate, bench, fault=...)
+  --write-usb DEVICE    instead of booting, write the image (bios.img, or uefi.img with
+                        --uefi) to the whole USB stick DEVICE, e.g. /dev/sdb, after checking
+                        it is a removable, unmounted disk; shows what will be overwritten
+                        and asks you to type its name
   -h, --help            show this help
 
 Without a display (no $DISPLAY or $WAYLAND_DISPLAY) the kernel runs headless.
@@ -32,6 +36,7 @@ struct Args {
     keys: Vec<String>,
     timeout: Option<Duration>,
     boot_option: Option<String>,
+    write_usb: Option<PathBuf>,
 }
 
 fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, String> {
@@ -42,6 +47,7 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
         keys: Vec::new(),
         timeout: None,
         boot_option: None,
+        write_usb: None,
     };
     while let Some(arg) = args.next() {
         let mut value = |name: &str| {
@@ -71,6 +77,7 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
                 parsed.timeout = Some(Duration::from_secs_f64(seconds));
             }
             "--boot-option" => parsed.boot_option = Some(value("--boot-option")?),
+            "--write-usb" => parsed.write_usb = Some(PathBuf::from(value("--write-usb")?)),
             other => return Err(format!("unknown option {other:?}; see --help")),
         }
     }
@@ -89,6 +96,9 @@ fn run(args: Args) -> Result<ExitCode, String> {
         Firmware::Bios => images.bios,
         Firmware::Uefi => images.uefi,
     };
+    if let Some(device) = &args.write_usb {
+        return write_usb(&image, device);
+    }
     let headless = args.headless || args.screenshot.is_some() || !has_display();
     if !args.headless && headless && args.screenshot.is_none() {
         println!("No display found ($DISPLAY and $WAYLAND_DISPLAY are unset): running headless.");
@@ -150,6 +160,28 @@ fn run(args: Args) -> Result<ExitCode, String> {
             ExitCode::FAILURE
         }
     })
+}
+
+/// Writes the image to a USB stick after the checks in `boot::usb` and the
+/// user's typed confirmation.
+fn write_usb(image: &std::path::Path, device: &std::path::Path) -> Result<ExitCode, String> {
+    let written = boot::usb::write_image_to_usb(image, device, |description| {
+        println!(
+            "{description}\nType the device name ({}) to overwrite it:",
+            device.display()
+        );
+        let mut answer = String::new();
+        let typed = std::io::stdin().read_line(&mut answer).is_ok();
+        let answer = answer.trim();
+        typed
+            && (answer == device.to_string_lossy()
+                || Some(answer) == device.file_name().and_then(|name| name.to_str()))
+    })?;
+    println!(
+        "Wrote {written} bytes to {} and flushed it.",
+        device.display()
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 fn main() -> ExitCode {

@@ -8,6 +8,7 @@
 mod bench;
 mod diagnostics;
 mod fault;
+mod framebuffer;
 mod gdt;
 mod goodbye;
 mod interrupts;
@@ -56,11 +57,29 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     };
     // SAFETY: the bootloader maps all physical memory at this offset (asked for
     // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
-    let bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
-    let mut vga = modex::ModeX::new(bus);
+    let mut bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
+    if modex::legacy_vga_present(&mut bus) {
+        serial_println!("display: legacy VGA found");
+        let mut vga = modex::ModeX::new(bus);
+        vga.set_mode();
+        fault::report_on_screen(physical_memory_offset);
+        serial_println!("vga: Mode X 320x240 set");
+        run_screen(&mut vga, option)
+    }
+
+    // No legacy VGA (a UEFI-only machine, say): the same Mode X code draws on
+    // the software VGA, and each flip is copied to the firmware's framebuffer.
+    // The real ports are never mode-set, which would kill that framebuffer.
+    serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
+    let Some(framebuffer) = boot_info.framebuffer.as_mut() else {
+        panic!("no display: neither a legacy VGA nor a framebuffer from the bootloader");
+    };
+    let mut display = framebuffer::Display::new(framebuffer);
+    let mirror =
+        modex::MirroredVga::new(framebuffer::soft_vga(), move |soft| display.present(soft));
+    let mut vga = modex::ModeX::new(mirror);
     vga.set_mode();
-    fault::report_on_screen(physical_memory_offset);
-    serial_println!("vga: Mode X 320x240 set");
+    serial_println!("vga: Mode X 320x240 set on the software VGA");
     run_screen(&mut vga, option)
 }
 

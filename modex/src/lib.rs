@@ -23,18 +23,23 @@
 extern crate std;
 
 mod bus;
+mod detect;
 mod draw;
 mod driver;
+mod mirror;
 pub mod mode;
 mod page;
 pub mod palette;
+pub mod present;
 pub mod regs;
 pub mod soft;
 mod text;
 mod update;
 
 pub use bus::{VgaBus, CPU_WINDOW_BYTES};
+pub use detect::legacy_vga_present;
 pub use driver::ModeX;
+pub use mirror::MirroredVga;
 pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
 pub use text::{TEXT_COLUMNS, TEXT_ROWS};
 pub use update::{PageImage, PAGE_PIXELS};

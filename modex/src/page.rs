@@ -8,9 +8,11 @@ use crate::{ModeX, VgaBus, PAGE_BYTES};
 pub const PAGE_COUNT: u8 = 3;
 
 /// How many times a wait reads Input Status 1 before giving up, so a stuck
-/// status bit can never hang the kernel. A frame lasts about 17 000 reads at
-/// ~1 µs each, so the bound is about a dozen frames.
-pub const STATUS_POLL_LIMIT: u32 = 200_000;
+/// status bit can never hang the kernel. A read costs about 1 µs on an ISA
+/// card (the bound is then a second) but well under 100 ns under emulation,
+/// where 200,000 reads proved shorter than a frame and flips timed out; a
+/// million leaves room for a frame everywhere.
+pub const STATUS_POLL_LIMIT: u32 = 1_000_000;
 
 /// A Mode X page: Page(0) at offset 0, Page(1) at 19200, Page(2) at 38400.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]

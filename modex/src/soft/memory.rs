@@ -57,7 +57,7 @@ pub(super) struct VideoMemory {
 }
 
 impl VideoMemory {
-    pub(super) fn new() -> Self {
+    pub(super) const fn new() -> Self {
         Self {
             planes: [[0; PLANE_BYTES]; PLANE_COUNT],
             latches: [0; PLANE_COUNT],

@@ -74,7 +74,10 @@ impl SoftVga {
     /// A VGA as the BIOS leaves it at boot: mode 3 (80x25 colour text)
     /// registers, the EGA palette in the DAC, Bochs VBE off; video memory
     /// cleared (the model has no BIOS font), clock at 0.
-    pub fn new() -> Self {
+    ///
+    /// `const`, so a kernel can keep its model in a static: built by value it
+    /// needs several copies of its ~260 KiB on the stack.
+    pub const fn new() -> Self {
         let registers = Registers::with_mode(&TEXT_80X25, &EGA_PALETTE);
         let timing = CrtTiming::from_registers(&registers);
         Self {
@@ -85,8 +88,13 @@ impl SoftVga {
             now_ns: 0,
             frame_count: 0,
             retrace_stuck: None,
-            counts: BusCounts::default(),
-            guard: WriteGuard::default(),
+            counts: BusCounts {
+                port_writes: 0,
+                port_reads: 0,
+                vram_writes: 0,
+                vram_reads: 0,
+            },
+            guard: WriteGuard::new(),
         }
     }
 

@@ -25,6 +25,15 @@ pub(super) struct WriteGuard {
 }
 
 impl WriteGuard {
+    /// Everything allowed, nothing seen.
+    pub(super) const fn new() -> Self {
+        WriteGuard {
+            allowed: None,
+            violations: 0,
+            first_violation: None,
+        }
+    }
+
     /// Guards `allowed` (None: everything is allowed) and forgets past violations.
     pub(super) fn set(&mut self, allowed: Option<Range<u16>>) {
         *self = Self {

@@ -91,9 +91,12 @@ pub(super) struct Registers {
 impl Registers {
     /// The registers as `mode` programs them, the DAC loaded with `palette`
     /// from entry 0 and the rest black.
-    pub(super) fn with_mode(mode: &ModeRegisters, palette: &[Rgb6]) -> Self {
+    pub(super) const fn with_mode(mode: &ModeRegisters, palette: &[Rgb6]) -> Self {
         let mut dac_palette = [[0; 3]; 256];
-        dac_palette[..palette.len()].copy_from_slice(palette);
+        dac_palette
+            .split_at_mut(palette.len())
+            .0
+            .copy_from_slice(palette);
         Self {
             misc_output: mode.misc_output,
             feature_control: 0,
@@ -115,7 +118,10 @@ impl Registers {
                 pending: [0; 3],
                 state: DAC_STATE_WRITING,
             },
-            dispi: Dispi::default(),
+            dispi: Dispi {
+                index: 0,
+                enable: 0,
+            },
         }
     }
 
@@ -276,20 +282,20 @@ impl Registers {
         }
     }
 
-    pub(super) fn sequencer(&self, index: u8) -> u8 {
-        self.sequencer[usize::from(index)]
+    pub(super) const fn sequencer(&self, index: u8) -> u8 {
+        self.sequencer[index as usize]
     }
 
     pub(super) fn graphics(&self, index: u8) -> u8 {
         self.graphics[usize::from(index)]
     }
 
-    pub(super) fn crtc(&self, index: u8) -> u8 {
-        self.crtc[usize::from(index)]
+    pub(super) const fn crtc(&self, index: u8) -> u8 {
+        self.crtc[index as usize]
     }
 
     /// The CRTC start address registers as they stand (not yet latched).
-    pub(super) fn start_address(&self) -> u16 {
+    pub(super) const fn start_address(&self) -> u16 {
         u16::from_be_bytes([
             self.crtc(crtc::START_ADDRESS_HIGH),
             self.crtc(crtc::START_ADDRESS_LOW),
@@ -299,21 +305,24 @@ impl Registers {
     /// A 10-bit vertical count: the `low` register, with bit 8 from Overflow
     /// and bit 9 from another register (Overflow, or Maximum Scan Line for
     /// line compare).
-    fn vertical_count(&self, low: u8, overflow_bit_8: u8, (high_register, bit_9): (u8, u8)) -> u16 {
-        let bit = |register: u8, mask: u8, value: u16| {
-            if self.crtc(register) & mask != 0 {
-                value
-            } else {
-                0
-            }
-        };
-        u16::from(self.crtc(low))
-            | bit(crtc::OVERFLOW, overflow_bit_8, 1 << 8)
-            | bit(high_register, bit_9, 1 << 9)
+    const fn vertical_count(&self, low: u8, overflow_bit_8: u8, high: (u8, u8)) -> u16 {
+        let (high_register, bit_9) = high;
+        self.crtc(low) as u16
+            | self.bit_value(crtc::OVERFLOW, overflow_bit_8, 1 << 8)
+            | self.bit_value(high_register, bit_9, 1 << 9)
+    }
+
+    /// `value` if the bits `mask` of CRTC register `register` are set, else 0.
+    const fn bit_value(&self, register: u8, mask: u8, value: u16) -> u16 {
+        if self.crtc(register) & mask != 0 {
+            value
+        } else {
+            0
+        }
     }
 
     /// Vertical Total: lines per frame - 2.
-    pub(super) fn vertical_total(&self) -> u16 {
+    pub(super) const fn vertical_total(&self) -> u16 {
         self.vertical_count(
             crtc::VERTICAL_TOTAL,
             crtc::OVERFLOW_VERTICAL_TOTAL_8,
@@ -322,7 +331,7 @@ impl Registers {
     }
 
     /// Vertical Display End: displayed lines - 1.
-    pub(super) fn vertical_display_end(&self) -> u16 {
+    pub(super) const fn vertical_display_end(&self) -> u16 {
         self.vertical_count(
             crtc::VERTICAL_DISPLAY_END,
             crtc::OVERFLOW_VERTICAL_DISPLAY_END_8,
@@ -331,7 +340,7 @@ impl Registers {
     }
 
     /// Vertical Retrace Start: the first line of vertical sync.
-    pub(super) fn vertical_retrace_start(&self) -> u16 {
+    pub(super) const fn vertical_retrace_start(&self) -> u16 {
         self.vertical_count(
             crtc::VERTICAL_RETRACE_START,
             crtc::OVERFLOW_VERTICAL_RETRACE_START_8,

@@ -48,26 +48,26 @@ pub struct CrtTiming {
 }
 
 impl CrtTiming {
-    pub(super) fn from_registers(registers: &Registers) -> Self {
+    pub(super) const fn from_registers(registers: &Registers) -> Self {
         let clock_select =
             (registers.misc_output & misc::CLOCK_SELECT_MASK) >> misc::CLOCK_SELECT_SHIFT;
         let eight_dot = registers.sequencer(seq::CLOCKING_MODE) & seq::CLOCKING_8_DOT != 0;
-        let retrace_start_line = u64::from(registers.vertical_retrace_start());
+        let retrace_start_line = registers.vertical_retrace_start() as u64;
         let retrace_end_bits =
-            u64::from(registers.crtc(crtc::VERTICAL_RETRACE_END) & crtc::VERTICAL_RETRACE_END_MASK);
+            (registers.crtc(crtc::VERTICAL_RETRACE_END) & crtc::VERTICAL_RETRACE_END_MASK) as u64;
         let retrace_lines =
             match retrace_end_bits.wrapping_sub(retrace_start_line) % RETRACE_END_COMPARE_LINES {
                 0 => RETRACE_END_COMPARE_LINES,
                 lines => lines,
             };
         Self {
-            dot_clock_hz: DOT_CLOCK_HZ[usize::from(clock_select)],
+            dot_clock_hz: DOT_CLOCK_HZ[clock_select as usize],
             dots_per_character: if eight_dot { 8 } else { 9 },
-            characters_per_line: u64::from(registers.crtc(crtc::HORIZONTAL_TOTAL))
+            characters_per_line: registers.crtc(crtc::HORIZONTAL_TOTAL) as u64
                 + HORIZONTAL_TOTAL_BIAS,
-            display_characters: u64::from(registers.crtc(crtc::HORIZONTAL_DISPLAY_END)) + 1,
-            lines_per_frame: u64::from(registers.vertical_total()) + VERTICAL_TOTAL_BIAS,
-            display_lines: u64::from(registers.vertical_display_end()) + 1,
+            display_characters: registers.crtc(crtc::HORIZONTAL_DISPLAY_END) as u64 + 1,
+            lines_per_frame: registers.vertical_total() as u64 + VERTICAL_TOTAL_BIAS,
+            display_lines: registers.vertical_display_end() as u64 + 1,
             retrace_start_line,
             retrace_lines,
         }

@@ -1,0 +1,570 @@
+//! Writing a disk image to a USB stick, with the checks `dd` does not make:
+//! the target must be a whole, removable disk with nothing of it in use, its
+//! description is shown, and the caller must confirm before a byte is written.
+//!
+//! Everything is read from sysfs and procfs (Linux), under roots that tests
+//! replace with a fake tree, so no test ever needs a real device.
+
+use std::fs::{self, File, OpenOptions};
+use std::io::{Read, Write};
+use std::os::unix::fs::{FileTypeExt, MetadataExt};
+use std::path::{Path, PathBuf};
+
+/// sysfs counts disk sizes in 512-byte sectors, whatever the device's own.
+const SYSFS_SECTOR_BYTES: u64 = 512;
+const COPY_CHUNK_BYTES: usize = 4 << 20;
+
+/// Writes `image` to the whole removable disk `device` (e.g. `/dev/sdb`)
+/// after checking it and calling `confirm` with a description of what will
+/// be overwritten; returns the bytes written, flushed to the device.
+///
+/// Refused, with a message saying why: anything that is not a block device,
+/// a partition rather than a whole disk, a disk the kernel does not report as
+/// removable, a disk with a partition mounted, used as swap or held by
+/// device-mapper, RAID or LVM, a disk smaller than the image, and an answer
+/// of `false` from `confirm` (nothing is written then).
+pub fn write_image_to_usb(
+    image: &Path,
+    device: &Path,
+    confirm: impl FnOnce(&str) -> bool,
+) -> Result<u64, String> {
+    let node = DeviceNode::inspect(device)?;
+    write_checked(image, &node, &SystemRoots::live(), confirm)
+}
+
+/// Where sysfs and procfs are: `/sys` and `/proc`, or a test's fake tree.
+struct SystemRoots {
+    sys: PathBuf,
+    proc: PathBuf,
+}
+
+impl SystemRoots {
+    fn live() -> Self {
+        SystemRoots {
+            sys: PathBuf::from("/sys"),
+            proc: PathBuf::from("/proc"),
+        }
+    }
+}
+
+/// A block device special file and the device number it stands for.
+#[derive(Clone, Debug)]
+struct DeviceNode {
+    path: PathBuf,
+    /// "major:minor", as sysfs and mountinfo write it.
+    number: String,
+}
+
+impl DeviceNode {
+    fn inspect(path: &Path) -> Result<Self, String> {
+        let metadata =
+            fs::metadata(path).map_err(|e| format!("cannot look at {}: {e}", path.display()))?;
+        if !metadata.file_type().is_block_device() {
+            return Err(format!(
+                "{} is not a block device; name the USB stick's device, e.g. /dev/sdb \
+                 (see `lsblk -o NAME,SIZE,RM,TRAN,MODEL`)",
+                path.display()
+            ));
+        }
+        Ok(DeviceNode {
+            path: path.to_owned(),
+            number: device_number(metadata.rdev()),
+        })
+    }
+}
+
+/// Linux's encoding of a dev_t as "major:minor".
+fn device_number(rdev: u64) -> String {
+    let major = ((rdev >> 8) & 0xFFF) | ((rdev >> 32) & !0xFFF);
+    let minor = (rdev & 0xFF) | ((rdev >> 12) & !0xFF);
+    format!("{major}:{minor}")
+}
+
+/// A whole disk as sysfs describes it.
+struct Disk {
+    name: String,
+    /// The disk's sysfs directory (`/sys/devices/.../block/sdb`).
+    dir: PathBuf,
+    /// The device numbers of the disk and each of its partitions, with names.
+    members: Vec<(String, String)>,
+    bytes: u64,
+}
+
+impl Disk {
+    /// The whole, removable disk behind `node`, or why not.
+    fn identify(node: &DeviceNode, roots: &SystemRoots) -> Result<Disk, String> {
+        let link = roots.sys.join("dev/block").join(&node.number);
+        let dir = fs::canonicalize(&link).map_err(|_| {
+            format!(
+                "{} (device {}) is not a disk the kernel lists in {}",
+                node.path.display(),
+                node.number,
+                roots.sys.join("dev/block").display()
+            )
+        })?;
+        let name = file_name(&dir);
+        if dir.join("partition").exists() {
+            let disk = dir.parent().map(file_name).unwrap_or_default();
+            return Err(format!(
+                "{} is partition {name} of disk {disk}: the image needs the whole disk, /dev/{disk}",
+                node.path.display()
+            ));
+        }
+        let removable = read_trimmed(&dir.join("removable")).unwrap_or_default();
+        if removable != "1" {
+            return Err(format!(
+                "{} ({name}) is not a removable disk (sysfs says removable={}): refusing to \
+                 overwrite what may be a system disk",
+                node.path.display(),
+                if removable.is_empty() {
+                    "?"
+                } else {
+                    &removable
+                }
+            ));
+        }
+        let sectors: u64 = read_trimmed(&dir.join("size"))
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| format!("cannot read the size of {name} from sysfs"))?;
+        let mut members = vec![(name.clone(), node.number.clone())];
+        for entry in
+            fs::read_dir(&dir).map_err(|e| format!("cannot list {}: {e}", dir.display()))?
+        {
+            let partition = entry.map_err(|e| e.to_string())?.path();
+            if partition.join("partition").exists() {
+                if let Some(number) = read_trimmed(&partition.join("dev")) {
+                    members.push((file_name(&partition), number));
+                }
+            }
+        }
+        Ok(Disk {
+            name,
+            dir,
+            members,
+            bytes: sectors * SYSFS_SECTOR_BYTES,
+        })
+    }
+
+    /// Refuses a disk any part of which is mounted, swapped to, or held by
+    /// another block device (device-mapper, RAID, LVM).
+    fn ensure_unused(&self, roots: &SystemRoots) -> Result<(), String> {
+        // mountinfo's third field is the mounted filesystem's device number,
+        // whatever name the mount was made by (/dev/disk/by-uuid/..., /dev/root).
+        let mountinfo = fs::read_to_string(roots.proc.join("self/mountinfo")).unwrap_or_default();
+        for line in mountinfo.lines() {
+            let fields: Vec<&str> = line.split_whitespace().collect();
+            if let (Some(number), Some(mount_point)) = (fields.get(2), fields.get(4)) {
+                if let Some((member, _)) = self.members.iter().find(|(_, n)| n == number) {
+                    return Err(self.in_use(member, &format!("mounted on {mount_point}")));
+                }
+            }
+        }
+        // /proc/mounts and /proc/swaps name the device the way it was mounted.
+        for (table, how) in [("mounts", "mounted on"), ("swaps", "used as swap")] {
+            let text = fs::read_to_string(roots.proc.join(table)).unwrap_or_default();
+            for line in text.lines() {
+                let mut fields = line.split_whitespace();
+                // Pseudo filesystems ("proc", "tmpfs") name no device.
+                let (Some(source), rest) = (fields.next(), fields.next()) else {
+                    continue;
+                };
+                if !source.starts_with('/') {
+                    continue;
+                }
+                let source = fs::canonicalize(source).unwrap_or_else(|_| PathBuf::from(source));
+                let source_name = file_name(&source);
+                if let Some((member, _)) = self.members.iter().find(|(m, _)| *m == source_name) {
+                    let what = match table {
+                        "mounts" => format!("{how} {}", rest.unwrap_or("?")),
+                        _ => how.to_owned(),
+                    };
+                    return Err(self.in_use(member, &what));
+                }
+            }
+        }
+        for (member, _) in &self.members {
+            let holders = if *member == self.name {
+                self.dir.join("holders")
+            } else {
+                self.dir.join(member).join("holders")
+            };
+            if let Some(holder) = fs::read_dir(holders).ok().and_then(|mut d| d.next()) {
+                let holder = holder.map(|h| file_name(&h.path())).unwrap_or_default();
+                return Err(self.in_use(member, &format!("held by {holder}")));
+            }
+        }
+        Ok(())
+    }
+
+    fn in_use(&self, member: &str, how: &str) -> String {
+        format!(
+            "/dev/{member} is {how}: unmount every partition of /dev/{} first \
+             (`lsblk -no MOUNTPOINTS /dev/{}` must print nothing)",
+            self.name, self.name
+        )
+    }
+
+    /// What will be overwritten, for the confirmation.
+    fn describe(&self, node: &DeviceNode, image: &Path, image_bytes: u64) -> String {
+        let field = |name: &str| read_trimmed(&self.dir.join("device").join(name));
+        let maker: Vec<String> = [field("vendor"), field("model")]
+            .into_iter()
+            .flatten()
+            .filter(|s| !s.is_empty())
+            .collect();
+        let maker = if maker.is_empty() {
+            "unknown make".to_owned()
+        } else {
+            maker.join(" ")
+        };
+        format!(
+            "{} ({}) will be overwritten with {} ({}): {maker}, {}, removable. \
+             Everything on it will be lost.",
+            node.path.display(),
+            self.name,
+            image.display(),
+            human_size(image_bytes),
+            human_size(self.bytes),
+        )
+    }
+}
+
+/// All checks, the confirmation, then the copy.
+fn write_checked(
+    image: &Path,
+    node: &DeviceNode,
+    roots: &SystemRoots,
+    confirm: impl FnOnce(&str) -> bool,
+) -> Result<u64, String> {
+    let disk = Disk::identify(node, roots)?;
+    disk.ensure_unused(roots)?;
+    let image_bytes = fs::metadata(image)
+        .map_err(|e| format!("cannot read the image {}: {e}", image.display()))?
+        .len();
+    if image_bytes > disk.bytes {
+        return Err(format!(
+            "the image ({}) does not fit on {} ({})",
+            human_size(image_bytes),
+            node.path.display(),
+            human_size(disk.bytes)
+        ));
+    }
+    if !confirm(&disk.describe(node, image, image_bytes)) {
+        return Err(format!(
+            "not confirmed: nothing was written to {}",
+            node.path.display()
+        ));
+    }
+    copy_and_sync(image, &node.path)
+}
+
+/// Copies `image` to the start of `device` and waits until the device has it.
+fn copy_and_sync(image: &Path, device: &Path) -> Result<u64, String> {
+    let mut source =
+        File::open(image).map_err(|e| format!("cannot open {}: {e}", image.display()))?;
+    // No create, no truncate: the device must exist, and a block device has
+    // no length to cut.
+    let mut target = OpenOptions::new()
+        .write(true)
+        .open(device)
+        .map_err(|e| format!("cannot open {} for writing: {e}", device.display()))?;
+    let mut chunk = vec![0; COPY_CHUNK_BYTES];
+    let mut written = 0u64;
+    loop {
+        let read = source
+            .read(&mut chunk)
+            .map_err(|e| format!("cannot read {}: {e}", image.display()))?;
+        if read == 0 {
+            break;
+        }
+        target.write_all(&chunk[..read]).map_err(|e| {
+            format!(
+                "writing {} failed after {written} bytes: {e}",
+                device.display()
+            )
+        })?;
+        written += read as u64;
+    }
+    target
+        .sync_all()
+        .map_err(|e| format!("flushing {} failed: {e}", device.display()))?;
+    Ok(written)
+}
+
+fn read_trimmed(path: &Path) -> Option<String> {
+    fs::read_to_string(path).ok().map(|s| s.trim().to_owned())
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// "15.6 GB (15631122432 bytes)": decimal units, as sticks are sold.
+fn human_size(bytes: u64) -> String {
+    let units = [("GB", 1e9), ("MB", 1e6), ("kB", 1e3)];
+    let (unit, size) = units
+        .iter()
+        .find(|(_, size)| bytes as f64 >= *size)
+        .unwrap_or(&("bytes", 1.0));
+    if *unit == "bytes" {
+        format!("{bytes} bytes")
+    } else {
+        format!("{:.1} {unit} ({bytes} bytes)", bytes as f64 / size)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::symlink;
+    use std::sync::atomic::{AtomicU32, Ordering};
+
+    /// A fake /sys and /proc with one disk, `sdb` (8:16), partition `sdb1`
+    /// (8:17), a 16 MiB "device" that is a plain file, and a 1 MiB image.
+    struct Fixture {
+        root: PathBuf,
+        roots: SystemRoots,
+        node: DeviceNode,
+        image: PathBuf,
+    }
+
+    const DEVICE_BYTES: u64 = 16 << 20;
+    const ORIGINAL: u8 = 0xEE;
+
+    impl Fixture {
+        fn new(removable: &str) -> Fixture {
+            static NEXT: AtomicU32 = AtomicU32::new(0);
+            let root = std::env::temp_dir().join(format!(
+                "modex-usb-test-{}-{}",
+                std::process::id(),
+                NEXT.fetch_add(1, Ordering::Relaxed)
+            ));
+            let disk = root.join("sys/devices/pci0000:00/usb1/block/sdb");
+            fs::create_dir_all(disk.join("sdb1")).unwrap();
+            fs::create_dir_all(disk.join("device")).unwrap();
+            fs::create_dir_all(disk.join("holders")).unwrap();
+            fs::create_dir_all(disk.join("sdb1/holders")).unwrap();
+            fs::create_dir_all(root.join("sys/dev/block")).unwrap();
+            fs::create_dir_all(root.join("proc/self")).unwrap();
+            let write = |path: PathBuf, text: &str| fs::write(path, text).unwrap();
+            write(disk.join("removable"), &format!("{removable}\n"));
+            write(disk.join("size"), &format!("{}\n", DEVICE_BYTES / 512));
+            write(disk.join("dev"), "8:16\n");
+            write(disk.join("device/vendor"), "SanDisk \n");
+            write(disk.join("device/model"), "Cruzer Blade    \n");
+            write(disk.join("sdb1/partition"), "1\n");
+            write(disk.join("sdb1/dev"), "8:17\n");
+            symlink(&disk, root.join("sys/dev/block/8:16")).unwrap();
+            symlink(disk.join("sdb1"), root.join("sys/dev/block/8:17")).unwrap();
+            write(
+                root.join("proc/mounts"),
+                "/dev/vda1 / ext4 rw,relatime 0 0\nproc /proc proc rw 0 0\n",
+            );
+            write(
+                root.join("proc/self/mountinfo"),
+                "22 1 254:1 / / rw,relatime shared:1 - ext4 /dev/vda1 rw\n",
+            );
+            write(
+                root.join("proc/swaps"),
+                "Filename Type Size Used Priority\n",
+            );
+            let device = root.join("sdb-contents");
+            fs::write(&device, vec![ORIGINAL; DEVICE_BYTES as usize]).unwrap();
+            let image = root.join("bios.img");
+            fs::write(&image, (0..1 << 20).map(|i| i as u8).collect::<Vec<u8>>()).unwrap();
+            Fixture {
+                roots: SystemRoots {
+                    sys: root.join("sys"),
+                    proc: root.join("proc"),
+                },
+                node: DeviceNode {
+                    path: device,
+                    number: "8:16".into(),
+                },
+                image,
+                root,
+            }
+        }
+
+        fn write(&self, confirm: impl FnOnce(&str) -> bool) -> Result<u64, String> {
+            write_checked(&self.image, &self.node, &self.roots, confirm)
+        }
+
+        fn device_untouched(&self) -> bool {
+            fs::read(&self.node.path)
+                .unwrap()
+                .iter()
+                .all(|&b| b == ORIGINAL)
+        }
+
+        fn append(&self, file: &str, line: &str) {
+            let path = self.root.join("proc").join(file);
+            let text = fs::read_to_string(&path).unwrap() + line;
+            fs::write(path, text).unwrap();
+        }
+    }
+
+    impl Drop for Fixture {
+        fn drop(&mut self) {
+            let _ = fs::remove_dir_all(&self.root);
+        }
+    }
+
+    fn refused(fixture: &Fixture) -> String {
+        let mut asked = false;
+        let error = fixture
+            .write(|_| {
+                asked = true;
+                true
+            })
+            .expect_err("must be refused");
+        assert!(!asked, "refused only after asking: {error}");
+        assert!(fixture.device_untouched(), "written although refused");
+        error
+    }
+
+    #[test]
+    fn a_removable_unmounted_disk_is_described_then_written_and_synced() {
+        let fixture = Fixture::new("1");
+        let mut shown = String::new();
+        let written = fixture
+            .write(|description| {
+                shown = description.to_owned();
+                true
+            })
+            .unwrap();
+        assert_eq!(written, 1 << 20);
+        for part in [
+            "sdb",
+            "SanDisk Cruzer Blade",
+            "16.8 MB (16777216 bytes)",
+            "removable",
+        ] {
+            assert!(shown.contains(part), "{part:?} missing from {shown:?}");
+        }
+        let device = fs::read(&fixture.node.path).unwrap();
+        assert_eq!(device[..1 << 20], fs::read(&fixture.image).unwrap()[..]);
+        assert!(device[1 << 20..].iter().all(|&b| b == ORIGINAL));
+    }
+
+    #[test]
+    fn declining_the_confirmation_writes_nothing() {
+        let fixture = Fixture::new("1");
+        let error = fixture.write(|_| false).unwrap_err();
+        assert!(error.contains("nothing was written"), "{error}");
+        assert!(fixture.device_untouched());
+    }
+
+    #[test]
+    fn a_fixed_disk_is_refused() {
+        let error = refused(&Fixture::new("0"));
+        assert!(error.contains("not a removable disk"), "{error}");
+        assert!(error.contains("removable=0"), "{error}");
+    }
+
+    #[test]
+    fn a_partition_is_refused_with_the_whole_disk_named() {
+        let mut fixture = Fixture::new("1");
+        fixture.node.number = "8:17".into();
+        let error = refused(&fixture);
+        assert!(error.contains("partition sdb1 of disk sdb"), "{error}");
+        assert!(error.contains("/dev/sdb"), "{error}");
+    }
+
+    #[test]
+    fn a_disk_with_a_mounted_partition_is_refused() {
+        let fixture = Fixture::new("1");
+        fixture.append("mounts", "/dev/sdb1 /media/stick vfat rw 0 0\n");
+        let error = refused(&fixture);
+        assert!(
+            error.contains("/dev/sdb1 is mounted on /media/stick"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_mount_made_by_another_name_is_found_by_device_number() {
+        let fixture = Fixture::new("1");
+        fixture.append(
+            "self/mountinfo",
+            "40 22 8:17 / /media/stick rw - vfat /dev/disk/by-label/STICK rw\n",
+        );
+        let error = refused(&fixture);
+        assert!(
+            error.contains("/dev/sdb1 is mounted on /media/stick"),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_mounted_whole_disk_is_refused() {
+        let fixture = Fixture::new("1");
+        fixture.append(
+            "self/mountinfo",
+            "40 22 8:16 / /mnt rw - iso9660 /dev/sdb ro\n",
+        );
+        assert!(refused(&fixture).contains("/dev/sdb is mounted on /mnt"));
+    }
+
+    #[test]
+    fn a_partition_used_as_swap_or_held_by_device_mapper_is_refused() {
+        let fixture = Fixture::new("1");
+        fixture.append("swaps", "/dev/sdb1 partition 1024 0 -2\n");
+        assert!(refused(&fixture).contains("used as swap"));
+
+        let fixture = Fixture::new("1");
+        let holder = fixture
+            .roots
+            .sys
+            .join("devices/pci0000:00/usb1/block/sdb/sdb1/holders/dm-0");
+        fs::create_dir_all(holder).unwrap();
+        assert!(refused(&fixture).contains("held by dm-0"));
+    }
+
+    #[test]
+    fn an_image_larger_than_the_disk_is_refused() {
+        let fixture = Fixture::new("1");
+        let sectors = fixture
+            .roots
+            .sys
+            .join("devices/pci0000:00/usb1/block/sdb/size");
+        fs::write(sectors, "1024\n").unwrap(); // 512 KiB
+        assert!(refused(&fixture).contains("does not fit"));
+    }
+
+    #[test]
+    fn a_device_sysfs_does_not_list_is_refused() {
+        let mut fixture = Fixture::new("1");
+        fixture.node.number = "8:32".into();
+        assert!(refused(&fixture).contains("not a disk the kernel lists"));
+    }
+
+    #[test]
+    fn what_is_not_a_block_device_is_refused_before_anything_else() {
+        let fixture = Fixture::new("1");
+        for path in [
+            fixture.image.as_path(),
+            Path::new("/dev/null"),
+            Path::new("/"),
+        ] {
+            let error = write_image_to_usb(&fixture.image, path, |_| panic!("asked")).unwrap_err();
+            assert!(error.contains("is not a block device"), "{error}");
+        }
+        let error = write_image_to_usb(&fixture.image, &fixture.root.join("missing"), |_| {
+            panic!("asked")
+        })
+        .unwrap_err();
+        assert!(error.contains("cannot look at"), "{error}");
+    }
+
+    #[test]
+    fn device_numbers_decode_as_linux_encodes_them() {
+        assert_eq!(device_number(0x0810), "8:16");
+        assert_eq!(device_number(0x0811), "8:17");
+        // Minor 0x12345 needs the split encoding (high minor bits above the major).
+        let rdev = (259u64 & 0xFFF) << 8 | (0x12345u64 & 0xFF) | (0x12345u64 & !0xFF) << 12;
+        assert_eq!(device_number(rdev), "259:74565");
+    }
+}

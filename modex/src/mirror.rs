@@ -1,0 +1,230 @@
+//! The software VGA as the machine's display adapter: a bus that forwards
+//! everything to the model and hands its picture to a presenter (a copy to the
+//! firmware's framebuffer) each time the model latches a new start address,
+//! so the Mode X drawing code runs unchanged where no legacy VGA exists.
+
+use crate::regs::{
+    crtc, CRTC_DATA, CRTC_DATA_MONO, CRTC_INDEX, CRTC_INDEX_MONO, INPUT_STATUS_1,
+    INPUT_STATUS_1_MONO,
+};
+use crate::soft::SoftVga;
+use crate::VgaBus;
+
+/// A [`VgaBus`] over a software VGA that calls `present` once per page flip.
+///
+/// A flip ([`crate::ModeX::show_page`]) writes the CRTC start address, then
+/// polls Input Status 1 until vertical retrace, when the VGA latches it. So
+/// the mirror notes every write to Start Address High or Low, and after each
+/// Input Status 1 read presents if the model has started a frame since: the
+/// address is latched. `show_page` therefore returns with the new page on
+/// screen, and the page it left may be drawn into at once.
+///
+/// Presenting on every latched write, rather than only when the displayed
+/// address changes, keeps a flip to the page already shown meaningful: the
+/// test pattern draws page 0 while the mode set shows it, then shows it.
+pub struct MirroredVga<'a, F: FnMut(&SoftVga)> {
+    soft: &'a mut SoftVga,
+    present: F,
+    /// The CRTC index last written, to recognise start address writes.
+    crtc_index: u8,
+    /// The model's frame count when the start address was last written, until
+    /// a new frame has latched it and it has been presented.
+    flip_written_in_frame: Option<u64>,
+    presentations: u64,
+}
+
+impl<'a, F: FnMut(&SoftVga)> MirroredVga<'a, F> {
+    /// Mirrors `soft`, calling `present` with it for each new page shown.
+    /// Nothing is presented until the first flip (or [`Self::present_now`]).
+    pub fn new(soft: &'a mut SoftVga, present: F) -> Self {
+        MirroredVga {
+            soft,
+            present,
+            crtc_index: 0,
+            flip_written_in_frame: None,
+            presentations: 0,
+        }
+    }
+
+    /// Presents the model's picture now, whatever it shows (after drawing
+    /// into the page shown, say, which is no flip).
+    pub fn present_now(&mut self) {
+        self.flip_written_in_frame = None;
+        self.presentations += 1;
+        (self.present)(self.soft);
+    }
+
+    /// How many times the picture has been presented.
+    pub fn presentations(&self) -> u64 {
+        self.presentations
+    }
+
+    /// The model.
+    pub fn soft(&self) -> &SoftVga {
+        self.soft
+    }
+
+    fn note_port_write(&mut self, port: u16, value: u8) {
+        match port {
+            CRTC_INDEX | CRTC_INDEX_MONO => self.crtc_index = value,
+            CRTC_DATA | CRTC_DATA_MONO
+                if matches!(
+                    self.crtc_index,
+                    crtc::START_ADDRESS_HIGH | crtc::START_ADDRESS_LOW
+                ) =>
+            {
+                self.flip_written_in_frame = Some(self.soft.frame_count());
+            }
+            _ => {}
+        }
+    }
+
+    fn after_status_read(&mut self) {
+        if let Some(frame) = self.flip_written_in_frame {
+            if self.soft.frame_count() > frame {
+                self.present_now();
+            }
+        }
+    }
+}
+
+impl<F: FnMut(&SoftVga)> VgaBus for MirroredVga<'_, F> {
+    fn write_port8(&mut self, port: u16, value: u8) {
+        self.soft.write_port8(port, value);
+        self.note_port_write(port, value);
+    }
+
+    fn write_port16(&mut self, port: u16, value: u16) {
+        self.soft.write_port16(port, value);
+        let [low, high] = value.to_le_bytes();
+        self.note_port_write(port, low);
+        self.note_port_write(port.wrapping_add(1), high);
+    }
+
+    fn read_port8(&mut self, port: u16) -> u8 {
+        let value = self.soft.read_port8(port);
+        if port == INPUT_STATUS_1 || port == INPUT_STATUS_1_MONO {
+            self.after_status_read();
+        }
+        value
+    }
+
+    fn write_vram8(&mut self, offset: u16, value: u8) {
+        self.soft.write_vram8(offset, value);
+    }
+
+    fn read_vram8(&mut self, offset: u16) -> u8 {
+        self.soft.read_vram8(offset)
+    }
+
+    fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
+        self.soft.fill_vram(offset, count, value);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::present::{present, FramebufferLayout, PixelOrder};
+    use crate::soft::dac_6_to_8;
+    use crate::{ModeX, Page, PAGE_PIXELS};
+    use std::boxed::Box;
+    use std::vec;
+    use std::vec::Vec;
+
+    /// Page `page` filled with colour `page + 1`, so each page looks different.
+    fn fill_pages(vga: &mut ModeX<impl VgaBus>) {
+        for page in 0..3 {
+            vga.fill_rect(Page(page), 0, 0, 320, 240, page + 1);
+        }
+    }
+
+    #[test]
+    fn each_flip_presents_once_with_the_new_page_displayed() {
+        let mut soft = Box::new(SoftVga::new());
+        let mut presented: Vec<u16> = Vec::new();
+        let mut vga = ModeX::new(MirroredVga::new(&mut soft, |soft: &SoftVga| {
+            presented.push(soft.displayed_start())
+        }));
+        vga.set_mode();
+        fill_pages(&mut vga);
+        let before = vga.bus().presentations();
+        let flips = [0, 1, 2, 1, 0, 2];
+        for (done, page) in flips.into_iter().enumerate() {
+            vga.show_page(Page(page));
+            assert_eq!(vga.bus().presentations(), before + done as u64 + 1);
+        }
+        let bases: Vec<u16> = flips.iter().map(|&page| Page(page).base()).collect();
+        assert_eq!(presented[before as usize..], bases);
+    }
+
+    #[test]
+    fn showing_the_page_already_shown_presents_it_again() {
+        let mut soft = Box::new(SoftVga::new());
+        let mut count = 0;
+        let mut vga = ModeX::new(MirroredVga::new(&mut soft, |_: &SoftVga| count += 1));
+        vga.set_mode();
+        vga.show_page(Page(0));
+        let after_first_flip = vga.bus().presentations();
+        vga.show_page(Page(0));
+        vga.show_page(Page(0));
+        assert_eq!(vga.bus().presentations(), after_first_flip + 2);
+        assert_eq!(count, after_first_flip + 2);
+    }
+
+    #[test]
+    fn drawing_without_flipping_presents_nothing() {
+        let mut soft = Box::new(SoftVga::new());
+        let mut vga = ModeX::new(MirroredVga::new(&mut soft, |_: &SoftVga| {}));
+        vga.set_mode();
+        let after_mode_set = vga.bus().presentations();
+        fill_pages(&mut vga);
+        vga.put_pixel(Page(0), 5, 5, 9);
+        assert_eq!(vga.bus().presentations(), after_mode_set);
+    }
+
+    #[test]
+    fn the_presented_framebuffer_shows_the_page_just_flipped_to() {
+        let layout = FramebufferLayout {
+            width: 640,
+            height: 480,
+            stride: 640,
+            bytes_per_pixel: 4,
+            order: PixelOrder::Rgb,
+        };
+        let mut framebuffer = vec![0u8; layout.required_bytes()];
+        let mut scratch = vec![0u8; PAGE_PIXELS];
+        let mut soft = Box::new(SoftVga::new());
+        let mut vga = ModeX::new(MirroredVga::new(&mut soft, |soft: &SoftVga| {
+            present(soft, &mut scratch, &layout, &mut framebuffer);
+        }));
+        vga.set_mode();
+        fill_pages(&mut vga);
+        vga.show_page(Page(2));
+        let [red, green, blue] = soft.dac_entry(3).map(dac_6_to_8);
+        let page_2_colour = [red, green, blue, 0];
+        assert_ne!(page_2_colour, [0; 4]);
+        assert!(framebuffer
+            .chunks_exact(4)
+            .all(|pixel| pixel == page_2_colour));
+    }
+
+    #[test]
+    fn every_bus_operation_reaches_the_model() {
+        let mut soft = Box::new(SoftVga::new());
+        let mut vga = ModeX::new(MirroredVga::new(&mut soft, |_: &SoftVga| {}));
+        vga.set_mode();
+        fill_pages(&mut vga);
+        vga.show_page(Page(1));
+        let mut reference = Box::new(SoftVga::new());
+        let mut direct = ModeX::new(&mut *reference);
+        direct.set_mode();
+        fill_pages(&mut direct);
+        direct.show_page(Page(1));
+        assert_eq!(soft.counts(), reference.counts());
+        for plane in 0..4 {
+            assert_eq!(soft.plane(plane)[..], reference.plane(plane)[..]);
+        }
+        assert_eq!(soft.displayed_start(), reference.displayed_start());
+    }
+}

@@ -1,0 +1,165 @@
+//! Machines without a legacy VGA. Under OVMF with `-vga none -device
+//! bochs-display` nothing answers on the VGA ports: the kernel must notice,
+//! run Mode X on its software VGA and copy each flip into the framebuffer the
+//! bootloader got from UEFI GOP. QEMU's screendump of that framebuffer must
+//! equal the model's picture scaled the same way by the same `present`.
+//! Where a legacy VGA exists (BIOS, or UEFI with QEMU's standard VGA), the
+//! detection must find it.
+
+mod common;
+
+use boot::{Firmware, Graphics, Qemu, QemuOptions, RgbImage};
+use common::{model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
+use modex::present::{present_rgb, FramebufferLayout, PixelOrder, Placement};
+use modex::{ModeX, Page};
+use std::time::Duration;
+
+/// OVMF boots in well under 20 s here, but emulation on a loaded machine is slow.
+const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
+const LEGACY_FOUND: &str = "display: legacy VGA found";
+const NO_LEGACY: &str = "display: no legacy VGA";
+
+fn boot(firmware: Firmware, graphics: Graphics, option: &str) -> Qemu {
+    let images = boot::images::publish().expect("the build script made the images");
+    let image = match firmware {
+        Firmware::Bios => images.bios,
+        Firmware::Uefi => images.uefi,
+    };
+    let mut options = QemuOptions::new(image);
+    options.firmware = firmware;
+    options.graphics = graphics;
+    options.boot_option = Some(option.to_owned());
+    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The framebuffer as the kernel reported it on serial:
+/// `display: framebuffer 1280x800 stride 1280 bgr 4 bytes/pixel, scale 3`.
+struct ReportedFramebuffer {
+    width: usize,
+    height: usize,
+    order: String,
+    bytes_per_pixel: usize,
+    scale: usize,
+}
+
+fn reported_framebuffer(console: &str) -> ReportedFramebuffer {
+    let line = console
+        .lines()
+        .find_map(|line| line.strip_prefix("display: framebuffer "))
+        .unwrap_or_else(|| panic!("no framebuffer line on serial:\n{console}"));
+    let unreadable = || -> ! { panic!("cannot read the framebuffer line {line:?}") };
+    let number = |word: Option<&str>| -> usize {
+        word.and_then(|w| w.trim_end_matches(',').parse().ok())
+            .unwrap_or_else(|| unreadable())
+    };
+    // "1280x800 stride 1280 bgr 4 bytes/pixel, scale 3"
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let (width, height) = words[0].split_once('x').unwrap_or_else(|| unreadable());
+    assert_eq!(
+        (words.get(1), words.get(5), words.get(6)),
+        (Some(&"stride"), Some(&"bytes/pixel,"), Some(&"scale")),
+        "{line:?}"
+    );
+    ReportedFramebuffer {
+        width: number(Some(width)),
+        height: number(Some(height)),
+        order: words[3].to_owned(),
+        bytes_per_pixel: number(words.get(4).copied()),
+        scale: number(words.get(7).copied()),
+    }
+}
+
+/// The software VGA's picture of the test pattern (both pages drawn, page 0
+/// shown), presented as the kernel presents it onto a `width` x `height`
+/// screen, read back as RGB.
+fn presented_pattern(width: usize, height: usize) -> RgbImage {
+    let mut soft = soft_vga_in_mode_x();
+    let mut vga = ModeX::new(&mut *soft);
+    demo::pattern::draw(&mut vga, Page(0));
+    demo::pattern::draw(&mut vga, Page(1));
+    vga.show_page(Page(0));
+    let picture = model_picture(&soft);
+    let layout = FramebufferLayout {
+        width,
+        height,
+        stride: width,
+        bytes_per_pixel: 3,
+        order: PixelOrder::Rgb,
+    };
+    let mut bytes = vec![0; layout.required_bytes()];
+    present_rgb(
+        &picture.pixels,
+        (picture.width, picture.height),
+        &layout,
+        &mut bytes,
+    );
+    let pixels = bytes.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+    RgbImage::new(width, height, pixels)
+}
+
+#[test]
+fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
+    let mut qemu = boot(Firmware::Uefi, Graphics::BochsDisplay, "test-pattern");
+    let console = qemu
+        .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(console.contains(NO_LEGACY), "{console}");
+    assert!(!console.contains(LEGACY_FOUND), "{console}");
+    let reported = reported_framebuffer(&console);
+    println!(
+        "framebuffer {}x{} {} {} bytes/pixel, scale {}",
+        reported.width, reported.height, reported.order, reported.bytes_per_pixel, reported.scale
+    );
+
+    let screen = qemu.screendump().unwrap();
+    assert_eq!(
+        (screen.width, screen.height),
+        (reported.width, reported.height),
+        "QEMU's display and the bootloader's framebuffer differ in size"
+    );
+    let expected_scale = Placement::fit((320, 240), (screen.width, screen.height)).scale;
+    assert_eq!(reported.scale, expected_scale);
+    assert!(
+        expected_scale >= 2,
+        "a {}x{} screen",
+        screen.width,
+        screen.height
+    );
+
+    let expected = presented_pattern(screen.width, screen.height);
+    let differences = screen.differences(&expected).unwrap();
+    if !differences.is_empty() {
+        let dir = boot::images::images_dir();
+        let _ = screen.write_png(&dir.join("uefi-framebuffer-qemu.png"));
+        let _ = expected.write_png(&dir.join("uefi-framebuffer-model.png"));
+        panic!(
+            "{} pixels differ, first (x, y, qemu, model): {:?}; pictures in {}",
+            differences.len(),
+            &differences[..differences.len().min(5)],
+            dir.display()
+        );
+    }
+}
+
+#[test]
+fn the_bios_image_finds_the_legacy_vga() {
+    let mut qemu = boot(Firmware::Bios, Graphics::StdVga, "test-pattern");
+    let console = qemu
+        .wait_for_serial("pattern: page 0 shown", BOOT_TIMEOUT)
+        .unwrap();
+    assert!(console.contains(LEGACY_FOUND), "{console}");
+    assert!(!console.contains(NO_LEGACY), "{console}");
+}
+
+#[test]
+fn uefi_with_the_standard_vga_still_finds_the_legacy_vga() {
+    let mut qemu = boot(Firmware::Uefi, Graphics::StdVga, "test-pattern");
+    let console = qemu
+        .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(console.contains(LEGACY_FOUND), "{console}");
+    assert!(!console.contains(NO_LEGACY), "{console}");
+    // And Mode X is really on: QEMU shows the VGA's 640x480, not GOP's mode.
+    let screen = qemu.screendump().unwrap();
+    assert_eq!((screen.width, screen.height), (640, 480));
+}
