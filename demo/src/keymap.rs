@@ -37,6 +37,12 @@ fn command_for_raw(code: KeyCode) -> Option<Command> {
         KeyCode::ArrowDown => Command::MoveDown,
         KeyCode::F1 => Command::Rotate(Axis::Z, true),
         KeyCode::F2 => Command::Rotate(Axis::Z, false),
+        // Us104Key turns these into digits or arrows by NumLock; a layout or
+        // decoder that hands over the keypad key itself still rotates.
+        KeyCode::Numpad4 => Command::Rotate(Axis::Y, false),
+        KeyCode::Numpad6 => Command::Rotate(Axis::Y, true),
+        KeyCode::Numpad8 => Command::Rotate(Axis::X, false),
+        KeyCode::Numpad2 => Command::Rotate(Axis::X, true),
         KeyCode::Escape => Command::Quit,
         KeyCode::LShift
         | KeyCode::RShift
@@ -93,6 +99,12 @@ mod tests {
             (DecodedKey::Unicode('6'), Rotate(Axis::Y, true)),
             (DecodedKey::Unicode('8'), Rotate(Axis::X, false)),
             (DecodedKey::Unicode('2'), Rotate(Axis::X, true)),
+            (DecodedKey::RawKey(KeyCode::Numpad4), Rotate(Axis::Y, false)),
+            (DecodedKey::RawKey(KeyCode::Numpad6), Rotate(Axis::Y, true)),
+            (DecodedKey::RawKey(KeyCode::Numpad8), Rotate(Axis::X, false)),
+            (DecodedKey::RawKey(KeyCode::Numpad2), Rotate(Axis::X, true)),
+            (DecodedKey::RawKey(KeyCode::Escape), Quit),
+            (DecodedKey::Unicode('R'), Reset),
             (DecodedKey::Unicode(' '), ToggleSpin),
             (DecodedKey::Unicode('r'), Reset),
             (DecodedKey::Unicode('\u{1b}'), Quit),
@@ -116,6 +128,18 @@ mod tests {
         ] {
             assert_eq!(command_for(DecodedKey::RawKey(code)), None, "{code:?}");
         }
+    }
+
+    #[test]
+    fn modifier_and_lock_scancodes_and_all_releases_give_no_command() {
+        // Shifts, Ctrls, Alts, Windows keys, Caps, Num and Scroll Lock, each
+        // pressed and released: the seed would not have seen a key.
+        let bytes = [
+            0x2A, 0xAA, 0x36, 0xB6, 0x1D, 0x9D, 0xE0, 0x1D, 0xE0, 0x9D, 0x38, 0xB8, 0xE0, 0x38,
+            0xE0, 0xB8, 0xE0, 0x5B, 0xE0, 0xDB, 0x3A, 0xBA, 0x45, 0xC5, 0x46, 0xC6, 0x45, 0xC5,
+            0x3A, 0xBA,
+        ];
+        assert_eq!(commands_for_bytes(&bytes), []);
     }
 
     #[test]

@@ -119,3 +119,105 @@ impl Object {
             .transform_point(self.model.vertices[index])
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    /// A square card at z = 0 in object space, one face per side: the front
+    /// (colour 1) is clockwise seen from +z, the back (colour 2) from -z.
+    static CARD: Model = Model {
+        vertices: &[
+            Vec3::new(-10.0, 10.0, 0.0),
+            Vec3::new(10.0, 10.0, 0.0),
+            Vec3::new(10.0, -10.0, 0.0),
+            Vec3::new(-10.0, -10.0, 0.0),
+        ],
+        faces: &[
+            Face {
+                vertices: &[0, 1, 2, 3],
+                colour: 1,
+            },
+            Face {
+                vertices: &[3, 2, 1, 0],
+                colour: 2,
+            },
+        ],
+    };
+
+    fn drawn_colours(object: &mut Object) -> Vec<u8> {
+        let mut colours = Vec::new();
+        object.visible_faces(|_, colour| colours.push(colour));
+        colours
+    }
+
+    #[test]
+    fn vertices_are_projected_once_per_change_of_the_transform() {
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        assert_eq!(
+            card.projections(),
+            0,
+            "nothing is projected before it is asked for"
+        );
+        drawn_colours(&mut card);
+        drawn_colours(&mut card);
+        card.screen_vertices();
+        assert_eq!(card.projections(), 1);
+        card.object_to_world_mut().translate(1.0, 0.0, 0.0);
+        card.object_to_world_mut().append_rotation_z(0.1);
+        assert_eq!(card.projections(), 1, "projection waits for the next frame");
+        drawn_colours(&mut card);
+        assert_eq!(card.projections(), 2);
+    }
+
+    #[test]
+    fn screen_vertices_follow_the_transform() {
+        // 10/50 · 320 = 64 pixels from the centre, y up in the world, down on screen.
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        assert_eq!(
+            card.screen_vertices(),
+            &[
+                Point::new(96, 56),
+                Point::new(224, 56),
+                Point::new(224, 184),
+                Point::new(96, 184)
+            ]
+        );
+        card.object_to_world_mut().translate(0.0, 0.0, -50.0);
+        assert_eq!(card.screen_vertices()[0], Point::new(128, 88));
+    }
+
+    #[test]
+    fn only_the_side_facing_the_viewer_is_drawn() {
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        assert_eq!(drawn_colours(&mut card), [1]);
+        card.object_to_world_mut()
+            .append_rotation_y(core::f64::consts::PI);
+        assert_eq!(drawn_colours(&mut card), [2]);
+        // Edge-on, the card is a line on the screen: neither side is drawn.
+        card.object_to_world_mut()
+            .append_rotation_y(core::f64::consts::FRAC_PI_2);
+        assert_eq!(drawn_colours(&mut card), [] as [u8; 0]);
+    }
+
+    #[test]
+    fn visible_faces_hand_over_the_faces_corners_in_order() {
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        let screen = card.screen_vertices().to_vec();
+        card.visible_faces(|polygon, _| assert_eq!(polygon, &screen[..]));
+    }
+
+    #[test]
+    #[should_panic(expected = "face names a missing vertex")]
+    fn a_face_naming_a_missing_vertex_is_refused() {
+        static BROKEN: Model = Model {
+            vertices: &[Vec3::new(0.0, 0.0, 0.0)],
+            faces: &[Face {
+                vertices: &[0, 1, 2],
+                colour: 1,
+            }],
+        };
+        Object::new(&BROKEN, Xform::identity());
+    }
+}

@@ -80,6 +80,7 @@ fn div_ceil(n: i128, d: i128) -> i128 {
 mod tests {
     use super::*;
     use crate::reference;
+    use std::vec;
     use std::vec::Vec;
 
     const SCREEN: ClipRect = ClipRect {
@@ -209,5 +210,132 @@ mod tests {
         assert_eq!(pixels.len(), 4 * 3);
         assert_eq!(pixels[0], (2, 1));
         assert_eq!(*pixels.last().unwrap(), (5, 3));
+    }
+
+    /// Signed turns at every corner all agree (zero turns allowed): the
+    /// reference's rule is the convex one, so only such polygons are compared.
+    fn is_convex(points: &[Point]) -> bool {
+        let n = points.len();
+        let turns = (0..n).map(|i| {
+            let (a, b, c) = (points[i], points[(i + 1) % n], points[(i + 2) % n]);
+            i64::from(b.x - a.x) * i64::from(c.y - b.y)
+                - i64::from(b.y - a.y) * i64::from(c.x - b.x)
+        });
+        let (mut positive, mut negative) = (false, false);
+        for turn in turns {
+            positive |= turn > 0;
+            negative |= turn < 0;
+        }
+        !(positive && negative)
+    }
+
+    #[test]
+    fn rotated_regular_polygons_equal_the_reference() {
+        // Many corners, sub-pixel to screen-filling sizes, every orientation,
+        // both windings, straddling the clip rectangle's sides.
+        let clip = ClipRect {
+            x0: -8,
+            y0: 4,
+            x1: 72,
+            y1: 68,
+        };
+        let (mut compared, mut skipped) = (0, 0);
+        for corners in 3..=8 {
+            for radius in [0.7, 2.5, 6.3, 21.0, 47.5, 300.0] {
+                for (cx, cy) in [(32.3, 36.6), (-6.0, 60.1), (70.5, 3.2)] {
+                    for step in 0..24 {
+                        let phase = f64::from(step) * 0.2618 + f64::from(corners) * 0.1;
+                        let mut polygon: Vec<Point> = (0..corners)
+                            .map(|k| {
+                                let angle = phase
+                                    + f64::from(k) * 2.0 * core::f64::consts::PI
+                                        / f64::from(corners);
+                                Point::new(
+                                    libm::round(cx + radius * libm::cos(angle)) as i32,
+                                    libm::round(cy + radius * libm::sin(angle)) as i32,
+                                )
+                            })
+                            .collect();
+                        if step % 2 == 1 {
+                            polygon.reverse();
+                        }
+                        // Rounding a tiny polygon's corners can dent it.
+                        if !is_convex(&polygon) {
+                            skipped += 1;
+                            continue;
+                        }
+                        compared += 1;
+                        assert_eq!(
+                            spans_to_pixels(&polygon, clip),
+                            reference_pixels(&polygon, clip),
+                            "{polygon:?}"
+                        );
+                    }
+                }
+            }
+        }
+        assert!(compared > 2400, "compared {compared}, skipped {skipped}");
+    }
+
+    #[test]
+    fn a_mesh_of_quads_and_triangles_covers_the_clip_rectangle_exactly_once() {
+        // A jittered grid reaching past the clip rectangle on every side,
+        // split into quads and both kinds of triangle pair, in both windings:
+        // every shared edge in every direction, and each pixel must be drawn
+        // by exactly one face.
+        const SPACING: i32 = 16;
+        const CELLS: usize = 10;
+        let clip = ClipRect {
+            x0: 5,
+            y0: 3,
+            x1: 139,
+            y1: 127,
+        };
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut jitter = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % 7) as i32 - 3 // ±3 keeps every cell convex
+        };
+        let mut grid = [[Point::default(); CELLS + 1]; CELLS + 1];
+        for (row, points) in grid.iter_mut().enumerate() {
+            for (column, point) in points.iter_mut().enumerate() {
+                *point = Point::new(
+                    column as i32 * SPACING - 12 + jitter(),
+                    row as i32 * SPACING - 12 + jitter(),
+                );
+            }
+        }
+        let mut count = std::collections::HashMap::new();
+        let mut draw = |polygon: &mut Vec<Point>, reversed: bool| {
+            if reversed {
+                polygon.reverse();
+            }
+            for pixel in spans_to_pixels(polygon, clip) {
+                *count.entry(pixel).or_insert(0) += 1;
+            }
+        };
+        for row in 0..CELLS {
+            for column in 0..CELLS {
+                let (a, b) = (grid[row][column], grid[row][column + 1]);
+                let (c, d) = (grid[row + 1][column + 1], grid[row + 1][column]);
+                let reversed = (row + column) % 2 == 0;
+                match (row * 7 + column * 3) % 3 {
+                    0 => draw(&mut vec![a, b, c, d], reversed),
+                    1 => {
+                        draw(&mut vec![a, b, c], reversed);
+                        draw(&mut vec![a, c, d], !reversed);
+                    }
+                    _ => {
+                        draw(&mut vec![a, b, d], reversed);
+                        draw(&mut vec![b, c, d], reversed);
+                    }
+                }
+            }
+        }
+        let area = (clip.x1 - clip.x0) * (clip.y1 - clip.y0);
+        assert_eq!(count.len(), area as usize, "gaps between faces");
+        assert!(count.values().all(|&n| n == 1), "pixels drawn twice");
     }
 }
