@@ -3,9 +3,10 @@
 //! A `Qemu` owns the emulator process. Its serial console is collected (and,
 //! for the runner, echoed) by a reader thread; its QMP monitor listens on a
 //! unix socket and gives us `sendkey` and `screendump`. (QMP rather than the
-//! human monitor: only QMP's screendump refreshes the display before saving
-//! it, so an HMP screendump can show a frame that is already gone.) Dropping a
-//! `Qemu` kills the process, so no test can leave an emulator behind.
+//! human monitor: QMP's screendump runs as a coroutine that asks the display
+//! to update before it saves, and its replies are easy to tell apart from
+//! events.) Dropping a `Qemu` kills the process, so no test can leave an
+//! emulator behind.
 
 use crate::image::RgbImage;
 use std::io::{BufRead, BufReader, Read, Write};
