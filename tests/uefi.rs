@@ -9,9 +9,8 @@
 mod common;
 
 use boot::{Firmware, Graphics, Qemu, QemuOptions, RgbImage};
-use common::{model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
+use common::{assert_pictures_equal, pattern_picture, BOOT_TIMEOUT};
 use modex::present::{present_rgb, FramebufferLayout, PixelOrder, Placement};
-use modex::{ModeX, Page};
 use std::time::Duration;
 
 /// OVMF boots in well under 20 s here, but emulation on a loaded machine is slow.
@@ -73,12 +72,7 @@ fn reported_framebuffer(console: &str) -> ReportedFramebuffer {
 /// shown), presented as the kernel presents it onto a `width` x `height`
 /// screen, read back as RGB.
 fn presented_pattern(width: usize, height: usize) -> RgbImage {
-    let mut soft = soft_vga_in_mode_x();
-    let mut vga = ModeX::new(&mut *soft);
-    demo::pattern::draw(&mut vga, Page(0));
-    demo::pattern::draw(&mut vga, Page(1));
-    vga.show_page(Page(0));
-    let picture = model_picture(&soft);
+    let picture = pattern_picture(0);
     let layout = FramebufferLayout {
         width,
         height,
@@ -127,18 +121,7 @@ fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
     );
 
     let expected = presented_pattern(screen.width, screen.height);
-    let differences = screen.differences(&expected).unwrap();
-    if !differences.is_empty() {
-        let dir = boot::images::images_dir();
-        let _ = screen.write_png(&dir.join("uefi-framebuffer-qemu.png"));
-        let _ = expected.write_png(&dir.join("uefi-framebuffer-model.png"));
-        panic!(
-            "{} pixels differ, first (x, y, qemu, model): {:?}; pictures in {}",
-            differences.len(),
-            &differences[..differences.len().min(5)],
-            dir.display()
-        );
-    }
+    assert_pictures_equal(&screen, &expected, "uefi framebuffer");
 }
 
 #[test]

@@ -5,22 +5,7 @@
 
 mod common;
 
-use common::{assert_same_picture, boot_bios, model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
-use modex::{ModeX, Page};
-
-/// The software VGA's picture after the kernel's test-pattern sequence: both
-/// pages drawn, page 0 shown, then `flips` flips.
-fn pattern_picture(flips: u8) -> boot::RgbImage {
-    let mut soft = soft_vga_in_mode_x();
-    let mut vga = ModeX::new(&mut *soft);
-    demo::pattern::draw(&mut vga, Page(0));
-    demo::pattern::draw(&mut vga, Page(1));
-    vga.show_page(Page(0));
-    for flip in 1..=flips {
-        vga.show_page(Page(flip % 2));
-    }
-    model_picture(&soft)
-}
+use common::{assert_same_picture, boot_bios, pattern_picture, BOOT_TIMEOUT};
 
 #[test]
 fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {

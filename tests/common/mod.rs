@@ -5,7 +5,7 @@
 
 use boot::{Qemu, QemuOptions, RgbImage};
 use modex::soft::SoftVga;
-use modex::{ModeX, SCREEN_HEIGHT, SCREEN_WIDTH};
+use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
 
 pub const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
@@ -48,7 +48,15 @@ pub fn assert_same_picture(qemu_picture: &RgbImage, model: &RgbImage, what: &str
     let halved = qemu_picture
         .halve()
         .unwrap_or_else(|e| panic!("{what}: {e}"));
-    let differences = halved.differences(model).unwrap();
+    assert_pictures_equal(&halved, model, what);
+}
+
+/// Two pictures of one size must be equal; if not, both are saved as PNGs
+/// beside the images and the first differences are reported.
+pub fn assert_pictures_equal(qemu_picture: &RgbImage, model: &RgbImage, what: &str) {
+    let differences = qemu_picture
+        .differences(model)
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
     if !differences.is_empty() {
         let dir = boot::images::images_dir();
         let name = what.replace(|c: char| !c.is_ascii_alphanumeric(), "-");
@@ -61,4 +69,18 @@ pub fn assert_same_picture(qemu_picture: &RgbImage, model: &RgbImage, what: &str
             dir.display()
         );
     }
+}
+
+/// The software VGA's picture after the kernel's test-pattern sequence: both
+/// pages drawn, page 0 shown, then `flips` flips.
+pub fn pattern_picture(flips: u8) -> RgbImage {
+    let mut soft = soft_vga_in_mode_x();
+    let mut vga = ModeX::new(&mut *soft);
+    demo::pattern::draw(&mut vga, Page(0));
+    demo::pattern::draw(&mut vga, Page(1));
+    vga.show_page(Page(0));
+    for flip in 1..=flips {
+        vga.show_page(Page(flip % 2));
+    }
+    model_picture(&soft)
 }
