@@ -106,6 +106,8 @@ pub struct MapMaskPerPixel;
 impl MapMaskPerPixel {
     fn pixel<B: VgaBus>(vga: &mut ModeX<B>, page: Page, x: i32, y: i32, colour: u8) {
         // Map Mask index and value in one OUT, every pixel, then the byte.
+        // This bypasses the driver's register cache on purpose (it is the
+        // baseline); a ModeX used for it needs `set_mode` before other drawing.
         let planes = 1u16 << (x & 3);
         vga.bus_mut()
             .write_port16(SEQUENCER_INDEX, u16::from(seq::MAP_MASK) | planes << 8);
