@@ -13,6 +13,7 @@
 extern crate std;
 
 pub mod cull;
+pub mod light;
 pub mod math;
 pub mod object;
 pub mod project;
@@ -21,8 +22,11 @@ pub mod reference;
 pub mod xform;
 
 pub use cull::is_front_facing;
+pub use light::{outward_normal, quantize, Light};
 pub use math::{Point, Vec3};
-pub use object::{Face, Model, Object, MAX_FACE_VERTICES, MAX_VERTICES};
+pub use object::{
+    Face, FaceCounts, Model, Object, VisibleFace, MAX_FACE_VERTICES, MAX_VERTICES, NEAREST_DRAWN_Z,
+};
 pub use project::{project_to_screen, PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
 pub use raster::{fill_convex_polygon, ClipRect};
 pub use xform::Xform;

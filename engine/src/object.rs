@@ -1,15 +1,20 @@
 //! A solid: shared vertices, faces that index them, and the object-to-world
-//! transform. The screen position of each vertex is computed once per change
-//! of the transform, and only then (the seed's RecalcXform flag): a frame that
-//! moves nothing reuses them.
+//! transform. The view-space and screen position of each vertex are computed
+//! once per change of the transform, and only then (the seed's RecalcXform
+//! flag): a frame that moves nothing reuses them.
 
 use crate::cull::is_front_facing;
+use crate::light::outward_normal;
 use crate::math::{Point, Vec3};
 use crate::project::project_to_screen;
 use crate::xform::Xform;
 
 pub const MAX_VERTICES: usize = 32;
 pub const MAX_FACE_VERTICES: usize = 8;
+/// An object with any vertex nearer than this (view z above it; the viewer
+/// looks toward -Z) is not drawn at all: there is no near-plane clipping, and
+/// a vertex at or behind the eye has no meaningful projection.
+pub const NEAREST_DRAWN_Z: f64 = -1.0;
 
 /// One face: indices into the model's vertex list, clockwise seen from
 /// outside, and a palette colour.
@@ -19,6 +24,12 @@ pub struct Face {
     pub colour: u8,
 }
 
+impl Face {
+    pub const fn new(vertices: &'static [usize], colour: u8) -> Self {
+        Face { vertices, colour }
+    }
+}
+
 /// The unchanging description of a solid, in object space.
 #[derive(Debug)]
 pub struct Model {
@@ -26,38 +37,79 @@ pub struct Model {
     pub faces: &'static [Face],
 }
 
+/// A face that survived culling, as handed to the drawing code.
+pub struct VisibleFace<'a> {
+    pub face: &'a Face,
+    /// The face's corners on the screen, in the face's order.
+    pub polygon: &'a [Point],
+    view: &'a [Vec3],
+}
+
+impl VisibleFace<'_> {
+    /// The face's outward unit normal in view space, for shading.
+    pub fn normal(&self) -> Vec3 {
+        outward_normal(self.face.vertices.iter().map(|&v| self.view[v]))
+    }
+}
+
+/// How many faces one pass over the scene drew and culled (culled includes
+/// the faces of an object too near to draw).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FaceCounts {
+    pub drawn: u32,
+    pub culled: u32,
+}
+
+impl core::ops::AddAssign for FaceCounts {
+    fn add_assign(&mut self, other: FaceCounts) {
+        self.drawn += other.drawn;
+        self.culled += other.culled;
+    }
+}
+
 /// A model placed in the world.
 #[derive(Clone, Debug)]
 pub struct Object {
     model: &'static Model,
     object_to_world: Xform,
+    view: [Vec3; MAX_VERTICES],
     screen: [Point; MAX_VERTICES],
+    /// Every vertex lies beyond `NEAREST_DRAWN_Z`.
+    in_front: bool,
     recalc: bool,
     projections: u64,
 }
 
-impl Object {
-    /// Panics if the model has more vertices, or a face more corners, than the
-    /// fixed-size buffers hold, or a face names a vertex that is not there.
-    pub fn new(model: &'static Model, object_to_world: Xform) -> Self {
+/// Panics if the model has more vertices, or a face more corners, than the
+/// fixed-size buffers hold, or a face names a vertex that is not there.
+fn check_model(model: &Model) {
+    assert!(
+        model.vertices.len() <= MAX_VERTICES,
+        "model has too many vertices"
+    );
+    for face in model.faces {
         assert!(
-            model.vertices.len() <= MAX_VERTICES,
-            "model has too many vertices"
+            face.vertices.len() <= MAX_FACE_VERTICES,
+            "face has too many vertices"
         );
-        for face in model.faces {
-            assert!(
-                face.vertices.len() <= MAX_FACE_VERTICES,
-                "face has too many vertices"
-            );
-            assert!(
-                face.vertices.iter().all(|&v| v < model.vertices.len()),
-                "face names a missing vertex"
-            );
-        }
+        assert!(
+            face.vertices.iter().all(|&v| v < model.vertices.len()),
+            "face names a missing vertex"
+        );
+    }
+}
+
+impl Object {
+    /// Panics if the model does not fit the fixed-size buffers (see
+    /// `MAX_VERTICES`, `MAX_FACE_VERTICES`) or a face names a missing vertex.
+    pub fn new(model: &'static Model, object_to_world: Xform) -> Self {
+        check_model(model);
         Object {
             model,
             object_to_world,
+            view: [Vec3::default(); MAX_VERTICES],
             screen: [Point::default(); MAX_VERTICES],
+            in_front: false,
             recalc: true,
             projections: 0,
         }
@@ -65,6 +117,14 @@ impl Object {
 
     pub fn model(&self) -> &'static Model {
         self.model
+    }
+
+    /// Puts another solid in this one's place, with the same transform; it is
+    /// projected before the next frame. Panics as `new` does.
+    pub fn set_model(&mut self, model: &'static Model) {
+        check_model(model);
+        self.model = model;
+        self.recalc = true;
     }
 
     pub fn object_to_world(&self) -> &Xform {
@@ -78,42 +138,82 @@ impl Object {
         &mut self.object_to_world
     }
 
+    /// Where the object's origin is in view space.
+    pub fn position(&self) -> Vec3 {
+        self.object_to_world.translation_part()
+    }
+
     /// How many times the vertices have been transformed and projected.
     pub fn projections(&self) -> u64 {
         self.projections
     }
 
+    fn recalculate_if_moved(&mut self) {
+        if !self.recalc {
+            return;
+        }
+        let count = self.model.vertices.len();
+        for (view, &vertex) in self.view.iter_mut().zip(self.model.vertices) {
+            *view = self.object_to_world.transform_point(vertex);
+        }
+        for (screen, &view) in self.screen.iter_mut().zip(&self.view[..count]) {
+            *screen = project_to_screen(view);
+        }
+        // Asked as `z <= limit`, so a NaN counts as too near.
+        self.in_front = self.view[..count]
+            .iter()
+            .all(|view| view.z <= NEAREST_DRAWN_Z);
+        self.recalc = false;
+        self.projections += 1;
+    }
+
     /// The screen position of each vertex (view space is world space here).
     pub fn screen_vertices(&mut self) -> &[Point] {
-        if self.recalc {
-            for (screen, &vertex) in self.screen.iter_mut().zip(self.model.vertices) {
-                *screen = project_to_screen(self.object_to_world.transform_point(vertex));
-            }
-            self.recalc = false;
-            self.projections += 1;
-        }
+        self.recalculate_if_moved();
         &self.screen[..self.model.vertices.len()]
+    }
+
+    /// Calls `draw` for each face that faces the viewer, in face order, and
+    /// counts the faces drawn and culled. An object reaching nearer than
+    /// `NEAREST_DRAWN_Z` draws nothing.
+    pub fn each_visible_face(&mut self, mut draw: impl FnMut(&VisibleFace)) -> FaceCounts {
+        self.recalculate_if_moved();
+        let faces = self.model.faces;
+        if !self.in_front {
+            return FaceCounts {
+                drawn: 0,
+                culled: faces.len() as u32,
+            };
+        }
+        let mut counts = FaceCounts::default();
+        let mut corners = [Point::default(); MAX_FACE_VERTICES];
+        for face in faces {
+            let polygon = &mut corners[..face.vertices.len()];
+            for (corner, &index) in polygon.iter_mut().zip(face.vertices) {
+                *corner = self.screen[index];
+            }
+            if is_front_facing(polygon) {
+                counts.drawn += 1;
+                draw(&VisibleFace {
+                    face,
+                    polygon,
+                    view: &self.view,
+                });
+            } else {
+                counts.culled += 1;
+            }
+        }
+        counts
     }
 
     /// Calls `draw` with the screen polygon and colour of each face that faces
     /// the viewer, in face order.
-    pub fn visible_faces(&mut self, mut draw: impl FnMut(&[Point], u8)) {
-        let model = self.model;
-        let screen = self.screen_vertices();
-        let mut polygon = [Point::default(); MAX_FACE_VERTICES];
-        for face in model.faces {
-            let polygon = &mut polygon[..face.vertices.len()];
-            for (corner, &index) in polygon.iter_mut().zip(face.vertices) {
-                *corner = screen[index];
-            }
-            if is_front_facing(polygon) {
-                draw(polygon, face.colour);
-            }
-        }
+    pub fn visible_faces(&mut self, mut draw: impl FnMut(&[Point], u8)) -> FaceCounts {
+        self.each_visible_face(|visible| draw(visible.polygon, visible.face.colour))
     }
 
-    /// The view-space (= world-space) position of each vertex; for tests and
-    /// for shading, not needed to draw.
+    /// The view-space (= world-space) position of a vertex, computed afresh;
+    /// for tests and for checking models, not needed to draw.
     pub fn view_vertex(&self, index: usize) -> Vec3 {
         self.object_to_world
             .transform_point(self.model.vertices[index])
@@ -206,6 +306,72 @@ mod tests {
         let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
         let screen = card.screen_vertices().to_vec();
         card.visible_faces(|polygon, _| assert_eq!(polygon, &screen[..]));
+    }
+
+    #[test]
+    fn counts_say_how_many_faces_were_drawn_and_culled() {
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        let counts = card.visible_faces(|_, _| {});
+        assert_eq!(
+            counts,
+            FaceCounts {
+                drawn: 1,
+                culled: 1
+            }
+        );
+    }
+
+    #[test]
+    fn an_object_reaching_the_eye_draws_nothing() {
+        // The card's corners are at z = 0 when it sits on the eye.
+        for z in [-0.5, 0.0, 30.0, f64::NAN] {
+            let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, z));
+            let counts = card.visible_faces(|_, _| panic!("drew a face at z = {z}"));
+            assert_eq!(
+                counts,
+                FaceCounts {
+                    drawn: 0,
+                    culled: 2
+                },
+                "z = {z}"
+            );
+        }
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, NEAREST_DRAWN_Z));
+        assert_eq!(card.visible_faces(|_, _| {}).drawn, 1);
+    }
+
+    #[test]
+    fn a_new_model_is_projected_before_the_next_frame() {
+        static TRIANGLE: Model = Model {
+            vertices: &[
+                Vec3::new(0.0, 10.0, 0.0),
+                Vec3::new(10.0, -10.0, 0.0),
+                Vec3::new(-10.0, -10.0, 0.0),
+            ],
+            faces: &[Face {
+                vertices: &[0, 1, 2],
+                colour: 3,
+            }],
+        };
+        let mut object = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        drawn_colours(&mut object);
+        object.set_model(&TRIANGLE);
+        assert_eq!(drawn_colours(&mut object), [3]);
+        assert_eq!(object.projections(), 2);
+        assert_eq!(object.screen_vertices().len(), 3);
+    }
+
+    #[test]
+    fn visible_faces_know_their_view_space_normal() {
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        card.object_to_world_mut()
+            .append_rotation_y(core::f64::consts::FRAC_PI_6);
+        let mut normals = Vec::new();
+        card.each_visible_face(|face| normals.push(face.normal()));
+        // The front turned 30 degrees about Y: (sin 30°, 0, cos 30°).
+        let expected = Vec3::new(0.5, 0.0, libm::sqrt(3.0) / 2.0);
+        assert_eq!(normals.len(), 1);
+        assert!((normals[0] - expected).length() < 1e-12, "{:?}", normals[0]);
     }
 
     #[test]

@@ -32,6 +32,19 @@ impl Xform {
         }
     }
 
+    /// A uniform scale. A transform holding one is no longer orthonormal, so
+    /// keep it out of transforms that are reorthonormalized: concatenate it
+    /// last, `concat(&moved_and_turned, &scaling(k))`.
+    pub const fn scaling(factor: f64) -> Self {
+        Xform {
+            m: [
+                [factor, 0.0, 0.0, 0.0],
+                [0.0, factor, 0.0, 0.0],
+                [0.0, 0.0, factor, 0.0],
+            ],
+        }
+    }
+
     /// Entry (row, column) of the 4x4 matrix.
     pub fn get(&self, row: usize, column: usize) -> f64 {
         match row {
