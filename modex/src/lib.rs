@@ -23,6 +23,7 @@
 extern crate std;
 
 mod bus;
+mod canvas;
 mod detect;
 mod draw;
 mod driver;
@@ -37,6 +38,7 @@ mod text;
 mod update;
 
 pub use bus::{VgaBus, CPU_WINDOW_BYTES};
+pub use canvas::{ImageCanvas, PageCanvas, PaletteIndex};
 pub use detect::legacy_vga_present;
 pub use driver::ModeX;
 pub use mirror::MirroredVga;

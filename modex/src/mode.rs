@@ -82,7 +82,7 @@ impl<B: VgaBus> ModeX<B> {
     /// cleared to colour 0, and Page(0) shown (start address latched).
     pub fn set_mode(&mut self) {
         self.program(&MODE_X);
-        self.load_dac(0, &DEFAULT_PALETTE);
+        self.load_palette(0, &DEFAULT_PALETTE);
         self.clear_video_memory();
         // Also waits until the start address has been latched by a retrace.
         self.show_page(Page(0));
@@ -134,12 +134,16 @@ impl<B: VgaBus> ModeX<B> {
             .write_port8(ATTRIBUTE_INDEX, ac::PALETTE_ADDRESS_SOURCE);
     }
 
-    /// Loads DAC entries from `first` on, and opens the pixel mask fully.
-    pub(crate) fn load_dac(&mut self, first: u8, colors: &[Rgb6]) {
+    /// Loads DAC entries `first`, `first + 1`, ... with `colours` and opens the
+    /// DAC Pixel Mask fully. Entries that would run past 255 are left out: the
+    /// DAC's index would wrap round and overwrite entry 0 onwards.
+    pub fn load_palette(&mut self, first: u8, colours: &[Rgb6]) {
+        let room = 256 - usize::from(first);
         self.bus.write_port8(DAC_PIXEL_MASK, 0xFF);
-        // The write index advances by itself after each entry's third component.
+        // DAC Write Index once; it advances by itself after each entry's
+        // third component written to DAC Data.
         self.bus.write_port8(DAC_WRITE_INDEX, first);
-        for component in colors.iter().flatten() {
+        for component in colours.iter().take(room).flatten() {
             self.bus.write_port8(DAC_DATA, *component);
         }
     }

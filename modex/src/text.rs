@@ -51,7 +51,7 @@ impl<B: VgaBus> ModeX<B> {
     /// light-grey screen, and the cursor parked off screen.
     pub fn set_text_mode(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
         self.program(&TEXT_80X25);
-        self.load_dac(0, &EGA_PALETTE);
+        self.load_palette(0, &EGA_PALETTE);
         self.load_font(font);
         self.with_text_window(|vga| {
             vga.set_map_mask(CHARACTER_PLANE);

@@ -1,6 +1,7 @@
 //! Host tests: the driver against the software VGA, and the model against
 //! what QEMU's VGA does.
 
+mod canvas;
 mod clipping;
 mod fills;
 mod flip;

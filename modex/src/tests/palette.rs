@@ -115,3 +115,44 @@ fn ega_palette_matches_the_vga_bios_text_palette() {
     assert_eq!(EGA_PALETTE[0x38], [0x15, 0x15, 0x15]);
     assert_eq!(EGA_PALETTE[0x3F], [0x3F, 0x3F, 0x3F]);
 }
+
+#[test]
+fn load_palette_sets_the_entries_given_and_no_others() {
+    let mut soft = super::power_on();
+    let mut vga = super::mode_x(&mut soft);
+    let ramp: std::vec::Vec<[u8; 3]> = (0..40u8).map(|i| [i, 63 - i, i / 2]).collect();
+    vga.load_palette(16, &ramp);
+    let soft = vga.into_bus();
+    for index in 0..=255u8 {
+        let expected = match index {
+            16..=55 => ramp[usize::from(index - 16)],
+            _ => DEFAULT_PALETTE[usize::from(index)],
+        };
+        assert_eq!(soft.dac_entry(index), expected, "entry {index}");
+    }
+    // The picture follows: a pixel of colour 20 now shows ramp entry 4.
+    let mut rgb = [[0u8; 3]; 320 * 240];
+    let mut vga = crate::ModeX::new(&mut *soft);
+    vga.put_pixel(crate::Page(0), 5, 5, 20);
+    vga.into_bus().scanout_rgb(&mut rgb);
+    let expected = ramp[4].map(crate::soft::dac_6_to_8);
+    assert_eq!(rgb[5 * 320 + 5], expected);
+}
+
+#[test]
+fn load_palette_never_wraps_round_to_entry_zero() {
+    let mut soft = super::power_on();
+    let mut vga = super::mode_x(&mut soft);
+    vga.load_palette(250, &[[7, 7, 7]; 20]);
+    let soft = vga.into_bus();
+    for index in 250..=255 {
+        assert_eq!(soft.dac_entry(index), [7, 7, 7]);
+    }
+    for index in 0..250 {
+        assert_eq!(
+            soft.dac_entry(index),
+            DEFAULT_PALETTE[usize::from(index)],
+            "entry {index}"
+        );
+    }
+}

@@ -1,0 +1,133 @@
+//! `embedded-graphics` drawing targets, so any of its text, shapes and images
+//! can be drawn in Mode X: [`PageCanvas`] straight into a page in video
+//! memory, [`ImageCanvas`] into a RAM image of a page (which
+//! [`ModeX::update_page`] then writes out, changed pixels only).
+
+use crate::{ModeX, Page, PageImage, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
+use core::convert::Infallible;
+use embedded_graphics_core::pixelcolor::raw::RawU8;
+use embedded_graphics_core::pixelcolor::PixelColor;
+use embedded_graphics_core::prelude::{DrawTarget, OriginDimensions, Pixel, Size};
+use embedded_graphics_core::primitives::Rectangle;
+
+/// A colour in Mode X: an index into the DAC's 256 entries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub struct PaletteIndex(pub u8);
+
+impl PixelColor for PaletteIndex {
+    type Raw = RawU8;
+}
+
+impl From<u8> for PaletteIndex {
+    fn from(index: u8) -> Self {
+        PaletteIndex(index)
+    }
+}
+
+const SCREEN_SIZE: Size = Size::new(SCREEN_WIDTH as u32, SCREEN_HEIGHT as u32);
+
+/// `area` clipped to the screen as half-open [x0, x1) x [y0, y1), or `None`
+/// if nothing of it is on the screen.
+fn on_screen(area: &Rectangle) -> Option<(i32, i32, i32, i32)> {
+    let clipped = area.intersection(&Rectangle::new(Default::default(), SCREEN_SIZE));
+    let bottom_right = clipped.bottom_right()?;
+    Some((
+        clipped.top_left.x,
+        clipped.top_left.y,
+        bottom_right.x + 1,
+        bottom_right.y + 1,
+    ))
+}
+
+/// Draws straight into one page of video memory: pixels through the Map Mask
+/// one at a time, solid rectangles as Map Mask rectangle fills. Anything off
+/// the screen is clipped; nothing outside the page is ever written.
+pub struct PageCanvas<'a, B: VgaBus> {
+    vga: &'a mut ModeX<B>,
+    page: Page,
+}
+
+impl<'a, B: VgaBus> PageCanvas<'a, B> {
+    /// A canvas over `page`.
+    pub fn new(vga: &'a mut ModeX<B>, page: Page) -> Self {
+        PageCanvas { vga, page }
+    }
+}
+
+impl<B: VgaBus> OriginDimensions for PageCanvas<'_, B> {
+    fn size(&self) -> Size {
+        SCREEN_SIZE
+    }
+}
+
+impl<B: VgaBus> DrawTarget for PageCanvas<'_, B> {
+    type Color = PaletteIndex;
+    type Error = Infallible;
+
+    fn draw_iter<I>(&mut self, pixels: I) -> Result<(), Infallible>
+    where
+        I: IntoIterator<Item = Pixel<PaletteIndex>>,
+    {
+        for Pixel(point, colour) in pixels {
+            self.vga.put_pixel(self.page, point.x, point.y, colour.0);
+        }
+        Ok(())
+    }
+
+    fn fill_solid(&mut self, area: &Rectangle, colour: PaletteIndex) -> Result<(), Infallible> {
+        if let Some((x0, y0, x1, y1)) = on_screen(area) {
+            self.vga.fill_rect(self.page, x0, y0, x1, y1, colour.0);
+        }
+        Ok(())
+    }
+
+    fn clear(&mut self, colour: PaletteIndex) -> Result<(), Infallible> {
+        self.vga.clear_page(self.page, colour.0);
+        Ok(())
+    }
+}
+
+/// Draws into a RAM image of a page, one byte per pixel, row by row.
+pub struct ImageCanvas<'a> {
+    image: &'a mut PageImage,
+}
+
+impl<'a> ImageCanvas<'a> {
+    /// A canvas over `image`.
+    pub fn new(image: &'a mut PageImage) -> Self {
+        ImageCanvas { image }
+    }
+}
+
+impl OriginDimensions for ImageCanvas<'_> {
+    fn size(&self) -> Size {
+        SCREEN_SIZE
+    }
+}
+
+impl DrawTarget for ImageCanvas<'_> {
+    type Color = PaletteIndex;
+    type Error = Infallible;
+
+    fn draw_iter<I>(&mut self, pixels: I) -> Result<(), Infallible>
+    where
+        I: IntoIterator<Item = Pixel<PaletteIndex>>,
+    {
+        for Pixel(point, colour) in pixels {
+            if (0..SCREEN_WIDTH).contains(&point.x) && (0..SCREEN_HEIGHT).contains(&point.y) {
+                self.image[(point.y * SCREEN_WIDTH + point.x) as usize] = colour.0;
+            }
+        }
+        Ok(())
+    }
+
+    fn fill_solid(&mut self, area: &Rectangle, colour: PaletteIndex) -> Result<(), Infallible> {
+        if let Some((x0, y0, x1, y1)) = on_screen(area) {
+            for y in y0..y1 {
+                let row = (y * SCREEN_WIDTH) as usize;
+                self.image[row + x0 as usize..row + x1 as usize].fill(colour.0);
+            }
+        }
+        Ok(())
+    }
+}
