@@ -22,7 +22,7 @@ const SCREEN: ClipRect = ClipRect {
 /// The picture the scene should give, built without the scan converter, the
 /// Mode X driver or the VGA model: the reference rasterizer into an array.
 fn reference_indices(scene: &Scene) -> Vec<u8> {
-    let mut cube = scene.cube().clone();
+    let mut cube = scene.primary().clone();
     let mut picture = vec![0u8; PIXELS];
     cube.visible_faces(|polygon, colour| {
         reference::fill_pixels(polygon, SCREEN, |x, y| {
@@ -44,7 +44,7 @@ fn step_guarded(app: &mut App, soft: &mut SoftVga) {
     let back = 1 - app.shown_page().0;
     let start = u16::from(back) * PAGE_BYTES;
     soft.set_write_guard(Some(start..start + PAGE_BYTES));
-    app.step(&mut ModeX::new(&mut *soft));
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     assert_eq!(
         soft.guard_violations(),
         0,
@@ -111,7 +111,7 @@ fn the_spinning_cube_stays_exact_for_a_full_turn() {
 fn drawing_never_changes_the_page_on_screen() {
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
-    app.step(&mut ModeX::new(&mut *soft));
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     let shown = displayed_indices(&soft);
     // Draw a frame into the back page by hand, without flipping.
     let back = modex::Page(1 - app.shown_page().0);
@@ -130,13 +130,13 @@ fn pause_waits_for_a_key_and_escape_quits() {
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
     app.apply(Command::Reset);
-    assert!(app.step(&mut ModeX::new(&mut *soft)).is_some());
+    assert!(app.step(&mut ModeX::new(&mut *soft), &|| 0u64).is_some());
     app.apply(Command::Pause);
     app.apply(Command::MoveLeft); // consumed by the pause, as the seed's getch()
-    assert!(app.step(&mut ModeX::new(&mut *soft)).is_none());
+    assert!(app.step(&mut ModeX::new(&mut *soft), &|| 0u64).is_none());
     assert_eq!(
-        app.scene().cube().object_to_world(),
-        Scene::initial().cube().object_to_world()
+        app.scene().primary().object_to_world(),
+        Scene::initial().primary().object_to_world()
     );
     app.apply(Command::Quit);
     assert!(app.quit_requested());
@@ -154,7 +154,7 @@ fn qemu_shows_what_the_software_vga_shows_after_each_key() {
         let done = format!("demo: command {} done", n + 1);
         qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
         app.apply(command);
-        app.step(&mut ModeX::new(&mut *soft));
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
         let what = format!("after key {} ({key})", n + 1);
         assert_same_picture(&qemu.screendump().unwrap(), &model_picture(&soft), &what);
     }

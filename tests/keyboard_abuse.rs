@@ -191,7 +191,7 @@ fn a_burst_of_two_thousand_keys_leaves_the_kernel_running_and_r_resets_it() {
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
     app.apply(Command::Reset);
-    app.step(&mut ModeX::new(&mut *soft));
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     assert_same_picture(
         &qemu.screendump().unwrap(),
         &model_picture(&soft),

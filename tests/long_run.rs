@@ -11,8 +11,9 @@ use modex::{ModeX, PAGE_BYTES};
 
 const FRAMES: u64 = 1_000_000;
 
-/// Every command but Quit and Pause (which the app, not the scene, handles).
-const COMMANDS: [Command; 15] = [
+/// Every command the scene handles (Quit, Pause and the display toggles are
+/// the app's).
+const COMMANDS: [Command; 22] = [
     Command::MoveLeft,
     Command::MoveRight,
     Command::MoveUp,
@@ -28,6 +29,13 @@ const COMMANDS: [Command; 15] = [
     Command::ToggleSpin,
     Command::Reset,
     Command::Toward,
+    Command::ToggleLighting,
+    Command::TurnLight(Axis::X, true),
+    Command::TurnLight(Axis::X, false),
+    Command::TurnLight(Axis::Y, true),
+    Command::TurnLight(Axis::Y, false),
+    Command::NextSolid,
+    Command::ToggleSeveral,
 ];
 
 #[test]
@@ -63,7 +71,7 @@ fn a_million_frames_of_random_commands() {
             "frame {frame}: write outside page {back}"
         );
 
-        let xform = scene.cube().object_to_world();
+        let xform = scene.primary().object_to_world();
         worst_orthonormality = worst_orthonormality.max(xform.orthonormality_error());
         assert!(
             xform.orthonormality_error() < 1e-6,
@@ -99,7 +107,7 @@ fn frames_keep_coming_with_the_retrace_bit_stuck() {
         let mut app = App::new();
         for frame in 0..5 {
             let report = app
-                .step(&mut ModeX::new(&mut *soft))
+                .step(&mut ModeX::new(&mut *soft), &|| 0u64)
                 .expect("the spinning cube draws every step");
             assert!(
                 report.timed_out(),

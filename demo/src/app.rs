@@ -1,11 +1,59 @@
 //! The demo as the kernel runs it: scancodes in, frames out. Everything here is
 //! portable, so the host tests drive exactly what the kernel drives.
 
-use crate::frame::{FrameDrawer, Renderer};
+use crate::frame::Renderer;
 use crate::keymap::command_for;
+use crate::osd::{self, Overlay, Stats};
 use crate::scene::{Command, Scene};
+use crate::shading::{ramp_palette, RAMP_FIRST};
+use engine::FaceCounts;
 use modex::{FlipReport, ModeX, VgaBus};
 use pc_keyboard::{layouts::Us104Key, HandleControl, PS2Keyboard as Keyboard, ScancodeSet1};
+
+/// Microseconds from any fixed start: the kernel reads the TSC, tests pass
+/// a closure over a counter they advance themselves.
+pub trait Clock {
+    fn micros(&self) -> u64;
+}
+
+impl<F: Fn() -> u64> Clock for F {
+    fn micros(&self) -> u64 {
+        self()
+    }
+}
+
+const MICROS_PER_SECOND: u64 = 1_000_000;
+
+/// Frames drawn per second, counted over windows of at least a second.
+#[derive(Default)]
+struct FrameRate {
+    window_start: Option<u64>,
+    frames: u64,
+    tenths: Option<u32>,
+}
+
+impl FrameRate {
+    fn frame_drawn(&mut self, now: u64) {
+        let Some(start) = self.window_start else {
+            self.window_start = Some(now);
+            return;
+        };
+        self.frames += 1;
+        let elapsed = now.saturating_sub(start);
+        if elapsed >= MICROS_PER_SECOND {
+            let tenths = self.frames * 10 * MICROS_PER_SECOND / elapsed;
+            self.tenths = Some(u32::try_from(tenths).unwrap_or(u32::MAX));
+            self.window_start = Some(now);
+            self.frames = 0;
+        }
+    }
+
+    /// A second has passed since the figure was last brought up to date.
+    fn stale(&self, now: u64) -> bool {
+        self.window_start
+            .is_some_and(|start| now.saturating_sub(start) >= MICROS_PER_SECOND)
+    }
+}
 
 pub struct App {
     scene: Scene,
@@ -14,9 +62,14 @@ pub struct App {
     /// Set by any key that is not a command; the next key only clears it.
     paused: bool,
     quit: bool,
-    /// The scene changed since the last frame was drawn.
+    /// Something changed since the last frame was drawn.
     dirty: bool,
     commands: u64,
+    overlay: Overlay,
+    frame_rate: FrameRate,
+    last_frame_micros: u32,
+    last_faces: FaceCounts,
+    palette_loaded: bool,
 }
 
 impl Default for App {
@@ -35,6 +88,11 @@ impl App {
             quit: false,
             dirty: true,
             commands: 0,
+            overlay: Overlay::default(),
+            frame_rate: FrameRate::default(),
+            last_frame_micros: 0,
+            last_faces: FaceCounts::default(),
+            palette_loaded: false,
         }
     }
 
@@ -60,11 +118,14 @@ impl App {
         match command {
             Command::Quit => self.quit = true,
             Command::Pause => self.paused = true,
-            other => {
-                self.scene.apply(other);
-                self.dirty = true;
+            Command::ToggleHelp => self.overlay.help = !self.overlay.help,
+            Command::ToggleStats => {
+                self.overlay.stats = !self.overlay.stats;
+                self.frame_rate = FrameRate::default();
             }
+            other => self.scene.apply(other),
         }
+        self.dirty = true;
     }
 
     pub fn quit_requested(&self) -> bool {
@@ -84,25 +145,201 @@ impl App {
         &self.scene
     }
 
+    pub fn overlay(&self) -> Overlay {
+        self.overlay
+    }
+
+    /// What the statistics lines show on the next frame.
+    pub fn stats(&self) -> Stats {
+        Stats {
+            frames_per_second_tenths: self.frame_rate.tenths,
+            frame_micros: self.last_frame_micros,
+            faces: self.last_faces,
+            solid: self.scene.solid().name,
+            objects: self.scene.objects().len(),
+            lighting: self.scene.lighting(),
+        }
+    }
+
     /// The page on screen; the next frame is drawn into the other one.
     pub fn shown_page(&self) -> modex::Page {
         self.renderer.shown_page()
     }
 
-    /// Advances the spin and draws a frame if anything moved; `None` when there
-    /// was nothing to draw (the caller can sleep until the next interrupt).
-    pub fn step<B: VgaBus>(&mut self, vga: &mut ModeX<B>) -> Option<FlipReport> {
+    /// Advances the spin and draws a frame if anything moved (or, with the
+    /// statistics on, once a second to bring them up to date); `None` when
+    /// there was nothing to draw (the caller can sleep until the next
+    /// interrupt).
+    pub fn step<B: VgaBus>(
+        &mut self,
+        vga: &mut ModeX<B>,
+        clock: &impl Clock,
+    ) -> Option<FlipReport> {
         if self.paused || self.quit {
             return None;
         }
+        if !self.palette_loaded {
+            // The shading ramps sit in DAC entries nothing else uses, so they
+            // are loaded once and stay.
+            vga.load_palette(RAMP_FIRST, &ramp_palette());
+            self.palette_loaded = true;
+        }
+        let start = clock.micros();
         if self.scene.spinning() {
             self.scene.tick();
+            self.dirty = true;
+        }
+        if self.overlay.stats && self.frame_rate.stale(start) {
             self.dirty = true;
         }
         if !self.dirty {
             return None;
         }
         self.dirty = false;
-        Some(self.renderer.draw_frame(vga, &mut self.scene))
+        self.frame_rate.frame_drawn(start);
+        let (overlay, stats) = (self.overlay, self.stats());
+        let (page, faces) =
+            self.renderer
+                .draw_with_overlay(vga, &mut self.scene, |image, faces| {
+                    osd::draw(image, overlay, &Stats { faces, ..stats })
+                });
+        self.last_faces = faces;
+        let elapsed = clock.micros().saturating_sub(start);
+        self.last_frame_micros = u32::try_from(elapsed).unwrap_or(u32::MAX);
+        Some(vga.show_page(page))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::osd::{help_box, BAR_ROWS};
+    use core::cell::Cell;
+    use modex::soft::SoftVga;
+    use modex::{SCREEN_HEIGHT, SCREEN_WIDTH};
+    use std::boxed::Box;
+    use std::vec::Vec;
+
+    const WIDTH: usize = SCREEN_WIDTH as usize;
+    const FRAME_MICROS: u64 = 16_683;
+
+    fn soft_vga_in_mode_x() -> Box<SoftVga> {
+        let mut soft = Box::new(SoftVga::new());
+        ModeX::new(&mut *soft).set_mode();
+        soft
+    }
+
+    fn picture(soft: &SoftVga) -> Vec<u8> {
+        let mut pixels = std::vec![0; WIDTH * SCREEN_HEIGHT as usize];
+        assert_eq!(soft.scanout_indices(&mut pixels), (320, 240));
+        pixels
+    }
+
+    /// A still cube (spin off), one frame drawn after `commands`.
+    fn still_picture(commands: &[Command]) -> Vec<u8> {
+        let mut soft = soft_vga_in_mode_x();
+        let mut app = App::new();
+        app.apply(Command::Reset);
+        for &command in commands {
+            app.apply(command);
+        }
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        picture(&soft)
+    }
+
+    fn differing_pixels(a: &[u8], b: &[u8]) -> Vec<(usize, usize)> {
+        (0..a.len())
+            .filter(|&i| a[i] != b[i])
+            .map(|i| (i % WIDTH, i / WIDTH))
+            .collect()
+    }
+
+    #[test]
+    fn help_covers_its_box_only_and_goes_away_again() {
+        let plain = still_picture(&[]);
+        let help = still_picture(&[Command::ToggleHelp]);
+        let changed = differing_pixels(&plain, &help);
+        assert!(changed.len() > 10_000, "{} pixels changed", changed.len());
+        let frame = help_box();
+        for (x, y) in changed {
+            assert!(frame.contains(embedded_graphics::prelude::Point::new(x as i32, y as i32)));
+        }
+        let closed = still_picture(&[Command::ToggleHelp, Command::ToggleHelp]);
+        assert!(closed == plain);
+    }
+
+    #[test]
+    fn statistics_stay_in_the_top_and_bottom_twelve_rows() {
+        // Moved up and toward, so the cube itself reaches into the top rows.
+        let moves = [Command::MoveUp; 12]
+            .into_iter()
+            .chain([Command::Toward; 10]);
+        let plain = still_picture(&moves.clone().collect::<Vec<_>>());
+        let with_stats: Vec<Command> = moves.chain([Command::ToggleStats]).collect();
+        let stats = still_picture(&with_stats);
+        let changed = differing_pixels(&plain, &stats);
+        assert!(changed.len() > 200);
+        let top = BAR_ROWS as usize;
+        let bottom = (SCREEN_HEIGHT - BAR_ROWS) as usize;
+        assert!(changed.iter().any(|&(_, y)| y < top));
+        assert!(changed.iter().any(|&(_, y)| y >= bottom));
+        for (x, y) in changed {
+            assert!(y < top || y >= bottom, "({x}, {y})");
+        }
+    }
+
+    #[test]
+    fn frame_rate_and_frame_time_are_measured_with_the_clock() {
+        let mut soft = soft_vga_in_mode_x();
+        let mut app = App::new(); // spinning: a frame every step
+        app.apply(Command::ToggleStats);
+        // Each read of the clock moves it on by 300 µs, and each frame starts
+        // a retrace period (16,683 µs) after the last.
+        let now = Cell::new(0u64);
+        let clock = || {
+            now.set(now.get() + 300);
+            now.get()
+        };
+        for frame in 0..150u64 {
+            now.set(frame * FRAME_MICROS);
+            app.step(&mut ModeX::new(&mut *soft), &clock);
+        }
+        let stats = app.stats();
+        assert_eq!(stats.frame_micros, 300);
+        // 60 frames in 60 · 16,683 µs: 59.94 per second.
+        assert_eq!(stats.frames_per_second_tenths, Some(599));
+        assert_eq!(&*stats.top_line(), "59.9 fps  0.30 ms/frame");
+        assert_eq!(stats.faces.drawn + stats.faces.culled, 6);
+    }
+
+    #[test]
+    fn with_statistics_on_an_idle_scene_is_redrawn_once_a_second() {
+        let mut soft = soft_vga_in_mode_x();
+        let mut app = App::new();
+        app.apply(Command::Reset); // still
+        let now = Cell::new(0u64);
+        let clock = || now.get();
+        let mut step = |app: &mut App, at: u64| {
+            now.set(at);
+            app.step(&mut ModeX::new(&mut *soft), &clock).is_some()
+        };
+        assert!(step(&mut app, 0), "the first frame");
+        assert!(!step(&mut app, 2_000_000), "statistics off: nothing to do");
+        app.apply(Command::ToggleStats);
+        assert!(step(&mut app, 2_100_000), "switching them on draws");
+        assert!(!step(&mut app, 2_600_000));
+        assert!(step(&mut app, 3_200_000), "a second later");
+        assert!(!step(&mut app, 3_300_000));
+    }
+
+    #[test]
+    fn the_shading_ramps_are_in_the_dac_before_the_first_frame() {
+        let mut soft = soft_vga_in_mode_x();
+        let mut app = App::new();
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        for (offset, colour) in ramp_palette().iter().enumerate() {
+            assert_eq!(soft.dac_entry(RAMP_FIRST + offset as u8), *colour);
+        }
+        assert_eq!(soft.dac_entry(9), modex::palette::DEFAULT_PALETTE[9]);
     }
 }

@@ -9,7 +9,7 @@
 //! kept in `baseline` for comparison; it writes every visible pixel every frame.
 
 use crate::scene::Scene;
-use engine::{fill_convex_polygon, ClipRect};
+use engine::{fill_convex_polygon, ClipRect, FaceCounts};
 use modex::{FlipReport, ModeX, Page, PageImage, VgaBus, PAGE_PIXELS, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 pub const BACKGROUND: u8 = 0;
@@ -35,14 +35,14 @@ pub trait FrameDrawer {
 }
 
 /// The scene as colour indices in RAM, background first.
-pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) {
+pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
     image.fill(BACKGROUND);
     scene.visible_faces(|polygon, colour| {
         fill_convex_polygon(polygon, SCREEN_CLIP, |y, x_start, x_end| {
             let row = (y * SCREEN_WIDTH) as usize;
             image[row + x_start as usize..row + x_end as usize].fill(colour);
         });
-    });
+    })
 }
 
 /// Double-buffered drawing that writes each frame's changes only.
@@ -74,14 +74,27 @@ impl Renderer {
     pub fn shown_page(&self) -> Page {
         self.shown
     }
+
+    /// Draws the scene, then lets `overlay` draw over it, into the page not
+    /// shown; returns that page (counted as shown from now on) and what the
+    /// scene drew and culled.
+    pub fn draw_with_overlay<B: VgaBus>(
+        &mut self,
+        vga: &mut ModeX<B>,
+        scene: &mut Scene,
+        overlay: impl FnOnce(&mut PageImage, FaceCounts),
+    ) -> (Page, FaceCounts) {
+        let faces = render_to_image(scene, &mut self.next);
+        overlay(&mut self.next, faces);
+        let page = Page(1 - self.shown.0);
+        vga.update_page(page, &mut self.shadows[usize::from(page.0)], &self.next);
+        self.shown = page;
+        (page, faces)
+    }
 }
 
 impl FrameDrawer for Renderer {
     fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page {
-        render_to_image(scene, &mut self.next);
-        let page = Page(1 - self.shown.0);
-        vga.update_page(page, &mut self.shadows[usize::from(page.0)], &self.next);
-        self.shown = page;
-        page
+        self.draw_with_overlay(vga, scene, |_, _| {}).0
     }
 }

@@ -1,4 +1,5 @@
-//! From decoded keys to commands: the seed's keys, plus Space, R and Esc.
+//! From decoded keys to commands: the seed's keys, plus Space, R and Esc, and
+//! the extras' keys (L, N, M, H, S; Home, End, Page Up, Page Down).
 //! The numeric keypad rotates with NumLock on (it then types digits, like the
 //! top row); with NumLock off its 4/6/8/2 are arrows and move the cube.
 
@@ -23,6 +24,11 @@ fn command_for_character(character: char) -> Command {
         '8' => Command::Rotate(Axis::X, false),
         '2' => Command::Rotate(Axis::X, true),
         ' ' => Command::ToggleSpin,
+        'l' | 'L' => Command::ToggleLighting,
+        'n' | 'N' => Command::NextSolid,
+        'm' | 'M' => Command::ToggleSeveral,
+        'h' | 'H' => Command::ToggleHelp,
+        's' | 'S' => Command::ToggleStats,
         'r' | 'R' => Command::Reset,
         '\u{1b}' => Command::Quit,
         _ => Command::Pause,
@@ -37,6 +43,10 @@ fn command_for_raw(code: KeyCode) -> Option<Command> {
         KeyCode::ArrowDown => Command::MoveDown,
         KeyCode::F1 => Command::Rotate(Axis::Z, true),
         KeyCode::F2 => Command::Rotate(Axis::Z, false),
+        KeyCode::Home => Command::TurnLight(Axis::Y, false),
+        KeyCode::End => Command::TurnLight(Axis::Y, true),
+        KeyCode::PageUp => Command::TurnLight(Axis::X, true),
+        KeyCode::PageDown => Command::TurnLight(Axis::X, false),
         // Us104Key turns these into digits or arrows by NumLock; a layout or
         // decoder that hands over the keypad key itself still rotates.
         KeyCode::Numpad4 => Command::Rotate(Axis::Y, false),
@@ -106,6 +116,22 @@ mod tests {
             (DecodedKey::RawKey(KeyCode::Escape), Quit),
             (DecodedKey::Unicode('R'), Reset),
             (DecodedKey::Unicode(' '), ToggleSpin),
+            (DecodedKey::Unicode('l'), ToggleLighting),
+            (DecodedKey::Unicode('L'), ToggleLighting),
+            (DecodedKey::Unicode('n'), NextSolid),
+            (DecodedKey::Unicode('m'), ToggleSeveral),
+            (DecodedKey::Unicode('h'), ToggleHelp),
+            (DecodedKey::Unicode('s'), ToggleStats),
+            (DecodedKey::RawKey(KeyCode::Home), TurnLight(Axis::Y, false)),
+            (DecodedKey::RawKey(KeyCode::End), TurnLight(Axis::Y, true)),
+            (
+                DecodedKey::RawKey(KeyCode::PageUp),
+                TurnLight(Axis::X, true),
+            ),
+            (
+                DecodedKey::RawKey(KeyCode::PageDown),
+                TurnLight(Axis::X, false),
+            ),
             (DecodedKey::Unicode('r'), Reset),
             (DecodedKey::Unicode('\u{1b}'), Quit),
             (DecodedKey::Unicode('x'), Pause),
@@ -162,6 +188,31 @@ mod tests {
                 MoveRight, // NumLock toggled off: keypad 6 is Right
                 Rotate(Axis::X, false),
                 Quit
+            ]
+        );
+    }
+
+    #[test]
+    fn the_extras_keys_decode_from_their_scancodes() {
+        use Command::*;
+        // L, N, M, H, S, then the editing block's Home, End, Page Up and Page
+        // Down (E0-prefixed, so NumLock does not touch them), each released.
+        let bytes = [
+            0x26, 0xA6, 0x31, 0xB1, 0x32, 0xB2, 0x23, 0xA3, 0x1F, 0x9F, 0xE0, 0x47, 0xE0, 0xC7,
+            0xE0, 0x4F, 0xE0, 0xCF, 0xE0, 0x49, 0xE0, 0xC9, 0xE0, 0x51, 0xE0, 0xD1,
+        ];
+        assert_eq!(
+            commands_for_bytes(&bytes),
+            [
+                ToggleLighting,
+                NextSolid,
+                ToggleSeveral,
+                ToggleHelp,
+                ToggleStats,
+                TurnLight(Axis::Y, false),
+                TurnLight(Axis::Y, true),
+                TurnLight(Axis::X, true),
+                TurnLight(Axis::X, false),
             ]
         );
     }

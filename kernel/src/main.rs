@@ -6,6 +6,7 @@
 #![feature(abi_x86_interrupt)]
 
 mod bench;
+mod clock;
 mod diagnostics;
 mod fault;
 mod framebuffer;
@@ -44,6 +45,10 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         serial_println!("keyboard: {}", problem);
     }
     x86_64::instructions::interrupts::enable();
+    match clock::calibrate() {
+        Some(rate) => serial_println!("clock: TSC {} MHz", rate),
+        None => serial_println!("clock: the PIT did not tick; statistics use whole milliseconds"),
+    }
     serial_println!("kernel: initialised");
 
     let mut option_buffer = [0u8; 64];

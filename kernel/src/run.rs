@@ -3,7 +3,7 @@
 //! interrupt when nothing did, so an idle cube costs no bus traffic at all.
 //! While the cube spins it also keeps count of missed retraces.
 
-use crate::{goodbye, keyboard, pit, serial_println};
+use crate::{clock, goodbye, keyboard, pit, serial_println};
 use demo::app::App;
 use modex::{ModeX, VgaBus};
 
@@ -52,7 +52,7 @@ impl Pacing {
 
 pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut app = App::new();
-    app.step(vga);
+    app.step(vga, &clock::micros);
     serial_println!("screen: ready");
     let mut reported_commands = 0;
     let mut pacing = Pacing::default();
@@ -63,7 +63,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
         if app.quit_requested() {
             goodbye::goodbye(vga);
         }
-        let flip = app.step(vga);
+        let flip = app.step(vga, &clock::micros);
         if app.commands() != reported_commands {
             // Tests wait for this line before they look at the screen.
             reported_commands = app.commands();

@@ -1,0 +1,307 @@
+//! The on-screen display: a statistics line in the top 12 and one in the
+//! bottom 12 pixel rows, and a help box listing every key. It is drawn with
+//! `embedded-graphics` (its 6x10 mono font) into the RAM image of the frame,
+//! after the scene, so it reaches video memory through the same
+//! changed-pixels-only update as everything else: an unchanged figure costs no
+//! bus traffic at all.
+
+use core::fmt::Write;
+use embedded_graphics::mono_font::{ascii::FONT_6X10, MonoTextStyle, MonoTextStyleBuilder};
+use embedded_graphics::prelude::*;
+use embedded_graphics::primitives::{PrimitiveStyleBuilder, Rectangle};
+use embedded_graphics::text::{Baseline, Text};
+use engine::FaceCounts;
+use modex::{ImageCanvas, PageImage, PaletteIndex, SCREEN_HEIGHT, SCREEN_WIDTH};
+
+/// Rows the statistics lines may use at the top and at the bottom.
+pub const BAR_ROWS: i32 = 12;
+const TEXT_COLOUR: u8 = 15; // bright white
+const BAR_BACKGROUND: u8 = 0; // black
+const HELP_BACKGROUND: u8 = 1; // blue
+const CHAR_WIDTH: i32 = 6;
+const LINE_HEIGHT: i32 = 10;
+
+/// Every key, as the help box lists it.
+pub const HELP_LINES: [&str; 17] = [
+    "Arrows       move left/right/up/down",
+    "A  T         move away / toward",
+    "4 6  8 2     turn about Y / about X",
+    "F1 F2        turn about Z",
+    "Space        spin on/off",
+    "L            lighting on/off",
+    "Home End     light left / right",
+    "PgUp PgDn    light up / down",
+    "N            next solid",
+    "M            one object / three",
+    "S            statistics on/off",
+    "H            this help on/off",
+    "R            the seed's scene again",
+    "Esc          quit",
+    "other keys   pause until next key",
+    "",
+    "Keypad digits turn with NumLock on.",
+];
+
+/// What the statistics lines show.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Frames drawn per second over the last whole second, in tenths; `None`
+    /// until a second has been measured.
+    pub frames_per_second_tenths: Option<u32>,
+    /// CPU and bus time of the last frame, without the wait for retrace.
+    pub frame_micros: u32,
+    pub faces: FaceCounts,
+    pub solid: &'static str,
+    pub objects: usize,
+    pub lighting: bool,
+}
+
+/// Which parts of the display are on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Overlay {
+    pub stats: bool,
+    pub help: bool,
+}
+
+/// A line of text without a heap; what does not fit is cut off.
+pub struct Line {
+    bytes: [u8; 64],
+    len: usize,
+}
+
+impl Line {
+    fn new() -> Self {
+        Line {
+            bytes: [0; 64],
+            len: 0,
+        }
+    }
+}
+
+impl core::ops::Deref for Line {
+    type Target = str;
+    fn deref(&self) -> &str {
+        // Only whole characters are ever copied in, so this cannot fail.
+        core::str::from_utf8(&self.bytes[..self.len]).unwrap_or("")
+    }
+}
+
+impl Write for Line {
+    fn write_str(&mut self, text: &str) -> core::fmt::Result {
+        let room = self.bytes.len() - self.len;
+        let mut take = text.len().min(room);
+        while !text.is_char_boundary(take) {
+            take -= 1;
+        }
+        self.bytes[self.len..self.len + take].copy_from_slice(&text.as_bytes()[..take]);
+        self.len += take;
+        Ok(())
+    }
+}
+
+impl Stats {
+    /// "59.9 fps  0.43 ms/frame" ("--.- fps" until a second has passed).
+    pub fn top_line(&self) -> Line {
+        let mut line = Line::new();
+        let _ = match self.frames_per_second_tenths {
+            Some(tenths) => write!(line, "{}.{} fps", tenths / 10, tenths % 10),
+            None => write!(line, "--.- fps"),
+        };
+        let _ = write!(
+            line,
+            "  {}.{:02} ms/frame",
+            self.frame_micros / 1000,
+            self.frame_micros % 1000 / 10,
+        );
+        line
+    }
+
+    /// "faces 3 drawn 3 culled  cube x1  flat".
+    pub fn bottom_line(&self) -> Line {
+        let mut line = Line::new();
+        let _ = write!(
+            line,
+            "faces {} drawn {} culled  {} x{}  {}",
+            self.faces.drawn,
+            self.faces.culled,
+            self.solid,
+            self.objects,
+            if self.lighting { "lit" } else { "flat" },
+        );
+        line
+    }
+}
+
+fn text_style(background: u8) -> MonoTextStyle<'static, PaletteIndex> {
+    MonoTextStyleBuilder::new()
+        .font(&FONT_6X10)
+        .text_color(PaletteIndex(TEXT_COLOUR))
+        .background_color(PaletteIndex(background))
+        .build()
+}
+
+/// Draws the parts of the display that are on over the frame in `image`.
+pub fn draw(image: &mut PageImage, overlay: Overlay, stats: &Stats) {
+    let mut canvas = ImageCanvas::new(image);
+    if overlay.stats {
+        draw_stats(&mut canvas, stats);
+    }
+    if overlay.help {
+        draw_help(&mut canvas);
+    }
+}
+
+fn draw_stats(canvas: &mut ImageCanvas, stats: &Stats) {
+    let style = text_style(BAR_BACKGROUND);
+    // One row of margin above the top line and below the bottom one.
+    let top = Point::new(2, 1);
+    let bottom = Point::new(2, SCREEN_HEIGHT - 1 - LINE_HEIGHT);
+    let _ = Text::with_baseline(&stats.top_line(), top, style, Baseline::Top).draw(canvas);
+    let _ = Text::with_baseline(&stats.bottom_line(), bottom, style, Baseline::Top).draw(canvas);
+}
+
+/// The help box's place: centred, wide enough for the longest line.
+pub fn help_box() -> Rectangle {
+    let columns = HELP_LINES.iter().map(|line| line.len()).max().unwrap_or(0) as i32;
+    let size = Size::new(
+        (columns * CHAR_WIDTH + 2 * 8) as u32,
+        (HELP_LINES.len() as i32 * LINE_HEIGHT + 2 * 6) as u32,
+    );
+    let top_left = Point::new(
+        (SCREEN_WIDTH - size.width as i32) / 2,
+        (SCREEN_HEIGHT - size.height as i32) / 2,
+    );
+    Rectangle::new(top_left, size)
+}
+
+fn draw_help(canvas: &mut ImageCanvas) {
+    let frame = help_box();
+    let style = PrimitiveStyleBuilder::new()
+        .fill_color(PaletteIndex(HELP_BACKGROUND))
+        .stroke_color(PaletteIndex(TEXT_COLOUR))
+        .stroke_width(1)
+        .build();
+    let _ = frame.into_styled(style).draw(canvas);
+    let text = text_style(HELP_BACKGROUND);
+    for (row, line) in HELP_LINES.iter().enumerate() {
+        let at = frame.top_left + Point::new(8, 6 + row as i32 * LINE_HEIGHT);
+        let _ = Text::with_baseline(line, at, text, Baseline::Top).draw(canvas);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use modex::PAGE_PIXELS;
+
+    fn stats() -> Stats {
+        Stats {
+            frames_per_second_tenths: Some(599),
+            frame_micros: 431,
+            faces: FaceCounts {
+                drawn: 3,
+                culled: 3,
+            },
+            solid: "cube",
+            objects: 1,
+            lighting: false,
+        }
+    }
+
+    #[test]
+    fn the_lines_say_what_the_figures_are() {
+        assert_eq!(&*stats().top_line(), "59.9 fps  0.43 ms/frame");
+        assert_eq!(
+            &*stats().bottom_line(),
+            "faces 3 drawn 3 culled  cube x1  flat"
+        );
+        let slow = Stats {
+            frames_per_second_tenths: Some(5),
+            frame_micros: 123_456,
+            lighting: true,
+            ..stats()
+        };
+        assert_eq!(&*slow.top_line(), "0.5 fps  123.45 ms/frame");
+        let unmeasured = Stats {
+            frames_per_second_tenths: None,
+            ..stats()
+        };
+        assert_eq!(&*unmeasured.top_line(), "--.- fps  0.43 ms/frame");
+        assert!(slow.bottom_line().ends_with("lit"));
+    }
+
+    #[test]
+    fn every_line_fits_the_screen() {
+        let widest = Stats {
+            frames_per_second_tenths: Some(u32::MAX),
+            frame_micros: u32::MAX,
+            faces: FaceCounts {
+                drawn: 60,
+                culled: 60,
+            },
+            solid: "dodecahedron",
+            objects: 3,
+            lighting: false,
+        };
+        for line in [&*widest.top_line(), &*widest.bottom_line()] {
+            assert!(line.len() as i32 * CHAR_WIDTH <= SCREEN_WIDTH - 4, "{line}");
+        }
+        let frame = help_box();
+        assert!(frame.top_left.x >= 0 && frame.top_left.y >= 0);
+        assert!(frame.bottom_right().unwrap().x < SCREEN_WIDTH);
+        assert!(frame.bottom_right().unwrap().y < SCREEN_HEIGHT);
+    }
+
+    #[test]
+    fn statistics_stay_in_the_top_and_bottom_twelve_rows() {
+        let mut image = [7u8; PAGE_PIXELS];
+        let overlay = Overlay {
+            stats: true,
+            help: false,
+        };
+        draw(&mut image, overlay, &stats());
+        let width = SCREEN_WIDTH as usize;
+        let changed_rows: std::vec::Vec<usize> = (0..SCREEN_HEIGHT as usize)
+            .filter(|&y| image[y * width..(y + 1) * width].iter().any(|&c| c != 7))
+            .collect();
+        assert!(!changed_rows.is_empty());
+        for y in changed_rows {
+            assert!(
+                y < BAR_ROWS as usize || y >= (SCREEN_HEIGHT - BAR_ROWS) as usize,
+                "row {y}"
+            );
+        }
+        let white = image.iter().filter(|&&c| c == TEXT_COLOUR).count();
+        assert!(white > 200, "only {white} text pixels");
+    }
+
+    #[test]
+    fn the_help_box_covers_its_rectangle_and_nothing_else() {
+        let mut image = [7u8; PAGE_PIXELS];
+        let overlay = Overlay {
+            stats: false,
+            help: true,
+        };
+        draw(&mut image, overlay, &stats());
+        let frame = help_box();
+        let width = SCREEN_WIDTH as usize;
+        for (pixel, &colour) in image.iter().enumerate() {
+            let at = Point::new((pixel % width) as i32, (pixel / width) as i32);
+            if frame.contains(at) {
+                assert!(
+                    [TEXT_COLOUR, HELP_BACKGROUND].contains(&colour),
+                    "{at:?}: {colour}"
+                );
+            } else {
+                assert_eq!(colour, 7, "{at:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn nothing_is_drawn_when_the_display_is_off() {
+        let mut image = [7u8; PAGE_PIXELS];
+        draw(&mut image, Overlay::default(), &stats());
+        assert!(image.iter().all(|&c| c == 7));
+    }
+}
