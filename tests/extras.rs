@@ -1,0 +1,142 @@
+//! The extras in QEMU: lighting, the other solids, several objects, help and
+//! statistics. After each key, QEMU's screendump of its own VGA emulation must
+//! equal the software VGA's picture of the same commands, pixel for pixel —
+//! except the top statistics line, whose figures are timings.
+
+mod common;
+
+use boot::{Qemu, RgbImage};
+use common::{
+    assert_pictures_equal, assert_same_picture, boot_bios, model_picture, soft_vga_in_mode_x,
+    BOOT_TIMEOUT,
+};
+use demo::app::App;
+use demo::osd::BAR_ROWS;
+use demo::scene::{Axis, Command};
+use modex::soft::SoftVga;
+use modex::ModeX;
+
+/// Boots, then for each key: sends it, waits until the kernel has drawn it,
+/// does the same on the model and compares the pictures.
+fn after_each_key(keys: &[(&str, Command)]) {
+    let mut qemu: Qemu = boot_bios(None);
+    qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+        .unwrap();
+    let mut soft: Box<SoftVga> = soft_vga_in_mode_x();
+    let mut app = App::new();
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+    for (n, &(key, command)) in keys.iter().enumerate() {
+        qemu.send_key(key).unwrap();
+        let done = format!("demo: command {} done", n + 1);
+        qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+        app.apply(command);
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        let what = format!("after key {} ({key})", n + 1);
+        let (qemu_picture, model) = (qemu.screendump().unwrap(), model_picture(&soft));
+        if app.overlay().stats {
+            exactly_but_the_timings(&qemu_picture, &model, &what);
+        } else {
+            assert_same_picture(&qemu_picture, &model, &what);
+        }
+    }
+}
+
+/// Still cube, turned so that three faces show.
+const TURNED: [(&str, Command); 7] = [
+    ("r", Command::Reset),
+    ("6", Command::Rotate(Axis::Y, true)),
+    ("6", Command::Rotate(Axis::Y, true)),
+    ("6", Command::Rotate(Axis::Y, true)),
+    ("6", Command::Rotate(Axis::Y, true)),
+    ("8", Command::Rotate(Axis::X, false)),
+    ("8", Command::Rotate(Axis::X, false)),
+];
+
+fn turned_then(more: &[(&'static str, Command)]) -> Vec<(&'static str, Command)> {
+    TURNED.iter().chain(more).copied().collect()
+}
+
+#[test]
+fn lighting_and_turning_the_light() {
+    after_each_key(&turned_then(&[
+        ("l", Command::ToggleLighting),
+        ("end", Command::TurnLight(Axis::Y, true)),
+        ("end", Command::TurnLight(Axis::Y, true)),
+        ("pgdn", Command::TurnLight(Axis::X, false)),
+        ("home", Command::TurnLight(Axis::Y, false)),
+        ("pgup", Command::TurnLight(Axis::X, true)),
+        ("n", Command::NextSolid),
+        ("l", Command::ToggleLighting),
+    ]));
+}
+
+#[test]
+fn every_solid_in_turn() {
+    after_each_key(&turned_then(&[
+        ("n", Command::NextSolid),
+        ("n", Command::NextSolid),
+        ("n", Command::NextSolid),
+        ("n", Command::NextSolid),
+        ("f1", Command::Rotate(Axis::Z, true)),
+        ("n", Command::NextSolid),
+    ]));
+}
+
+#[test]
+fn several_objects_then_reset() {
+    after_each_key(&turned_then(&[
+        ("m", Command::ToggleSeveral),
+        ("right", Command::MoveRight),
+        ("right", Command::MoveRight),
+        ("l", Command::ToggleLighting),
+        ("n", Command::NextSolid),
+        ("r", Command::Reset),
+    ]));
+}
+
+#[test]
+fn help_opens_over_the_scene_and_closes() {
+    after_each_key(&turned_then(&[
+        ("h", Command::ToggleHelp),
+        ("left", Command::MoveLeft),
+        ("h", Command::ToggleHelp),
+    ]));
+}
+
+const WHITE: [u8; 3] = [255, 255, 255];
+const BLACK: [u8; 3] = [0, 0, 0];
+
+/// Rows `from..to` of a picture.
+fn rows(picture: &RgbImage, from: usize, to: usize) -> RgbImage {
+    let pixels = picture.pixels[from * picture.width..to * picture.width].to_vec();
+    RgbImage::new(picture.width, to - from, pixels)
+}
+
+/// Exact below the top bar; the top bar (frame rate and frame time, which
+/// differ between QEMU and the model) must be white text on black.
+fn exactly_but_the_timings(qemu: &RgbImage, model: &RgbImage, what: &str) {
+    let qemu = qemu.halve().unwrap_or_else(|e| panic!("{what}: {e}"));
+    let bar = BAR_ROWS as usize;
+    assert_pictures_equal(
+        &rows(&qemu, bar, qemu.height),
+        &rows(model, bar, model.height),
+        what,
+    );
+    let top = rows(&qemu, 0, bar);
+    assert!(
+        top.pixels.iter().all(|&p| p == WHITE || p == BLACK),
+        "{what}: the top bar is not white on black"
+    );
+    let text = top.pixels.iter().filter(|&&p| p == WHITE).count();
+    assert!(text > 100, "{what}: only {text} text pixels in the top bar");
+}
+
+#[test]
+fn statistics_in_the_top_and_bottom_rows() {
+    after_each_key(&turned_then(&[
+        ("s", Command::ToggleStats),
+        ("n", Command::NextSolid),
+        ("m", Command::ToggleSeveral),
+        ("l", Command::ToggleLighting),
+    ]));
+}
