@@ -17,6 +17,8 @@ Options:
   --screenshot FILE     after boot (and --keys) save QEMU's picture as a PNG, then stop
   --keys \"KEYS\"         type these after boot: QEMU key names separated by spaces,
                         e.g. \"r 4 4 kp_8 a f1 left spc esc\"
+  --wait SECS           with --screenshot: wait SECS after the keys before taking it
+                        (default 0.5), e.g. to let the statistics measure a spin
   --timeout SECS        stop QEMU after SECS seconds
   --boot-option OPTION  hand OPTION to the kernel via fw_cfg (see README: test-pattern,
                         flip-rate, bench, fault=...)
@@ -35,6 +37,7 @@ struct Args {
     screenshot: Option<PathBuf>,
     keys: Vec<String>,
     timeout: Option<Duration>,
+    wait: Duration,
     boot_option: Option<String>,
     write_usb: Option<PathBuf>,
 }
@@ -46,6 +49,7 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
         screenshot: None,
         keys: Vec::new(),
         timeout: None,
+        wait: Duration::from_millis(500),
         boot_option: None,
         write_usb: None,
     };
@@ -65,23 +69,22 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
                     .map(str::to_lowercase)
                     .collect()
             }
-            "--timeout" => {
-                let text = value("--timeout")?;
-                let seconds: f64 = text
-                    .parse()
-                    .ok()
-                    .filter(|s: &f64| s.is_finite() && *s > 0.0)
-                    .ok_or_else(|| {
-                        format!("--timeout takes a positive number of seconds, not {text:?}")
-                    })?;
-                parsed.timeout = Some(Duration::from_secs_f64(seconds));
-            }
+            "--timeout" => parsed.timeout = Some(seconds("--timeout", &value("--timeout")?)?),
+            "--wait" => parsed.wait = seconds("--wait", &value("--wait")?)?,
             "--boot-option" => parsed.boot_option = Some(value("--boot-option")?),
             "--write-usb" => parsed.write_usb = Some(PathBuf::from(value("--write-usb")?)),
             other => return Err(format!("unknown option {other:?}; see --help")),
         }
     }
     Ok(Some(parsed))
+}
+
+fn seconds(option: &str, text: &str) -> Result<Duration, String> {
+    text.parse()
+        .ok()
+        .filter(|s: &f64| s.is_finite() && *s > 0.0 && *s < 1e9)
+        .map(Duration::from_secs_f64)
+        .ok_or_else(|| format!("{option} takes a positive number of seconds, not {text:?}"))
 }
 
 fn has_display() -> bool {
@@ -127,12 +130,12 @@ fn run(args: Args) -> Result<ExitCode, String> {
         qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(boot_time))
             .map_err(|e| e.to_string())?;
         for key in &args.keys {
-            qemu.send_key(key).map_err(|e| format!("{e} (QEMU key names: a-z, 0-9, kp_0-kp_9, f1-f12, left, right, up, down, spc, esc, ret)"))?;
+            qemu.send_key(key).map_err(|e| format!("{e} (QEMU key names: a-z, 0-9, kp_0-kp_9, f1-f12, left, right, up, down, home, end, pgup, pgdn, spc, esc, ret)"))?;
             std::thread::sleep(Duration::from_millis(150));
         }
         if let Some(path) = &args.screenshot {
             // Let the last key's frame reach the screen.
-            std::thread::sleep(Duration::from_millis(500));
+            std::thread::sleep(args.wait);
             let picture = qemu.screendump().map_err(|e| e.to_string())?;
             picture.write_png(path)?;
             println!(

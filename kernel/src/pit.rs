@@ -15,6 +15,8 @@ const DIVISOR: u16 = 1193;
 pub const TICK_NANOS: u64 = DIVISOR as u64 * 1_000_000_000 / INPUT_HZ;
 
 static TICKS: AtomicU64 = AtomicU64::new(0);
+/// The time-stamp counter at the last tick.
+static TICK_TSC: AtomicU64 = AtomicU64::new(0);
 
 pub fn init() {
     let [low, high] = DIVISOR.to_le_bytes();
@@ -27,8 +29,18 @@ pub fn init() {
     }
 }
 
+/// Counts a tick; called from the IRQ 0 handler.
 pub fn tick() {
+    TICK_TSC.store(crate::clock::rdtsc(), Ordering::Relaxed);
     TICKS.fetch_add(1, Ordering::Relaxed);
+}
+
+/// The tick count and the time-stamp counter when the last tick came. Read
+/// with interrupts off, so that no tick comes between the two reads.
+pub fn ticks_and_tsc() -> (u64, u64) {
+    x86_64::instructions::interrupts::without_interrupts(|| {
+        (TICKS.load(Ordering::Relaxed), TICK_TSC.load(Ordering::Relaxed))
+    })
 }
 
 pub fn ticks() -> u64 {
