@@ -123,6 +123,11 @@ impl App {
                 self.overlay.stats = !self.overlay.stats;
                 self.frame_rate = FrameRate::default();
             }
+            Command::Reset => {
+                // The seed's scene has no display over it either.
+                self.overlay = Overlay::default();
+                self.scene.apply(Command::Reset);
+            }
             other => self.scene.apply(other),
         }
         self.dirty = true;
@@ -266,6 +271,20 @@ mod tests {
         }
         let closed = still_picture(&[Command::ToggleHelp, Command::ToggleHelp]);
         assert!(closed == plain);
+    }
+
+    #[test]
+    fn reset_closes_help_and_statistics_too() {
+        let plain = still_picture(&[]);
+        let extras = [
+            Command::ToggleHelp,
+            Command::ToggleStats,
+            Command::ToggleLighting,
+            Command::ToggleSeveral,
+            Command::NextSolid,
+            Command::Reset,
+        ];
+        assert!(still_picture(&extras) == plain);
     }
 
     #[test]

@@ -35,7 +35,7 @@ pub const HELP_LINES: [&str; 17] = [
     "M            one object / three",
     "S            statistics on/off",
     "H            this help on/off",
-    "R            the seed's scene again",
+    "R            back to the seed's scene",
     "Esc          quit",
     "other keys   pause until next key",
     "",
