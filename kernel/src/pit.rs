@@ -39,7 +39,10 @@ pub fn tick() {
 /// with interrupts off, so that no tick comes between the two reads.
 pub fn ticks_and_tsc() -> (u64, u64) {
     x86_64::instructions::interrupts::without_interrupts(|| {
-        (TICKS.load(Ordering::Relaxed), TICK_TSC.load(Ordering::Relaxed))
+        (
+            TICKS.load(Ordering::Relaxed),
+            TICK_TSC.load(Ordering::Relaxed),
+        )
     })
 }
 

@@ -1,0 +1,269 @@
+//! The scene: the seed's cube floating in front of the viewer, moved and
+//! turned by commands, optionally spinning by itself; and, switched on by
+//! keys, flat shading by a light, other solids in the cube's place, and two
+//! more solids circling on their own, drawn far to near.
+
+mod orbit;
+
+use crate::shading::{default_light, shaded_colour};
+use crate::solids::{Solid, SOLIDS};
+use core::f64::consts::PI;
+use engine::{FaceCounts, Light, Object, Point, Xform};
+use orbit::{Satellite, ORBITS};
+
+/// Where the cube starts: no rotation, 100 units in front of the viewer.
+pub const INITIAL_Z: f64 = -100.0;
+/// One keypress moves the cube this far.
+pub const MOVE_STEP: f64 = 3.0;
+/// Toward the viewer stops here, so no near-plane clipping is needed.
+pub const NEAREST_Z: f64 = -40.0;
+/// One keypress turns the cube 6 degrees.
+pub const ROTATION_STEP: f64 = PI / 30.0;
+/// One keypress turns the light 15 degrees.
+pub const LIGHT_STEP: f64 = PI / 12.0;
+/// The automatic spin per frame: about Y and, more slowly, about X.
+pub const SPIN_Y_PER_FRAME: f64 = PI / 180.0;
+pub const SPIN_X_PER_FRAME: f64 = PI / 360.0;
+/// Rotations between re-orthonormalisations: often enough that the drift
+/// stays far below what a pixel can show.
+const ROTATIONS_PER_REORTHONORMALIZATION: u32 = 64;
+/// The cube (or the solid in its place) plus two satellites.
+pub const MAX_OBJECTS: usize = 3;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Axis {
+    X,
+    Y,
+    Z,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Command {
+    MoveLeft,
+    MoveRight,
+    MoveUp,
+    MoveDown,
+    Away,
+    Toward,
+    /// Rotate by +6 (true) or -6 (false) degrees about the axis.
+    Rotate(Axis, bool),
+    ToggleSpin,
+    /// Flat shading by the light, or the seed's flat colours.
+    ToggleLighting,
+    /// Turn the light 15 degrees: about Y to the right (true) or left, about
+    /// X up (true) or down.
+    TurnLight(Axis, bool),
+    /// Put the next solid in the cube's place.
+    NextSolid,
+    /// One object, or three moving independently.
+    ToggleSeveral,
+    /// The on-screen help and statistics belong to the app, not the scene.
+    ToggleHelp,
+    ToggleStats,
+    Reset,
+    /// Any key that is not a command: wait for the next key.
+    Pause,
+    Quit,
+}
+
+#[derive(Clone)]
+pub struct Scene {
+    /// The object the keys move (index 0) and the satellites.
+    objects: [Object; MAX_OBJECTS],
+    satellites: [Satellite; MAX_OBJECTS - 1],
+    several: bool,
+    solid: usize,
+    lighting: bool,
+    light: Light,
+    spinning: bool,
+    rotations: u32,
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Scene {
+    /// The scene at boot: the seed's initial cube, spinning.
+    pub fn new() -> Self {
+        let mut scene = Self::initial();
+        scene.spinning = true;
+        scene
+    }
+
+    /// The seed's initial state, still: what Reset returns to. The satellites
+    /// wait at the start of their orbits until several objects are switched on.
+    pub fn initial() -> Self {
+        let satellites = ORBITS.map(|orbit| Satellite::start(&orbit));
+        let objects = [
+            Object::new(SOLIDS[0].model, Xform::translation(0.0, 0.0, INITIAL_Z)),
+            Object::new(ORBITS[0].model, satellites[0].object_to_world(&ORBITS[0])),
+            Object::new(ORBITS[1].model, satellites[1].object_to_world(&ORBITS[1])),
+        ];
+        Scene {
+            objects,
+            satellites,
+            several: false,
+            solid: 0,
+            lighting: false,
+            light: default_light(),
+            spinning: false,
+            rotations: 0,
+        }
+    }
+
+    pub fn spinning(&self) -> bool {
+        self.spinning
+    }
+
+    pub fn lighting(&self) -> bool {
+        self.lighting
+    }
+
+    pub fn light(&self) -> &Light {
+        &self.light
+    }
+
+    pub fn several(&self) -> bool {
+        self.several
+    }
+
+    /// The solid the keys move.
+    pub fn solid(&self) -> &'static Solid {
+        &SOLIDS[self.solid]
+    }
+
+    /// The object the keys move: the seed's cube unless N put another solid
+    /// in its place.
+    pub fn primary(&self) -> &Object {
+        &self.objects[0]
+    }
+
+    pub fn primary_mut(&mut self) -> &mut Object {
+        &mut self.objects[0]
+    }
+
+    /// The objects in the scene: the primary alone, or with the satellites.
+    pub fn objects(&self) -> &[Object] {
+        &self.objects[..self.object_count()]
+    }
+
+    fn object_count(&self) -> usize {
+        if self.several {
+            MAX_OBJECTS
+        } else {
+            1
+        }
+    }
+
+    /// Applies one command (Pause, Quit and the display toggles are the
+    /// caller's business and leave the scene as it is).
+    pub fn apply(&mut self, command: Command) {
+        match command {
+            Command::MoveLeft => self.translate(-MOVE_STEP, 0.0, 0.0),
+            Command::MoveRight => self.translate(MOVE_STEP, 0.0, 0.0),
+            Command::MoveUp => self.translate(0.0, MOVE_STEP, 0.0),
+            Command::MoveDown => self.translate(0.0, -MOVE_STEP, 0.0),
+            Command::Away => self.translate(0.0, 0.0, -MOVE_STEP),
+            Command::Toward => {
+                if self.primary().position().z < NEAREST_Z {
+                    self.translate(0.0, 0.0, MOVE_STEP);
+                }
+            }
+            Command::Rotate(axis, positive) => self.rotate(axis, signed(ROTATION_STEP, positive)),
+            Command::ToggleSpin => self.spinning = !self.spinning,
+            Command::ToggleLighting => self.lighting = !self.lighting,
+            Command::TurnLight(Axis::Y, right) => self.light.turn(signed(LIGHT_STEP, right), 0.0),
+            Command::TurnLight(_, up) => self.light.turn(0.0, signed(LIGHT_STEP, up)),
+            Command::NextSolid => {
+                self.solid = (self.solid + 1) % SOLIDS.len();
+                self.objects[0].set_model(SOLIDS[self.solid].model);
+            }
+            Command::ToggleSeveral => self.several = !self.several,
+            Command::Reset => *self = Self::initial(),
+            Command::ToggleHelp | Command::ToggleStats | Command::Pause | Command::Quit => {}
+        }
+    }
+
+    /// One frame of motion, if the spin is on: the primary spins as in the
+    /// seed, and the satellites, when shown, move along their orbits.
+    pub fn tick(&mut self) {
+        if !self.spinning {
+            return;
+        }
+        self.rotate(Axis::Y, SPIN_Y_PER_FRAME);
+        self.rotate(Axis::X, SPIN_X_PER_FRAME);
+        if self.several {
+            for (index, orbit) in ORBITS.iter().enumerate() {
+                let satellite = &mut self.satellites[index];
+                satellite.advance(orbit);
+                *self.objects[index + 1].object_to_world_mut() = satellite.object_to_world(orbit);
+            }
+        }
+    }
+
+    fn translate(&mut self, dx: f64, dy: f64, dz: f64) {
+        self.objects[0].object_to_world_mut().translate(dx, dy, dz);
+    }
+
+    fn rotate(&mut self, axis: Axis, angle: f64) {
+        let xform = self.objects[0].object_to_world_mut();
+        match axis {
+            Axis::X => xform.append_rotation_x(angle),
+            Axis::Y => xform.append_rotation_y(angle),
+            Axis::Z => xform.append_rotation_z(angle),
+        }
+        self.rotations += 1;
+        if self
+            .rotations
+            .is_multiple_of(ROTATIONS_PER_REORTHONORMALIZATION)
+        {
+            xform.reorthonormalize();
+        }
+    }
+
+    /// The objects to draw, farthest first (the painter's algorithm, whole
+    /// objects at a time: each is convex, so within one object backface
+    /// removal alone hides what it must). Distance is measured from the eye
+    /// to each object's centre.
+    pub fn drawing_order(&self) -> ([usize; MAX_OBJECTS], usize) {
+        let count = self.object_count();
+        let mut order = [0, 1, 2];
+        let distance = |index: &usize| self.objects[*index].position().length();
+        order[..count].sort_unstable_by(|a, b| distance(b).total_cmp(&distance(a)));
+        (order, count)
+    }
+
+    /// The faces to draw this frame, far to near, as screen polygons with
+    /// their colours: the seed's flat colours, or with lighting on the level of
+    /// the colour's ramp that the face's brightness gives.
+    pub fn visible_faces(&mut self, mut draw: impl FnMut(&[Point], u8)) -> FaceCounts {
+        let (order, count) = self.drawing_order();
+        let (lighting, light) = (self.lighting, self.light);
+        let mut counts = FaceCounts::default();
+        for &index in &order[..count] {
+            counts += self.objects[index].each_visible_face(|visible| {
+                let colour = if lighting {
+                    shaded_colour(visible.face.colour, light.intensity(visible.normal()))
+                } else {
+                    visible.face.colour
+                };
+                draw(visible.polygon, colour);
+            });
+        }
+        counts
+    }
+}
+
+fn signed(step: f64, positive: bool) -> f64 {
+    if positive {
+        step
+    } else {
+        -step
+    }
+}
+
+#[cfg(test)]
+mod tests;

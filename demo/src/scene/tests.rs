@@ -1,0 +1,358 @@
+//! The scene's tests: the seed's behaviour, then the extras.
+
+use super::*;
+use crate::solids::CUBE;
+use engine::{Face, Vec3};
+
+fn face_normal_and_centre(object: &Object, face: &Face) -> (Vec3, Vec3) {
+    let v: [Vec3; 3] = core::array::from_fn(|i| object.view_vertex(face.vertices[i]));
+    // Clockwise seen from outside, right-handed: (v0 - v1) x (v2 - v1) points out.
+    let normal = (v[0] - v[1]).cross(v[2] - v[1]);
+    let count = face.vertices.len() as f64;
+    let centre = face
+        .vertices
+        .iter()
+        .fold(Vec3::default(), |sum, &i| sum + object.view_vertex(i))
+        * (1.0 / count);
+    (normal, centre)
+}
+
+#[test]
+fn the_initial_cube_projects_to_hand_computed_points() {
+    let mut scene = Scene::initial();
+    // Front face z = -85: 15/85·320 = 56.47 -> ±56; back face z = -115:
+    // 15/115·320 = 41.74 -> ±42.
+    let expected = [
+        Point::new(216, 64),
+        Point::new(202, 78),
+        Point::new(216, 176),
+        Point::new(202, 162),
+        Point::new(104, 64),
+        Point::new(118, 78),
+        Point::new(104, 176),
+        Point::new(118, 162),
+    ];
+    assert_eq!(scene.primary_mut().screen_vertices(), &expected);
+    // Only the front face (vertices 0, 2, 6, 4; colour 9) faces the viewer.
+    let mut drawn = std::vec::Vec::new();
+    scene.visible_faces(|polygon, colour| drawn.push((polygon.to_vec(), colour)));
+    assert_eq!(drawn.len(), 1);
+    assert_eq!(drawn[0].1, 9);
+}
+
+#[test]
+fn screen_culling_agrees_with_the_view_space_dot_product_test() {
+    // Rost's test: a face is visible when its outward normal points toward
+    // the eye, normal · (eye − point on face) > 0, with the eye at the origin.
+    let mut seed = 0x1234_5678_9abc_def1u64;
+    let mut random = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed % 10_000) as f64 / 10_000.0
+    };
+    let (mut checked, mut skipped) = (0, 0);
+    for _ in 0..2000 {
+        let mut xform = Xform::translation(
+            random() * 60.0 - 30.0,
+            random() * 60.0 - 30.0,
+            -60.0 - random() * 150.0,
+        );
+        xform.append_rotation_x(random() * 2.0 * PI);
+        xform.append_rotation_y(random() * 2.0 * PI);
+        xform.append_rotation_z(random() * 2.0 * PI);
+        let mut cube = Object::new(&CUBE, xform);
+        let mut drawn = [false; 6];
+        let mut index = 0;
+        let screen: std::vec::Vec<Point> = cube.screen_vertices().to_vec();
+        for (i, face) in CUBE.faces.iter().enumerate() {
+            let polygon: std::vec::Vec<Point> = face.vertices.iter().map(|&v| screen[v]).collect();
+            drawn[i] = engine::is_front_facing(&polygon);
+        }
+        cube.visible_faces(|_, _| index += 1);
+        assert_eq!(index, drawn.iter().filter(|&&d| d).count());
+        for (i, face) in CUBE.faces.iter().enumerate() {
+            let (normal, centre) = face_normal_and_centre(&cube, face);
+            let facing = normal.dot(-centre) / (normal.length() * centre.length());
+            // Nearly edge-on faces project to slivers a pixel or two wide,
+            // where integer rounding may legitimately decide either way.
+            if facing.abs() < 0.02 {
+                skipped += 1;
+                continue;
+            }
+            checked += 1;
+            assert_eq!(drawn[i], facing > 0.0, "face {i} at cos {facing}");
+        }
+    }
+    assert!(checked > 11_000, "checked {checked}, skipped {skipped}");
+}
+
+#[test]
+fn commands_move_and_turn_like_the_seed() {
+    let mut scene = Scene::initial();
+    for (command, expected) in [
+        (Command::MoveLeft, Vec3::new(-3.0, 0.0, -100.0)),
+        (Command::MoveUp, Vec3::new(-3.0, 3.0, -100.0)),
+        (Command::MoveRight, Vec3::new(0.0, 3.0, -100.0)),
+        (Command::MoveDown, Vec3::new(0.0, 0.0, -100.0)),
+        (Command::Away, Vec3::new(0.0, 0.0, -103.0)),
+        (Command::Toward, Vec3::new(0.0, 0.0, -100.0)),
+    ] {
+        scene.apply(command);
+        assert_eq!(
+            scene.primary().object_to_world().translation_part(),
+            expected,
+            "{command:?}"
+        );
+    }
+    scene.apply(Command::Rotate(Axis::Y, true));
+    let mut expected = Xform::translation(0.0, 0.0, -100.0);
+    expected.append_rotation_y(ROTATION_STEP);
+    assert_eq!(scene.primary().object_to_world(), &expected);
+}
+
+#[test]
+fn toward_stops_at_the_near_limit() {
+    let mut scene = Scene::initial();
+    for _ in 0..100 {
+        scene.apply(Command::Toward);
+    }
+    let z = scene.primary().object_to_world().translation_part().z;
+    assert!((NEAREST_Z..NEAREST_Z + MOVE_STEP).contains(&z), "z = {z}");
+}
+
+#[test]
+fn vertices_are_projected_only_when_something_moved() {
+    let mut scene = Scene::initial();
+    scene.visible_faces(|_, _| {});
+    scene.visible_faces(|_, _| {});
+    assert_eq!(scene.primary().projections(), 1);
+    scene.tick(); // not spinning: nothing moves
+    scene.visible_faces(|_, _| {});
+    assert_eq!(scene.primary().projections(), 1);
+    scene.apply(Command::MoveLeft);
+    scene.visible_faces(|_, _| {});
+    assert_eq!(scene.primary().projections(), 2);
+}
+
+#[test]
+fn spin_is_on_at_boot_and_reset_restores_the_initial_state() {
+    let mut scene = Scene::new();
+    assert!(scene.spinning());
+    for _ in 0..500 {
+        scene.tick();
+    }
+    scene.apply(Command::MoveLeft);
+    scene.apply(Command::Reset);
+    assert!(!scene.spinning());
+    assert_eq!(
+        scene.primary().object_to_world(),
+        Scene::initial().primary().object_to_world()
+    );
+}
+
+fn colours_drawn(scene: &mut Scene) -> std::vec::Vec<u8> {
+    let mut colours = std::vec::Vec::new();
+    scene.visible_faces(|_, colour| colours.push(colour));
+    colours
+}
+
+#[test]
+fn lighting_shades_each_face_by_the_angle_to_the_light() {
+    let mut scene = Scene::initial();
+    scene.apply(Command::ToggleLighting);
+    // Only the front face (bright blue, ramp 0) shows; its normal is
+    // (0, 0, 1) and the light comes from (-1, 1, 1)/√3: intensity
+    // 0.25 + 0.75/√3 = 0.683, level round(0.683 · 31) = 21.
+    assert_eq!(colours_drawn(&mut scene), [16 + 21]);
+    // Three steps right put the light straight above the line of sight:
+    // 0.25 + 0.75 · cos 35.26° = 0.862, level 27.
+    for _ in 0..3 {
+        scene.apply(Command::TurnLight(Axis::Y, true));
+    }
+    assert_eq!(colours_drawn(&mut scene), [16 + 27]);
+    // Turned away behind the cube, only the ambient share is left: 0.25,
+    // level 8 (7.75 rounded).
+    for _ in 0..12 {
+        scene.apply(Command::TurnLight(Axis::Y, true));
+    }
+    for _ in 0..3 {
+        scene.apply(Command::TurnLight(Axis::X, false));
+    }
+    assert_eq!(colours_drawn(&mut scene), [16 + 8]);
+    scene.apply(Command::ToggleLighting);
+    assert_eq!(colours_drawn(&mut scene), [9], "flat colours again");
+}
+
+#[test]
+fn n_puts_each_solid_in_the_cubes_place_in_turn() {
+    let mut scene = Scene::initial();
+    scene.apply(Command::MoveLeft);
+    let place = *scene.primary().object_to_world();
+    let mut seen = std::vec::Vec::new();
+    for _ in 0..SOLIDS.len() {
+        scene.apply(Command::NextSolid);
+        seen.push(scene.solid().name);
+        assert!(core::ptr::eq(scene.primary().model(), scene.solid().model));
+        assert_eq!(scene.primary().object_to_world(), &place);
+        assert!(!colours_drawn(&mut scene).is_empty());
+    }
+    assert_eq!(
+        seen,
+        [
+            "tetrahedron",
+            "octahedron",
+            "dodecahedron",
+            "icosahedron",
+            "cube"
+        ]
+    );
+}
+
+#[test]
+fn reset_returns_to_the_seeds_scene_from_every_extra() {
+    let mut scene = Scene::new();
+    for command in [
+        Command::ToggleLighting,
+        Command::TurnLight(Axis::X, true),
+        Command::NextSolid,
+        Command::ToggleSeveral,
+    ] {
+        scene.apply(command);
+    }
+    scene.tick();
+    scene.apply(Command::Reset);
+    assert!(!scene.lighting() && !scene.several() && !scene.spinning());
+    assert_eq!(scene.solid().name, "cube");
+    assert_eq!(scene.light(), &default_light());
+    assert_eq!(scene.objects().len(), 1);
+    assert_eq!(colours_drawn(&mut scene), [9]);
+}
+
+#[test]
+fn several_objects_are_drawn_far_to_near() {
+    let mut scene = Scene::initial();
+    scene.apply(Command::ToggleSeveral);
+    // The tetrahedron circles 180 units away, the octahedron starts in
+    // front of the cube's right side (about 67 units away).
+    assert_eq!(scene.drawing_order(), ([2, 0, 1], 3));
+    for _ in 0..100 {
+        scene.apply(Command::Away);
+    }
+    assert_eq!(scene.drawing_order(), ([0, 2, 1], 3));
+    scene.apply(Command::ToggleSeveral);
+    assert_eq!(scene.drawing_order().1, 1);
+}
+
+/// Each object alone, as colour indices (0 where it does not cover).
+fn picture_of(object: &Object) -> std::vec::Vec<u8> {
+    let mut object = object.clone();
+    let mut picture = std::vec![0u8; 320 * 240];
+    let clip = engine::ClipRect {
+        x0: 0,
+        y0: 0,
+        x1: 320,
+        y1: 240,
+    };
+    object.visible_faces(|polygon, colour| {
+        engine::fill_convex_polygon(polygon, clip, |y, x0, x1| {
+            let row = y as usize * 320;
+            picture[row + x0 as usize..row + x1 as usize].fill(colour);
+        });
+    });
+    picture
+}
+
+#[test]
+fn where_objects_overlap_the_nearer_one_shows() {
+    let mut scene = Scene::new();
+    scene.apply(Command::ToggleSeveral);
+    let mut overlapping_pixels = 0;
+    for frame in 0..720 {
+        scene.tick();
+        if frame % 8 != 0 {
+            continue;
+        }
+        let mut frame_picture = std::vec![0u8; 320 * 240];
+        let clip = crate::frame::SCREEN_CLIP;
+        scene.visible_faces(|polygon, colour| {
+            engine::fill_convex_polygon(polygon, clip, |y, x0, x1| {
+                let row = y as usize * 320;
+                frame_picture[row + x0 as usize..row + x1 as usize].fill(colour);
+            });
+        });
+        // Nearest first.
+        let mut alone: std::vec::Vec<(f64, std::vec::Vec<u8>)> = scene
+            .objects()
+            .iter()
+            .map(|object| (object.position().length(), picture_of(object)))
+            .collect();
+        alone.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for pixel in 0..320 * 240 {
+            let covering: std::vec::Vec<u8> = alone
+                .iter()
+                .map(|(_, picture)| picture[pixel])
+                .filter(|&colour| colour != 0)
+                .collect();
+            overlapping_pixels += usize::from(covering.len() > 1);
+            let expected = covering.first().copied().unwrap_or(0);
+            assert_eq!(
+                frame_picture[pixel], expected,
+                "frame {frame}, pixel {pixel}"
+            );
+        }
+    }
+    assert!(
+        overlapping_pixels > 10_000,
+        "only {overlapping_pixels} overlaps"
+    );
+}
+
+#[test]
+fn only_the_objects_that_moved_are_projected_again() {
+    let mut scene = Scene::initial();
+    scene.apply(Command::ToggleSeveral);
+    let projections = |scene: &Scene| -> std::vec::Vec<u64> {
+        scene.objects().iter().map(Object::projections).collect()
+    };
+    scene.visible_faces(|_, _| {});
+    assert_eq!(projections(&scene), [1, 1, 1]);
+    scene.visible_faces(|_, _| {});
+    scene.tick(); // spin is off: nothing moves
+    scene.visible_faces(|_, _| {});
+    assert_eq!(projections(&scene), [1, 1, 1]);
+    scene.apply(Command::MoveLeft);
+    scene.visible_faces(|_, _| {});
+    assert_eq!(projections(&scene), [2, 1, 1], "only the cube moved");
+    scene.apply(Command::ToggleSpin);
+    scene.tick();
+    scene.visible_faces(|_, _| {});
+    assert_eq!(projections(&scene), [3, 2, 2], "everything moves");
+    scene.apply(Command::ToggleSeveral);
+    scene.tick();
+    scene.visible_faces(|_, _| {});
+    scene.apply(Command::ToggleSeveral);
+    scene.visible_faces(|_, _| {});
+    assert_eq!(
+        projections(&scene),
+        [4, 2, 2],
+        "hidden satellites neither move nor get projected"
+    );
+}
+
+#[test]
+fn the_satellites_never_come_near_the_viewer_and_keep_apart() {
+    let mut scene = Scene::new();
+    scene.apply(Command::ToggleSeveral);
+    let initial_cube = Scene::initial().primary().position();
+    for _ in 0..2000 {
+        scene.tick();
+        let objects = scene.objects();
+        let (a, b) = (objects[1].position(), objects[2].position());
+        for position in [a, b] {
+            assert!(position.z + 13.0 < NEAREST_Z, "{position:?}");
+            assert!((position - initial_cube).length() > 26.0 + 13.0);
+        }
+        assert!((a - b).length() > 26.0, "{a:?} {b:?}");
+    }
+}
