@@ -4,7 +4,7 @@
 mod common;
 
 use common::{
-    assert_same_picture, boot_bios, model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT, PIXELS,
+    after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT, PIXELS,
 };
 use demo::app::App;
 use demo::scene::{Axis, Command, Scene};
@@ -144,20 +144,9 @@ fn pause_waits_for_a_key_and_escape_quits() {
 
 #[test]
 fn qemu_shows_what_the_software_vga_shows_after_each_key() {
-    let mut qemu = boot_bios(None);
-    qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
-        .unwrap();
-    let mut soft = soft_vga_in_mode_x();
-    let mut app = App::new();
-    for (n, &(key, command)) in SEQUENCE.iter().enumerate() {
-        qemu.send_key(key).unwrap();
-        let done = format!("demo: command {} done", n + 1);
-        qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
-        app.apply(command);
-        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-        let what = format!("after key {} ({key})", n + 1);
-        assert_same_picture(&qemu.screendump().unwrap(), &model_picture(&soft), &what);
-    }
+    after_each_key(&SEQUENCE, |qemu, model, _, what| {
+        assert_same_picture(qemu, model, what)
+    });
 }
 
 #[test]

@@ -5,40 +5,21 @@
 
 mod common;
 
-use boot::{Qemu, RgbImage};
-use common::{
-    assert_pictures_equal, assert_same_picture, boot_bios, model_picture, soft_vga_in_mode_x,
-    BOOT_TIMEOUT,
-};
-use demo::app::App;
+use boot::RgbImage;
+use common::{assert_pictures_equal, assert_same_picture};
 use demo::osd::BAR_ROWS;
 use demo::scene::{Axis, Command};
-use modex::soft::SoftVga;
-use modex::ModeX;
 
-/// Boots, then for each key: sends it, waits until the kernel has drawn it,
-/// does the same on the model and compares the pictures.
+/// After each key, exactly the model's picture (with statistics on, all but
+/// their timings).
 fn after_each_key(keys: &[(&str, Command)]) {
-    let mut qemu: Qemu = boot_bios(None);
-    qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
-        .unwrap();
-    let mut soft: Box<SoftVga> = soft_vga_in_mode_x();
-    let mut app = App::new();
-    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-    for (n, &(key, command)) in keys.iter().enumerate() {
-        qemu.send_key(key).unwrap();
-        let done = format!("demo: command {} done", n + 1);
-        qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
-        app.apply(command);
-        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-        let what = format!("after key {} ({key})", n + 1);
-        let (qemu_picture, model) = (qemu.screendump().unwrap(), model_picture(&soft));
+    common::after_each_key(keys, |qemu, model, app, what| {
         if app.overlay().stats {
-            exactly_but_the_timings(&qemu_picture, &model, &what);
+            exactly_but_the_timings(qemu, model, what);
         } else {
-            assert_same_picture(&qemu_picture, &model, &what);
+            assert_same_picture(qemu, model, what);
         }
-    }
+    });
 }
 
 /// Still cube, turned so that three faces show.

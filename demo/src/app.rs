@@ -116,8 +116,15 @@ impl App {
             return;
         }
         match command {
-            Command::Quit => self.quit = true,
-            Command::Pause => self.paused = true,
+            // Neither changes the picture: nothing to redraw.
+            Command::Quit => {
+                self.quit = true;
+                return;
+            }
+            Command::Pause => {
+                self.paused = true;
+                return;
+            }
             Command::ToggleHelp => self.overlay.help = !self.overlay.help,
             Command::ToggleStats => {
                 self.overlay.stats = !self.overlay.stats;

@@ -4,6 +4,8 @@
 #![allow(dead_code)] // each test binary uses its own part of this
 
 use boot::{Qemu, QemuOptions, RgbImage};
+use demo::app::App;
+use demo::scene::Command;
 use modex::soft::SoftVga;
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
@@ -83,4 +85,34 @@ pub fn pattern_picture(flips: u8) -> RgbImage {
         vga.show_page(Page(flip % 2));
     }
     model_picture(&soft)
+}
+
+/// Boots the BIOS image, then for each key: sends it to QEMU, waits until the
+/// kernel has drawn it, applies the same command to a model app on the
+/// software VGA, and hands QEMU's screendump, the model's picture and the
+/// model app to `compare`.
+pub fn after_each_key(
+    keys: &[(&str, Command)],
+    compare: impl Fn(&RgbImage, &RgbImage, &App, &str),
+) {
+    let mut qemu = boot_bios(None);
+    qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+        .unwrap();
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+    for (n, &(key, command)) in keys.iter().enumerate() {
+        qemu.send_key(key).unwrap();
+        let done = format!("demo: command {} done", n + 1);
+        qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+        app.apply(command);
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        let what = format!("after key {} ({key})", n + 1);
+        compare(
+            &qemu.screendump().unwrap(),
+            &model_picture(&soft),
+            &app,
+            &what,
+        );
+    }
 }
