@@ -304,4 +304,62 @@ mod tests {
         draw(&mut image, Overlay::default(), &stats());
         assert!(image.iter().all(|&c| c == 7));
     }
+
+    #[test]
+    fn the_help_lists_a_key_for_every_command_and_the_keys_do_what_it_says() {
+        use crate::keymap::command_for;
+        use crate::scene::{Axis, Command::*};
+        use pc_keyboard::{DecodedKey::*, KeyCode};
+        let listed = [
+            ("Arrows", RawKey(KeyCode::ArrowLeft), MoveLeft),
+            ("Arrows", RawKey(KeyCode::ArrowRight), MoveRight),
+            ("Arrows", RawKey(KeyCode::ArrowUp), MoveUp),
+            ("Arrows", RawKey(KeyCode::ArrowDown), MoveDown),
+            ("A  T", Unicode('a'), Away),
+            ("A  T", Unicode('t'), Toward),
+            ("4 6  8 2", Unicode('4'), Rotate(Axis::Y, false)),
+            ("4 6  8 2", Unicode('6'), Rotate(Axis::Y, true)),
+            ("4 6  8 2", Unicode('8'), Rotate(Axis::X, false)),
+            ("4 6  8 2", Unicode('2'), Rotate(Axis::X, true)),
+            ("F1 F2", RawKey(KeyCode::F1), Rotate(Axis::Z, true)),
+            ("F1 F2", RawKey(KeyCode::F2), Rotate(Axis::Z, false)),
+            ("Space", Unicode(' '), ToggleSpin),
+            ("L ", Unicode('l'), ToggleLighting),
+            ("Home End", RawKey(KeyCode::Home), TurnLight(Axis::Y, false)),
+            ("Home End", RawKey(KeyCode::End), TurnLight(Axis::Y, true)),
+            (
+                "PgUp PgDn",
+                RawKey(KeyCode::PageUp),
+                TurnLight(Axis::X, true),
+            ),
+            (
+                "PgUp PgDn",
+                RawKey(KeyCode::PageDown),
+                TurnLight(Axis::X, false),
+            ),
+            ("N ", Unicode('n'), NextSolid),
+            ("M ", Unicode('m'), ToggleSeveral),
+            ("S ", Unicode('s'), ToggleStats),
+            ("H ", Unicode('h'), ToggleHelp),
+            ("R ", Unicode('r'), Reset),
+            ("Esc", RawKey(KeyCode::Escape), Quit),
+            ("other keys", Unicode('x'), Pause),
+        ];
+        for (label, key, command) in listed {
+            assert!(
+                HELP_LINES.iter().any(|line| line.starts_with(label)),
+                "the help has no line for {label:?}"
+            );
+            assert_eq!(command_for(key), Some(command), "{label}: {key:?}");
+        }
+        // A command added to the enum stops this match compiling, as a
+        // reminder to give it a key, a help line and a row above.
+        for (_, _, command) in listed {
+            match command {
+                MoveLeft | MoveRight | MoveUp | MoveDown | Away | Toward | Rotate(..)
+                | ToggleSpin | ToggleLighting | TurnLight(..) | NextSolid | ToggleSeveral
+                | ToggleHelp | ToggleStats | Reset | Pause | Quit => {}
+            }
+        }
+    }
 }
