@@ -9,8 +9,13 @@
 mod common;
 
 use boot::{Firmware, Graphics, Qemu, QemuOptions, RgbImage};
-use common::{assert_pictures_equal, pattern_picture, BOOT_TIMEOUT};
+use common::{
+    assert_pictures_equal, model_picture, pattern_picture, soft_vga_in_mode_x, BOOT_TIMEOUT,
+};
+use demo::app::App;
+use demo::scene::{Axis, Command};
 use modex::present::{present_rgb, FramebufferLayout, PixelOrder, Placement};
+use modex::ModeX;
 use std::time::Duration;
 
 /// OVMF boots in well under 20 s here, but emulation on a loaded machine is slow.
@@ -18,7 +23,7 @@ const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
 const LEGACY_FOUND: &str = "display: legacy VGA found";
 const NO_LEGACY: &str = "display: no legacy VGA";
 
-fn boot(firmware: Firmware, graphics: Graphics, option: &str) -> Qemu {
+fn boot(firmware: Firmware, graphics: Graphics, option: Option<&str>) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let image = match firmware {
         Firmware::Bios => images.bios,
@@ -27,7 +32,7 @@ fn boot(firmware: Firmware, graphics: Graphics, option: &str) -> Qemu {
     let mut options = QemuOptions::new(image);
     options.firmware = firmware;
     options.graphics = graphics;
-    options.boot_option = Some(option.to_owned());
+    options.boot_option = option.map(str::to_owned);
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -68,11 +73,9 @@ fn reported_framebuffer(console: &str) -> ReportedFramebuffer {
     }
 }
 
-/// The software VGA's picture of the test pattern (both pages drawn, page 0
-/// shown), presented as the kernel presents it onto a `width` x `height`
-/// screen, read back as RGB.
-fn presented_pattern(width: usize, height: usize) -> RgbImage {
-    let picture = pattern_picture(0);
+/// A 320x240 picture presented as the kernel presents the software VGA onto
+/// a `width` x `height` screen, read back as RGB.
+fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
     let layout = FramebufferLayout {
         width,
         height,
@@ -93,7 +96,7 @@ fn presented_pattern(width: usize, height: usize) -> RgbImage {
 
 #[test]
 fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
-    let mut qemu = boot(Firmware::Uefi, Graphics::BochsDisplay, "test-pattern");
+    let mut qemu = boot(Firmware::Uefi, Graphics::BochsDisplay, Some("test-pattern"));
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
         .unwrap();
@@ -120,13 +123,42 @@ fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
         screen.height
     );
 
-    let expected = presented_pattern(screen.width, screen.height);
+    // The test pattern: both pages drawn, page 0 shown.
+    let expected = presented(&pattern_picture(0), screen.width, screen.height);
     assert_pictures_equal(&screen, &expected, "uefi framebuffer");
 }
 
 #[test]
+fn without_legacy_vga_the_lit_solids_reach_the_framebuffer_too() {
+    let keys = [
+        ("r", Command::Reset),
+        ("6", Command::Rotate(Axis::Y, true)),
+        ("6", Command::Rotate(Axis::Y, true)),
+        ("8", Command::Rotate(Axis::X, false)),
+        ("n", Command::NextSolid),
+        ("m", Command::ToggleSeveral),
+        ("l", Command::ToggleLighting),
+    ];
+    let mut qemu = boot(Firmware::Uefi, Graphics::BochsDisplay, None);
+    qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    for (n, &(key, command)) in keys.iter().enumerate() {
+        qemu.send_key(key).unwrap();
+        let done = format!("demo: command {} done", n + 1);
+        qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+        app.apply(command);
+    }
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+    let screen = qemu.screendump().unwrap();
+    let expected = presented(&model_picture(&soft), screen.width, screen.height);
+    assert_pictures_equal(&screen, &expected, "lit solids on the framebuffer");
+}
+
+#[test]
 fn the_bios_image_finds_the_legacy_vga() {
-    let mut qemu = boot(Firmware::Bios, Graphics::StdVga, "test-pattern");
+    let mut qemu = boot(Firmware::Bios, Graphics::StdVga, Some("test-pattern"));
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", BOOT_TIMEOUT)
         .unwrap();
@@ -136,7 +168,7 @@ fn the_bios_image_finds_the_legacy_vga() {
 
 #[test]
 fn uefi_with_the_standard_vga_still_finds_the_legacy_vga() {
-    let mut qemu = boot(Firmware::Uefi, Graphics::StdVga, "test-pattern");
+    let mut qemu = boot(Firmware::Uefi, Graphics::StdVga, Some("test-pattern"));
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
         .unwrap();
