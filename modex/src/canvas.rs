@@ -27,16 +27,18 @@ impl From<u8> for PaletteIndex {
 const SCREEN_SIZE: Size = Size::new(SCREEN_WIDTH as u32, SCREEN_HEIGHT as u32);
 
 /// `area` clipped to the screen as half-open [x0, x1) x [y0, y1), or `None`
-/// if nothing of it is on the screen.
+/// if nothing of it is on the screen. Worked in i64 rather than with
+/// `Rectangle::intersection`, whose i32 corner arithmetic overflows (a panic
+/// in debug builds) for rectangles near `i32::MAX` or over `i32::MAX` wide.
 fn on_screen(area: &Rectangle) -> Option<(i32, i32, i32, i32)> {
-    let clipped = area.intersection(&Rectangle::new(Default::default(), SCREEN_SIZE));
-    let bottom_right = clipped.bottom_right()?;
-    Some((
-        clipped.top_left.x,
-        clipped.top_left.y,
-        bottom_right.x + 1,
-        bottom_right.y + 1,
-    ))
+    let clip = |start: i32, length: u32, limit: i32| {
+        let end = i64::from(start) + i64::from(length);
+        let (lo, hi) = (start.max(0), end.min(i64::from(limit)) as i32);
+        (lo < hi).then_some((lo, hi))
+    };
+    let (x0, x1) = clip(area.top_left.x, area.size.width, SCREEN_WIDTH)?;
+    let (y0, y1) = clip(area.top_left.y, area.size.height, SCREEN_HEIGHT)?;
+    Some((x0, y0, x1, y1))
 }
 
 /// Draws straight into one page of video memory: pixels through the Map Mask

@@ -43,6 +43,7 @@ pub use detect::legacy_vga_present;
 pub use driver::ModeX;
 pub use mirror::MirroredVga;
 pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
+pub use palette::Rgb6;
 pub use text::{TEXT_COLUMNS, TEXT_ROWS};
 pub use update::{PageImage, PAGE_PIXELS};
 

@@ -104,3 +104,45 @@ fn clearing_a_page_canvas_fills_that_page_only() {
     let soft = vga.into_bus();
     assert_picture(&Picture::filled(9), &page_pixels(soft, Page(2)), "page 2");
 }
+
+/// `fill_solid` straight on a page: clipped like the reference, through the
+/// Map Mask rectangle fill (the same bus writes as `fill_rect`), page only.
+#[test]
+fn fill_solid_clips_to_the_screen_and_uses_the_rectangle_fill() {
+    let cases = [
+        ((-7, -5), (50, 30)),                                 // negative origin
+        ((300, 230), (90, 90)),                               // partly off right and bottom
+        ((400, 10), (13, 9)),                                 // off to the right
+        ((-100, -100), (50, 50)),                             // off above and to the left
+        ((0, 240), (320, 1)),                                 // just below
+        ((10, 10), (0, 9)),                                   // zero width, on screen
+        ((10, 10), (9, 0)),                                   // zero height, on screen
+        ((-2_000_000_000, 3), (u32::MAX, 2)),                 // wider than i32, covers the row
+        ((i32::MAX - 1, i32::MAX - 1), (u32::MAX, u32::MAX)), // far off, would overflow i32
+    ];
+    let mut soft = power_on();
+    let mut vga = mode_x(&mut soft);
+    let mut expected = Picture::filled(0);
+    for (index, ((x, y), (w, h))) in cases.into_iter().enumerate() {
+        let colour = 20 + index as u8;
+        let (x1, y1) = (i64::from(x) + i64::from(w), i64::from(y) + i64::from(h));
+        let (x1, y1) = (x1.min(1000) as i32, y1.min(1000) as i32);
+        expected.fill_rect(x, y, x1, y1, colour);
+        // The bus writes fill_rect itself makes for the same rectangle.
+        let mut other = power_on();
+        let mut direct = mode_x(&mut other);
+        direct.bus_mut().reset_counts();
+        direct.fill_rect(Page(1), x, y, x1, y1, colour);
+        let rect_writes = direct.bus().counts().vram_writes;
+
+        vga.bus_mut().set_write_guard(Some(page_range(Page(1))));
+        vga.bus_mut().reset_counts();
+        let area = Rectangle::new(Point::new(x, y), Size::new(w, h));
+        let _ = PageCanvas::new(&mut vga, Page(1)).fill_solid(&area, PaletteIndex(colour));
+        assert_eq!(vga.bus().guard_violations(), 0, "case {index}");
+        assert_eq!(vga.bus().counts().vram_writes, rect_writes, "case {index}");
+    }
+    let soft = vga.into_bus();
+    assert_picture(&expected, &page_pixels(soft, Page(1)), "page 1");
+    assert_picture(&Picture::filled(0), &page_pixels(soft, Page(0)), "page 0");
+}
