@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Idempotent set-up for building, running and testing modex-cube on Debian or
-# Ubuntu with rustup: QEMU and OVMF from apt, the nightly's components and
-# target from rustup. Safe to run again; it only installs what is missing.
+# Ubuntu with rustup: QEMU and OVMF from apt, the pinned nightly with its
+# components and target from rustup. Safe to run again; it only installs what is missing.
 set -euo pipefail
+cd "$(dirname "$0")/.."
 
 say() { printf 'setup: %s\n' "$*"; }
 die() { printf 'setup: error: %s\n' "$*" >&2; exit 1; }
@@ -25,19 +26,16 @@ fi
 say "$(qemu-system-x86_64 --version | head -n 1)"
 
 command -v rustup >/dev/null || die "rustup not found: install it from the Rust website, then run this again"
-if ! rustup run nightly rustc --version >/dev/null 2>&1; then
-    say "installing a nightly toolchain"
-    rustup toolchain install nightly --profile minimal
+# rust-toolchain.toml names one dated nightly with its components and target;
+# 'rustup toolchain install' with no name installs exactly that (and does
+# nothing if it is already there).
+toolchain=$(sed -n 's/^channel = "\(.*\)"/\1/p' rust-toolchain.toml)
+[ -n "$toolchain" ] || die "rust-toolchain.toml names no channel"
+if rustup run "$toolchain" rustc --version >/dev/null 2>&1; then
+    say "toolchain $toolchain is installed"
+else
+    say "installing toolchain $toolchain (from rust-toolchain.toml)"
 fi
-rustup component add --toolchain nightly rust-src llvm-tools-preview rustfmt clippy >/dev/null
-rustup target add --toolchain nightly x86_64-unknown-none >/dev/null
-
-version=$(rustup run nightly rustc --version)
-say "$version"
-# bootloader =0.11.15 is pinned because 0.11.16+ need nightlies from 2026-07-10 on;
-# it is tested with nightly 2026-05-19. Older nightlies lack features it uses.
-date=$(sed -n 's/.*(\([0-9a-f]*\) \([0-9-]*\)).*/\2/p' <<<"$version")
-if [ -n "$date" ] && [[ "$date" < "2025-01-01" ]]; then
-    die "nightly from $date is too old for bootloader 0.11.15; run 'rustup update nightly'"
-fi
+rustup toolchain install >/dev/null 2>&1 || rustup toolchain install
+say "$(rustup run "$toolchain" rustc --version)"
 say "ready: 'cargo run --release' boots the kernel, 'cargo test' tests it"

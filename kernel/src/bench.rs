@@ -1,8 +1,8 @@
 //! The renderer timed on the machine itself (boot option `bench`): the same
 //! spinning frames drawn by our renderer and by per-pixel Map Mask drawing,
-//! without waiting for retrace, timed with the TSC calibrated against the PIT.
+//! without waiting for retrace, timed by the kernel's clock.
 
-use crate::clock::{self, rdtsc};
+use crate::clock;
 use crate::serial_println;
 use demo::baseline::PerPixel;
 use demo::frame::{FrameDrawer, Renderer};
@@ -15,30 +15,24 @@ const FRAMES: u64 = 120;
 fn time_frames<B: VgaBus, D: FrameDrawer>(
     vga: &mut ModeX<B>,
     mut drawer: D,
-    per_microsecond: u64,
 ) -> u64 {
     vga.set_mode(); // blank pages and known registers, as every drawer expects
     let mut scene = Scene::new();
-    let start = rdtsc();
+    let start = clock::micros();
     for _ in 0..FRAMES {
         scene.tick();
         drawer.draw(vga, &mut scene);
     }
-    (rdtsc() - start) / per_microsecond / FRAMES
+    (clock::micros() - start) / FRAMES
 }
 
 pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
-    let Some(per_microsecond) = clock::calibrate() else {
-        serial_println!("bench: the PIT did not tick, so the TSC cannot be calibrated");
-        return;
-    };
-    let ours = time_frames(vga, Renderer::new(), per_microsecond);
-    let per_pixel = time_frames(vga, PerPixel::default(), per_microsecond);
+    let ours = time_frames(vga, Renderer::new());
+    let per_pixel = time_frames(vga, PerPixel::default());
     vga.set_mode();
     serial_println!(
-        "bench: {} frames each, TSC {} MHz: ours {} us/frame, per-pixel {} us/frame, per-pixel/ours = {}.{:02}",
+        "bench: {} frames each: ours {} us/frame, per-pixel {} us/frame, per-pixel/ours = {}.{:02}",
         FRAMES,
-        per_microsecond,
         ours,
         per_pixel,
         per_pixel / ours.max(1),

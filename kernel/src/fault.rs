@@ -93,7 +93,9 @@ pub fn halt_with_panic(info: &core::panic::PanicInfo) -> ! {
 }
 
 fn report(lines: &[Line]) -> ! {
-    crate::serial::force_unlock();
+    // SAFETY: this path ends in `halt_forever` and never returns to the
+    // code the fault or panic interrupted.
+    unsafe { crate::serial::force_unlock() };
     for line in lines.iter().filter(|l| l.len > 0) {
         crate::serial_println!("{}", line.as_str());
     }

@@ -3,7 +3,8 @@
 //! copies its picture, scaled, into the framebuffer the bootloader handed over
 //! (UEFI GOP's, or the VESA linear mode of the BIOS stage).
 
-use crate::{pit, serial_println};
+use crate::{clock, serial_println};
+use machine::pacing::FRAME_MICROS;
 use bootloader_api::info::{FrameBuffer, FrameBufferInfo, PixelFormat};
 use modex::present::{self, FramebufferLayout, PixelOrder, Placement};
 use modex::soft::SoftVga;
@@ -18,10 +19,6 @@ static SOFT_VGA: Mutex<SoftVga> = Mutex::new(SoftVga::new());
 /// of zeros, so it costs nothing in the image (.bss).
 static SCANOUT: Mutex<[u8; PAGE_PIXELS]> = Mutex::new([0; PAGE_PIXELS]);
 
-/// A refresh of the VGA's 640x480 60 Hz mode, in microseconds. The model's
-/// clock runs on bus operations, not time, so flips are paced by the PIT to
-/// keep the cube turning at the speed it has on a real VGA.
-const FRAME_MICROS: u64 = 16_683;
 
 /// The software VGA. It can be taken once: from then on it is the machine's
 /// display adapter.
@@ -98,20 +95,20 @@ impl Display {
     }
 
     /// Copies the model's picture to the framebuffer, then waits for the next
-    /// refresh by the PIT, as a flip on a real VGA waits for retrace.
+    /// refresh by the clock, as a flip on a real VGA waits for retrace.
     pub fn present(&mut self, soft: &SoftVga) {
         present::present(soft, &mut *self.scanout, &self.layout, self.pixels);
         self.wait_for_next_frame();
     }
 
     fn wait_for_next_frame(&mut self) {
-        let now = pit::millis() * 1000;
+        let now = clock::micros();
         let due = match self.next_frame_micros {
             // Late (drawing took longer than a frame): start a new cadence.
             Some(due) if due > now => due,
             _ => now,
         };
-        while pit::millis() * 1000 < due {
+        while clock::micros() < due {
             // The PIT interrupts every millisecond.
             x86_64::instructions::hlt();
         }

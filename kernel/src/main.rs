@@ -45,9 +45,16 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         serial_println!("keyboard: {}", problem);
     }
     x86_64::instructions::interrupts::enable();
-    match clock::calibrate() {
-        Some(rate) => serial_println!("clock: TSC {} MHz", rate),
-        None => serial_println!("clock: the PIT did not tick; statistics use whole milliseconds"),
+    match clock::init() {
+        Ok(calibration) => serial_println!(
+            "clock: TSC {} kHz, measured over {} PIT ticks, error under {} ppm",
+            calibration.tsc_hz / 1000,
+            calibration.pit_ticks,
+            calibration.error_ppm
+        ),
+        Err(problem) => {
+            serial_println!("clock: TSC not calibrated ({:?}); counting PIT ticks", problem)
+        }
     }
     serial_println!("kernel: initialised");
 
@@ -94,6 +101,10 @@ fn run_screen<B: modex::VgaBus>(vga: &mut modex::ModeX<B>, option: Option<&str>)
         Some("test-pattern") => diagnostics::test_pattern(vga),
         Some("bench") => {
             bench::run(vga);
+            run::run_demo(vga)
+        }
+        Some("clock-check") => {
+            diagnostics::clock_check();
             run::run_demo(vga)
         }
         Some("flip-rate") => {

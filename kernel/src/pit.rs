@@ -1,22 +1,30 @@
-//! The 8253/8254 Programmable Interval Timer as the kernel's clock: channel 0
-//! raises IRQ 0 about once a millisecond.
+//! The 8253/8254 Programmable Interval Timer. Channel 0 raises IRQ 0 about
+//! once a millisecond to wake the CPU from `hlt`; channel 2, gated on with
+//! the speaker off, is the reference the TSC is calibrated against.
 
 use core::sync::atomic::{AtomicU64, Ordering};
+use machine::calibration::{Sample, PIT_HZ};
 use x86_64::instructions::port::Port;
 
 const CHANNEL_0_DATA: u16 = 0x40;
+const CHANNEL_2_DATA: u16 = 0x42;
 const MODE_COMMAND: u16 = 0x43;
+/// Port B of the old 8255: bit 0 gates channel 2, bit 1 drives the speaker
+/// from it, bit 5 reads channel 2's output.
+const PORT_B: u16 = 0x61;
+const PORT_B_CHANNEL_2_GATE: u8 = 0x01;
+const PORT_B_SPEAKER_DATA: u8 = 0x02;
 /// Channel 0, low byte then high byte, mode 2 (rate generator), binary.
 const CHANNEL_0_RATE_GENERATOR: u8 = 0b0011_0100;
-/// The PIT's input clock in Hz.
-pub const INPUT_HZ: u64 = 1_193_182;
+/// Channel 2, low byte then high byte, mode 0 (count down, no reload), binary.
+const CHANNEL_2_COUNTDOWN: u8 = 0b1011_0000;
+/// Channel 2, latch the count for reading.
+const CHANNEL_2_LATCH: u8 = 0b1000_0000;
 /// 1193 input clocks: one tick every 999.847 µs.
 const DIVISOR: u16 = 1193;
-pub const TICK_NANOS: u64 = DIVISOR as u64 * 1_000_000_000 / INPUT_HZ;
+pub const TICK_NANOS: u64 = DIVISOR as u64 * 1_000_000_000 / PIT_HZ;
 
 static TICKS: AtomicU64 = AtomicU64::new(0);
-/// The time-stamp counter at the last tick.
-static TICK_TSC: AtomicU64 = AtomicU64::new(0);
 
 pub fn init() {
     let [low, high] = DIVISOR.to_le_bytes();
@@ -31,26 +39,56 @@ pub fn init() {
 
 /// Counts a tick; called from the IRQ 0 handler.
 pub fn tick() {
-    TICK_TSC.store(crate::clock::rdtsc(), Ordering::Relaxed);
     TICKS.fetch_add(1, Ordering::Relaxed);
 }
 
-/// The tick count and the time-stamp counter when the last tick came. Read
-/// with interrupts off, so that no tick comes between the two reads.
-pub fn ticks_and_tsc() -> (u64, u64) {
-    x86_64::instructions::interrupts::without_interrupts(|| {
-        (
-            TICKS.load(Ordering::Relaxed),
-            TICK_TSC.load(Ordering::Relaxed),
-        )
-    })
-}
-
+/// IRQ 0 ticks since `init` (they can be lost under emulation: the clock
+/// reads the TSC instead).
 pub fn ticks() -> u64 {
     TICKS.load(Ordering::Relaxed)
 }
 
-/// Milliseconds since `init`.
-pub fn millis() -> u64 {
-    ticks() * TICK_NANOS / 1_000_000
+/// Opens channel 2's gate, speaker off, and starts it counting down from
+/// 0xFFFF; it keeps counting (wrapping) until `stop_channel_2`.
+pub fn start_channel_2_countdown() {
+    // SAFETY: channel 2 and port B's gate and speaker bits drive only the PC
+    // speaker, which stays off; the other port B bits are written back.
+    unsafe {
+        let mut port_b = Port::<u8>::new(PORT_B);
+        let value = port_b.read();
+        port_b.write((value | PORT_B_CHANNEL_2_GATE) & !PORT_B_SPEAKER_DATA);
+        Port::<u8>::new(MODE_COMMAND).write(CHANNEL_2_COUNTDOWN);
+        let mut data = Port::<u8>::new(CHANNEL_2_DATA);
+        data.write(0xFF);
+        data.write(0xFF);
+    }
+}
+
+/// Closes channel 2's gate again.
+pub fn stop_channel_2() {
+    // SAFETY: as in `start_channel_2_countdown`.
+    unsafe {
+        let mut port_b = Port::<u8>::new(PORT_B);
+        let value = port_b.read();
+        port_b.write(value & !(PORT_B_CHANNEL_2_GATE | PORT_B_SPEAKER_DATA));
+    }
+}
+
+/// Latches and reads channel 2's count, bracketed by two TSC reads.
+pub fn poll_channel_2() -> Sample {
+    let tsc_before = crate::clock::rdtsc();
+    // SAFETY: latching and reading channel 2's count has no side effect
+    // beyond the PIT's read state, which this module alone uses.
+    let count = unsafe {
+        Port::<u8>::new(MODE_COMMAND).write(CHANNEL_2_LATCH);
+        let mut data = Port::<u8>::new(CHANNEL_2_DATA);
+        let low = data.read();
+        let high = data.read();
+        u16::from_le_bytes([low, high])
+    };
+    Sample {
+        count,
+        tsc_before,
+        tsc_after: crate::clock::rdtsc(),
+    }
 }

@@ -1,77 +1,43 @@
 //! COM1 serial console: the kernel's log, and the test harness's window into it.
 //!
-//! A small 16550 driver of our own rather than `uart_16550`, because that crate's
-//! transmit waits on the Line Status register without a bound, and no wait on a
-//! hardware status bit may hang this kernel. If the transmitter never empties (no
-//! UART fitted, a stuck bit), characters are dropped and counted instead.
+//! The UART itself is driven by `uart_16550`. Its `try_send_byte` never waits,
+//! so the one wait here is ours and bounded: if the transmitter never empties
+//! (no UART fitted, a stuck bit), characters are dropped and counted instead of
+//! hanging the kernel.
 
 use core::fmt::{self, Write};
 use core::sync::atomic::{AtomicU64, Ordering};
 use spin::Mutex;
-use x86_64::instructions::port::Port;
+use uart_16550::backend::PioBackend;
+use uart_16550::{BaudRate, Config, Uart16550};
 
 const COM1: u16 = 0x3F8;
-// Register offsets from the base port.
-const DATA: u16 = 0; // also Divisor Latch Low while DLAB is set
-const INTERRUPT_ENABLE: u16 = 1; // also Divisor Latch High while DLAB is set
-const FIFO_CONTROL: u16 = 2;
-const LINE_CONTROL: u16 = 3;
-const MODEM_CONTROL: u16 = 4;
-const LINE_STATUS: u16 = 5;
-
-const LINE_CONTROL_DLAB: u8 = 0x80;
-const LINE_CONTROL_8N1: u8 = 0x03;
-const FIFO_ENABLE_AND_CLEAR: u8 = 0xC7;
-const MODEM_DTR_RTS_OUT2: u8 = 0x0B;
-const LINE_STATUS_THR_EMPTY: u8 = 0x20;
-/// 115200 baud: the divisor of the UART's 1.8432 MHz / 16 clock.
-const DIVISOR_115200: u8 = 1;
-/// Reads of Line Status before a character is given up (a character takes ~87 µs
+/// Line Status polls before a character is given up (a character takes ~87 µs
 /// at 115200 baud; a port read takes ~1 µs on real hardware).
 const TRANSMIT_WAIT_LIMIT: u32 = 100_000;
 
-pub struct Serial {
-    base: u16,
-}
+/// COM1, once `init` found it; `None` before that or if no UART answers.
+struct Console(Option<Uart16550<PioBackend>>);
 
 static DROPPED: AtomicU64 = AtomicU64::new(0);
-pub static COM1_PORT: Mutex<Serial> = Mutex::new(Serial { base: COM1 });
+static COM1_PORT: Mutex<Console> = Mutex::new(Console(None));
 
-impl Serial {
-    fn port(&self, offset: u16) -> Port<u8> {
-        Port::new(self.base + offset)
-    }
-
-    fn init(&mut self) {
-        // SAFETY: COM1's registers are I/O ports owned by this driver; programming
-        // them has no effect on memory.
-        unsafe {
-            self.port(INTERRUPT_ENABLE).write(0);
-            self.port(LINE_CONTROL).write(LINE_CONTROL_DLAB);
-            self.port(DATA).write(DIVISOR_115200);
-            self.port(INTERRUPT_ENABLE).write(0);
-            self.port(LINE_CONTROL).write(LINE_CONTROL_8N1);
-            self.port(FIFO_CONTROL).write(FIFO_ENABLE_AND_CLEAR);
-            self.port(MODEM_CONTROL).write(MODEM_DTR_RTS_OUT2);
-        }
-    }
-
+impl Console {
     fn send(&mut self, byte: u8) {
+        let Some(uart) = self.0.as_mut() else {
+            DROPPED.fetch_add(1, Ordering::Relaxed);
+            return;
+        };
         for _ in 0..TRANSMIT_WAIT_LIMIT {
-            // SAFETY: reading Line Status and writing the transmit register of
-            // COM1 touch only the UART.
-            unsafe {
-                if self.port(LINE_STATUS).read() & LINE_STATUS_THR_EMPTY != 0 {
-                    self.port(DATA).write(byte);
-                    return;
-                }
+            if uart.try_send_byte(byte).is_ok() {
+                return;
             }
         }
         DROPPED.fetch_add(1, Ordering::Relaxed);
     }
 }
 
-impl Write for Serial {
+impl Write for Console {
     fn write_str(&mut self, s: &str) -> fmt::Result {
         for byte in s.bytes() {
             if byte == b'\n' {
@@ -83,8 +49,20 @@ impl Write for Serial {
     }
 }
 
+/// Finds and programs COM1 (115200 baud, 8N1, FIFO on, no interrupts). If no
+/// UART answers, the log is dropped and counted rather than written nowhere.
 pub fn init() {
-    COM1_PORT.lock().init();
+    // SAFETY: 0x3F8..0x400 are COM1's registers; this module is their only user.
+    let Ok(mut uart) = (unsafe { Uart16550::new_port(COM1) }) else {
+        return;
+    };
+    let config = Config {
+        baud_rate: BaudRate::Baud115200,
+        ..Config::DEFAULT
+    };
+    if uart.init(config).is_ok() {
+        COM1_PORT.lock().0 = Some(uart);
+    }
 }
 
 /// Characters given up because the transmitter never became ready.
@@ -114,12 +92,16 @@ macro_rules! serial_println {
     ($($arg:tt)*) => { $crate::serial::_print(format_args!("{}\n", format_args!($($arg)*))) };
 }
 
-/// Frees the port's lock for a handler that interrupted a print on this CPU and
-/// will never return to it (fault handlers, the panic handler).
-pub fn force_unlock() {
+/// Frees the port's lock for a handler that interrupted a print on this CPU.
+///
+/// # Safety
+///
+/// The caller must never return to the code it interrupted (fault handlers,
+/// the panic handler), so that the interrupted holder never writes again and
+/// no two writers use the port at once.
+pub unsafe fn force_unlock() {
     if COM1_PORT.is_locked() {
-        // SAFETY: called only on paths that never return to the interrupted
-        // holder, so no two writers use the port at once afterwards.
+        // SAFETY: the caller guarantees the interrupted holder never resumes.
         unsafe { COM1_PORT.force_unlock() };
     }
 }
