@@ -9,6 +9,7 @@ mod bench;
 mod clock;
 mod diagnostics;
 mod fault;
+mod firmware;
 mod framebuffer;
 mod gdt;
 mod goodbye;
@@ -63,6 +64,9 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     if let Some(option) = option {
         serial_println!("boot option: {}", option);
     }
+
+    let booted_by = firmware::firmware(&boot_info.memory_regions);
+    serial_println!("firmware: {:?} (told by the memory map)", booted_by);
 
     let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
         panic!("the bootloader did not map physical memory, so VGA memory is out of reach");

@@ -1,6 +1,7 @@
 //! The kernel's logic that needs no hardware, so that the host can test it:
-//! the arithmetic that calibrates the time-stamp counter against the PIT, and
-//! the bookkeeping that counts missed vertical retraces.
+//! the arithmetic that calibrates the time-stamp counter against the PIT, the
+//! bookkeeping that counts missed vertical retraces, and telling from the
+//! memory map which firmware booted the machine.
 //!
 //! The kernel supplies the readings (port reads, `rdtsc`); everything that
 //! decides what those readings mean lives here.
@@ -13,4 +14,5 @@
 extern crate std;
 
 pub mod calibration;
+pub mod firmware;
 pub mod pacing;
