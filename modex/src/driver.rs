@@ -1,6 +1,7 @@
 //! The driver object: it owns the bus and remembers what it last wrote to the
 //! indexed registers it changes while drawing, so it can skip rewriting them.
 
+use crate::card::Card;
 use crate::regs::{gc, seq, ATTRIBUTE_INDEX, CRTC_INDEX, GRAPHICS_INDEX, SEQUENCER_INDEX};
 use crate::VgaBus;
 
@@ -10,6 +11,8 @@ use crate::VgaBus;
 /// describe the hardware only while nobody else writes to it.
 pub struct ModeX<B: VgaBus> {
     pub(crate) bus: B,
+    /// Whose extensions a mode set switches off first.
+    card: Card,
     sequencer: RegisterCache<{ seq::COUNT }>,
     graphics: RegisterCache<{ gc::COUNT }>,
 }
@@ -32,13 +35,26 @@ impl<const N: usize> RegisterCache<N> {
 }
 
 impl<B: VgaBus> ModeX<B> {
-    /// Takes the bus without touching the hardware; call [`ModeX::set_mode`] first.
+    /// Takes the bus of a standard VGA (no extensions to reset) without
+    /// touching the hardware; call [`ModeX::set_mode`] first.
     pub fn new(bus: B) -> Self {
+        Self::for_card(bus, Card::Standard)
+    }
+
+    /// Takes the bus of a `card` whose extended modes every mode set switches
+    /// off first (see [`Card::extension_reset`]).
+    pub fn for_card(bus: B, card: Card) -> Self {
         Self {
             bus,
+            card,
             sequencer: RegisterCache::UNKNOWN,
             graphics: RegisterCache::UNKNOWN,
         }
+    }
+
+    /// The card this driver resets extensions for.
+    pub fn card(&self) -> Card {
+        self.card
     }
 
     /// The bus, for inspection.

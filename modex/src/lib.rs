@@ -24,6 +24,7 @@ extern crate std;
 
 mod bus;
 mod canvas;
+pub mod card;
 mod detect;
 mod draw;
 mod driver;

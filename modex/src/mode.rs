@@ -1,11 +1,11 @@
 //! Mode set: register tables for Mode X and 80x25 text, and the sequence that
 //! programs them from whatever state the VGA was left in (a BIOS text mode, a
-//! Bochs VBE linear framebuffer from the bootloader, or a crashed driver).
+//! VBE linear framebuffer from the bootloader, or a crashed driver).
 
 use crate::palette::{Rgb6, DEFAULT_PALETTE};
 use crate::regs::{
-    ac, crtc, gc, seq, vbe, ALL_PLANES, ATTRIBUTE_INDEX, DAC_DATA, DAC_PIXEL_MASK, DAC_WRITE_INDEX,
-    INPUT_STATUS_1, MISC_OUTPUT_WRITE, VBE_DISPI_DATA, VBE_DISPI_INDEX,
+    ac, crtc, gc, seq, ALL_PLANES, ATTRIBUTE_INDEX, DAC_DATA, DAC_PIXEL_MASK, DAC_WRITE_INDEX,
+    INPUT_STATUS_1, MISC_OUTPUT_WRITE,
 };
 use crate::{ModeX, Page, VgaBus, CPU_WINDOW_BYTES};
 
@@ -77,7 +77,7 @@ pub const TEXT_80X25: ModeRegisters = ModeRegisters {
 const CLEAR_CHUNK_BYTES: u16 = 0x8000;
 
 impl<B: VgaBus> ModeX<B> {
-    /// Sets Mode X from any prior state: Bochs VBE off, every VGA register
+    /// Sets Mode X from any prior state: the card's extensions off, every VGA register
     /// programmed, the DAC loaded with the default palette, all four planes
     /// cleared to colour 0, and Page(0) shown (start address latched).
     pub fn set_mode(&mut self) {
@@ -92,10 +92,9 @@ impl<B: VgaBus> ModeX<B> {
     pub(crate) fn program(&mut self, mode: &ModeRegisters) {
         self.invalidate_caches();
 
-        // A linear framebuffer mode (left by the bootloader) would override
-        // the VGA registers on QEMU and Bochs.
-        self.bus.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
-        self.bus.write_port16(VBE_DISPI_DATA, vbe::DISABLED);
+        // An extended mode (a VBE linear framebuffer left by the bootloader)
+        // would override the standard VGA registers.
+        self.reset_extensions();
 
         // The dot clock (Misc Output) and the character clock (Clocking Mode)
         // may only change while the sequencer is held in synchronous reset.

@@ -86,8 +86,9 @@ pub(crate) fn page_range(page: Page) -> core::ops::Range<u16> {
 }
 
 /// A driver in Mode X on a fresh software VGA.
+/// The software VGA models QEMU's std VGA, Bochs VBE ports included.
 pub(crate) fn mode_x(soft: &mut SoftVga) -> ModeX<&mut SoftVga> {
-    let mut vga = ModeX::new(soft);
+    let mut vga = ModeX::for_card(soft, crate::card::Card::BochsDispi);
     vga.set_mode();
     vga
 }

@@ -132,6 +132,17 @@ fn mode_set_from_a_dirty_state_gives_mode_x() {
     assert_mode_x(&soft);
 }
 
+/// A card without Bochs VBE (by its PCI ID) never has those ports written:
+/// on other cards they are other registers.
+#[test]
+fn a_standard_card_mode_set_leaves_the_vbe_ports_alone() {
+    let mut soft = power_on();
+    soft.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
+    soft.write_port16(VBE_DISPI_DATA, vbe::ENABLED);
+    crate::ModeX::new(&mut *soft).set_mode();
+    assert!(soft.vbe_enabled());
+}
+
 #[test]
 fn mode_set_twice_is_the_same_as_once() {
     let mut soft = power_on();
