@@ -90,7 +90,7 @@ fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
         &layout,
         &mut bytes,
     );
-    let pixels = bytes.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+    let pixels = bytes.as_chunks::<3>().0.to_vec();
     RgbImage::new(width, height, pixels)
 }
 
