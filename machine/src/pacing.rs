@@ -4,9 +4,10 @@
 //! are one refresh apart. A longer gap means retraces went by without a new
 //! frame: a gap of about n refreshes missed n - 1 of them.
 
-/// One refresh of the 640x480 timing Mode X uses: 800 x 525 pixel clocks at
-/// 25.175 MHz, 16,683 µs (59.94 Hz).
-pub const FRAME_MICROS: u64 = 16_683;
+/// One refresh of Mode X: 800 dots by 527 lines (Abrash's Vertical Total of
+/// 0x20D, two lines more than BIOS 640x480's) at 25.175 MHz, 16,747 µs
+/// (59.71 Hz).
+pub const FRAME_MICROS: u64 = 16_747;
 
 /// Flips, missed retraces and timed-out waits while frames keep coming.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -76,6 +77,9 @@ mod tests {
         pacing.idle();
         pacing.flipped(10 * FRAME_MICROS, true);
         pacing.flipped(11 * FRAME_MICROS, false);
-        assert_eq!((pacing.flips, pacing.missed, pacing.wait_timeouts), (3, 0, 1));
+        assert_eq!(
+            (pacing.flips, pacing.missed, pacing.wait_timeouts),
+            (3, 0, 1)
+        );
     }
 }
