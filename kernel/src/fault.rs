@@ -5,15 +5,22 @@
 
 use core::fmt::{self, Write};
 use core::sync::atomic::{AtomicU64, Ordering};
+use modex::card::Card;
+use spin::Once;
 use x86_64::structures::idt::InterruptStackFrame;
 
 /// Where physical memory is mapped, once the kernel knows that a legacy VGA is
 /// there to show a report on; zero until then.
 static SCREEN_PHYSICAL_OFFSET: AtomicU64 = AtomicU64::new(0);
 
-/// From now on, fault reports also go to the VGA screen.
-pub fn report_on_screen(physical_memory_offset: u64) {
-    SCREEN_PHYSICAL_OFFSET.store(physical_memory_offset, Ordering::Relaxed);
+/// The card, so the fault panel's mode set resets its extensions too. Set
+/// once before the offset; read without a lock.
+static SCREEN_CARD: Once<Card> = Once::new();
+
+/// From now on, fault reports also go to the VGA screen (a `card`).
+pub fn report_on_screen(physical_memory_offset: u64, card: Card) {
+    SCREEN_CARD.call_once(|| card);
+    SCREEN_PHYSICAL_OFFSET.store(physical_memory_offset, Ordering::Release);
 }
 
 const REPORT_LINES: usize = 4;
@@ -107,14 +114,15 @@ fn report(lines: &[Line]) -> ! {
 /// be there. The interrupted code may have been half-way through a register
 /// write; the mode set starts from scratch, so that does not matter.
 fn show_on_screen(lines: &[Line]) {
-    let offset = SCREEN_PHYSICAL_OFFSET.swap(0, Ordering::Relaxed);
+    let offset = SCREEN_PHYSICAL_OFFSET.swap(0, Ordering::Acquire);
     if offset == 0 {
         return;
     }
     // SAFETY: the offset was recorded by the kernel after it found legacy VGA
     // through this mapping; nothing else runs after a fault, so the bus is ours.
     let bus = unsafe { crate::vga_bus::PortBus::new(offset) };
-    let mut vga = modex::ModeX::new(bus);
+    let card = SCREEN_CARD.get().copied().unwrap_or(Card::Standard);
+    let mut vga = modex::ModeX::for_card(bus, card);
     vga.set_text_mode(&crate::goodbye::FONT);
     vga.write_text(
         1,

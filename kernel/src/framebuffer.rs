@@ -4,8 +4,8 @@
 //! (UEFI GOP's, or the VESA linear mode of the BIOS stage).
 
 use crate::{clock, serial_println};
-use machine::pacing::FRAME_MICROS;
 use bootloader_api::info::{FrameBuffer, FrameBufferInfo, PixelFormat};
+use machine::pacing::FRAME_MICROS;
 use modex::present::{self, FramebufferLayout, PixelOrder, Placement};
 use modex::soft::SoftVga;
 use modex::{PAGE_PIXELS, SCREEN_HEIGHT, SCREEN_WIDTH};
@@ -18,7 +18,6 @@ static SOFT_VGA: Mutex<SoftVga> = Mutex::new(SoftVga::new());
 /// The model's picture as DAC indices, scanned out before each copy: 75 KiB
 /// of zeros, so it costs nothing in the image (.bss).
 static SCANOUT: Mutex<[u8; PAGE_PIXELS]> = Mutex::new([0; PAGE_PIXELS]);
-
 
 /// The software VGA. It can be taken once: from then on it is the machine's
 /// display adapter.

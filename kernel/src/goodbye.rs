@@ -25,7 +25,13 @@ const MESSAGE: &str = "modex-cube: goodbye. The machine can be switched off.";
 const WHITE_ON_BLACK: u8 = 0x0F;
 
 pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
-    vga.set_text_mode(&FONT);
+    if crate::legacy_vga::bios_text_mode() {
+        // The card's BIOS set mode 3 and its own font, behind the driver's back.
+        vga.invalidate_caches();
+        serial_println!("demo: text mode 3 set by the video BIOS");
+    } else {
+        vga.set_text_mode(&FONT);
+    }
     let column = (modex::TEXT_COLUMNS as usize - MESSAGE.len()) / 2;
     vga.write_text(modex::TEXT_ROWS / 2, column as u8, MESSAGE, WHITE_ON_BLACK);
     serial_println!(

@@ -55,6 +55,22 @@ pub fn init() {
     }
 }
 
+/// Runs `f` with every IRQ masked at both PICs, then restores the masks (a
+/// real-mode BIOS call must not see an IRQ meant for the kernel's vectors).
+/// Call with interrupts off, so no handler waits on the PIC lock held here.
+pub fn with_all_irqs_masked<R>(f: impl FnOnce() -> R) -> R {
+    let mut pics = PICS.lock();
+    // SAFETY: reading and writing the PICs' mask registers changes only which
+    // IRQs are delivered; the old masks are put back below.
+    let masks = unsafe { pics.read_masks() };
+    // SAFETY: as above.
+    unsafe { pics.write_masks(0xFF, 0xFF) };
+    let result = f();
+    // SAFETY: as above.
+    unsafe { pics.write_masks(masks[0], masks[1]) };
+    result
+}
+
 fn end_of_interrupt(vector: u8) {
     // SAFETY: called once at the end of the handler of `vector`, which the
     // PICs raised.

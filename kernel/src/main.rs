@@ -6,6 +6,7 @@
 #![feature(abi_x86_interrupt)]
 
 mod bench;
+mod bios;
 mod clock;
 mod diagnostics;
 mod fault;
@@ -15,6 +16,8 @@ mod gdt;
 mod goodbye;
 mod interrupts;
 mod keyboard;
+mod legacy_vga;
+mod pci;
 mod pit;
 mod qemu;
 mod run;
@@ -54,7 +57,10 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
             calibration.error_ppm
         ),
         Err(problem) => {
-            serial_println!("clock: TSC not calibrated ({:?}); counting PIT ticks", problem)
+            serial_println!(
+                "clock: TSC not calibrated ({:?}); counting PIT ticks",
+                problem
+            )
         }
     }
     serial_println!("kernel: initialised");
@@ -76,10 +82,15 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     let mut bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
     if modex::legacy_vga_present(&mut bus) {
         serial_println!("display: legacy VGA found");
-        let mut vga = modex::ModeX::new(bus);
-        vga.set_mode();
-        fault::report_on_screen(physical_memory_offset);
-        serial_println!("vga: Mode X 320x240 set");
+        let card = legacy_vga::card();
+        let mut vga = legacy_vga::set_mode_x(
+            bus,
+            card,
+            booted_by,
+            &boot_info.memory_regions,
+            physical_memory_offset,
+        );
+        fault::report_on_screen(physical_memory_offset, card);
         run_screen(&mut vga, option)
     }
 

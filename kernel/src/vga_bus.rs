@@ -41,6 +41,11 @@ impl VgaBus for PortBus {
         unsafe { Port::<u8>::new(port).read() }
     }
 
+    fn read_port16(&mut self, port: u16) -> u16 {
+        // SAFETY: as for `write_port8`.
+        unsafe { Port::<u16>::new(port).read() }
+    }
+
     fn write_vram8(&mut self, offset: u16, value: u8) {
         // SAFETY: any u16 offset lies inside the 64 KiB window mapped by `new`'s
         // contract; volatile because every store is a bus cycle to the card.

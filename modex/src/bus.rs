@@ -17,6 +17,12 @@ pub trait VgaBus {
     fn write_port16(&mut self, port: u16, value: u16);
     /// One 8-bit IN.
     fn read_port8(&mut self, port: u16) -> u8;
+    /// One 16-bit IN, for 16-bit registers (Bochs VBE DISPI's data port,
+    /// which answers only 16-bit reads). Default: two 8-bit reads, `port`
+    /// then `port + 1`, for buses with no 16-bit registers.
+    fn read_port16(&mut self, port: u16) -> u16 {
+        u16::from_le_bytes([self.read_port8(port), self.read_port8(port.wrapping_add(1))])
+    }
     /// `offset` is within the 64 KiB CPU window at 0xA0000.
     fn write_vram8(&mut self, offset: u16, value: u8);
     /// `offset` is within the 64 KiB CPU window at 0xA0000. On a VGA every
@@ -45,6 +51,9 @@ impl<T: VgaBus + ?Sized> VgaBus for &mut T {
     }
     fn read_port8(&mut self, port: u16) -> u8 {
         (**self).read_port8(port)
+    }
+    fn read_port16(&mut self, port: u16) -> u16 {
+        (**self).read_port16(port)
     }
     fn write_vram8(&mut self, offset: u16, value: u8) {
         (**self).write_vram8(offset, value);

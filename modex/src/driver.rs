@@ -74,7 +74,7 @@ impl<B: VgaBus> ModeX<B> {
     }
 
     /// Forgets every cached register value: the hardware may hold anything.
-    pub(crate) fn invalidate_caches(&mut self) {
+    pub fn invalidate_caches(&mut self) {
         self.sequencer = RegisterCache::UNKNOWN;
         self.graphics = RegisterCache::UNKNOWN;
     }

@@ -2,7 +2,7 @@
 //! of the registers that decide what the screen shows, so the kernel never
 //! reports a mode it has not seen in the hardware.
 
-use super::vendor::{cirrus, Card, ExtensionProbe, ResetStep};
+use super::vendor::{cirrus, ExtensionProbe, ResetStep};
 use crate::mode::ModeRegisters;
 use crate::regs::{
     ac, crtc, gc, seq, vbe, ATTRIBUTE_DATA_READ, ATTRIBUTE_INDEX, CRTC_DATA, CRTC_INDEX,
@@ -41,7 +41,11 @@ pub struct Mismatch {
 
 /// Sequencer registers compared: clocking, character map, memory mode (the
 /// Map Mask changes while drawing).
-const SEQUENCER_CHECKED: [u8; 3] = [seq::CLOCKING_MODE, seq::CHARACTER_MAP_SELECT, seq::MEMORY_MODE];
+const SEQUENCER_CHECKED: [u8; 3] = [
+    seq::CLOCKING_MODE,
+    seq::CHARACTER_MAP_SELECT,
+    seq::MEMORY_MODE,
+];
 /// Graphics Controller registers compared: the mode and the memory map.
 const GRAPHICS_CHECKED: [u8; 2] = [gc::MODE, gc::MISC];
 /// Attribute registers compared: mode control and colour plane enable.
@@ -99,7 +103,11 @@ impl<B: VgaBus> ModeX<B> {
         )?;
         for index in SEQUENCER_CHECKED {
             let found = self.read_indexed(SEQUENCER_INDEX, SEQUENCER_DATA, index);
-            check(Register::Sequencer(index), mode.sequencer[usize::from(index)], found)?;
+            check(
+                Register::Sequencer(index),
+                mode.sequencer[usize::from(index)],
+                found,
+            )?;
         }
         for index in (0..crtc::COUNT as u8).filter(|&i| !crtc_changes_at_run_time(i)) {
             let found = self.read_indexed(CRTC_INDEX, CRTC_DATA, index);
@@ -107,11 +115,19 @@ impl<B: VgaBus> ModeX<B> {
         }
         for index in GRAPHICS_CHECKED {
             let found = self.read_indexed(GRAPHICS_INDEX, GRAPHICS_DATA, index);
-            check(Register::Graphics(index), mode.graphics[usize::from(index)], found)?;
+            check(
+                Register::Graphics(index),
+                mode.graphics[usize::from(index)],
+                found,
+            )?;
         }
         for index in ATTRIBUTE_CHECKED {
             let found = self.read_attribute(index);
-            check(Register::Attribute(index), mode.attribute[usize::from(index)], found)?;
+            check(
+                Register::Attribute(index),
+                mode.attribute[usize::from(index)],
+                found,
+            )?;
         }
         if let Some(probe) = self.card().extension_probe() {
             let (found, bit) = self.read_extension(probe);
@@ -141,7 +157,9 @@ impl<B: VgaBus> ModeX<B> {
         match probe {
             ExtensionProbe::DispiEnable => {
                 self.bus.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
-                (self.bus.read_port8(VBE_DISPI_DATA), vbe::ENABLED as u8)
+                // Only the low byte holds flags; the port answers 16-bit reads.
+                let [enable, _] = self.bus.read_port16(VBE_DISPI_DATA).to_le_bytes();
+                (enable, vbe::ENABLED as u8)
             }
             ExtensionProbe::CirrusExtendedModes => {
                 self.bus.write_port16(
@@ -162,6 +180,7 @@ impl<B: VgaBus> ModeX<B> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::card::Card;
     use crate::mode::{MODE_X, TEXT_80X25};
     use crate::soft::SoftVga;
     use std::boxed::Box;
@@ -175,7 +194,10 @@ mod tests {
     #[test]
     fn a_mode_set_reads_back_as_set() {
         let mut soft = soft_in_mode_x(Card::BochsDispi);
-        assert_eq!(ModeX::for_card(&mut *soft, Card::BochsDispi).verify(&MODE_X), Ok(()));
+        assert_eq!(
+            ModeX::for_card(&mut *soft, Card::BochsDispi).verify(&MODE_X),
+            Ok(())
+        );
     }
 
     #[test]

@@ -276,6 +276,16 @@ impl VgaBus for SoftVga {
         }
     }
 
+    fn read_port16(&mut self, port: u16) -> u16 {
+        if port == VBE_DISPI_INDEX || port == VBE_DISPI_DATA {
+            self.counts.port_reads += 1;
+            self.advance_ns(PORT_ACCESS_NS);
+            self.registers.read_dispi_port(port)
+        } else {
+            u16::from_le_bytes([self.read_port8(port), self.read_port8(port.wrapping_add(1))])
+        }
+    }
+
     fn write_vram8(&mut self, offset: u16, value: u8) {
         self.counts.vram_writes += 1;
         self.advance_ns(VRAM_ACCESS_NS);

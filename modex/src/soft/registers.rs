@@ -246,6 +246,15 @@ impl Registers {
         }
     }
 
+    /// A 16-bit read of a DISPI port: the index, or the indexed register.
+    pub(super) fn read_dispi_port(&self, port: u16) -> u16 {
+        if port == VBE_DISPI_INDEX {
+            self.dispi.index
+        } else {
+            self.read_dispi()
+        }
+    }
+
     fn read_dispi(&self) -> u16 {
         if self.dispi.index == vbe::INDEX_ENABLE {
             self.dispi.enable
