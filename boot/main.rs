@@ -1,7 +1,7 @@
 //! `cargo run --release -- [OPTIONS]`: builds the kernel and its disk images
 //! (cargo does that through the build script), then boots one in QEMU.
 
-use boot::qemu::{self, Display, Firmware, Qemu, QemuOptions};
+use boot::qemu::{self, Display, Firmware, Graphics, Qemu, QemuOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -19,6 +19,9 @@ Options:
                         e.g. \"r 4 4 kp_8 a f1 left spc esc\"
   --wait SECS           with --screenshot: wait SECS after the keys before taking it
                         (default 0.5), e.g. to let the statistics measure a spin
+  --vga ADAPTER         the display adapter QEMU emulates, each with its own VGA BIOS:
+                        std (default), cirrus, vmware, qxl, virtio, ati, isa-cirrus,
+                        bochs-display (no legacy VGA)
   --timeout SECS        stop QEMU after SECS seconds
   --boot-option OPTION  hand OPTION to the kernel via fw_cfg (see README: test-pattern,
                         flip-rate, bench, fault=...)
@@ -40,6 +43,7 @@ struct Args {
     wait: Duration,
     boot_option: Option<String>,
     write_usb: Option<PathBuf>,
+    graphics: Graphics,
 }
 
 fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, String> {
@@ -52,6 +56,7 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
         wait: Duration::from_millis(500),
         boot_option: None,
         write_usb: None,
+        graphics: Graphics::StdVga,
     };
     while let Some(arg) = args.next() {
         let mut value = |name: &str| {
@@ -72,6 +77,13 @@ fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, St
             "--timeout" => parsed.timeout = Some(seconds("--timeout", &value("--timeout")?)?),
             "--wait" => parsed.wait = seconds("--wait", &value("--wait")?)?,
             "--boot-option" => parsed.boot_option = Some(value("--boot-option")?),
+            "--vga" => {
+                let name = value("--vga")?;
+                parsed.graphics = Graphics::from_name(&name).ok_or_else(|| {
+                    let names: Vec<_> = Graphics::ALL.iter().map(|g| g.name()).collect();
+                    format!("unknown adapter {name:?}; one of: {}", names.join(", "))
+                })?;
+            }
             "--write-usb" => parsed.write_usb = Some(PathBuf::from(value("--write-usb")?)),
             other => return Err(format!("unknown option {other:?}; see --help")),
         }
@@ -117,6 +129,7 @@ fn run(args: Args) -> Result<ExitCode, String> {
         Display::Window
     };
     options.boot_option = args.boot_option.clone();
+    options.graphics = args.graphics;
     options.echo_serial = true;
     println!("Booting {} ({:?})", image.display(), args.firmware);
     let mut qemu = Qemu::start(&options).map_err(|e| e.to_string())?;

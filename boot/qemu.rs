@@ -40,12 +40,73 @@ pub enum Display {
     Window,
 }
 
+/// The display adapter QEMU emulates; each brings its own VGA BIOS.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Graphics {
-    /// QEMU's standard VGA, with the legacy VGA registers.
+    /// QEMU's standard VGA (Bochs VBE extensions), with the legacy VGA registers.
     StdVga,
     /// A framebuffer-only adapter with no legacy VGA at all.
     BochsDisplay,
+    /// Cirrus Logic GD5446 on PCI.
+    Cirrus,
+    /// Cirrus Logic on the ISA bus of an `isapc` machine (no VBE linear modes).
+    IsaCirrus,
+    /// ATI Rage 128 Pro.
+    Ati,
+    /// VMware SVGA II.
+    Vmware,
+    /// QXL (SPICE).
+    Qxl,
+    /// virtio-gpu with a VGA.
+    Virtio,
+}
+
+impl Graphics {
+    /// Every adapter, in the order the README's hardware table lists them.
+    pub const ALL: [Graphics; 8] = [
+        Graphics::StdVga,
+        Graphics::Cirrus,
+        Graphics::Vmware,
+        Graphics::Qxl,
+        Graphics::Virtio,
+        Graphics::Ati,
+        Graphics::IsaCirrus,
+        Graphics::BochsDisplay,
+    ];
+
+    /// The runner's name for it (`--vga NAME`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Graphics::StdVga => "std",
+            Graphics::BochsDisplay => "bochs-display",
+            Graphics::Cirrus => "cirrus",
+            Graphics::IsaCirrus => "isa-cirrus",
+            Graphics::Ati => "ati",
+            Graphics::Vmware => "vmware",
+            Graphics::Qxl => "qxl",
+            Graphics::Virtio => "virtio",
+        }
+    }
+
+    /// The adapter with this runner name.
+    pub fn from_name(name: &str) -> Option<Graphics> {
+        Graphics::ALL.into_iter().find(|g| g.name() == name)
+    }
+
+    /// QEMU's arguments for it.
+    fn qemu_args(self, precise_retrace: bool) -> &'static [&'static str] {
+        match self {
+            Graphics::StdVga if precise_retrace => &["-vga", "std,retrace=precise"],
+            Graphics::StdVga => &["-vga", "std"],
+            Graphics::BochsDisplay => &["-vga", "none", "-device", "bochs-display"],
+            Graphics::Cirrus => &["-vga", "none", "-device", "cirrus-vga"],
+            Graphics::IsaCirrus => &["-M", "isapc", "-vga", "none", "-device", "isa-cirrus-vga"],
+            Graphics::Ati => &["-vga", "none", "-device", "ati-vga"],
+            Graphics::Vmware => &["-vga", "none", "-device", "vmware-svga"],
+            Graphics::Qxl => &["-vga", "none", "-device", "qxl-vga"],
+            Graphics::Virtio => &["-vga", "none", "-device", "virtio-vga"],
+        }
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -162,13 +223,7 @@ impl Qemu {
                 "unix:{},server=on,wait=off",
                 monitor_path.display()
             ));
-        match options.graphics {
-            Graphics::StdVga if options.precise_retrace => {
-                command.args(["-vga", "std,retrace=precise"])
-            }
-            Graphics::StdVga => command.args(["-vga", "std"]),
-            Graphics::BochsDisplay => command.args(["-vga", "none", "-device", "bochs-display"]),
-        };
+        command.args(options.graphics.qemu_args(options.precise_retrace));
         if options.firmware == Firmware::Uefi {
             command.args(["-bios", OVMF_CODE]);
         }

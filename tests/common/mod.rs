@@ -3,7 +3,7 @@
 
 #![allow(dead_code)] // each test binary uses its own part of this
 
-use boot::{Qemu, QemuOptions, RgbImage};
+use boot::{Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
 use demo::scene::Command;
 use modex::soft::SoftVga;
@@ -15,8 +15,14 @@ pub const PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
 
 /// Boots the BIOS image headless, with an optional boot option.
 pub fn boot_bios(option: Option<&str>) -> Qemu {
+    boot_bios_on(Graphics::StdVga, option)
+}
+
+/// Boots the BIOS image headless on a display adapter, with an optional boot option.
+pub fn boot_bios_on(graphics: Graphics, option: Option<&str>) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let mut options = QemuOptions::new(images.bios);
+    options.graphics = graphics;
     options.boot_option = option.map(str::to_owned);
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
@@ -98,6 +104,15 @@ pub fn after_each_key(
     let mut qemu = boot_bios(None);
     qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
         .unwrap();
+    after_each_key_on(&mut qemu, keys, compare);
+}
+
+/// As [`after_each_key`], on a QEMU already booted to the ready line.
+pub fn after_each_key_on(
+    qemu: &mut Qemu,
+    keys: &[(&str, Command)],
+    compare: impl Fn(&RgbImage, &RgbImage, &App, &str),
+) {
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);

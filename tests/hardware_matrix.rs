@@ -1,0 +1,79 @@
+//! Mode X on every VGA card QEMU can emulate, each with its own VGA BIOS: the
+//! kernel asks the card's BIOS for mode 13h, tweaks it into Mode X and reads
+//! the registers back. On each card QEMU's picture must equal the software
+//! VGA's after every key, the serial log must name the route, and Esc must
+//! end in the BIOS's own text mode.
+
+mod common;
+
+use boot::{Graphics, Qemu};
+use common::{after_each_key_on, assert_same_picture, boot_bios_on, BOOT_TIMEOUT};
+use demo::scene::{Axis, Command};
+use std::time::Duration;
+
+/// A reset (the spin stops), moves, turns and lighting: every kind of frame.
+const KEYS: [(&str, Command); 5] = [
+    ("r", Command::Reset),
+    ("4", Command::Rotate(Axis::Y, false)),
+    ("up", Command::MoveUp),
+    ("f1", Command::Rotate(Axis::Z, true)),
+    ("l", Command::ToggleLighting),
+];
+
+fn boots_to_mode_x_through_its_video_bios(graphics: Graphics) {
+    let mut qemu = boot_bios_on(graphics, None);
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+        .unwrap();
+    assert!(
+        console.contains("vga: mode 13h set by the video BIOS, then tweaked"),
+        "{graphics:?} did not take the video BIOS route:\n{console}"
+    );
+    assert!(
+        console.contains("vga: Mode X 320x240 set, registers read back as written"),
+        "{graphics:?}: the mode set did not read back:\n{console}"
+    );
+    after_each_key_on(&mut qemu, &KEYS, |qemu_picture, model, _, what| {
+        assert_same_picture(qemu_picture, model, &format!("{graphics:?}, {what}"))
+    });
+    leaves_through_bios_text_mode(&mut qemu, graphics);
+}
+
+fn leaves_through_bios_text_mode(qemu: &mut Qemu, graphics: Graphics) {
+    qemu.send_key("esc").unwrap();
+    let console = qemu.wait_for_serial("demo: goodbye", BOOT_TIMEOUT).unwrap();
+    assert!(
+        console.contains("demo: text mode 3 set by the video BIOS"),
+        "{graphics:?}: goodbye did not use the BIOS's text mode:\n{console}"
+    );
+    let status = qemu
+        .wait_exit(Duration::from_secs(30))
+        .unwrap()
+        .expect("QEMU powers off after the goodbye");
+    assert_eq!(status.code(), Some(33), "{graphics:?}: {status}");
+}
+
+#[test]
+fn std_vga() {
+    boots_to_mode_x_through_its_video_bios(Graphics::StdVga);
+}
+
+#[test]
+fn cirrus() {
+    boots_to_mode_x_through_its_video_bios(Graphics::Cirrus);
+}
+
+#[test]
+fn vmware_svga() {
+    boots_to_mode_x_through_its_video_bios(Graphics::Vmware);
+}
+
+#[test]
+fn qxl() {
+    boots_to_mode_x_through_its_video_bios(Graphics::Qxl);
+}
+
+#[test]
+fn virtio_vga() {
+    boots_to_mode_x_through_its_video_bios(Graphics::Virtio);
+}
