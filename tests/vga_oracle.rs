@@ -57,7 +57,10 @@ fn page_flips_follow_vertical_retrace_at_60_hz() {
         panic!("cannot read {line:?}");
     };
     assert_eq!(timeouts, 0.0, "{line}");
-    assert!(hertz <= REFRESH_HZ * 1.002, "flips outran the refresh: {line}");
+    assert!(
+        hertz <= REFRESH_HZ * 1.002,
+        "flips outran the refresh: {line}"
+    );
     let retraces_hz = (flips + missed) * 1e6 / micros;
     assert!(
         (retraces_hz / REFRESH_HZ - 1.0).abs() < 0.01,

@@ -15,10 +15,12 @@ fn count_flip(pacing: &mut Pacing, timed_out: bool) {
     pacing.flipped(clock::micros(), timed_out);
     if pacing.flips.is_multiple_of(PACING_REPORT_FLIPS) {
         serial_println!(
-            "pacing: {} flips, {} missed retraces, {} wait timeouts",
+            "pacing: {} flips, {} missed retraces, {} wait timeouts, {} gaps in {} us",
             pacing.flips,
             pacing.missed,
-            pacing.wait_timeouts
+            pacing.wait_timeouts,
+            pacing.gaps,
+            pacing.gap_micros
         );
     }
 }

@@ -18,6 +18,11 @@ pub struct Pacing {
     pub missed: u64,
     /// Flips whose wait for the display or for retrace hit its bound.
     pub wait_timeouts: u64,
+    /// Flips that followed another flip (not a pause): each closes a gap.
+    pub gaps: u64,
+    /// The time those gaps add up to, in microseconds: `gaps + missed`
+    /// refreshes should fill it, whatever the host's load.
+    pub gap_micros: u64,
     last_flip_micros: Option<u64>,
 }
 
@@ -26,6 +31,8 @@ impl Pacing {
     pub fn flipped(&mut self, now_micros: u64, timed_out: bool) {
         if let Some(last) = self.last_flip_micros {
             self.missed += missed_between(last, now_micros);
+            self.gaps += 1;
+            self.gap_micros += now_micros.saturating_sub(last);
         }
         self.last_flip_micros = Some(now_micros);
         self.flips += 1;
@@ -68,6 +75,25 @@ mod tests {
         assert_eq!(missed_between(0, 2 * FRAME_MICROS - FRAME_MICROS / 3), 1);
         assert_eq!(missed_between(0, 5 * FRAME_MICROS + 100), 4);
         assert_eq!(missed_between(100, 0), 0);
+    }
+
+    #[test]
+    fn gaps_and_missed_retraces_fill_the_time_between_flips() {
+        let mut pacing = Pacing::default();
+        let mut now = 0;
+        for frame in 0..1000u64 {
+            // Mostly on time, every seventh frame two or three refreshes late.
+            now += match frame % 7 {
+                0 => 3 * FRAME_MICROS + 200,
+                3 => 2 * FRAME_MICROS - 300,
+                _ => FRAME_MICROS + 40,
+            };
+            pacing.flipped(now, false);
+        }
+        let refreshes = pacing.gap_micros as f64 / FRAME_MICROS as f64;
+        let counted = (pacing.gaps + pacing.missed) as f64;
+        assert!((counted / refreshes - 1.0).abs() < 0.01, "{pacing:?}");
+        assert_eq!(pacing.gaps, 999);
     }
 
     #[test]
