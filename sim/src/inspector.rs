@@ -294,7 +294,7 @@ fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
 }
 
 /// One column per frame, the newest on the right, every series on one scale
-/// whose top is the largest value shown (written at the top left).
+/// whose top is the largest value shown (written at the top right).
 fn draw_plot(
     panel: &mut Panel,
     history: &History,
@@ -314,9 +314,13 @@ fn draw_plot(
     let start = PLOT_FRAMES - history.costs.len();
     for (column, cost) in history.costs().enumerate() {
         let x = MARGIN + (start + column) as i32;
-        for &(value, colour) in series {
+        // The first series as bars, the others as points over them.
+        for (index, &(value, colour)) in series.iter().enumerate() {
             let height = (value(cost) * (PLOT_HEIGHT as u64 - 1) / largest) as i32;
-            panel.put(x, bottom - height, to_0rgb(colour));
+            let lowest = if index == 0 { 0 } else { height };
+            for y in lowest..=height {
+                panel.put(x, bottom - y, to_0rgb(colour));
+            }
         }
     }
     panel.text(

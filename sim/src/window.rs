@@ -1,0 +1,161 @@
+//! The desktop window: host keys become scan codes in the kernel's own
+//! scancode queue, the demo runs a frame per retrace of the model, and the
+//! scan-out (with the inspector beside it) goes to the window, paced at the
+//! model's refresh rate.
+//!
+//! For tests, it prints a line on stdout when something they wait for has
+//! reached the screen (like the kernel's `demo: command N done`): the window
+//! (`sim: window 0x... WxH`), each command (`sim: command N done`) and the
+//! inspector (`sim: inspector shown` / `hidden`), each one frame after the
+//! frame that showed it was presented.
+
+use std::sync::Arc;
+use std::thread::sleep;
+use std::time::{Duration, Instant};
+
+use demo::keymap::INSPECTOR_KEY;
+use demo::queue::ScancodeQueue;
+use minifb::{InputCallback, Key, Window, WindowOptions};
+use sim::inspector::{draw_panel, History, PANEL_WIDTH};
+use sim::keys::{scancode_for_key, scancode_for_name};
+use sim::machine::Machine;
+use sim::record::Script;
+use sim::screen::{compose, window_size};
+
+/// What the window shows and types.
+pub struct Options {
+    /// Pixels per VGA pixel, each way.
+    pub scale: usize,
+    /// The inspector is open at start.
+    pub inspect: bool,
+    /// Keys typed by themselves, as with `--record`.
+    pub script: Script,
+}
+
+const TITLE: &str = "modex-cube on the software VGA (Esc quits, V: inspector)";
+/// Behind by more than this, pacing starts afresh instead of rushing frames.
+const MAX_LAG_FRAMES: u32 = 3;
+
+/// The keyboard: minifb reports each key event here, in order, and each
+/// becomes its make or break code in the queue the frame loop drains, as the
+/// kernel's interrupt handler fills its queue. A key held down repeats its
+/// make code, as a PC keyboard's typematic repeat does.
+struct Keyboard(Arc<ScancodeQueue>);
+
+impl InputCallback for Keyboard {
+    fn add_char(&mut self, _character: u32) {}
+
+    fn set_key_state(&mut self, key: Key, down: bool) {
+        if let Some(scancode) = scancode_for_key(key) {
+            let bytes = if down {
+                scancode.make()
+            } else {
+                scancode.release()
+            };
+            for byte in bytes {
+                self.0.push(byte);
+            }
+        }
+    }
+}
+
+fn has_display() -> bool {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|name| std::env::var_os(name).is_some_and(|value| !value.is_empty()))
+}
+
+const NO_WINDOW_HINT: &str = "record the demo without a window instead, e.g.\n  \
+     cargo run --release -p sim -- --record cube.gif --frames 240";
+
+fn open(scale: usize, inspect: bool, queue: &Arc<ScancodeQueue>) -> Result<Window, String> {
+    let (width, height) = window_size(scale, inspect.then_some(PANEL_WIDTH));
+    let mut window = Window::new(TITLE, width, height, WindowOptions::default())
+        .map_err(|e| format!("the window did not open ({e}); {NO_WINDOW_HINT}"))?;
+    window.set_input_callback(Box::new(Keyboard(Arc::clone(queue))));
+    // The frame loop paces itself by the model's refresh rate.
+    window.set_target_fps(0);
+    Ok(window)
+}
+
+/// Runs the demo in a window until Esc or the window is closed.
+pub fn run(options: &Options) -> Result<(), String> {
+    if !has_display() {
+        return Err(format!(
+            "no display: $DISPLAY and $WAYLAND_DISPLAY are unset, so there is no window to open; \
+             {NO_WINDOW_HINT}"
+        ));
+    }
+    let queue = Arc::new(ScancodeQueue::new());
+    let mut inspect = options.inspect;
+    let mut window = open(options.scale, inspect, &queue)?;
+    let mut machine = Machine::new();
+    let mut history = History::default();
+    let inspector_scancode = scancode_for_name(&INSPECTOR_KEY.to_string()).map(|key| key.code);
+    let frame_time = Duration::from_nanos(machine.vga().timing().frame_ns());
+    let mut deadline = Instant::now();
+    let mut reported_commands = machine.app().commands();
+    // Lines to print once the frame after the one that showed them is up.
+    let mut due_lines: Vec<String> = Vec::new();
+    let mut window_line = true;
+    let mut previous_byte = None;
+    let mut frame = 0;
+    while window.is_open() {
+        if let Some(key) = options.script.key_before(frame) {
+            for byte in key.tap() {
+                queue.push(byte);
+            }
+        }
+        let mut toggle_inspector = false;
+        while let Some(byte) = queue.pop() {
+            // V's make code (not a byte of an E0 sequence) opens or closes
+            // the inspector; the demo gets it too and ignores it, as the kernel does.
+            toggle_inspector ^= Some(byte) == inspector_scancode && previous_byte != Some(0xE0);
+            previous_byte = Some(byte);
+            machine.feed(&[byte]);
+        }
+        if machine.app().quit_requested() {
+            println!("sim: Esc: goodbye");
+            return Ok(());
+        }
+        history.push(machine.frame());
+        if toggle_inspector {
+            inspect = !inspect;
+            // minifb windows keep their size: a new one fits the panel.
+            drop(window);
+            window = open(options.scale, inspect, &queue)?;
+            window_line = true;
+        }
+        let (width, height) = window_size(options.scale, inspect.then_some(PANEL_WIDTH));
+        let panel = inspect.then(|| draw_panel(machine.vga(), &history, height));
+        let pixels = compose(&machine.scanout_rgb(), options.scale, panel.as_ref());
+        window
+            .update_with_buffer(&pixels, width, height)
+            .map_err(|e| format!("the window did not take the picture: {e}"))?;
+        for line in due_lines.drain(..) {
+            println!("{line}");
+        }
+        if window_line {
+            window_line = false;
+            let id = window.get_window_handle() as usize;
+            due_lines.push(format!("sim: window 0x{id:x} {width}x{height}"));
+        }
+        if toggle_inspector {
+            let state = if inspect { "shown" } else { "hidden" };
+            due_lines.push(format!("sim: inspector {state}"));
+        }
+        if machine.app().commands() != reported_commands {
+            reported_commands = machine.app().commands();
+            due_lines.push(format!("sim: command {reported_commands} done"));
+        }
+        frame += 1;
+        deadline += frame_time;
+        let now = Instant::now();
+        if deadline > now {
+            sleep(deadline - now);
+        } else if now - deadline > frame_time * MAX_LAG_FRAMES {
+            deadline = now;
+        }
+    }
+    Ok(())
+}
