@@ -293,14 +293,12 @@ fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
     }
 }
 
+/// A figure of each frame's cost, and its colour in the plot.
+type Series = (fn(&FrameCost) -> u64, Rgb888);
+
 /// One column per frame, the newest on the right, every series on one scale
 /// whose top is the largest value shown (written at the top right).
-fn draw_plot(
-    panel: &mut Panel,
-    history: &History,
-    top: i32,
-    series: &[(fn(&FrameCost) -> u64, Rgb888)],
-) {
+fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) {
     let largest = history
         .costs()
         .flat_map(|cost| series.iter().map(move |(value, _)| value(cost)))

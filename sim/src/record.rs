@@ -30,7 +30,7 @@ impl Script {
     /// The key typed just before frame `frame` (counted from 0), if any.
     pub fn key_before(&self, frame: u32) -> Option<Scancode> {
         let every = self.key_every.max(1);
-        if frame % every != 0 {
+        if !frame.is_multiple_of(every) {
             return None;
         }
         self.keys.get((frame / every) as usize).copied()
@@ -69,7 +69,7 @@ pub struct Recorded {
 /// Whether frame `frame` of a run is recorded when one in `every` is: the
 /// last of each group of `every`.
 pub fn recorded(frame: u32, every: u32) -> bool {
-    (frame + 1) % every.max(1) == 0
+    (frame + 1).is_multiple_of(every.max(1))
 }
 
 /// Runs the script for `frames` frames and writes the scan-out after every
