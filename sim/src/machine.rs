@@ -135,12 +135,10 @@ impl Machine {
             .app
             .step(&mut self.vga, &move || micros.get())
             .is_some();
-        let bus = &mut self.vga.bus_mut();
-        while bus.soft.frame_count() == retraces_before {
-            bus.soft.advance_ns(IDLE_STEP_NS);
-        }
-        bus.tick();
+        // A flip has waited for the retrace already; an idle frame waits here.
+        self.idle_until_retrace(retraces_before);
         let soft = &self.vga.bus().soft;
+        // A drawn frame is the page the flip just put on screen.
         let (old_page, new_page) = if drawn {
             let page = self.app.shown_page();
             (
@@ -156,6 +154,16 @@ impl Machine {
         self.frames += 1;
         self.last_cost = frame_cost(counts_before, soft.counts(), &old_page, &new_page);
         self.last_cost
+    }
+
+    /// Lets the model's clock run, with no bus activity, until a vertical
+    /// retrace after the `retraces_before`-th starts (a flip waits for one).
+    fn idle_until_retrace(&mut self, retraces_before: u64) {
+        let bus = self.vga.bus_mut();
+        while bus.soft.frame_count() == retraces_before {
+            bus.soft.advance_ns(IDLE_STEP_NS);
+        }
+        bus.tick();
     }
 
     /// The software VGA.
