@@ -71,7 +71,7 @@ const NO_WINDOW_HINT: &str = "record the demo without a window instead, e.g.\n  
 fn open(scale: usize, inspect: bool, queue: &Arc<ScancodeQueue>) -> Result<Window, String> {
     let (width, height) = window_size(scale, inspect.then_some(PANEL_WIDTH));
     let mut window = Window::new(TITLE, width, height, WindowOptions::default())
-        .map_err(|e| format!("the window did not open ({e}); {NO_WINDOW_HINT}"))?;
+        .map_err(|e| format!("the window did not open ({e:?}); {NO_WINDOW_HINT}"))?;
     window.set_input_callback(Box::new(Keyboard(Arc::clone(queue))));
     // The frame loop paces itself by the model's refresh rate.
     window.set_target_fps(0);
@@ -121,8 +121,9 @@ pub fn run(options: &Options) -> Result<(), String> {
         history.push(machine.frame());
         if toggle_inspector {
             inspect = !inspect;
-            // minifb windows keep their size: a new one fits the panel.
-            drop(window);
+            // minifb windows keep their size: a new one fits the panel. It
+            // opens before the old one closes, so the X server always has a
+            // client (Xvfb, for one, resets when its last client leaves).
             window = open(options.scale, inspect, &queue)?;
             window_line = true;
         }
