@@ -35,6 +35,8 @@ pub struct Options {
 const TITLE: &str = "modex-cube on the software VGA (Esc quits, V: inspector)";
 /// Behind by more than this, pacing starts afresh instead of rushing frames.
 const MAX_LAG_FRAMES: u32 = 3;
+/// The byte before the make code of an extended key.
+const EXTENDED_PREFIX: u8 = 0xE0;
 
 /// The keyboard: minifb reports each key event here, in order, and each
 /// becomes its make or break code in the queue the frame loop drains, as the
@@ -78,6 +80,80 @@ fn open(scale: usize, inspect: bool, queue: &Arc<ScancodeQueue>) -> Result<Windo
     Ok(window)
 }
 
+/// The lines tests wait for, each printed once the frame after the one that
+/// showed it has been presented too.
+#[derive(Default)]
+struct Reports {
+    due: Vec<String>,
+}
+
+impl Reports {
+    fn after_next_frame(&mut self, line: String) {
+        self.due.push(line);
+    }
+
+    fn frame_presented(&mut self) {
+        for line in self.due.drain(..) {
+            println!("{line}");
+        }
+    }
+}
+
+/// Keeps the loop to the model's refresh rate on the host's clock.
+struct Pacer {
+    frame_time: Duration,
+    deadline: Instant,
+}
+
+impl Pacer {
+    fn new(frame_time: Duration) -> Self {
+        Pacer {
+            frame_time,
+            deadline: Instant::now(),
+        }
+    }
+
+    /// Sleeps until the next frame is due; far behind, starts afresh.
+    fn wait_for_next_frame(&mut self) {
+        self.deadline += self.frame_time;
+        let now = Instant::now();
+        if self.deadline > now {
+            sleep(self.deadline - now);
+        } else if now - self.deadline > self.frame_time * MAX_LAG_FRAMES {
+            self.deadline = now;
+        }
+    }
+}
+
+/// The keyboard's side of the loop: hands every queued byte to the demo, as
+/// the kernel's loop does, and says whether V's make code (not a byte of an
+/// E0 sequence) came an odd number of times, which toggles the inspector.
+struct KeyReader {
+    inspector_code: Option<u8>,
+    previous_byte: Option<u8>,
+}
+
+impl KeyReader {
+    fn new() -> Self {
+        KeyReader {
+            inspector_code: scancode_for_name(&INSPECTOR_KEY.to_string()).map(|key| key.code),
+            previous_byte: None,
+        }
+    }
+
+    fn drain(&mut self, queue: &ScancodeQueue, machine: &mut Machine) -> bool {
+        let mut toggle_inspector = false;
+        while let Some(byte) = queue.pop() {
+            toggle_inspector ^=
+                Some(byte) == self.inspector_code && self.previous_byte != Some(EXTENDED_PREFIX);
+            self.previous_byte = Some(byte);
+            // The demo gets V too, and ignores it as the kernel does.
+            machine.feed(&[byte]);
+        }
+        toggle_inspector
+    }
+}
+
 /// Runs the demo in a window until Esc or the window is closed.
 pub fn run(options: &Options) -> Result<(), String> {
     if !has_display() {
@@ -91,14 +167,11 @@ pub fn run(options: &Options) -> Result<(), String> {
     let mut window = open(options.scale, inspect, &queue)?;
     let mut machine = Machine::new();
     let mut history = History::default();
-    let inspector_scancode = scancode_for_name(&INSPECTOR_KEY.to_string()).map(|key| key.code);
-    let frame_time = Duration::from_nanos(machine.vga().timing().frame_ns());
-    let mut deadline = Instant::now();
+    let mut keys = KeyReader::new();
+    let mut pacer = Pacer::new(Duration::from_nanos(machine.vga().timing().frame_ns()));
+    let mut reports = Reports::default();
     let mut reported_commands = machine.app().commands();
-    // Lines to print once the frame after the one that showed them is up.
-    let mut due_lines: Vec<String> = Vec::new();
-    let mut window_line = true;
-    let mut previous_byte = None;
+    let mut new_window = true;
     let mut frame = 0;
     while window.is_open() {
         if let Some(key) = options.script.key_before(frame) {
@@ -106,14 +179,7 @@ pub fn run(options: &Options) -> Result<(), String> {
                 queue.push(byte);
             }
         }
-        let mut toggle_inspector = false;
-        while let Some(byte) = queue.pop() {
-            // V's make code (not a byte of an E0 sequence) opens or closes
-            // the inspector; the demo gets it too and ignores it, as the kernel does.
-            toggle_inspector ^= Some(byte) == inspector_scancode && previous_byte != Some(0xE0);
-            previous_byte = Some(byte);
-            machine.feed(&[byte]);
-        }
+        let toggle_inspector = keys.drain(&queue, &mut machine);
         if machine.app().quit_requested() {
             println!("sim: Esc: goodbye");
             return Ok(());
@@ -125,7 +191,7 @@ pub fn run(options: &Options) -> Result<(), String> {
             // opens before the old one closes, so the X server always has a
             // client (Xvfb, for one, resets when its last client leaves).
             window = open(options.scale, inspect, &queue)?;
-            window_line = true;
+            new_window = true;
         }
         let (width, height) = window_size(options.scale, inspect.then_some(PANEL_WIDTH));
         let panel = inspect.then(|| draw_panel(machine.vga(), &history, height));
@@ -133,30 +199,22 @@ pub fn run(options: &Options) -> Result<(), String> {
         window
             .update_with_buffer(&pixels, width, height)
             .map_err(|e| format!("the window did not take the picture: {e}"))?;
-        for line in due_lines.drain(..) {
-            println!("{line}");
-        }
-        if window_line {
-            window_line = false;
+        reports.frame_presented();
+        if new_window {
+            new_window = false;
             let id = window.get_window_handle() as usize;
-            due_lines.push(format!("sim: window 0x{id:x} {width}x{height}"));
+            reports.after_next_frame(format!("sim: window 0x{id:x} {width}x{height}"));
         }
         if toggle_inspector {
             let state = if inspect { "shown" } else { "hidden" };
-            due_lines.push(format!("sim: inspector {state}"));
+            reports.after_next_frame(format!("sim: inspector {state}"));
         }
         if machine.app().commands() != reported_commands {
             reported_commands = machine.app().commands();
-            due_lines.push(format!("sim: command {reported_commands} done"));
+            reports.after_next_frame(format!("sim: command {reported_commands} done"));
         }
         frame += 1;
-        deadline += frame_time;
-        let now = Instant::now();
-        if deadline > now {
-            sleep(deadline - now);
-        } else if now - deadline > frame_time * MAX_LAG_FRAMES {
-            deadline = now;
-        }
+        pacer.wait_for_next_frame();
     }
     Ok(())
 }
