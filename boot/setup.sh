@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Idempotent set-up for building, running and testing modex-cube on Debian or
-# Ubuntu with rustup: QEMU and OVMF from apt, the pinned nightly with its
-# components and target from rustup. Safe to run again; it only installs what is missing.
+# Ubuntu with rustup: QEMU and OVMF (and, for the simulator's window tests,
+# Xvfb, xdotool and xwd) from apt, the pinned nightly with its components and
+# target from rustup. Safe to run again; it only installs what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -24,6 +25,19 @@ if [ ${#missing[@]} -gt 0 ]; then
     as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 say "$(qemu-system-x86_64 --version | head -n 1)"
+
+# The simulator's window tests (sim/tests/window.rs) run it under a virtual X
+# server, type with xdotool and capture with xwd.
+missing=()
+command -v Xvfb >/dev/null || missing+=(xvfb)
+command -v xdotool >/dev/null || missing+=(xdotool)
+command -v xwd >/dev/null || missing+=(x11-apps)
+if [ ${#missing[@]} -gt 0 ]; then
+    command -v apt-get >/dev/null || die "please install ${missing[*]} with your package manager"
+    say "installing ${missing[*]}"
+    as_root apt-get update -qq
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
 
 command -v rustup >/dev/null || die "rustup not found: install it from the Rust website, then run this again"
 # rust-toolchain.toml names one dated nightly with its components and target;

@@ -6,10 +6,15 @@
 use crate::scene::{Axis, Command};
 use pc_keyboard::{DecodedKey, KeyCode};
 
+/// The simulator's inspector key: ignored by the demo (see the module docs).
+pub const INSPECTOR_KEY: char = 'v';
+const INSPECTOR_KEY_UPPER: char = 'V';
+
 /// The command for a key press, or `None` for keys that must not count as a
-/// press at all (modifiers and lock keys).
+/// press at all (modifiers, lock keys, and the simulator's V).
 pub fn command_for(key: DecodedKey) -> Option<Command> {
     match key {
+        DecodedKey::Unicode(INSPECTOR_KEY | INSPECTOR_KEY_UPPER) => None,
         DecodedKey::Unicode(character) => Some(command_for_character(character)),
         DecodedKey::RawKey(code) => command_for_raw(code),
     }
@@ -154,6 +159,17 @@ mod tests {
         ] {
             assert_eq!(command_for(DecodedKey::RawKey(code)), None, "{code:?}");
         }
+    }
+
+    #[test]
+    fn v_is_left_to_the_simulators_inspector() {
+        assert_eq!(command_for(DecodedKey::Unicode('v')), None);
+        assert_eq!(command_for(DecodedKey::Unicode('V')), None);
+        // V pressed and released between two commands: neither pauses nor counts.
+        assert_eq!(
+            commands_for_bytes(&[0x2F, 0xAF, 0x1E, 0x9E, 0x2F, 0xAF]),
+            [Command::Away]
+        );
     }
 
     #[test]

@@ -1,0 +1,333 @@
+//! The VGA inspector: what the software VGA holds and what each frame cost,
+//! as numbers and as a panel image shown beside the picture.
+//!
+//! Everything here is a pure function of the software VGA's state and bus
+//! counts, so tests check the figures without a window.
+
+use std::collections::VecDeque;
+use std::convert::Infallible;
+
+use embedded_graphics::mono_font::{ascii::FONT_6X10, MonoTextStyle};
+use embedded_graphics::pixelcolor::Rgb888;
+use embedded_graphics::prelude::*;
+use embedded_graphics::text::{Baseline, Text};
+use modex::regs::{gc, seq};
+use modex::soft::{dac_6_to_8, BusCounts, SoftVga};
+use modex::{Page, BYTES_PER_LINE, PAGE_BYTES, PAGE_COUNT, PAGE_PIXELS, SCREEN_HEIGHT};
+
+/// What one frame cost on the bus.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrameCost {
+    /// Bytes written to video memory.
+    pub vram_writes: u64,
+    /// OUTs (a 16-bit OUT counts once).
+    pub port_writes: u64,
+    /// The fewest video-memory writes that could have drawn the frame: for
+    /// each address of the page, the number of distinct new colours among
+    /// its four pixels that changed (as `benches/bus_cost.rs` counts it).
+    pub lower_bound: u64,
+}
+
+/// The cost of a frame from the bus counts before and after it and the
+/// drawn page's pixels before and after (both empty when nothing was drawn).
+pub fn frame_cost(
+    before: BusCounts,
+    after: BusCounts,
+    old_page: &[u8],
+    new_page: &[u8],
+) -> FrameCost {
+    FrameCost {
+        vram_writes: after.vram_writes - before.vram_writes,
+        port_writes: after.port_writes - before.port_writes,
+        lower_bound: lower_bound(old_page, new_page),
+    }
+}
+
+/// Σ over the addresses of a page (four pixels each, one per plane) of the
+/// distinct new colours among the pixels that changed: one write through
+/// the Map Mask sets every plane that takes the same colour.
+pub fn lower_bound(old_page: &[u8], new_page: &[u8]) -> u64 {
+    old_page
+        .chunks_exact(4)
+        .zip(new_page.chunks_exact(4))
+        .map(|(old, new)| {
+            let mut colours: Vec<u8> = (0..4)
+                .filter(|&p| old[p] != new[p])
+                .map(|p| new[p])
+                .collect();
+            colours.sort_unstable();
+            colours.dedup();
+            colours.len() as u64
+        })
+        .sum()
+}
+
+/// A page's pixels in screen order, read from the planes: pixel (x, y) is
+/// plane `x % 4`'s byte at `page.base() + y * 80 + x / 4`.
+pub fn page_image<'a>(plane: impl Fn(usize) -> &'a [u8], page: Page) -> Vec<u8> {
+    let planes = [plane(0), plane(1), plane(2), plane(3)];
+    let base = usize::from(page.base());
+    (0..PAGE_PIXELS)
+        .map(|i| planes[i % 4][base + i / 4])
+        .collect()
+}
+
+/// The registers the inspector shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct VgaState {
+    /// The CRTC start address the VGA latched at the last vertical retrace.
+    pub start_address: u16,
+    /// The Mode X page that address is the start of, if it is one.
+    pub shown_page: Option<u8>,
+    /// Sequencer Map Mask: the planes CPU writes reach.
+    pub map_mask: u8,
+    /// Graphics Controller Bit Mask: the bits of each byte writes change.
+    pub bit_mask: u8,
+    /// Graphics Controller write mode (0-3).
+    pub write_mode: u8,
+}
+
+/// The registers the inspector shows, read from the software VGA.
+pub fn vga_state(vga: &SoftVga) -> VgaState {
+    let start_address = vga.displayed_start();
+    let shown_page = (0..PAGE_COUNT).find(|&page| Page(page).base() == start_address);
+    VgaState {
+        start_address,
+        shown_page,
+        map_mask: vga.sequencer(seq::MAP_MASK),
+        bit_mask: vga.graphics(gc::BIT_MASK),
+        write_mode: vga.graphics(gc::MODE) & gc::MODE_WRITE_MASK,
+    }
+}
+
+/// Frames the running plot shows.
+pub const PLOT_FRAMES: usize = 384;
+
+/// The costs of the last [`PLOT_FRAMES`] frames, oldest first.
+#[derive(Clone, Debug, Default)]
+pub struct History {
+    costs: VecDeque<FrameCost>,
+    frames: u64,
+}
+
+impl History {
+    /// Adds the cost of the frame just run.
+    pub fn push(&mut self, cost: FrameCost) {
+        if self.costs.len() == PLOT_FRAMES {
+            self.costs.pop_front();
+        }
+        self.costs.push_back(cost);
+        self.frames += 1;
+    }
+
+    /// The last frame's cost (zero before the first).
+    pub fn last(&self) -> FrameCost {
+        self.costs.back().copied().unwrap_or_default()
+    }
+
+    /// Frames pushed so far.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// The costs in the plot, oldest first.
+    pub fn costs(&self) -> impl Iterator<Item = &FrameCost> {
+        self.costs.iter()
+    }
+}
+
+/// The inspector's text, line by line.
+pub fn text_lines(state: &VgaState, history: &History) -> Vec<String> {
+    let page = match state.shown_page {
+        Some(page) => format!("page {page} of 0-{} shown", PAGE_COUNT - 1),
+        None => "not the start of a page".to_string(),
+    };
+    let last = history.last();
+    vec![
+        format!("CRTC start address 0x{:04X}: {page}", state.start_address),
+        format!(
+            "Map Mask 0x{:02X}  Bit Mask 0x{:02X}  write mode {}",
+            state.map_mask, state.bit_mask, state.write_mode
+        ),
+        format!("frame {}, last frame's bus work:", history.frames()),
+        format!(
+            "video-memory writes {:>6}  lower bound {:>6}",
+            last.vram_writes, last.lower_bound
+        ),
+        format!("port writes {:>6}", last.port_writes),
+    ]
+}
+
+/// An RGB image, `0RGB` in each `u32` as the window takes it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Panel {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Row by row.
+    pub pixels: Vec<u32>,
+}
+
+/// The panel's width; its height is the picture's beside it.
+pub const PANEL_WIDTH: usize = 400;
+/// The least height that holds everything.
+pub const PANEL_MIN_HEIGHT: usize = 470;
+
+const BACKGROUND: Rgb888 = Rgb888::new(24, 24, 32);
+const TEXT: Rgb888 = Rgb888::new(230, 230, 230);
+const VRAM_COLOUR: Rgb888 = Rgb888::new(90, 160, 255);
+const BOUND_COLOUR: Rgb888 = Rgb888::new(255, 190, 60);
+const PORT_COLOUR: Rgb888 = Rgb888::new(120, 220, 120);
+const MARGIN: i32 = 8;
+const LINE_HEIGHT: i32 = 11;
+const PLANE_GAP: i32 = 16;
+const PLANES_TOP: i32 = 26;
+const PLOT_HEIGHT: i32 = 56;
+
+impl Panel {
+    fn new(width: usize, height: usize) -> Self {
+        Panel {
+            width,
+            height,
+            pixels: vec![to_0rgb(BACKGROUND); width * height],
+        }
+    }
+
+    fn text(&mut self, text: &str, x: i32, y: i32, colour: Rgb888) {
+        let style = MonoTextStyle::new(&FONT_6X10, colour);
+        // Drawing into a Vec cannot fail.
+        let _ = Text::with_baseline(text, Point::new(x, y), style, Baseline::Top).draw(self);
+    }
+
+    fn put(&mut self, x: i32, y: i32, colour: u32) {
+        if (0..self.width as i32).contains(&x) && (0..self.height as i32).contains(&y) {
+            self.pixels[y as usize * self.width + x as usize] = colour;
+        }
+    }
+}
+
+fn to_0rgb(colour: Rgb888) -> u32 {
+    u32::from(colour.r()) << 16 | u32::from(colour.g()) << 8 | u32::from(colour.b())
+}
+
+impl OriginDimensions for Panel {
+    fn size(&self) -> Size {
+        Size::new(self.width as u32, self.height as u32)
+    }
+}
+
+impl DrawTarget for Panel {
+    type Color = Rgb888;
+    type Error = Infallible;
+
+    fn draw_iter<I: IntoIterator<Item = Pixel<Rgb888>>>(
+        &mut self,
+        pixels: I,
+    ) -> Result<(), Infallible> {
+        for Pixel(point, colour) in pixels {
+            self.put(point.x, point.y, to_0rgb(colour));
+        }
+        Ok(())
+    }
+}
+
+/// The panel: the displayed page's bytes in each plane as an image (80
+/// bytes by 240 lines, each byte in its DAC colour), the registers, the last
+/// frame's figures and a running plot of them. At least
+/// [`PANEL_MIN_HEIGHT`] high; `height` may ask for more.
+pub fn draw_panel(vga: &SoftVga, history: &History, height: usize) -> Panel {
+    let mut panel = Panel::new(PANEL_WIDTH, height.max(PANEL_MIN_HEIGHT));
+    panel.text("VGA inspector (V hides it)", MARGIN, 2, TEXT);
+    let state = vga_state(vga);
+    draw_planes(&mut panel, vga, state.start_address);
+    let mut y = PLANES_TOP + SCREEN_HEIGHT + 6;
+    for line in text_lines(&state, history) {
+        panel.text(&line, MARGIN, y, TEXT);
+        y += LINE_HEIGHT;
+    }
+    y += 4;
+    let vram = |cost: &FrameCost| cost.vram_writes;
+    let bound = |cost: &FrameCost| cost.lower_bound;
+    panel.text("video-memory writes", MARGIN, y, VRAM_COLOUR);
+    panel.text("lower bound", MARGIN + 22 * 6, y, BOUND_COLOUR);
+    y += LINE_HEIGHT;
+    draw_plot(
+        &mut panel,
+        history,
+        y,
+        &[(vram, VRAM_COLOUR), (bound, BOUND_COLOUR)],
+    );
+    y += PLOT_HEIGHT + 4;
+    panel.text("port writes", MARGIN, y, PORT_COLOUR);
+    y += LINE_HEIGHT;
+    draw_plot(
+        &mut panel,
+        history,
+        y,
+        &[(|cost: &FrameCost| cost.port_writes, PORT_COLOUR)],
+    );
+    panel
+}
+
+fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
+    let palette: Vec<u32> = (0..=255u8)
+        .map(|index| {
+            let [r, g, b] = vga.dac_entry(index).map(dac_6_to_8);
+            u32::from(r) << 16 | u32::from(g) << 8 | u32::from(b)
+        })
+        .collect();
+    let width = i32::from(BYTES_PER_LINE);
+    for plane in 0..4 {
+        let left = MARGIN + plane as i32 * (width + PLANE_GAP);
+        panel.text(&format!("plane {plane}"), left, PLANES_TOP - 12, TEXT);
+        let bytes = vga.plane(plane);
+        for offset in 0..PAGE_BYTES {
+            let byte = bytes[usize::from(start.wrapping_add(offset))];
+            let (x, y) = (
+                i32::from(offset % BYTES_PER_LINE),
+                i32::from(offset / BYTES_PER_LINE),
+            );
+            panel.put(left + x, PLANES_TOP + y, palette[usize::from(byte)]);
+        }
+    }
+}
+
+/// A figure of each frame's cost, and its colour in the plot.
+type Series = (fn(&FrameCost) -> u64, Rgb888);
+
+/// One column per frame, the newest on the right, every series on one scale
+/// whose top is the largest value shown (written at the top right).
+fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) {
+    let largest = history
+        .costs()
+        .flat_map(|cost| series.iter().map(move |(value, _)| value(cost)))
+        .max()
+        .unwrap_or(0)
+        .max(1);
+    let bottom = top + PLOT_HEIGHT - 1;
+    for x in 0..PLOT_FRAMES as i32 {
+        panel.put(MARGIN + x, bottom, to_0rgb(Rgb888::new(80, 80, 80)));
+    }
+    let start = PLOT_FRAMES - history.costs.len();
+    for (column, cost) in history.costs().enumerate() {
+        let x = MARGIN + (start + column) as i32;
+        // The first series as bars, the others as points over them.
+        for (index, &(value, colour)) in series.iter().enumerate() {
+            let height = (value(cost) * (PLOT_HEIGHT as u64 - 1) / largest) as i32;
+            let lowest = if index == 0 { 0 } else { height };
+            for y in lowest..=height {
+                panel.put(x, bottom - y, to_0rgb(colour));
+            }
+        }
+    }
+    panel.text(
+        &format!("{largest}"),
+        MARGIN + PLOT_FRAMES as i32 - 6 * 8,
+        top,
+        TEXT,
+    );
+}
+
+#[cfg(test)]
+mod tests;

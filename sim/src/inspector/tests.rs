@@ -1,0 +1,112 @@
+use super::*;
+use crate::keys::scancode_for_name;
+use crate::machine::Machine;
+
+fn tap(machine: &mut Machine, name: &str) {
+    machine.tap(scancode_for_name(name).unwrap());
+}
+
+#[test]
+fn the_figures_are_the_soft_vgas_counts_for_the_same_frames() {
+    let mut machine = Machine::new();
+    let mut history = History::default();
+    let mut drawn_frames = 0;
+    for frame in 0..40 {
+        match frame {
+            10 => tap(&mut machine, "m"),
+            20 => tap(&mut machine, "l"),
+            30 => tap(&mut machine, "spc"), // the spin stops: idle frames follow
+            _ => {}
+        }
+        let before = machine.vga().counts();
+        let cost = machine.frame();
+        let after = machine.vga().counts();
+        history.push(cost);
+        assert_eq!(cost.vram_writes, after.vram_writes - before.vram_writes);
+        assert_eq!(cost.port_writes, after.port_writes - before.port_writes);
+        assert!(
+            cost.lower_bound <= cost.vram_writes,
+            "frame {frame}: {cost:?}"
+        );
+        drawn_frames += u64::from(cost.vram_writes > 0);
+        let lines = text_lines(&vga_state(machine.vga()), &history);
+        assert!(
+            lines[3].contains(&format!("writes {:>6}", cost.vram_writes)),
+            "{lines:?}"
+        );
+        assert!(
+            lines[3].contains(&format!("bound {:>6}", cost.lower_bound)),
+            "{lines:?}"
+        );
+        assert!(
+            lines[4].ends_with(&format!("{:>6}", cost.port_writes)),
+            "{lines:?}"
+        );
+    }
+    // The spin draws every frame until Space (its frame is drawn too).
+    assert_eq!(drawn_frames, 31);
+    assert_eq!(history.frames(), 40);
+    assert_eq!(history.last().vram_writes, 0);
+}
+
+#[test]
+fn the_lower_bound_counts_distinct_new_colours_per_address() {
+    let old = [0, 0, 0, 0, 5, 5, 5, 5, 1, 2, 3, 4];
+    let new = [0, 0, 0, 0, 7, 7, 9, 5, 1, 2, 3, 4];
+    // Address 1: pixels 0-2 changed to two colours (7, 9); the others none.
+    assert_eq!(lower_bound(&old, &new), 2);
+    assert_eq!(lower_bound(&[], &[]), 0);
+}
+
+#[test]
+fn the_registers_are_the_soft_vgas() {
+    let mut machine = Machine::new();
+    for _ in 0..3 {
+        machine.frame();
+        let vga = machine.vga();
+        let state = vga_state(vga);
+        assert_eq!(state.start_address, vga.displayed_start());
+        assert_eq!(state.shown_page, Some(machine.app().shown_page().0));
+        assert_eq!(state.map_mask, vga.sequencer(seq::MAP_MASK));
+        assert_eq!(state.bit_mask, vga.graphics(gc::BIT_MASK));
+        assert_eq!(state.write_mode, vga.graphics(gc::MODE) & 3);
+        let lines = text_lines(&state, &History::default());
+        assert!(lines[0].contains(&format!("0x{:04X}", state.start_address)));
+    }
+}
+
+#[test]
+fn the_plane_images_are_the_shown_pages_bytes_in_their_colours() {
+    let mut machine = Machine::new();
+    machine.frame();
+    let vga = machine.vga();
+    let panel = draw_panel(vga, &History::default(), 480);
+    assert_eq!((panel.width, panel.height), (PANEL_WIDTH, 480));
+    let start = usize::from(vga.displayed_start());
+    let picture = machine.scanout_indices();
+    for plane in 0..4 {
+        for (x, y) in [(0, 0), (40, 120), (79, 239), (33, 100)] {
+            let byte = vga.plane(plane)[start + y * 80 + x];
+            // The picture's pixel (4x + plane, y) is that byte.
+            assert_eq!(picture[y * 320 + 4 * x + plane], byte);
+            let [r, g, b] = vga.dac_entry(byte).map(dac_6_to_8);
+            let left = MARGIN as usize + plane * (80 + PLANE_GAP as usize);
+            let shown = panel.pixels[(PLANES_TOP as usize + y) * panel.width + left + x];
+            assert_eq!(shown, u32::from(r) << 16 | u32::from(g) << 8 | u32::from(b));
+        }
+    }
+}
+
+#[test]
+fn the_history_keeps_the_plots_frames() {
+    let mut history = History::default();
+    for n in 0..(PLOT_FRAMES as u64 + 10) {
+        history.push(FrameCost {
+            vram_writes: n,
+            ..FrameCost::default()
+        });
+    }
+    assert_eq!(history.costs().count(), PLOT_FRAMES);
+    assert_eq!(history.costs().next().unwrap().vram_writes, 10);
+    assert_eq!(history.frames(), PLOT_FRAMES as u64 + 10);
+}

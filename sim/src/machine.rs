@@ -1,0 +1,258 @@
+//! The demo as the kernel runs it, on the software VGA: scan codes in, one
+//! retrace period (a frame of the 60 Hz display) per [`Machine::frame`].
+//!
+//! The app's clock is the model's simulated clock, not the host's, so the
+//! statistics (frame rate, frame time) read as they would on a VGA whose
+//! every port access costs ISA time, and a run is the same on any host.
+
+use std::cell::Cell;
+use std::rc::Rc;
+
+use demo::app::App;
+use modex::soft::{SoftVga, PLANE_BYTES};
+use modex::{ModeX, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
+
+use crate::inspector::{frame_cost, page_image, FrameCost};
+use crate::keys::Scancode;
+
+/// Pixels in the Mode X picture.
+pub const PICTURE_PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
+/// How far the model's clock moves at a time while it waits, idle, for the
+/// next vertical retrace: fine enough that the wait ends within 1 % of a frame.
+const IDLE_STEP_NS: u64 = 10_000;
+const NANOS_PER_MICRO: u64 = 1_000;
+const PLANE_COUNT: usize = 4;
+
+/// The software VGA with the model's time in microseconds beside it, kept up
+/// to date after every bus operation for the app's clock to read while the
+/// driver holds the bus.
+struct ClockedVga {
+    soft: Box<SoftVga>,
+    micros: Rc<Cell<u64>>,
+}
+
+impl ClockedVga {
+    fn tick(&self) {
+        self.micros.set(self.soft.now_ns() / NANOS_PER_MICRO);
+    }
+}
+
+impl VgaBus for ClockedVga {
+    fn write_port8(&mut self, port: u16, value: u8) {
+        self.soft.write_port8(port, value);
+        self.tick();
+    }
+    fn write_port16(&mut self, port: u16, value: u16) {
+        self.soft.write_port16(port, value);
+        self.tick();
+    }
+    fn read_port8(&mut self, port: u16) -> u8 {
+        let value = self.soft.read_port8(port);
+        self.tick();
+        value
+    }
+    fn write_vram8(&mut self, offset: u16, value: u8) {
+        self.soft.write_vram8(offset, value);
+        self.tick();
+    }
+    fn read_vram8(&mut self, offset: u16) -> u8 {
+        let value = self.soft.read_vram8(offset);
+        self.tick();
+        value
+    }
+    fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
+        self.soft.fill_vram(offset, count, value);
+        self.tick();
+    }
+}
+
+/// The demo on a software VGA in Mode X.
+pub struct Machine {
+    /// One driver for the whole run, as on the kernel, so its register cache
+    /// saves the same port writes there and here.
+    vga: ModeX<ClockedVga>,
+    app: App,
+    micros: Rc<Cell<u64>>,
+    frames: u64,
+    /// Video memory before the frame being drawn, for the lower bound.
+    planes_before: Vec<u8>,
+    last_cost: FrameCost,
+}
+
+impl Default for Machine {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Machine {
+    /// Sets Mode X and draws the first frame, as the kernel does at boot
+    /// before it reads any key.
+    pub fn new() -> Self {
+        let micros = Rc::new(Cell::new(0));
+        let bus = ClockedVga {
+            soft: Box::new(SoftVga::new()),
+            micros: Rc::clone(&micros),
+        };
+        let mut vga = ModeX::new(bus);
+        vga.set_mode();
+        let mut machine = Machine {
+            vga,
+            app: App::new(),
+            micros,
+            frames: 0,
+            planes_before: vec![0; PLANE_COUNT * PLANE_BYTES],
+            last_cost: FrameCost::default(),
+        };
+        machine.frame();
+        machine
+    }
+
+    /// Scan-code bytes, decoded as the kernel decodes its keyboard's.
+    pub fn feed(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            self.app.feed_scancode(byte);
+        }
+    }
+
+    /// A key pressed and released.
+    pub fn tap(&mut self, key: Scancode) {
+        self.feed(&key.tap());
+    }
+
+    /// One frame: the app draws and flips if anything moved (the flip waits
+    /// for vertical retrace on the model's clock), otherwise the model's clock
+    /// runs to the next retrace. Returns what the frame cost on the bus.
+    pub fn frame(&mut self) -> FrameCost {
+        let soft = &self.vga.bus().soft;
+        let retraces_before = soft.frame_count();
+        let counts_before = soft.counts();
+        for (plane, copy) in self.planes_before.chunks_exact_mut(PLANE_BYTES).enumerate() {
+            copy.copy_from_slice(soft.plane(plane));
+        }
+        let micros = Rc::clone(&self.micros);
+        let drawn = self
+            .app
+            .step(&mut self.vga, &move || micros.get())
+            .is_some();
+        // A flip has waited for the retrace already; an idle frame waits here.
+        self.idle_until_retrace(retraces_before);
+        let soft = &self.vga.bus().soft;
+        // A drawn frame is the page the flip just put on screen.
+        let (old_page, new_page) = if drawn {
+            let page = self.app.shown_page();
+            (
+                page_image(
+                    |plane| &self.planes_before[plane * PLANE_BYTES..][..PLANE_BYTES],
+                    page,
+                ),
+                page_image(|plane| &soft.plane(plane)[..], page),
+            )
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        self.frames += 1;
+        self.last_cost = frame_cost(counts_before, soft.counts(), &old_page, &new_page);
+        self.last_cost
+    }
+
+    /// Lets the model's clock run, with no bus activity, until a vertical
+    /// retrace after the `retraces_before`-th starts (a flip waits for one).
+    fn idle_until_retrace(&mut self, retraces_before: u64) {
+        let bus = self.vga.bus_mut();
+        while bus.soft.frame_count() == retraces_before {
+            bus.soft.advance_ns(IDLE_STEP_NS);
+        }
+        bus.tick();
+    }
+
+    /// The software VGA.
+    pub fn vga(&self) -> &SoftVga {
+        &self.vga.bus().soft
+    }
+
+    /// The demo.
+    pub fn app(&self) -> &App {
+        &self.app
+    }
+
+    /// Frames run so far, the first (drawn at start) included.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// What the last frame cost on the bus.
+    pub fn last_cost(&self) -> FrameCost {
+        self.last_cost
+    }
+
+    /// The picture on screen as DAC indices, row by row.
+    pub fn scanout_indices(&self) -> Vec<u8> {
+        let mut pixels = vec![0; PICTURE_PIXELS];
+        let size = self.vga().scanout_indices(&mut pixels);
+        assert_eq!(size, (320, 240), "the software VGA is not showing Mode X");
+        pixels
+    }
+
+    /// The picture on screen as 8-bit RGB, row by row.
+    pub fn scanout_rgb(&self) -> Vec<[u8; 3]> {
+        let mut pixels = vec![[0; 3]; PICTURE_PIXELS];
+        let size = self.vga().scanout_rgb(&mut pixels);
+        assert_eq!(size, (320, 240), "the software VGA is not showing Mode X");
+        pixels
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::keys::scancode_for_name;
+
+    fn key(name: &str) -> Scancode {
+        scancode_for_name(name).unwrap()
+    }
+
+    #[test]
+    fn every_frame_is_one_retrace_period_of_the_model() {
+        let mut machine = Machine::new();
+        machine.tap(key("r")); // still: the frames after the next are idle
+        for _ in 0..5 {
+            let before = machine.vga().frame_count();
+            machine.frame();
+            assert_eq!(machine.vga().frame_count(), before + 1);
+        }
+        assert_eq!(
+            machine.last_cost().vram_writes,
+            0,
+            "idle frames draw nothing"
+        );
+    }
+
+    #[test]
+    fn the_statistics_measure_the_model_clock() {
+        let mut machine = Machine::new();
+        machine.tap(key("s"));
+        for _ in 0..150 {
+            machine.frame();
+        }
+        let stats = machine.app().stats();
+        // A spinning cube is drawn and flipped every retrace: Mode X's 527
+        // lines of 800 dots at 25.175 MHz make 59.7 per second.
+        let frame_ns = machine.vga().timing().frame_ns();
+        let tenths = 10 * 1_000_000_000 / frame_ns;
+        assert_eq!(tenths, 597);
+        assert_eq!(stats.frames_per_second_tenths, Some(tenths as u32));
+        assert!(stats.frame_micros > 0 && stats.frame_micros < 16_683);
+    }
+
+    #[test]
+    fn keys_reach_the_demo_through_the_kernels_decoder() {
+        let mut machine = Machine::new();
+        for name in ["r", "left", "kp_4", "v", "f1"] {
+            machine.tap(key(name));
+        }
+        // V is the simulator's: no command on the machine.
+        assert_eq!(machine.app().commands(), 4);
+        assert!(!machine.app().paused());
+    }
+}

@@ -1,0 +1,229 @@
+//! Animated GIFs of the software VGA's scan-out, made without a window: the
+//! demo runs on the model's clock with keys typed at fixed frames, so the
+//! same arguments always give the same file.
+
+use std::borrow::Cow;
+use std::io::Write;
+
+use gif::{DisposalMethod, Encoder, Frame, Repeat};
+use modex::soft::dac_6_to_8;
+use modex::{SCREEN_HEIGHT, SCREEN_WIDTH};
+
+use crate::keys::Scancode;
+use crate::machine::Machine;
+
+const WIDTH: usize = SCREEN_WIDTH as usize;
+const HEIGHT: usize = SCREEN_HEIGHT as usize;
+/// GIF delays count hundredths of a second.
+const NANOS_PER_CENTISECOND: u64 = 10_000_000;
+
+/// Keys typed into a run, one every `key_every` frames from the first.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Script {
+    /// Tapped (pressed and released) in order.
+    pub keys: Vec<Scancode>,
+    /// Frames from one key to the next (at least 1).
+    pub key_every: u32,
+}
+
+impl Script {
+    /// The key typed just before frame `frame` (counted from 0), if any.
+    pub fn key_before(&self, frame: u32) -> Option<Scancode> {
+        let every = self.key_every.max(1);
+        if !frame.is_multiple_of(every) {
+            return None;
+        }
+        self.keys.get((frame / every) as usize).copied()
+    }
+}
+
+/// Runs `frames` frames of the demo, typing the script's keys, and hands
+/// the machine to `after_frame` after each with the frame's number; stops
+/// early when a key (Esc) ends the demo. Returns the frames run.
+pub fn run_script(script: &Script, frames: u32, mut after_frame: impl FnMut(&Machine, u32)) -> u32 {
+    let mut machine = Machine::new();
+    for frame in 0..frames {
+        if let Some(key) = script.key_before(frame) {
+            machine.tap(key);
+        }
+        if machine.app().quit_requested() {
+            return frame;
+        }
+        machine.frame();
+        after_frame(&machine, frame);
+    }
+    frames
+}
+
+/// What [`record_gif`] wrote.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Recorded {
+    /// Frames of the demo run.
+    pub frames_run: u32,
+    /// Images in the GIF.
+    pub images: u32,
+    /// Each image's delay, in hundredths of a second.
+    pub delay_centiseconds: u16,
+}
+
+/// Whether frame `frame` of a run is recorded when one in `every` is: the
+/// last of each group of `every`.
+pub fn recorded(frame: u32, every: u32) -> bool {
+    (frame + 1).is_multiple_of(every.max(1))
+}
+
+/// Runs the script for `frames` frames and writes the scan-out after every
+/// `every`-th as a 320x240 GIF image, its palette the 256 DAC colours as the
+/// scan-out shows them. Each image after the first holds only the rectangle
+/// that changed (drawn over the last), which keeps a spinning cube small.
+pub fn record_gif(
+    script: &Script,
+    frames: u32,
+    every: u32,
+    out: impl Write,
+) -> Result<Recorded, String> {
+    let mut encoder: Option<Encoder<_>> = None;
+    let mut out = Some(out);
+    let mut previous: Option<(Vec<u8>, Vec<u8>)> = None;
+    let mut images = 0;
+    let mut delay = 0;
+    let mut failure = None;
+    let frames_run = run_script(script, frames, |machine, frame| {
+        if !recorded(frame, every) || failure.is_some() {
+            return;
+        }
+        let frame_ns = machine.vga().timing().frame_ns();
+        delay = ((u64::from(every.max(1)) * frame_ns + NANOS_PER_CENTISECOND / 2)
+            / NANOS_PER_CENTISECOND) as u16;
+        let indices = machine.scanout_indices();
+        let palette = dac_palette(machine);
+        let result = match (&mut encoder, out.take()) {
+            (None, Some(out)) => start(out, &palette).map(|started| encoder = Some(started)),
+            _ => Ok(()),
+        }
+        .and_then(|()| {
+            let encoder = encoder.as_mut().expect("started above");
+            let image = changed_image(&indices, &palette, previous.as_ref(), delay);
+            encoder
+                .write_frame(&image)
+                .map_err(|e| format!("writing the GIF: {e}"))
+        });
+        match result {
+            Ok(()) => {
+                images += 1;
+                previous = Some((indices, palette));
+            }
+            Err(e) => failure = Some(e),
+        }
+    });
+    if let Some(failure) = failure {
+        return Err(failure);
+    }
+    if images == 0 {
+        return Err(format!(
+            "no frame recorded: {frames_run} frames run, one in {every} kept"
+        ));
+    }
+    Ok(Recorded {
+        frames_run,
+        images,
+        delay_centiseconds: delay,
+    })
+}
+
+fn start<W: Write>(out: W, palette: &[u8]) -> Result<Encoder<W>, String> {
+    let mut encoder = Encoder::new(out, WIDTH as u16, HEIGHT as u16, palette)
+        .map_err(|e| format!("starting the GIF: {e}"))?;
+    encoder
+        .set_repeat(Repeat::Infinite)
+        .map_err(|e| format!("starting the GIF: {e}"))?;
+    Ok(encoder)
+}
+
+/// The DAC's 256 colours, 8 bits a component as the scan-out expands them.
+fn dac_palette(machine: &Machine) -> Vec<u8> {
+    (0..=255u8)
+        .flat_map(|index| machine.vga().dac_entry(index).map(dac_6_to_8))
+        .collect()
+}
+
+/// The image for `indices`: the whole picture first, then the smallest
+/// rectangle holding every pixel that changed since `previous` (one pixel if
+/// none did; a GIF image cannot be empty). The first image's palette is the
+/// GIF's global one; a later image carries its own only if the DAC changed.
+fn changed_image<'a>(
+    indices: &'a [u8],
+    palette: &[u8],
+    previous: Option<&(Vec<u8>, Vec<u8>)>,
+    delay: u16,
+) -> Frame<'a> {
+    let (left, top, right, bottom) = match previous {
+        None => (0, 0, WIDTH, HEIGHT),
+        Some((old, _)) => changed_rectangle(old, indices).unwrap_or((0, 0, 1, 1)),
+    };
+    let buffer: Vec<u8> = (top..bottom)
+        .flat_map(|y| indices[y * WIDTH + left..y * WIDTH + right].iter().copied())
+        .collect();
+    let palette_changed = previous.is_some_and(|(_, old_palette)| old_palette != palette);
+    Frame {
+        left: left as u16,
+        top: top as u16,
+        width: (right - left) as u16,
+        height: (bottom - top) as u16,
+        buffer: Cow::Owned(buffer),
+        delay,
+        dispose: DisposalMethod::Keep,
+        palette: palette_changed.then(|| palette.to_vec()),
+        ..Frame::default()
+    }
+}
+
+/// (left, top, right, bottom), exclusive at right and bottom, of the pixels
+/// that differ; `None` if none do.
+fn changed_rectangle(old: &[u8], new: &[u8]) -> Option<(usize, usize, usize, usize)> {
+    let mut rectangle: Option<(usize, usize, usize, usize)> = None;
+    for (pixel, _) in old.iter().zip(new).enumerate().filter(|(_, (a, b))| a != b) {
+        let (x, y) = (pixel % WIDTH, pixel / WIDTH);
+        rectangle = Some(match rectangle {
+            None => (x, y, x + 1, y + 1),
+            Some((l, t, r, b)) => (l.min(x), t.min(y), r.max(x + 1), b.max(y + 1)),
+        });
+    }
+    rectangle
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keys_come_every_so_many_frames_from_the_first() {
+        let script = Script {
+            keys: crate::keys::parse_keys("r l m").unwrap(),
+            key_every: 10,
+        };
+        let typed: Vec<u32> = (0..100)
+            .filter(|&f| script.key_before(f).is_some())
+            .collect();
+        assert_eq!(typed, [0, 10, 20]);
+    }
+
+    #[test]
+    fn the_changed_rectangle_holds_exactly_the_changes() {
+        let old = vec![0u8; WIDTH * HEIGHT];
+        let mut new = old.clone();
+        assert_eq!(changed_rectangle(&old, &new), None);
+        new[5 * WIDTH + 7] = 1;
+        new[9 * WIDTH + 3] = 1;
+        assert_eq!(changed_rectangle(&old, &new), Some((3, 5, 8, 10)));
+    }
+
+    #[test]
+    fn esc_ends_the_run() {
+        let script = Script {
+            keys: crate::keys::parse_keys("r esc").unwrap(),
+            key_every: 5,
+        };
+        assert_eq!(run_script(&script, 100, |_, _| {}), 5);
+    }
+}
