@@ -13,6 +13,7 @@ pub mod app;
 pub mod baseline;
 pub mod frame;
 pub mod keymap;
+pub mod keys;
 pub mod osd;
 pub mod pattern;
 pub mod queue;

@@ -117,7 +117,7 @@ impl Machine {
 
     /// A key pressed and released.
     pub fn tap(&mut self, key: Scancode) {
-        self.feed(&key.tap());
+        self.feed(&crate::keys::tap(key));
     }
 
     /// One frame: the app draws and flips if anything moved (the flip waits

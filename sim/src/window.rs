@@ -54,7 +54,7 @@ impl InputCallback for Keyboard {
             } else {
                 scancode.release()
             };
-            for byte in bytes {
+            for &byte in bytes.iter() {
                 self.0.push(byte);
             }
         }
@@ -175,7 +175,7 @@ pub fn run(options: &Options) -> Result<(), String> {
     let mut frame = 0;
     while window.is_open() {
         if let Some(key) = options.script.key_before(frame) {
-            for byte in key.tap() {
+            for byte in sim::keys::tap(key) {
                 queue.push(byte);
             }
         }
