@@ -1,102 +1,86 @@
 //! `cargo run --release -- [OPTIONS]`: builds the kernel and its disk images
 //! (cargo does that through the build script), then boots one in QEMU.
 
+use anyhow::Context;
 use boot::qemu::{self, Display, Firmware, Graphics, Qemu, QemuOptions};
-use std::path::PathBuf;
+use clap::Parser;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 
-const USAGE: &str = "\
-Boot the modex-cube kernel in QEMU.
-
-Usage: cargo run --release -- [OPTIONS]
-
-Options:
-  --uefi                boot target/images/uefi.img with OVMF instead of the BIOS image
-  --headless            no window: the serial console streams to this terminal
-  --screenshot FILE     after boot (and --keys) save QEMU's picture as a PNG, then stop
-  --keys \"KEYS\"         type these after boot: QEMU key names separated by spaces,
-                        e.g. \"r 4 4 kp_8 a f1 left spc esc\"
-  --wait SECS           with --screenshot: wait SECS after the keys before taking it
-                        (default 0.5), e.g. to let the statistics measure a spin
-  --vga ADAPTER         the display adapter QEMU emulates, each with its own VGA BIOS:
-                        std (default), cirrus, vmware, qxl, virtio, ati, isa-cirrus,
-                        bochs-display (no legacy VGA)
-  --timeout SECS        stop QEMU after SECS seconds
-  --boot-option OPTION  hand OPTION to the kernel via fw_cfg (see README: test-pattern,
-                        flip-rate, bench, fault=...)
-  --write-usb DEVICE    instead of booting, write the image (bios.img, or uefi.img with
-                        --uefi) to the whole USB stick DEVICE, e.g. /dev/sdb, after checking
-                        it is a removable, unmounted disk; shows what will be overwritten
-                        and asks you to type its name
-  -h, --help            show this help
-
-Without a display (no $DISPLAY or $WAYLAND_DISPLAY) the kernel runs headless.
-The images are also written to target/images/bios.img and target/images/uefi.img.";
-
+/// Boot the modex-cube kernel in QEMU.
+///
+/// Without a display (no $DISPLAY or $WAYLAND_DISPLAY) the kernel runs
+/// headless. The images are also written to target/images/bios.img and
+/// target/images/uefi.img.
+#[derive(Debug, Parser)]
+#[command(name = "cargo run --release --", version)]
 struct Args {
-    firmware: Firmware,
+    /// Boot target/images/uefi.img with OVMF instead of the BIOS image.
+    #[arg(long)]
+    uefi: bool,
+    /// No window: the serial console streams to this terminal.
+    #[arg(long)]
     headless: bool,
+    /// After boot (and --keys) save QEMU's picture as a PNG, then stop.
+    #[arg(long, value_name = "FILE")]
     screenshot: Option<PathBuf>,
-    keys: Vec<String>,
-    timeout: Option<Duration>,
+    /// Type these after boot, separated by spaces, e.g. "r 4 4 kp_8 a f1 left spc esc".
+    /// The names are listed in the README and in an unknown name's error.
+    #[arg(long, value_name = "KEYS", value_parser = parse_keys, default_value = "")]
+    keys: KeyNames,
+    /// With --screenshot: wait SECS after the keys before taking it, e.g. to let
+    /// the statistics measure a spin.
+    #[arg(long, value_name = "SECS", value_parser = seconds, default_value = "0.5")]
     wait: Duration,
-    boot_option: Option<String>,
-    write_usb: Option<PathBuf>,
+    /// The display adapter QEMU emulates, each with its own VGA BIOS.
+    #[arg(long = "vga", value_name = "ADAPTER", value_parser = adapter, default_value = "std")]
     graphics: Graphics,
+    /// Stop QEMU after SECS seconds.
+    #[arg(long, value_name = "SECS", value_parser = seconds)]
+    timeout: Option<Duration>,
+    /// Hand OPTION to the kernel via fw_cfg (see the README: test-pattern,
+    /// flip-rate, clock-check, bench, fault=...).
+    #[arg(long, value_name = "OPTION")]
+    boot_option: Option<String>,
+    /// Instead of booting, write the image (bios.img, or uefi.img with --uefi)
+    /// to the whole USB stick DEVICE, e.g. /dev/sdb, after checking it is a
+    /// removable, unmounted disk; shows what will be overwritten and asks you
+    /// to type its name.
+    #[arg(long, value_name = "DEVICE")]
+    write_usb: Option<PathBuf>,
 }
 
-fn parse_args(mut args: impl Iterator<Item = String>) -> Result<Option<Args>, String> {
-    let mut parsed = Args {
-        firmware: Firmware::Bios,
-        headless: false,
-        screenshot: None,
-        keys: Vec::new(),
-        timeout: None,
-        wait: Duration::from_millis(500),
-        boot_option: None,
-        write_usb: None,
-        graphics: Graphics::StdVga,
-    };
-    while let Some(arg) = args.next() {
-        let mut value = |name: &str| {
-            args.next()
-                .ok_or_else(|| format!("{name} needs a value; see --help"))
-        };
-        match arg.as_str() {
-            "-h" | "--help" => return Ok(None),
-            "--uefi" => parsed.firmware = Firmware::Uefi,
-            "--headless" => parsed.headless = true,
-            "--screenshot" => parsed.screenshot = Some(PathBuf::from(value("--screenshot")?)),
-            "--keys" => {
-                parsed.keys = value("--keys")?
-                    .split_whitespace()
-                    .map(str::to_lowercase)
-                    .collect()
-            }
-            "--timeout" => parsed.timeout = Some(seconds("--timeout", &value("--timeout")?)?),
-            "--wait" => parsed.wait = seconds("--wait", &value("--wait")?)?,
-            "--boot-option" => parsed.boot_option = Some(value("--boot-option")?),
-            "--vga" => {
-                let name = value("--vga")?;
-                parsed.graphics = Graphics::from_name(&name).ok_or_else(|| {
-                    let names: Vec<_> = Graphics::ALL.iter().map(|g| g.name()).collect();
-                    format!("unknown adapter {name:?}; one of: {}", names.join(", "))
-                })?;
-            }
-            "--write-usb" => parsed.write_usb = Some(PathBuf::from(value("--write-usb")?)),
-            other => return Err(format!("unknown option {other:?}; see --help")),
-        }
-    }
-    Ok(Some(parsed))
+/// Key names checked against `demo::keys`, the one table of them.
+#[derive(Clone, Debug, Default)]
+struct KeyNames(Vec<String>);
+
+fn parse_keys(text: &str) -> Result<KeyNames, String> {
+    text.split_whitespace()
+        .map(|name| match demo::keys::scancode_for_name(name) {
+            Some(_) => Ok(name.to_lowercase()),
+            None => Err(format!(
+                "unknown key {name:?}; key names: {}",
+                demo::keys::names().collect::<Vec<_>>().join(" ")
+            )),
+        })
+        .collect::<Result<_, _>>()
+        .map(KeyNames)
 }
 
-fn seconds(option: &str, text: &str) -> Result<Duration, String> {
+fn seconds(text: &str) -> Result<Duration, String> {
     text.parse()
         .ok()
         .filter(|s: &f64| s.is_finite() && *s > 0.0 && *s < 1e9)
         .map(Duration::from_secs_f64)
-        .ok_or_else(|| format!("{option} takes a positive number of seconds, not {text:?}"))
+        .ok_or_else(|| format!("a positive number of seconds, not {text:?}"))
+}
+
+fn adapter(name: &str) -> Result<Graphics, String> {
+    Graphics::from_name(name).ok_or_else(|| {
+        let names: Vec<_> = Graphics::ALL.iter().map(|g| g.name()).collect();
+        format!("unknown adapter {name:?}; one of: {}", names.join(", "))
+    })
 }
 
 fn has_display() -> bool {
@@ -105,9 +89,14 @@ fn has_display() -> bool {
         .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
 }
 
-fn run(args: Args) -> Result<ExitCode, String> {
-    let images = boot::images::publish()?;
-    let image = match args.firmware {
+fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let firmware = if args.uefi {
+        Firmware::Uefi
+    } else {
+        Firmware::Bios
+    };
+    let images = boot::images::publish().map_err(anyhow::Error::msg)?;
+    let image = match firmware {
         Firmware::Bios => images.bios,
         Firmware::Uefi => images.uefi,
     };
@@ -122,7 +111,7 @@ fn run(args: Args) -> Result<ExitCode, String> {
         println!("Serial console follows. Ctrl-C stops QEMU.");
     }
     let mut options = QemuOptions::new(&image);
-    options.firmware = args.firmware;
+    options.firmware = firmware;
     options.display = if headless {
         Display::Headless
     } else {
@@ -131,26 +120,21 @@ fn run(args: Args) -> Result<ExitCode, String> {
     options.boot_option = args.boot_option.clone();
     options.graphics = args.graphics;
     options.echo_serial = true;
-    println!("Booting {} ({:?})", image.display(), args.firmware);
-    let mut qemu = Qemu::start(&options).map_err(|e| e.to_string())?;
+    println!("Booting {} ({:?})", image.display(), firmware);
+    let mut qemu = Qemu::start(&options)?;
 
-    if !args.keys.is_empty() || args.screenshot.is_some() {
-        let boot_time = if args.firmware == Firmware::Uefi {
-            120
-        } else {
-            60
-        };
-        qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(boot_time))
-            .map_err(|e| e.to_string())?;
-        for key in &args.keys {
-            qemu.send_key(key).map_err(|e| format!("{e} (QEMU key names: a-z, 0-9, kp_0-kp_9, f1-f12, left, right, up, down, home, end, pgup, pgdn, spc, esc, ret)"))?;
+    if !args.keys.0.is_empty() || args.screenshot.is_some() {
+        let boot_time = if firmware == Firmware::Uefi { 120 } else { 60 };
+        qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(boot_time))?;
+        for key in &args.keys.0 {
+            qemu.send_key(key)?;
             std::thread::sleep(Duration::from_millis(150));
         }
         if let Some(path) = &args.screenshot {
             // Let the last key's frame reach the screen.
             std::thread::sleep(args.wait);
-            let picture = qemu.screendump().map_err(|e| e.to_string())?;
-            picture.write_png(path)?;
+            let picture = qemu.screendump()?;
+            picture.write_png(path).map_err(anyhow::Error::msg)?;
             println!(
                 "Saved a {}x{} screenshot to {}",
                 picture.width,
@@ -161,9 +145,7 @@ fn run(args: Args) -> Result<ExitCode, String> {
         }
     }
 
-    let status = qemu
-        .wait_exit(args.timeout.unwrap_or(Duration::MAX / 4))
-        .map_err(|e| e.to_string())?;
+    let status = qemu.wait_exit(args.timeout.unwrap_or(Duration::MAX / 4))?;
     Ok(match status {
         None => {
             println!("Stopping QEMU after the timeout.");
@@ -180,7 +162,7 @@ fn run(args: Args) -> Result<ExitCode, String> {
 
 /// Writes the image to a USB stick after the checks in `boot::usb` and the
 /// user's typed confirmation.
-fn write_usb(image: &std::path::Path, device: &std::path::Path) -> Result<ExitCode, String> {
+fn write_usb(image: &Path, device: &Path) -> anyhow::Result<ExitCode> {
     let written = boot::usb::write_image_to_usb(image, device, |description| {
         println!(
             "{description}\nType the device name ({}) to overwrite it:",
@@ -192,7 +174,9 @@ fn write_usb(image: &std::path::Path, device: &std::path::Path) -> Result<ExitCo
         typed
             && (answer == device.to_string_lossy()
                 || Some(answer) == device.file_name().and_then(|name| name.to_str()))
-    })?;
+    })
+    .map_err(anyhow::Error::msg)
+    .with_context(|| format!("nothing was written to {}", device.display()))?;
     println!(
         "Wrote {written} bytes to {} and flushed it.",
         device.display()
@@ -201,18 +185,54 @@ fn write_usb(image: &std::path::Path, device: &std::path::Path) -> Result<ExitCo
 }
 
 fn main() -> ExitCode {
-    match parse_args(std::env::args().skip(1)) {
-        Ok(None) => {
-            println!("{USAGE}");
-            ExitCode::SUCCESS
-        }
-        Ok(Some(args)) => run(args).unwrap_or_else(|message| {
-            eprintln!("error: {message}");
-            ExitCode::FAILURE
-        }),
-        Err(message) => {
-            eprintln!("error: {message}");
-            ExitCode::from(2)
-        }
+    let args = Args::parse();
+    run(args).unwrap_or_else(|error| {
+        eprintln!("error: {error:#}");
+        ExitCode::FAILURE
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn the_arguments_are_consistent() {
+        Args::command().debug_assert();
+    }
+
+    #[test]
+    fn key_names_come_from_the_one_table() {
+        let args = Args::try_parse_from(["runner", "--keys", "R 4 kp_8 left esc"]).unwrap();
+        assert_eq!(args.keys.0, ["r", "4", "kp_8", "left", "esc"]);
+        let error = Args::try_parse_from(["runner", "--keys", "r nope"]).unwrap_err();
+        assert!(error.to_string().contains("\"nope\""), "{error}");
+        assert!(error.to_string().contains("pgdn"), "{error}");
+    }
+
+    #[test]
+    fn adapters_and_durations_are_checked() {
+        let args = Args::try_parse_from(["runner", "--vga", "cirrus", "--wait", "2"]).unwrap();
+        assert_eq!(args.graphics, Graphics::Cirrus);
+        assert_eq!(args.wait, Duration::from_secs(2));
+        assert!(Args::try_parse_from(["runner", "--vga", "s3"]).is_err());
+        assert!(Args::try_parse_from(["runner", "--timeout", "-1"]).is_err());
+    }
+
+    /// The README lists the key names; it must list exactly the table's.
+    #[test]
+    fn the_readme_lists_every_key_name() {
+        let readme = include_str!("../README.md");
+        let listed = readme
+            .lines()
+            .find_map(|line| line.strip_prefix("Key names: "))
+            .expect("the README has a line starting \"Key names: \"");
+        let listed: Vec<&str> = listed
+            .split_whitespace()
+            .map(|name| name.trim_matches('`'))
+            .collect();
+        let table: Vec<&str> = demo::keys::names().collect();
+        assert_eq!(listed, table);
     }
 }

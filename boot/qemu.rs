@@ -9,6 +9,7 @@
 //! emulator behind.
 
 use crate::image::RgbImage;
+use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
@@ -138,29 +139,25 @@ impl QemuOptions {
     }
 }
 
-#[derive(Debug)]
+/// What went wrong with QEMU; each carries a message that says what to do.
+#[derive(Debug, thiserror::Error)]
 pub enum QemuError {
-    /// The executable is missing: how to install it.
+    /// The executable or the firmware is missing: how to install it.
+    #[error("{0}")]
     NotInstalled(String),
+    /// The operating system refused something (a scratch directory, a wait).
+    #[error("{0}")]
     Io(String),
+    /// A wait ran out; the message holds the console so far.
+    #[error("{0}")]
     Timeout(String),
+    /// QEMU ended before what was waited for happened.
+    #[error("{0}")]
     Exited(String),
+    /// The QMP monitor refused a command or answered nonsense.
+    #[error("{0}")]
     Monitor(String),
 }
-
-impl std::fmt::Display for QemuError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            QemuError::NotInstalled(s)
-            | QemuError::Io(s)
-            | QemuError::Timeout(s)
-            | QemuError::Exited(s)
-            | QemuError::Monitor(s) => f.write_str(s),
-        }
-    }
-}
-
-impl std::error::Error for QemuError {}
 
 type Result<T> = std::result::Result<T, QemuError>;
 
@@ -199,13 +196,15 @@ pub struct Qemu {
     child: Child,
     serial: Arc<SerialLog>,
     monitor: BufReader<UnixStream>,
-    scratch: tempdir::Dir,
+    scratch: tempfile::TempDir,
 }
 
 impl Qemu {
     pub fn start(options: &QemuOptions) -> Result<Qemu> {
         check_installed(options.firmware)?;
-        let scratch = tempdir::Dir::new()
+        let scratch = tempfile::Builder::new()
+            .prefix("modex-cube-")
+            .tempdir()
             .map_err(|e| QemuError::Io(format!("cannot make a scratch dir: {e}")))?;
         let monitor_path = scratch.path().join("monitor.sock");
 
@@ -263,7 +262,7 @@ impl Qemu {
             scratch,
         };
         qemu.read_reply()?; // the greeting
-        qemu.execute(r#"{"execute":"qmp_capabilities"}"#)?;
+        qemu.execute(json!({ "execute": "qmp_capabilities" }))?;
         Ok(qemu)
     }
 
@@ -306,19 +305,21 @@ impl Qemu {
         }
     }
 
-    /// Sends one QMP command (a JSON object) and returns its reply line.
-    fn execute(&mut self, command: &str) -> Result<String> {
+    /// Sends one QMP command and returns what it returned; a QMP error
+    /// reply is an error.
+    fn execute(&mut self, command: Value) -> Result<Value> {
+        let line = format!("{command}\n");
         self.monitor
             .get_mut()
-            .write_all(format!("{command}\n").as_bytes())
+            .write_all(line.as_bytes())
             .map_err(|e| QemuError::Monitor(format!("QMP write failed: {e}")))?;
-        let reply = self.read_reply()?;
-        if reply.contains("\"error\"") {
+        let mut reply = self.read_reply()?;
+        if let Some(error) = reply.get("error") {
             return Err(QemuError::Monitor(format!(
-                "QEMU refused {command}: {reply}"
+                "QEMU refused {command}: {error}"
             )));
         }
-        Ok(reply)
+        Ok(reply["return"].take())
     }
 
     /// Presses and releases a key, named as QEMU's `sendkey` names keys
@@ -336,15 +337,14 @@ impl Qemu {
                 "{key:?} is not a QEMU key name"
             )));
         }
-        let command = format!(
-            r#"{{"execute":"human-monitor-command","arguments":{{"command-line":"sendkey {key} {hold_millis}"}}}}"#
-        );
-        let reply = self.execute(&command)?;
-        // HMP's answer comes back as the "return" string: empty on success.
-        if reply.contains("\"return\": \"\"") || reply.contains("\"return\":\"\"") {
-            Ok(())
-        } else {
-            Err(QemuError::Monitor(format!("sendkey {key}: {reply}")))
+        let reply = self.execute(json!({
+            "execute": "human-monitor-command",
+            "arguments": { "command-line": format!("sendkey {key} {hold_millis}") },
+        }))?;
+        // HMP's answer comes back as the returned string: empty on success.
+        match reply.as_str() {
+            Some("") => Ok(()),
+            _ => Err(QemuError::Monitor(format!("sendkey {key}: {reply}"))),
         }
     }
 
@@ -353,11 +353,10 @@ impl Qemu {
     pub fn screendump(&mut self) -> Result<RgbImage> {
         let path = self.scratch.path().join("screen.ppm");
         let _ = std::fs::remove_file(&path);
-        let command = format!(
-            r#"{{"execute":"screendump","arguments":{{"filename":"{}"}}}}"#,
-            path.display()
-        );
-        let reply = self.execute(&command)?;
+        let reply = self.execute(json!({
+            "execute": "screendump",
+            "arguments": { "filename": path },
+        }))?;
         let bytes = std::fs::read(&path).map_err(|e| {
             QemuError::Monitor(format!(
                 "screendump wrote no file ({e}); QEMU said: {reply}"
@@ -388,10 +387,10 @@ impl Qemu {
         matches!(self.child.try_wait(), Ok(None))
     }
 
-    /// The next QMP line that answers a command (or greets): events, which
+    /// The next QMP message that answers a command (or greets): events, which
     /// QEMU sends whenever they happen (`{"timestamp": ..., "event": ...}`),
     /// are skipped.
-    fn read_reply(&mut self) -> Result<String> {
+    fn read_reply(&mut self) -> Result<Value> {
         loop {
             let mut line = String::new();
             match self.monitor.read_line(&mut line) {
@@ -401,14 +400,17 @@ impl Qemu {
                         self.serial()
                     )))
                 }
-                Ok(_)
-                    if ["{\"return\"", "{\"error\"", "{\"QMP\""]
+                Ok(_) => {
+                    let message: Value = serde_json::from_str(&line).map_err(|e| {
+                        QemuError::Monitor(format!("QMP sent something not JSON ({e}): {line}"))
+                    })?;
+                    if ["return", "error", "QMP"]
                         .iter()
-                        .any(|s| line.starts_with(s)) =>
-                {
-                    return Ok(line.trim_end().to_owned())
+                        .any(|key| message.get(key).is_some())
+                    {
+                        return Ok(message);
+                    }
                 }
-                Ok(_) => continue,
                 Err(e) => return Err(QemuError::Monitor(format!("QMP read failed: {e}"))),
             }
         }
@@ -462,38 +464,6 @@ fn connect_monitor(path: &Path, child: &mut Child, log: &SerialLog) -> Result<Un
                 }
                 std::thread::sleep(Duration::from_millis(20));
             }
-        }
-    }
-}
-
-/// A scratch directory removed on drop (the monitor socket and screendumps).
-mod tempdir {
-    use std::path::{Path, PathBuf};
-    use std::sync::atomic::{AtomicU32, Ordering};
-
-    pub struct Dir(PathBuf);
-
-    impl Dir {
-        pub fn new() -> std::io::Result<Dir> {
-            static NEXT: AtomicU32 = AtomicU32::new(0);
-            let name = format!(
-                "modex-cube-{}-{}",
-                std::process::id(),
-                NEXT.fetch_add(1, Ordering::Relaxed)
-            );
-            let path = std::env::temp_dir().join(name);
-            std::fs::create_dir_all(&path)?;
-            Ok(Dir(path))
-        }
-
-        pub fn path(&self) -> &Path {
-            &self.0
-        }
-    }
-
-    impl Drop for Dir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
         }
     }
 }
