@@ -412,7 +412,7 @@ fn connect_monitor(path: &Path, child: &mut Child, log: &SerialLog) -> Result<Un
 }
 
 /// A scratch directory removed on drop (the monitor socket and screendumps).
-mod tempdir {
+pub(crate) mod tempdir {
     use std::path::{Path, PathBuf};
     use std::sync::atomic::{AtomicU32, Ordering};
 
