@@ -156,8 +156,9 @@ fn picture_and_goodbye(vga: VgaExtension) {
 
     bochs.send_key("Escape").unwrap_or_else(|e| panic!("{e}"));
     wait_for_serial(&mut bochs, "demo: goodbye", KEY_TIMEOUT);
+    let shown_at = Instant::now();
     match bochs.wait_for_screen(SCREEN_TIMEOUT, |shown| goodbye_mismatch(shown).is_none()) {
-        Ok(_) => {}
+        Ok(_) => println!("{name}: the goodbye screen is shown after {:.1?}", shown_at.elapsed()),
         Err(BochsError::ScreenTimeout { waited, last }) => panic!(
             "{name}: {waited:?} after the goodbye line on serial, the window is not the goodbye screen: {}",
             goodbye_mismatch(&last).unwrap_or_default()
