@@ -33,10 +33,10 @@ const CIRRUS_VGA_BIOS: &str = "/usr/share/vgabios/vgabios-cirrus.bin";
 
 /// Instructions per emulated second. With `clock: sync=none` Bochs runs as
 /// fast as it can and emulated time is instructions / ips, so this sets how
-/// much host work an emulated second costs. Booting is dominated by waits in
-/// emulated time (the BIOS's, the kernel's TSC calibration), so a low value
-/// boots faster: to `screen: ready` took 2.3-2.7 s at 10-25 M, 8-24 s at
-/// 50-150 M and 55 s at 400 M on a loaded 2-core machine. 25 M still leaves
+/// much host work an emulated second costs, and the boot waits in emulated
+/// time (the BIOS's, the kernel's TSC calibration over 0.2 s). Measured to
+/// `screen: ready` on a 2-core machine shared with other builds: 2.3-7 s at
+/// 10-25 M, 8 s at 50 M, 2.6-24 s at 150 M, 55 s at 400 M. 25 M still leaves
 /// the kernel about 400 000 instructions per 60 Hz frame; a frame it cannot
 /// finish in time only misses a retrace, which these tests do not look at.
 pub const DEFAULT_IPS: u64 = 25_000_000;
@@ -184,23 +184,14 @@ impl Bochs {
         std::fs::write(&debugger_commands, "c\n")
             .map_err(|e| io_error("cannot write the debugger commands", e))?;
 
-        let (xvfb, display) = start_xvfb(scratch.path())?;
-        let output = std::fs::File::create(scratch.path().join("bochs.out"))
-            .map_err(|e| io_error("cannot create bochs.out", e))?;
-        let bochs = Command::new("bochs")
-            .arg("-q")
-            .arg("-f")
-            .arg(&bochsrc)
-            .arg("-rc")
-            .arg(&debugger_commands)
-            .env("DISPLAY", &display)
-            .current_dir(scratch.path())
-            // At the end of its commands the debugger reads stdin: EOF quits.
-            .stdin(Stdio::null())
-            .stdout(output.try_clone().map_err(|e| io_error("bochs.out", e))?)
-            .stderr(output)
-            .spawn()
-            .map_err(|e| BochsError::NotInstalled(format!("cannot start bochs: {e}")))?;
+        let (mut xvfb, display) = start_xvfb(scratch.path())?;
+        let bochs = match spawn_bochs(&bochsrc, &debugger_commands, &display, scratch.path()) {
+            Ok(bochs) => bochs,
+            Err(e) => {
+                stop_xvfb(&mut xvfb);
+                return Err(e);
+            }
+        };
         let mut bochs = Bochs {
             bochs,
             xvfb,
@@ -369,9 +360,53 @@ impl Drop for Bochs {
     fn drop(&mut self) {
         let _ = self.bochs.kill();
         let _ = self.bochs.wait();
-        let _ = self.xvfb.kill();
-        let _ = self.xvfb.wait();
+        stop_xvfb(&mut self.xvfb);
     }
+}
+
+/// Stops Xvfb with SIGTERM, on which it removes its socket and lock file
+/// (SIGKILL would leave them in /tmp), and kills it if it has not gone
+/// within a second.
+fn stop_xvfb(xvfb: &mut Child) {
+    let asked = Command::new("kill")
+        .args(["-TERM", &xvfb.id().to_string()])
+        .status()
+        .is_ok_and(|s| s.success());
+    let deadline = Instant::now() + Duration::from_secs(1);
+    while asked && Instant::now() < deadline {
+        if let Ok(Some(_)) = xvfb.try_wait() {
+            return;
+        }
+        std::thread::sleep(POLL_INTERVAL);
+    }
+    let _ = xvfb.kill();
+    let _ = xvfb.wait();
+}
+
+/// Starts Bochs on `display` with its output (its own messages and the
+/// debugger's) in `bochs.out` in `dir`.
+fn spawn_bochs(
+    bochsrc: &Path,
+    debugger_commands: &Path,
+    display: &str,
+    dir: &Path,
+) -> Result<Child> {
+    let output = std::fs::File::create(dir.join("bochs.out"))
+        .map_err(|e| io_error("cannot create bochs.out", e))?;
+    Command::new("bochs")
+        .arg("-q")
+        .arg("-f")
+        .arg(bochsrc)
+        .arg("-rc")
+        .arg(debugger_commands)
+        .env("DISPLAY", display)
+        .current_dir(dir)
+        // At the end of its commands the debugger reads stdin: EOF quits.
+        .stdin(Stdio::null())
+        .stdout(output.try_clone().map_err(|e| io_error("bochs.out", e))?)
+        .stderr(output)
+        .spawn()
+        .map_err(|e| BochsError::NotInstalled(format!("cannot start bochs: {e}")))
 }
 
 fn io_error(what: &str, error: std::io::Error) -> BochsError {
