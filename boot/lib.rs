@@ -1,10 +1,13 @@
-//! The host side: the disk images, QEMU, and the pictures it takes. The runner
-//! (`boot/main.rs`) and the integration tests (`tests/`) share all of it.
+//! The host side: the disk images, QEMU and Bochs, and the pictures they
+//! take. The runner (`boot/main.rs`) and the integration tests (`tests/`)
+//! share all of it.
 
+pub mod bochs;
 pub mod image;
 pub mod images;
 pub mod qemu;
 pub mod usb;
+pub mod xwd;
 
 pub use image::RgbImage;
 pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};

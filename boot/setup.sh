@@ -26,9 +26,14 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 say "$(qemu-system-x86_64 --version | head -n 1)"
 
-# The simulator's window tests (sim/tests/window.rs) run it under a virtual X
-# server, type with xdotool and capture with xwd.
+# The Bochs tests (tests/bochs.rs) and the simulator's window tests
+# (sim/tests/window.rs): Bochs with its X display plugin and ROMs, and a
+# virtual X server with the tools that type into and read its windows.
 missing=()
+command -v bochs >/dev/null || missing+=(bochs)
+[ -f /usr/share/bochs/BIOS-bochs-latest ] || missing+=(bochsbios)
+[ -f /usr/share/vgabios/vgabios.bin ] && [ -f /usr/share/vgabios/vgabios-cirrus.bin ] || missing+=(vgabios)
+dpkg-query -W -f='${Status}' bochs-x 2>/dev/null | grep -q 'ok installed' || missing+=(bochs-x)
 command -v Xvfb >/dev/null || missing+=(xvfb)
 command -v xdotool >/dev/null || missing+=(xdotool)
 command -v xwd >/dev/null || missing+=(x11-apps)
@@ -38,6 +43,7 @@ if [ ${#missing[@]} -gt 0 ]; then
     as_root apt-get update -qq
     as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
+say "bochs $(dpkg-query -W -f='${Version}' bochs 2>/dev/null || echo '(version unknown)')"
 
 command -v rustup >/dev/null || die "rustup not found: install it from the Rust website, then run this again"
 # rust-toolchain.toml names one dated nightly with its components and target;

@@ -1,0 +1,539 @@
+//! Bochs 2.7 as a second emulator, with its own VGA core and VGA BIOSes, for
+//! the same picture tests as QEMU.
+//!
+//! Bochs has no monitor to take screenshots or type keys, so a `Bochs` runs
+//! it under its own Xvfb with the X display library: keys are typed into the
+//! window with `xdotool`, and the window is read back with `xwd`. The serial
+//! console goes to a file that is read as it grows. Dropping a `Bochs` kills
+//! Bochs and its X server.
+
+use crate::image::RgbImage;
+use crate::xwd;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+/// The executables a Bochs run needs, and the Debian packages that hold them
+/// (`bochs-x` is Bochs's X display plugin, `bochsbios` and `vgabios` its ROMs).
+const TOOLS: [(&str, &str); 4] = [
+    ("bochs", "bochs"),
+    ("Xvfb", "xvfb"),
+    ("xdotool", "xdotool"),
+    ("xwd", "x11-apps"),
+];
+pub const APT_PACKAGES: &str = "bochs bochsbios vgabios bochs-x xvfb xdotool x11-apps";
+
+const SYSTEM_BIOS: &str = "/usr/share/bochs/BIOS-bochs-latest";
+/// The LGPL VGA BIOS with Bochs VBE (Bochs's `VGABIOS-lgpl-latest`).
+const VBE_VGA_BIOS: &str = "/usr/share/vgabios/vgabios.bin";
+const CIRRUS_VGA_BIOS: &str = "/usr/share/vgabios/vgabios-cirrus.bin";
+
+/// Instructions per emulated second. With `clock: sync=none` Bochs runs as
+/// fast as it can and emulated time is instructions / ips, so this sets how
+/// much host work an emulated second costs, and the boot waits in emulated
+/// time (the BIOS's, the kernel's TSC calibration over 0.2 s). Measured to
+/// `screen: ready` on a 2-core machine shared with other builds: 2.3-7 s at
+/// 10-25 M, 8 s at 50 M, 2.6-24 s at 150 M, 55 s at 400 M. 25 M still leaves
+/// the kernel about 400 000 instructions per 60 Hz frame; a frame it cannot
+/// finish in time only misses a retrace, which these tests do not look at.
+pub const DEFAULT_IPS: u64 = 25_000_000;
+
+/// Bochs's X window is the guest picture with a toolbar above it and a
+/// status bar below, both as wide as the picture (measured on Bochs 2.7's X
+/// display library: a 720x400 text screen makes a 720x450 window).
+const TOOLBAR_HEIGHT: usize = 32;
+const STATUS_BAR_HEIGHT: usize = 18;
+
+/// Bochs's X window title begins with this.
+const WINDOW_NAME: &str = "^Bochs";
+
+/// How long to wait for Xvfb and for Bochs's window; both take well under a
+/// second on an idle machine.
+const START_TIMEOUT: Duration = Duration::from_secs(30);
+/// How often the serial file and the window are looked at while waiting.
+const POLL_INTERVAL: Duration = Duration::from_millis(20);
+
+/// The VGA Bochs emulates, each with the VGA BIOS made for it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VgaExtension {
+    /// Bochs's standard VGA with the Bochs VBE extension (DISPI), on the ISA bus.
+    Vbe,
+    /// A Cirrus Logic GD5446 on the PCI bus.
+    Cirrus,
+}
+
+#[derive(Clone, Debug)]
+pub struct BochsOptions {
+    pub image: PathBuf,
+    pub vga: VgaExtension,
+    pub ips: u64,
+}
+
+impl BochsOptions {
+    pub fn new(image: impl Into<PathBuf>, vga: VgaExtension) -> Self {
+        BochsOptions {
+            image: image.into(),
+            vga,
+            ips: DEFAULT_IPS,
+        }
+    }
+}
+
+#[derive(Debug)]
+pub enum BochsError {
+    /// A tool is missing: how to install it.
+    NotInstalled(String),
+    Io(String),
+    Timeout(String),
+    Exited(String),
+    /// `xdotool` or `xwd` failed.
+    Display(String),
+    /// The window never showed what was waited for; `last` is what it showed.
+    ScreenTimeout {
+        waited: Duration,
+        last: RgbImage,
+    },
+}
+
+impl std::fmt::Display for BochsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BochsError::NotInstalled(s)
+            | BochsError::Io(s)
+            | BochsError::Timeout(s)
+            | BochsError::Exited(s)
+            | BochsError::Display(s) => f.write_str(s),
+            BochsError::ScreenTimeout { waited, last } => write!(
+                f,
+                "the window did not show the expected picture within {waited:?}; it shows {last:?}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for BochsError {}
+
+type Result<T> = std::result::Result<T, BochsError>;
+
+/// Fails with an actionable message when a tool or ROM is missing.
+pub fn check_installed() -> Result<()> {
+    let mut missing: Vec<&str> = TOOLS
+        .iter()
+        .filter(|(tool, _)| !on_path(tool))
+        .map(|&(_, package)| package)
+        .collect();
+    if !x_display_plugin_installed() {
+        missing.push("bochs-x");
+    }
+    if !Path::new(SYSTEM_BIOS).exists() {
+        missing.push("bochsbios");
+    }
+    if !Path::new(VBE_VGA_BIOS).exists() || !Path::new(CIRRUS_VGA_BIOS).exists() {
+        missing.push("vgabios");
+    }
+    if missing.is_empty() {
+        return Ok(());
+    }
+    Err(BochsError::NotInstalled(format!(
+        "the Bochs tests need the Debian packages {}. Install them with `boot/setup.sh` \
+         (or `sudo apt-get install {APT_PACKAGES}`).",
+        missing.join(", ")
+    )))
+}
+
+/// Bochs's X display library is a plugin in `/usr/lib/<multiarch>/bochs/plugins`.
+fn x_display_plugin_installed() -> bool {
+    std::fs::read_dir("/usr/lib").is_ok_and(|dirs| {
+        dirs.flatten()
+            .any(|dir| dir.path().join("bochs/plugins/libbx_x_gui.so").exists())
+    })
+}
+
+fn on_path(program: &str) -> bool {
+    std::env::var_os("PATH")
+        .is_some_and(|path| std::env::split_paths(&path).any(|dir| dir.join(program).is_file()))
+}
+
+pub struct Bochs {
+    bochs: Child,
+    xvfb: Child,
+    /// The X display, `:N`.
+    display: String,
+    /// Bochs's window, as xdotool and xwd name it.
+    window: String,
+    scratch: tempfile::TempDir,
+}
+
+impl Bochs {
+    pub fn start(options: &BochsOptions) -> Result<Bochs> {
+        check_installed()?;
+        let scratch = tempfile::Builder::new()
+            .prefix("modex-cube-bochs-")
+            .tempdir()
+            .map_err(|e| io_error("cannot make a scratch dir", e))?;
+        let (disk, cylinders) = padded_disk(&options.image, scratch.path())?;
+        let bochsrc = scratch.path().join("bochsrc");
+        std::fs::write(
+            &bochsrc,
+            bochsrc_text(options, &disk, cylinders, scratch.path()),
+        )
+        .map_err(|e| io_error("cannot write the bochsrc", e))?;
+        // The Debian build of Bochs starts in its debugger; these are the
+        // debugger commands: continue.
+        let debugger_commands = scratch.path().join("continue.rc");
+        std::fs::write(&debugger_commands, "c\n")
+            .map_err(|e| io_error("cannot write the debugger commands", e))?;
+
+        let (mut xvfb, display) = start_xvfb(scratch.path())?;
+        let bochs = match spawn_bochs(&bochsrc, &debugger_commands, &display, scratch.path()) {
+            Ok(bochs) => bochs,
+            Err(e) => {
+                stop_xvfb(&mut xvfb);
+                return Err(e);
+            }
+        };
+        let mut bochs = Bochs {
+            bochs,
+            xvfb,
+            display,
+            window: String::new(),
+            scratch,
+        };
+        bochs.window = bochs.find_window()?;
+        Ok(bochs)
+    }
+
+    /// Everything the kernel has printed on serial so far.
+    pub fn serial(&self) -> String {
+        let bytes = std::fs::read(self.scratch.path().join("serial.txt")).unwrap_or_default();
+        String::from_utf8_lossy(&bytes).replace('\r', "")
+    }
+
+    /// Waits until the serial console contains `needle`; returns the console.
+    pub fn wait_for_serial(&mut self, needle: &str, timeout: Duration) -> Result<String> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let text = self.serial();
+            if text.contains(needle) {
+                return Ok(text);
+            }
+            self.fail_if_exited(&format!("before {needle:?} appeared on serial"))?;
+            if Instant::now() >= deadline {
+                return Err(BochsError::Timeout(format!(
+                    "timed out after {timeout:?} waiting for {needle:?} on serial; console so far:\n{text}{}",
+                    self.diagnostics()
+                )));
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
+    }
+
+    /// Presses and releases a key, named as X names keysyms (`r`, `4`,
+    /// `Escape`, `Left`, `F1`, ...).
+    pub fn send_key(&mut self, keysym: &str) -> Result<()> {
+        self.x_tool(
+            "xdotool",
+            &["key", "--window", &self.window.clone(), keysym],
+        )
+        .map(drop)
+    }
+
+    /// Bochs's whole window as the X server shows it: toolbar, guest
+    /// picture, status bar (without the X border, which `xwd` would include).
+    pub fn window_picture(&mut self) -> Result<RgbImage> {
+        let dump = self.x_tool("xwd", &["-silent", "-nobdrs", "-id", &self.window.clone()])?;
+        xwd::parse(&dump).map_err(BochsError::Display)
+    }
+
+    /// The guest's picture: the window without its toolbar and status bar.
+    pub fn screen(&mut self) -> Result<RgbImage> {
+        guest_area(&self.window_picture()?).map_err(BochsError::Display)
+    }
+
+    /// Looks at the guest's picture until `accept` takes it (and returns it)
+    /// or `timeout` passes. Bochs redraws its window from video memory on its
+    /// own display timer, so a picture the kernel has finished reaches the
+    /// window a little later; this waits for it to be shown, not for a time.
+    /// A window whose bars are not where they belong (just after Bochs has
+    /// resized it for a new mode, before it repaints them) counts as not yet
+    /// showing the picture.
+    pub fn wait_for_screen(
+        &mut self,
+        timeout: Duration,
+        mut accept: impl FnMut(&RgbImage) -> bool,
+    ) -> Result<RgbImage> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let last = guest_area(&self.window_picture()?);
+            if let Ok(picture) = &last {
+                if accept(picture) {
+                    return last.map_err(BochsError::Display);
+                }
+            }
+            self.fail_if_exited("while waiting for a picture")?;
+            if Instant::now() >= deadline {
+                return Err(match last {
+                    Ok(last) => BochsError::ScreenTimeout {
+                        waited: timeout,
+                        last,
+                    },
+                    Err(e) => BochsError::Timeout(format!(
+                        "after {timeout:?} the window still has no guest picture: {e}"
+                    )),
+                });
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
+    }
+
+    pub fn is_running(&mut self) -> bool {
+        matches!(self.bochs.try_wait(), Ok(None))
+    }
+
+    /// Bochs's own output and the tail of its log, for error messages.
+    pub fn diagnostics(&self) -> String {
+        let read = |name: &str| {
+            std::fs::read_to_string(self.scratch.path().join(name)).unwrap_or_default()
+        };
+        let log = read("bochs.log");
+        let tail: Vec<&str> = log.lines().rev().take(20).collect();
+        format!(
+            "\n--- bochs output ---\n{}\n--- end of bochs log ---\n{}",
+            read("bochs.out").trim_end(),
+            tail.into_iter().rev().collect::<Vec<_>>().join("\n")
+        )
+    }
+
+    fn fail_if_exited(&mut self, when: &str) -> Result<()> {
+        match self.bochs.try_wait() {
+            Ok(Some(status)) => Err(BochsError::Exited(format!(
+                "bochs exited ({status}) {when}; console:\n{}{}",
+                self.serial(),
+                self.diagnostics()
+            ))),
+            _ => Ok(()),
+        }
+    }
+
+    /// Runs an X client on our display; returns its stdout.
+    fn x_tool(&self, program: &str, args: &[&str]) -> Result<Vec<u8>> {
+        let output = Command::new(program)
+            .args(args)
+            .env("DISPLAY", &self.display)
+            .stdin(Stdio::null())
+            .output()
+            .map_err(|e| BochsError::NotInstalled(format!("cannot run {program}: {e}")))?;
+        if !output.status.success() {
+            return Err(BochsError::Display(format!(
+                "{program} {} failed ({}): {}",
+                args.join(" "),
+                output.status,
+                String::from_utf8_lossy(&output.stderr).trim()
+            )));
+        }
+        Ok(output.stdout)
+    }
+
+    /// Bochs opens its window while it initialises, before the guest runs.
+    fn find_window(&mut self) -> Result<String> {
+        let deadline = Instant::now() + START_TIMEOUT;
+        loop {
+            if let Ok(found) = self.x_tool("xdotool", &["search", "--name", WINDOW_NAME]) {
+                let found = String::from_utf8_lossy(&found);
+                if let Some(window) = found.split_whitespace().next() {
+                    return Ok(window.to_owned());
+                }
+            }
+            self.fail_if_exited("before opening its window")?;
+            if Instant::now() >= deadline {
+                return Err(BochsError::Timeout(format!(
+                    "Bochs opened no window named {WINDOW_NAME:?} within {START_TIMEOUT:?}{}",
+                    self.diagnostics()
+                )));
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
+    }
+}
+
+impl Drop for Bochs {
+    fn drop(&mut self) {
+        let _ = self.bochs.kill();
+        let _ = self.bochs.wait();
+        stop_xvfb(&mut self.xvfb);
+    }
+}
+
+/// Stops Xvfb with SIGTERM, on which it removes its socket and lock file
+/// (SIGKILL would leave them in /tmp), and kills it if it has not gone
+/// within a second.
+fn stop_xvfb(xvfb: &mut Child) {
+    let asked = Command::new("kill")
+        .args(["-TERM", &xvfb.id().to_string()])
+        .status()
+        .is_ok_and(|s| s.success());
+    let deadline = Instant::now() + Duration::from_secs(1);
+    while asked && Instant::now() < deadline {
+        if let Ok(Some(_)) = xvfb.try_wait() {
+            return;
+        }
+        std::thread::sleep(POLL_INTERVAL);
+    }
+    let _ = xvfb.kill();
+    let _ = xvfb.wait();
+}
+
+/// Starts Bochs on `display` with its output (its own messages and the
+/// debugger's) in `bochs.out` in `dir`.
+fn spawn_bochs(
+    bochsrc: &Path,
+    debugger_commands: &Path,
+    display: &str,
+    dir: &Path,
+) -> Result<Child> {
+    let output = std::fs::File::create(dir.join("bochs.out"))
+        .map_err(|e| io_error("cannot create bochs.out", e))?;
+    Command::new("bochs")
+        .arg("-q")
+        .arg("-f")
+        .arg(bochsrc)
+        .arg("-rc")
+        .arg(debugger_commands)
+        .env("DISPLAY", display)
+        .current_dir(dir)
+        // At the end of its commands the debugger reads stdin: EOF quits.
+        .stdin(Stdio::null())
+        .stdout(output.try_clone().map_err(|e| io_error("bochs.out", e))?)
+        .stderr(output)
+        .spawn()
+        .map_err(|e| BochsError::NotInstalled(format!("cannot start bochs: {e}")))
+}
+
+fn io_error(what: &str, error: std::io::Error) -> BochsError {
+    BochsError::Io(format!("{what}: {error}"))
+}
+
+/// Bochs's hard disks are whole cylinders of 16 heads x 63 sectors: a copy
+/// of the image padded with zeros to the next cylinder, and its cylinders.
+fn padded_disk(image: &Path, dir: &Path) -> Result<(PathBuf, u64)> {
+    const CYLINDER_BYTES: u64 = 16 * 63 * 512;
+    let mut bytes = std::fs::read(image)
+        .map_err(|e| io_error(&format!("cannot read {}", image.display()), e))?;
+    let cylinders = (bytes.len() as u64).div_ceil(CYLINDER_BYTES);
+    bytes.resize((cylinders * CYLINDER_BYTES) as usize, 0);
+    let disk = dir.join("disk.img");
+    std::fs::write(&disk, bytes).map_err(|e| io_error("cannot write the padded disk", e))?;
+    Ok((disk, cylinders))
+}
+
+fn bochsrc_text(options: &BochsOptions, disk: &Path, cylinders: u64, dir: &Path) -> String {
+    // The window is redrawn from video memory 10 times a second of host
+    // time (realtime=1), whatever the ips: a finished picture reaches the
+    // window within about 100 ms of host time plus the redraw itself.
+    let vga = match options.vga {
+        VgaExtension::Vbe => format!(
+            "vga: extension=vbe, update_freq=10, realtime=1\n\
+             vgaromimage: file={VBE_VGA_BIOS}\n"
+        ),
+        VgaExtension::Cirrus => format!(
+            "pci: enabled=1, chipset=i440fx, slot1=cirrus\n\
+             vga: extension=cirrus, update_freq=10, realtime=1\n\
+             vgaromimage: file={CIRRUS_VGA_BIOS}\n"
+        ),
+    };
+    format!(
+        "# Written by boot/bochs.rs for one test run.\n\
+         # A 64-bit CPU for the kernel's long mode.\n\
+         cpu: model=corei7_sandy_bridge_2600k, ips={ips}\n\
+         memory: guest=256, host=256\n\
+         romimage: file={SYSTEM_BIOS}\n\
+         {vga}\
+         ata0-master: type=disk, path={disk}, mode=flat, cylinders={cylinders}, heads=16, spt=63\n\
+         boot: disk\n\
+         com1: enabled=1, mode=file, dev={serial}\n\
+         # Emulated time follows the instruction count, not the host's clock.\n\
+         clock: sync=none, time0=local\n\
+         display_library: x\n\
+         mouse: enabled=0\n\
+         # No sound device to open (and complain about) on a test machine.\n\
+         speaker: enabled=0\n\
+         # A log for error messages; panics and errors are logged, never\n\
+         # asked about in a dialog and never fatal, so a run always ends with\n\
+         # the test's verdict.\n\
+         log: {log}\n\
+         panic: action=report\n\
+         error: action=report\n\
+         info: action=ignore\n\
+         debug: action=ignore\n",
+        ips = options.ips,
+        disk = disk.display(),
+        serial = dir.join("serial.txt").display(),
+        log = dir.join("bochs.log").display(),
+    )
+}
+
+/// Starts Xvfb on a free display: with `-displayfd` the server picks the
+/// first free display number itself and writes it to us once it accepts
+/// clients, so neither a guessed number nor a wait is needed. `-noreset`:
+/// by default the server resets whenever its last client leaves, and a
+/// short-lived `xdotool` leaving while Bochs connects made Bochs fail with
+/// "cannot connect to X server".
+fn start_xvfb(dir: &Path) -> Result<(Child, String)> {
+    let log = std::fs::File::create(dir.join("xvfb.log"))
+        .map_err(|e| io_error("cannot create xvfb.log", e))?;
+    let mut xvfb = Command::new("Xvfb")
+        .args(["-displayfd", "1", "-noreset", "-nolisten", "tcp"])
+        .args(["-screen", "0", "1024x768x24"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(log)
+        .spawn()
+        .map_err(|e| BochsError::NotInstalled(format!("cannot start Xvfb: {e}")))?;
+    let stdout = xvfb.stdout.take().expect("stdout is piped");
+    let (sender, receiver) = mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        let _ = BufReader::new(stdout).read_line(&mut line);
+        let _ = sender.send(line);
+    });
+    match receiver.recv_timeout(START_TIMEOUT) {
+        Ok(line) if line.trim().parse::<u32>().is_ok() => Ok((xvfb, format!(":{}", line.trim()))),
+        outcome => {
+            let _ = xvfb.kill();
+            let _ = xvfb.wait();
+            let mut log = String::new();
+            let _ = std::fs::File::open(dir.join("xvfb.log"))
+                .and_then(|mut f| f.read_to_string(&mut log));
+            Err(BochsError::Timeout(format!(
+                "Xvfb gave no display number ({outcome:?}); its log:\n{log}"
+            )))
+        }
+    }
+}
+
+/// The guest picture inside Bochs's window: the full width, between the
+/// toolbar and the status bar. The status bar's top row is a white line
+/// across the window; finding it where the layout puts it confirms that the
+/// bars are the heights Bochs 2.7 draws them (and that the picture is not
+/// cut short or shifted).
+pub fn guest_area(window: &RgbImage) -> std::result::Result<RgbImage, String> {
+    const WHITE: [u8; 3] = [255; 3];
+    let bars = TOOLBAR_HEIGHT + STATUS_BAR_HEIGHT;
+    if window.height <= bars {
+        return Err(format!(
+            "a {window:?} window has no room for a guest picture"
+        ));
+    }
+    let height = window.height - bars;
+    let status_bar_top = TOOLBAR_HEIGHT + height;
+    if (0..window.width).any(|x| window.pixel(x, status_bar_top) != WHITE) {
+        return Err(format!(
+            "row {status_bar_top} of the {window:?} window is not the status bar's white top line"
+        ));
+    }
+    let start = TOOLBAR_HEIGHT * window.width;
+    let pixels = window.pixels[start..start + height * window.width].to_vec();
+    Ok(RgbImage::new(window.width, height, pixels))
+}

@@ -1,0 +1,222 @@
+//! The kernel in a second emulator: Bochs 2.7, whose VGA core and VGA BIOSes
+//! are not QEMU's. Bochs's window must show, pixel for pixel, what the
+//! software VGA shows for the same scene, with Bochs's standard VGA (Bochs
+//! VBE and the LGPL VGA BIOS) and with its Cirrus Logic GD5446 (and the
+//! Cirrus VGA BIOS); Esc must bring back an 80x25 text screen with the
+//! goodbye line.
+//!
+//! Bochs draws its window from video memory on its own display timer, so
+//! after the kernel reports a command done the tests wait for the window to
+//! show the expected picture (and fail with the differences when it never
+//! does); they never wait for a fixed time.
+
+mod common;
+
+use boot::bochs::{Bochs, BochsError, BochsOptions, VgaExtension};
+use boot::RgbImage;
+use common::{soft_vga_in_mode_x, PIXELS};
+use demo::app::App;
+use demo::scene::Command;
+use modex::soft::SoftVga;
+use modex::ModeX;
+use std::time::{Duration, Instant};
+
+/// From Bochs's start to `screen: ready`: BIOS, bootloader, kernel set-up.
+const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
+/// From a key to the kernel's line saying it has drawn its answer.
+const KEY_TIMEOUT: Duration = Duration::from_secs(20);
+/// From that line to the window showing the answer: Bochs redraws the window
+/// several times a second.
+const SCREEN_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Bochs 2.7 shows Mode X at 640x480: its renderer (iodev/display/vgacore.cc,
+/// the 256-colour byte-mode path) fetches pixel x / 2 of scan line y / 2
+/// (doubled because Maximum Scan Line's bit 7 or low bits are set), so every
+/// Mode X pixel is a 2x2 block, as in QEMU.
+const BOCHS_MODE_X_SIZE: (usize, usize) = (640, 480);
+/// Bochs's 80x25 text screen: 9-dot character cells, 16 scan lines a row.
+const BOCHS_TEXT_SIZE: (usize, usize) = (720, 400);
+
+/// How Bochs widens the DAC's 6-bit components to the 8 bits of its window:
+/// `component << 2` (vgacore.cc writes `pel.data[i].red << dac_shift` with
+/// `dac_shift` 2 to the display library, whose X colours are exact on a
+/// 24-bit visual). QEMU instead copies the low bit into the two new bits
+/// (`modex::soft::dac_6_to_8`), so QEMU's 63 is 255 where Bochs's is 252.
+/// The Bochs text screens seen while writing these tests agree: light cyan
+/// (21, 63, 63) is (84, 252, 252).
+fn bochs_dac_6_to_8(component: u8) -> u8 {
+    (component & 0x3F) << 2
+}
+
+/// The model's picture as Bochs shows it: each pixel's DAC entry, widened as
+/// Bochs widens it, at the model's 320x240.
+fn bochs_view_of(soft: &SoftVga) -> RgbImage {
+    // Bochs's byte-mode renderer hands the pixel byte straight to the display
+    // library, without the DAC's pixel mask; the kernel leaves the mask at
+    // 0xFF, so the mask cannot make a difference that this would hide.
+    assert_eq!(soft.dac_pixel_mask(), 0xFF, "the model's DAC mask");
+    assert!(soft.video_enabled(), "the model's screen is blanked");
+    let mut indices = vec![0u8; PIXELS];
+    let (width, height) = soft.scanout_indices(&mut indices);
+    assert_eq!((width, height), (320, 240), "the model is not in Mode X");
+    let pixels = indices
+        .iter()
+        .map(|&index| soft.dac_entry(index).map(bochs_dac_6_to_8))
+        .collect();
+    RgbImage::new(width, height, pixels)
+}
+
+/// Why Bochs's picture is not `expected` (320x240), or `None` if it is.
+fn mode_x_mismatch(shown: &RgbImage, expected: &RgbImage) -> Option<String> {
+    if (shown.width, shown.height) != BOCHS_MODE_X_SIZE {
+        return Some(format!(
+            "Bochs shows {}x{}, not Mode X at {}x{}",
+            shown.width, shown.height, BOCHS_MODE_X_SIZE.0, BOCHS_MODE_X_SIZE.1
+        ));
+    }
+    let halved = match shown.halve() {
+        Ok(halved) => halved,
+        Err(e) => {
+            // Still say how far the picture is from the model: its top-left
+            // pixel of each 2x2 block against the model's pixel.
+            let sampled = (0..expected.height)
+                .flat_map(|y| (0..expected.width).map(move |x| (x, y)))
+                .filter(|&(x, y)| shown.pixel(2 * x, 2 * y) != expected.pixel(x, y))
+                .count();
+            return Some(format!(
+                "Bochs's picture is not doubled Mode X ({e}), and the top-left pixels of \
+                 {sampled} of its {} 2x2 blocks differ from the model",
+                expected.pixels.len()
+            ));
+        }
+    };
+    match halved.differences(expected) {
+        Ok(differences) if differences.is_empty() => None,
+        Ok(differences) => Some(format!(
+            "{} pixels differ, first (x, y, bochs, model): {:?}",
+            differences.len(),
+            &differences[..differences.len().min(5)]
+        )),
+        Err(e) => Some(e),
+    }
+}
+
+/// Saves what Bochs showed and what was expected beside the disk images.
+fn save_pictures(name: &str, shown: &RgbImage, expected: &RgbImage) -> String {
+    let dir = boot::images::images_dir();
+    let _ = shown.write_png(&dir.join(format!("{name}-bochs.png")));
+    let _ = expected.write_png(&dir.join(format!("{name}-model.png")));
+    format!("pictures in {}", dir.display())
+}
+
+fn boot(vga: VgaExtension) -> Bochs {
+    let images = boot::images::publish().expect("the build script made the images");
+    Bochs::start(&BochsOptions::new(images.bios, vga)).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn wait_for_serial(bochs: &mut Bochs, needle: &str, timeout: Duration) {
+    let started = Instant::now();
+    bochs
+        .wait_for_serial(needle, timeout)
+        .unwrap_or_else(|e| panic!("{e}"));
+    println!("{needle:?} after {:.1?}", started.elapsed());
+}
+
+/// Boots, presses R (back to the start position, spin off), compares the
+/// picture with the software VGA's, then presses Esc and checks the
+/// goodbye screen.
+fn picture_and_goodbye(vga: VgaExtension) {
+    let name = format!("bochs-{vga:?}").to_lowercase();
+    let started = Instant::now();
+    let mut bochs = boot(vga);
+    wait_for_serial(&mut bochs, boot::READY_LINE, BOOT_TIMEOUT);
+
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+    bochs.send_key("r").unwrap_or_else(|e| panic!("{e}"));
+    wait_for_serial(&mut bochs, "demo: command 1 done", KEY_TIMEOUT);
+    app.apply(Command::Reset);
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+    let expected = bochs_view_of(&soft);
+
+    let shown_at = Instant::now();
+    match bochs.wait_for_screen(SCREEN_TIMEOUT, |shown| {
+        mode_x_mismatch(shown, &expected).is_none()
+    }) {
+        Ok(_) => println!("{name}: the picture after R matches after {:.1?}", shown_at.elapsed()),
+        Err(BochsError::ScreenTimeout { waited, last }) => panic!(
+            "{name}: after R and {waited:?}, Bochs's window still differs from the software VGA: {}; {}; serial:\n{}",
+            mode_x_mismatch(&last, &expected).unwrap_or_default(),
+            save_pictures(&format!("{name}-after-r"), &last, &expected),
+            bochs.serial()
+        ),
+        Err(e) => panic!("{name}: {e}"),
+    }
+
+    bochs.send_key("Escape").unwrap_or_else(|e| panic!("{e}"));
+    wait_for_serial(&mut bochs, "demo: goodbye", KEY_TIMEOUT);
+    let shown_at = Instant::now();
+    match bochs.wait_for_screen(SCREEN_TIMEOUT, |shown| goodbye_mismatch(shown).is_none()) {
+        Ok(_) => println!("{name}: the goodbye screen is shown after {:.1?}", shown_at.elapsed()),
+        Err(BochsError::ScreenTimeout { waited, last }) => panic!(
+            "{name}: {waited:?} after the goodbye line on serial, the window is not the goodbye screen: {}",
+            goodbye_mismatch(&last).unwrap_or_default()
+        ),
+        Err(e) => panic!("{name}: {e}"),
+    }
+    println!("{name}: passed in {:.1?}", started.elapsed());
+}
+
+/// Why `shown` is not the goodbye screen, or `None` if it is: 80x25 text
+/// with the goodbye line, white on black, centred on row 12 (see
+/// kernel/src/goodbye.rs), and every other cell blank in one colour.
+///
+/// That colour is black on QEMU and on a real VGA, but green on Bochs 2.7:
+/// Bochs does not model odd/even addressing. It writes every CPU byte to the
+/// planes the Map Mask enables, at the same offset, and draws text from
+/// plane 0 read as interleaved character and attribute bytes. The kernel
+/// clears the screen with the Map Mask on plane 0 for the characters (0x20)
+/// and then on plane 1 for the attributes (0x07), so on Bochs every
+/// attribute byte is 0x20 too: black on green. The goodbye line itself is
+/// written with both planes enabled, which Bochs shows correctly.
+fn goodbye_mismatch(shown: &RgbImage) -> Option<String> {
+    const MESSAGE_LEN: usize = "modex-cube: goodbye. The machine can be switched off.".len();
+    const ROW: usize = 12;
+    const CELL: (usize, usize) = (9, 16);
+    const BLACK: [u8; 3] = [0; 3];
+    /// Attribute 0x0F: bright white, DAC (63, 63, 63), on black.
+    const WHITE: [u8; 3] = [252; 3];
+    if (shown.width, shown.height) != BOCHS_TEXT_SIZE {
+        return Some(format!("Bochs shows {shown:?}, not 80x25 text at 720x400"));
+    }
+    let first_column = (80 - MESSAGE_LEN) / 2;
+    let columns = first_column * CELL.0..(first_column + MESSAGE_LEN) * CELL.0;
+    let rows = ROW * CELL.1..(ROW + 1) * CELL.1;
+    let blank = shown.pixel(0, 0);
+    let mut lit = 0;
+    for y in 0..shown.height {
+        for x in 0..shown.width {
+            let pixel = shown.pixel(x, y);
+            let in_line = columns.contains(&x) && rows.contains(&y);
+            match pixel {
+                WHITE if in_line => lit += 1,
+                BLACK if in_line => {}
+                _ if !in_line && pixel == blank => {}
+                _ => return Some(format!("pixel ({x}, {y}) is {pixel:?}")),
+            }
+        }
+    }
+    // Every glyph of the line lights some pixels; a blank line lights none.
+    (lit < MESSAGE_LEN).then(|| format!("only {lit} pixels of the goodbye line are lit"))
+}
+
+#[test]
+fn bochs_vbe_shows_the_software_vga_picture_and_says_goodbye() {
+    picture_and_goodbye(VgaExtension::Vbe);
+}
+
+#[test]
+fn bochs_cirrus_shows_the_software_vga_picture_and_says_goodbye() {
+    picture_and_goodbye(VgaExtension::Cirrus);
+}
