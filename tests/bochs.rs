@@ -130,6 +130,18 @@ fn picture_and_goodbye(vga: VgaExtension) {
     let started = Instant::now();
     let mut bochs = boot(vga);
     wait_for_serial(&mut bochs, boot::READY_LINE, BOOT_TIMEOUT);
+    // Each of Bochs's VGA BIOSes (the LGPL VGABIOS with VBE, and its Cirrus
+    // build) takes the kernel out of the bootloader's VESA mode by itself.
+    let console = bochs.serial();
+    for line in [
+        "vga: mode 13h set by the video BIOS, then tweaked",
+        "vga: Mode X 320x240 set, registers read back as written",
+    ] {
+        assert!(
+            console.contains(line),
+            "{name}: no {line:?} on serial:\n{console}"
+        );
+    }
 
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
