@@ -43,8 +43,10 @@ pub fn parse(bytes: &[u8]) -> Result<RgbImage, String> {
     let header: Vec<u32> = bytes
         .get(..HEADER_BYTES)
         .ok_or("XWD header is truncated")?
-        .chunks_exact(4)
-        .map(|b| u32::from_be_bytes([b[0], b[1], b[2], b[3]]))
+        .as_chunks::<4>()
+        .0
+        .iter()
+        .map(|b| u32::from_be_bytes(*b))
         .collect();
     let value = |i: usize| header[i] as usize;
     if header[field::FILE_VERSION] != FILE_VERSION || header[field::PIXMAP_FORMAT] != Z_PIXMAP {
@@ -128,7 +130,9 @@ fn component(pixel: u32, mask: u32) -> u8 {
 /// XWDColor entries: pixel value (32 bits), then 16-bit red, green and blue.
 fn parse_colour_map(bytes: &[u8]) -> Vec<(u32, [u8; 3])> {
     bytes
-        .chunks_exact(COLOUR_BYTES)
+        .as_chunks::<COLOUR_BYTES>()
+        .0
+        .iter()
         .map(|c| {
             let pixel = u32::from_be_bytes([c[0], c[1], c[2], c[3]]);
             // The high byte of each 16-bit component is its 8-bit value.

@@ -48,8 +48,10 @@ pub fn frame_cost(
 /// the Map Mask sets every plane that takes the same colour.
 pub fn lower_bound(old_page: &[u8], new_page: &[u8]) -> u64 {
     old_page
-        .chunks_exact(4)
-        .zip(new_page.chunks_exact(4))
+        .as_chunks::<4>()
+        .0
+        .iter()
+        .zip(new_page.as_chunks::<4>().0)
         .map(|(old, new)| {
             let mut colours: Vec<u8> = (0..4)
                 .filter(|&p| old[p] != new[p])

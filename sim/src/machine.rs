@@ -127,7 +127,13 @@ impl Machine {
         let soft = &self.vga.bus().soft;
         let retraces_before = soft.frame_count();
         let counts_before = soft.counts();
-        for (plane, copy) in self.planes_before.chunks_exact_mut(PLANE_BYTES).enumerate() {
+        for (plane, copy) in self
+            .planes_before
+            .as_chunks_mut::<PLANE_BYTES>()
+            .0
+            .iter_mut()
+            .enumerate()
+        {
             copy.copy_from_slice(soft.plane(plane));
         }
         let micros = Rc::clone(&self.micros);
