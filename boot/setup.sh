@@ -1,8 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up for building, running and testing modex-cube on Debian or
-# Ubuntu with rustup: QEMU and OVMF (and, for the simulator's window tests,
-# Xvfb, xdotool and xwd) from apt, the pinned nightly with its components and
-# target from rustup. Safe to run again; it only installs what is missing.
+# Ubuntu with rustup: QEMU, OVMF, Bochs and an X toolbox for the tests from
+# apt, the pinned nightly with its components and target from rustup. Safe to run again; it only installs what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -15,21 +14,14 @@ as_root() {
     else die "need root for '$*' (run as root or install sudo)"; fi
 }
 
+# What the tests run, by the Debian package that brings it:
+# - QEMU and OVMF: booting the images (every QEMU test, `cargo run`);
+# - Bochs with its X display plugin and ROMs (tests/bochs.rs), and a virtual
+#   X server with the tools that type into and read its windows (tests/bochs.rs,
+#   sim/tests/window.rs).
 missing=()
 command -v qemu-system-x86_64 >/dev/null || missing+=(qemu-system-x86)
 [ -f /usr/share/OVMF/OVMF_CODE.fd ] || missing+=(ovmf)
-if [ ${#missing[@]} -gt 0 ]; then
-    command -v apt-get >/dev/null || die "please install ${missing[*]} with your package manager"
-    say "installing ${missing[*]}"
-    as_root apt-get update -qq
-    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
-fi
-say "$(qemu-system-x86_64 --version | head -n 1)"
-
-# The Bochs tests (tests/bochs.rs) and the simulator's window tests
-# (sim/tests/window.rs): Bochs with its X display plugin and ROMs, and a
-# virtual X server with the tools that type into and read its windows.
-missing=()
 command -v bochs >/dev/null || missing+=(bochs)
 [ -f /usr/share/bochs/BIOS-bochs-latest ] || missing+=(bochsbios)
 [ -f /usr/share/vgabios/vgabios.bin ] && [ -f /usr/share/vgabios/vgabios-cirrus.bin ] || missing+=(vgabios)
@@ -43,6 +35,7 @@ if [ ${#missing[@]} -gt 0 ]; then
     as_root apt-get update -qq
     as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
+say "$(qemu-system-x86_64 --version | head -n 1)"
 say "bochs $(dpkg-query -W -f='${Version}' bochs 2>/dev/null || echo '(version unknown)')"
 
 command -v rustup >/dev/null || die "rustup not found: install it from the Rust website, then run this again"
