@@ -5,6 +5,21 @@
 //!
 //! The kernel supplies the readings (port reads, `rdtsc`); everything that
 //! decides what those readings mean lives here.
+//!
+//! # Example
+//!
+//! Counting retraces from flip times in microseconds, as the kernel does
+//! from its clock:
+//!
+//! ```
+//! use machine::pacing::{Pacing, FRAME_MICROS};
+//!
+//! let mut pacing = Pacing::default();
+//! pacing.flipped(0, false);
+//! pacing.flipped(FRAME_MICROS, false); // on time
+//! pacing.flipped(4 * FRAME_MICROS, false); // three refreshes later: two missed
+//! assert_eq!((pacing.flips, pacing.missed), (3, 2));
+//! ```
 
 #![no_std]
 #![forbid(unsafe_code)]

@@ -14,6 +14,29 @@
 //!
 //! Mode X memory layout: pixel (x, y) of a page lives in plane `x % 4` at byte
 //! `page.base() + y * 80 + x / 4`.
+//!
+//! # Example
+//!
+//! Set Mode X on the software VGA, fill a rectangle on the hidden page, flip
+//! to it, and read back what the VGA would put on the screen:
+//!
+//! ```
+//! use modex::soft::SoftVga;
+//! use modex::{ModeX, Page};
+//!
+//! let mut soft = Box::new(SoftVga::new()); // four 64 KiB planes: keep it off the stack
+//! let mut vga = ModeX::new(&mut *soft);
+//! vga.set_mode(); // Page(0) is shown, all black
+//! vga.fill_rect(Page(1), 10, 20, 14, 22, 12); // x 10..14, y 20..22, colour 12
+//! vga.show_page(Page(1)); // the start address is latched at the next retrace
+//!
+//! let mut screen = vec![0u8; 320 * 240];
+//! assert_eq!(soft.scanout_indices(&mut screen), (320, 240));
+//! assert_eq!(screen[20 * 320 + 10], 12);
+//! assert_eq!(screen[21 * 320 + 13], 12);
+//! assert_eq!(screen[22 * 320 + 10], 0); // the rectangle's end is exclusive
+//! assert_eq!(screen[20 * 320 + 14], 0);
+//! ```
 
 #![no_std]
 #![forbid(unsafe_code)]
