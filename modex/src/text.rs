@@ -29,8 +29,6 @@ const DEFAULT_ATTRIBUTE: u8 = 0x07;
 
 /// Planes 0 and 1: characters and attributes.
 const TEXT_PLANES: u8 = 0x03;
-const CHARACTER_PLANE: u8 = 0x01;
-const ATTRIBUTE_PLANE: u8 = 0x02;
 /// Plane 2: the font.
 const FONT_PLANE: u8 = 0x04;
 const FONT_PLANE_INDEX: u8 = 2;
@@ -53,13 +51,17 @@ impl<B: VgaBus> ModeX<B> {
         self.program(&TEXT_80X25);
         self.load_palette(0, &EGA_PALETTE);
         self.load_font(font);
+        // Character and attribute pairs through both planes, as text is
+        // written: odd/even addressing sends each byte to its plane. (Filling
+        // each plane alone relies on odd/even too, and Bochs, which does not
+        // model it, would show the attribute plane's fill as characters.)
         self.with_text_window(|vga| {
-            vga.set_map_mask(CHARACTER_PLANE);
-            vga.bus.fill_vram(0, CELLS * BYTES_PER_CELL, BLANK);
-            vga.set_map_mask(ATTRIBUTE_PLANE);
-            vga.bus
-                .fill_vram(0, CELLS * BYTES_PER_CELL, DEFAULT_ATTRIBUTE);
             vga.set_map_mask(TEXT_PLANES);
+            for cell in 0..CELLS {
+                vga.bus.write_vram8(cell * BYTES_PER_CELL, BLANK);
+                vga.bus
+                    .write_vram8(cell * BYTES_PER_CELL + 1, DEFAULT_ATTRIBUTE);
+            }
         });
         let [high, low] = CELLS.to_be_bytes();
         self.write_crtc(crtc::CURSOR_LOCATION_HIGH, high);
