@@ -14,4 +14,6 @@ pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};
 
 /// The line the kernel prints on serial once its first picture is on screen
 /// and it is reading keys.
-pub const READY_LINE: &str = "screen: ready";
+pub const READY_LINE: &str = machine::protocol::line::READY;
+
+pub use machine::protocol::{line, BootOption, Exit, Fault};

@@ -3,6 +3,7 @@
 
 use anyhow::Context;
 use boot::qemu::{self, Display, Firmware, Graphics, Qemu, QemuOptions};
+use boot::BootOption;
 use clap::Parser;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -39,10 +40,10 @@ struct Args {
     /// Stop QEMU after SECS seconds.
     #[arg(long, value_name = "SECS", value_parser = seconds)]
     timeout: Option<Duration>,
-    /// Hand OPTION to the kernel via fw_cfg (see the README: test-pattern,
-    /// flip-rate, clock-check, bench, fault=...).
-    #[arg(long, value_name = "OPTION")]
-    boot_option: Option<String>,
+    /// Hand OPTION to the kernel via fw_cfg: test-pattern, flip-rate,
+    /// clock-check, bench, fault=KIND, exit=success|failure (see the README).
+    #[arg(long, value_name = "OPTION", value_parser = boot_option)]
+    boot_option: Option<BootOption>,
     /// Instead of booting, write the image (bios.img, or uefi.img with --uefi)
     /// to the whole USB stick DEVICE, e.g. /dev/sdb, after checking it is a
     /// removable, unmounted disk; shows what will be overwritten and asks you
@@ -66,6 +67,10 @@ fn parse_keys(text: &str) -> Result<KeyNames, String> {
         })
         .collect::<Result<_, _>>()
         .map(KeyNames)
+}
+
+fn boot_option(text: &str) -> Result<BootOption, String> {
+    BootOption::parse(text).map_err(|unknown| unknown.to_string())
 }
 
 fn seconds(text: &str) -> Result<Duration, String> {
@@ -117,7 +122,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         Display::Window
     };
-    options.boot_option = args.boot_option.clone();
+    options.boot_option = args.boot_option;
     options.graphics = args.graphics;
     options.echo_serial = true;
     println!("Booting {} ({:?})", image.display(), firmware);
@@ -209,6 +214,14 @@ mod tests {
         let error = Args::try_parse_from(["runner", "--keys", "r nope"]).unwrap_err();
         assert!(error.to_string().contains("\"nope\""), "{error}");
         assert!(error.to_string().contains("pgdn"), "{error}");
+    }
+
+    #[test]
+    fn boot_options_are_checked_before_qemu_sees_them() {
+        let args = Args::try_parse_from(["runner", "--boot-option", "fault=page"]).unwrap();
+        assert_eq!(args.boot_option, Some(BootOption::Fault(boot::Fault::Page)));
+        let error = Args::try_parse_from(["runner", "--boot-option", "fault=pgae"]).unwrap_err();
+        assert!(error.to_string().contains("fault=page"), "{error}");
     }
 
     #[test]

@@ -9,6 +9,7 @@
 //! emulator behind.
 
 use crate::image::RgbImage;
+use machine::protocol::{BootOption, BOOT_OPTION_FILE};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
@@ -120,7 +121,7 @@ pub struct QemuOptions {
     /// (about 60 Hz in Mode X) instead of toggling them on every read.
     pub precise_retrace: bool,
     /// Passed to the kernel through fw_cfg as `opt/modex/boot`.
-    pub boot_option: Option<String>,
+    pub boot_option: Option<BootOption>,
     /// Echo the serial console to this process's stdout as it arrives.
     pub echo_serial: bool,
 }
@@ -229,10 +230,10 @@ impl Qemu {
         if options.display == Display::Headless {
             command.args(["-display", "none"]);
         }
-        if let Some(option) = &options.boot_option {
+        if let Some(option) = options.boot_option {
             command
                 .arg("-fw_cfg")
-                .arg(format!("name=opt/modex/boot,string={option}"));
+                .arg(format!("name={BOOT_OPTION_FILE},string={option}"));
         }
         command
             .stdin(Stdio::null())

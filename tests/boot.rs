@@ -5,6 +5,7 @@
 mod common;
 
 use boot::qemu::{EXIT_FAILURE, EXIT_SUCCESS};
+use boot::{line, BootOption, Exit, Fault};
 use common::{boot_bios as boot, BOOT_TIMEOUT};
 use std::time::Duration;
 
@@ -23,9 +24,10 @@ fn kernel_boots_and_prints_its_banner() {
 /// Each fault is reported on serial and on screen (a white-on-red panel in
 /// 80x25 text), then the kernel halts: QEMU (started with -no-reboot, so a
 /// triple fault would end it) keeps running.
-fn assert_reported_and_halted(option: &str, report: &str) {
+fn assert_reported_and_halted(fault: Fault, report: &str) {
+    let option = BootOption::Fault(fault);
     let mut qemu = boot(Some(option));
-    let console = qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
+    let console = qemu.wait_for_serial(line::HALTED, BOOT_TIMEOUT).unwrap();
     assert!(
         console.contains(report),
         "expected {report:?} for {option}; console:\n{console}"
@@ -63,35 +65,35 @@ fn is_white([r, g, b]: [u8; 3]) -> bool {
 
 #[test]
 fn invalid_opcode_is_reported_and_the_kernel_halts() {
-    assert_reported_and_halted("fault=invalid-opcode", "EXCEPTION: invalid opcode");
+    assert_reported_and_halted(Fault::InvalidOpcode, "EXCEPTION: invalid opcode");
 }
 
 #[test]
 fn page_fault_is_reported_with_its_address() {
-    assert_reported_and_halted("fault=page", "address=0x7f00dead0000");
+    assert_reported_and_halted(Fault::Page, "address=0x7f00dead0000");
 }
 
 #[test]
 fn general_protection_fault_is_reported() {
     assert_reported_and_halted(
-        "fault=general-protection",
+        Fault::GeneralProtection,
         "EXCEPTION: general protection fault",
     );
 }
 
 #[test]
 fn stack_overflow_becomes_a_reported_double_fault() {
-    assert_reported_and_halted("fault=stack-overflow", "EXCEPTION: double fault");
+    assert_reported_and_halted(Fault::StackOverflow, "EXCEPTION: double fault");
 }
 
 #[test]
 fn panic_is_reported_and_the_kernel_halts() {
-    assert_reported_and_halted("fault=panic", "panic requested by the boot option");
+    assert_reported_and_halted(Fault::Panic, "panic requested by the boot option");
 }
 
 #[test]
 fn breakpoint_is_reported_and_execution_resumes() {
-    let mut qemu = boot(Some("fault=breakpoint"));
+    let mut qemu = boot(Some(BootOption::Fault(Fault::Breakpoint)));
     let console = qemu
         .wait_for_serial("breakpoint: resumed", BOOT_TIMEOUT)
         .unwrap();
@@ -100,10 +102,8 @@ fn breakpoint_is_reported_and_execution_resumes() {
 
 #[test]
 fn the_host_sees_the_debug_exit_codes() {
-    for (option, code) in [
-        ("exit=success", EXIT_SUCCESS),
-        ("exit=failure", EXIT_FAILURE),
-    ] {
+    for (exit, code) in [(Exit::Success, EXIT_SUCCESS), (Exit::Failure, EXIT_FAILURE)] {
+        let option = BootOption::Exit(exit);
         let mut qemu = boot(Some(option));
         let status = qemu
             .wait_exit(BOOT_TIMEOUT)

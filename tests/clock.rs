@@ -4,6 +4,7 @@
 
 mod common;
 
+use boot::BootOption;
 use common::{boot_bios, BOOT_TIMEOUT};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -28,7 +29,7 @@ fn kernel_time_agrees_with_the_host_clock_within_one_percent_under_load() {
         })
         .collect();
 
-    let mut qemu = boot_bios(Some("clock-check"));
+    let mut qemu = boot_bios(Some(BootOption::ClockCheck));
     let mut readings = Vec::new();
     for n in 1..=13 {
         let console = qemu

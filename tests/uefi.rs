@@ -8,6 +8,7 @@
 
 mod common;
 
+use boot::BootOption;
 use boot::{Firmware, Graphics, Qemu, QemuOptions, RgbImage};
 use common::{
     assert_pictures_equal, model_picture, pattern_picture, soft_vga_in_mode_x, BOOT_TIMEOUT,
@@ -23,7 +24,7 @@ const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
 const LEGACY_FOUND: &str = "display: legacy VGA found";
 const NO_LEGACY: &str = "display: no legacy VGA";
 
-fn boot(firmware: Firmware, graphics: Graphics, option: Option<&str>) -> Qemu {
+fn boot(firmware: Firmware, graphics: Graphics, option: Option<BootOption>) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let image = match firmware {
         Firmware::Bios => images.bios,
@@ -32,7 +33,7 @@ fn boot(firmware: Firmware, graphics: Graphics, option: Option<&str>) -> Qemu {
     let mut options = QemuOptions::new(image);
     options.firmware = firmware;
     options.graphics = graphics;
-    options.boot_option = option.map(str::to_owned);
+    options.boot_option = option;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -96,7 +97,11 @@ fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
 
 #[test]
 fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
-    let mut qemu = boot(Firmware::Uefi, Graphics::BochsDisplay, Some("test-pattern"));
+    let mut qemu = boot(
+        Firmware::Uefi,
+        Graphics::BochsDisplay,
+        Some(BootOption::TestPattern),
+    );
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
         .unwrap();
@@ -158,7 +163,11 @@ fn without_legacy_vga_the_lit_solids_reach_the_framebuffer_too() {
 
 #[test]
 fn the_bios_image_finds_the_legacy_vga() {
-    let mut qemu = boot(Firmware::Bios, Graphics::StdVga, Some("test-pattern"));
+    let mut qemu = boot(
+        Firmware::Bios,
+        Graphics::StdVga,
+        Some(BootOption::TestPattern),
+    );
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", BOOT_TIMEOUT)
         .unwrap();
@@ -168,7 +177,11 @@ fn the_bios_image_finds_the_legacy_vga() {
 
 #[test]
 fn uefi_with_the_standard_vga_still_finds_the_legacy_vga() {
-    let mut qemu = boot(Firmware::Uefi, Graphics::StdVga, Some("test-pattern"));
+    let mut qemu = boot(
+        Firmware::Uefi,
+        Graphics::StdVga,
+        Some(BootOption::TestPattern),
+    );
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
         .unwrap();

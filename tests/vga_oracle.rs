@@ -5,11 +5,12 @@
 
 mod common;
 
+use boot::BootOption;
 use common::{assert_same_picture, boot_bios, pattern_picture, BOOT_TIMEOUT};
 
 #[test]
 fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
-    let mut qemu = boot_bios(Some("test-pattern"));
+    let mut qemu = boot_bios(Some(BootOption::TestPattern));
     qemu.wait_for_serial("pattern: page 0 shown", BOOT_TIMEOUT)
         .unwrap();
     assert_same_picture(&qemu.screendump().unwrap(), &pattern_picture(0), "page 0");
@@ -41,7 +42,7 @@ fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
 #[test]
 fn page_flips_follow_vertical_retrace_at_60_hz() {
     const REFRESH_HZ: f64 = 25_175_000.0 / (800.0 * 527.0);
-    let mut qemu = boot_bios(Some("flip-rate"));
+    let mut qemu = boot_bios(Some(BootOption::FlipRate));
     let console = qemu.wait_for_serial("wait timeouts", BOOT_TIMEOUT).unwrap();
     let line = console
         .lines()

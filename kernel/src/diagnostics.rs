@@ -15,7 +15,7 @@ pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut shown = Page(0);
     vga.show_page(shown);
     serial_println!("pattern: page {} shown", shown.0);
-    serial_println!("screen: ready");
+    serial_println!("{}", machine::protocol::line::READY);
     loop {
         x86_64::instructions::hlt();
         let mut pressed = false;

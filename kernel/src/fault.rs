@@ -143,7 +143,7 @@ fn show_on_screen(lines: &[Line]) {
 
 /// Stops the CPU with interrupts off; only a reset or power-off leaves.
 pub fn halt_forever() -> ! {
-    crate::serial_println!("HALTED");
+    crate::serial_println!("{}", machine::protocol::line::HALTED);
     x86_64::instructions::interrupts::disable();
     loop {
         x86_64::instructions::hlt();

@@ -35,7 +35,8 @@ pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let column = (modex::TEXT_COLUMNS as usize - MESSAGE.len()) / 2;
     vga.write_text(modex::TEXT_ROWS / 2, column as u8, MESSAGE, WHITE_ON_BLACK);
     serial_println!(
-        "demo: goodbye ({} scancodes dropped by a full queue, {} serial characters dropped)",
+        "{} ({} scancodes dropped by a full queue, {} serial characters dropped)",
+        machine::protocol::line::GOODBYE,
         crate::keyboard::SCANCODES.dropped(),
         crate::serial::dropped()
     );

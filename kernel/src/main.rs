@@ -27,6 +27,7 @@ mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
+use machine::protocol::BootOption;
 
 const BOOTLOADER_CONFIG: BootloaderConfig = {
     let mut config = BootloaderConfig::new_default();
@@ -66,10 +67,17 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     serial_println!("kernel: initialised");
 
     let mut option_buffer = [0u8; 64];
-    let option = qemu::boot_option(&mut option_buffer);
-    if let Some(option) = option {
-        serial_println!("boot option: {}", option);
-    }
+    let option = match qemu::boot_option(&mut option_buffer).map(BootOption::parse) {
+        None => None,
+        Some(Ok(option)) => {
+            serial_println!("boot option: {}", option);
+            Some(option)
+        }
+        Some(Err(unknown)) => {
+            serial_println!("boot option ignored: {}", unknown);
+            None
+        }
+    };
 
     let booted_by = firmware::firmware(&boot_info.memory_regions);
     serial_println!("firmware: {:?} (told by the memory map)", booted_by);
@@ -111,27 +119,17 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
 }
 
 /// What the screen shows: the cube, or a diagnostic asked for by a boot option.
-fn run_screen<B: modex::VgaBus>(vga: &mut modex::ModeX<B>, option: Option<&str>) -> ! {
+fn run_screen<B: modex::VgaBus>(vga: &mut modex::ModeX<B>, option: Option<BootOption>) -> ! {
     match option {
-        Some("test-pattern") => diagnostics::test_pattern(vga),
-        Some("bench") => {
-            bench::run(vga);
-            run::run_demo(vga)
-        }
-        Some("clock-check") => {
-            diagnostics::clock_check();
-            run::run_demo(vga)
-        }
-        Some("flip-rate") => {
-            diagnostics::flip_rate(vga);
-            run::run_demo(vga)
-        }
-        Some(request) if request.starts_with("fault=") || request.starts_with("exit=") => {
-            selftest::run(request);
-            run::run_demo(vga)
-        }
-        _ => run::run_demo(vga),
+        Some(BootOption::TestPattern) => diagnostics::test_pattern(vga),
+        Some(BootOption::Bench) => bench::run(vga),
+        Some(BootOption::ClockCheck) => diagnostics::clock_check(),
+        Some(BootOption::FlipRate) => diagnostics::flip_rate(vga),
+        Some(BootOption::Fault(fault)) => selftest::raise(fault),
+        Some(BootOption::Exit(exit)) => selftest::exit(exit),
+        None => {}
     }
+    run::run_demo(vga)
 }
 
 #[panic_handler]

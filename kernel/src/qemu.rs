@@ -39,7 +39,7 @@ const FW_CFG_DATA: u16 = 0x511;
 const FW_CFG_SIGNATURE: u16 = 0x0000;
 const FW_CFG_FILE_DIR: u16 = 0x0019;
 const FILE_NAME_LEN: usize = 56;
-const BOOT_OPTION_FILE: &[u8] = b"opt/modex/boot";
+const BOOT_OPTION_FILE: &[u8] = machine::protocol::BOOT_OPTION_FILE.as_bytes();
 
 /// The boot option given on the QEMU command line, copied into `buffer`.
 pub fn boot_option(buffer: &mut [u8; 64]) -> Option<&str> {

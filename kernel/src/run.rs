@@ -6,6 +6,7 @@
 use crate::{clock, goodbye, keyboard, serial_println};
 use demo::app::App;
 use machine::pacing::Pacing;
+use machine::protocol::line;
 use modex::{ModeX, VgaBus};
 
 /// A pacing report every this many flips (about ten seconds).
@@ -28,7 +29,7 @@ fn count_flip(pacing: &mut Pacing, timed_out: bool) {
 pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut app = App::new();
     app.step(vga, &clock::micros);
-    serial_println!("screen: ready");
+    serial_println!("{}", line::READY);
     let mut reported_commands = 0;
     let mut pacing = Pacing::default();
     loop {
@@ -43,8 +44,8 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
             // Tests wait for this line before they look at the screen.
             reported_commands = app.commands();
             serial_println!(
-                "demo: command {} done, paused={}, scancodes dropped={}",
-                reported_commands,
+                "{}, paused={}, scancodes dropped={}",
+                line::CommandDone(reported_commands),
                 app.paused(),
                 keyboard::SCANCODES.dropped()
             );

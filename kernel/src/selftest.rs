@@ -3,25 +3,32 @@
 //! ends in a clean halt. A real PC has no fw_cfg, so it can never take this path.
 
 use crate::qemu::{self, ExitCode};
+use machine::protocol::{Exit, Fault};
 
-pub fn run(request: &str) {
-    match request {
-        "fault=invalid-opcode" => invalid_opcode(),
-        "fault=page" => page_fault(),
-        "fault=general-protection" => general_protection(),
-        "fault=stack-overflow" => {
+/// Raises `fault`; only a breakpoint returns.
+pub fn raise(fault: Fault) {
+    match fault {
+        Fault::InvalidOpcode => invalid_opcode(),
+        Fault::Page => page_fault(),
+        Fault::GeneralProtection => general_protection(),
+        Fault::StackOverflow => {
             stack_overflow(0);
         }
-        "fault=divide" => divide_error(),
-        "fault=panic" => panic!("panic requested by the boot option"),
-        "fault=breakpoint" => {
+        Fault::Divide => divide_error(),
+        Fault::Panic => panic!("panic requested by the boot option"),
+        Fault::Breakpoint => {
             x86_64::instructions::interrupts::int3();
             crate::serial_println!("breakpoint: resumed");
         }
-        "exit=success" => qemu::exit(ExitCode::Success),
-        "exit=failure" => qemu::exit(ExitCode::Failure),
-        _ => crate::serial_println!("selftest: unknown request {:?}", request),
     }
+}
+
+/// Ends QEMU with the status `exit` asks for.
+pub fn exit(exit: Exit) {
+    qemu::exit(match exit {
+        Exit::Success => ExitCode::Success,
+        Exit::Failure => ExitCode::Failure,
+    });
 }
 
 fn invalid_opcode() {

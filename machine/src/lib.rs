@@ -31,3 +31,4 @@ extern crate std;
 pub mod calibration;
 pub mod firmware;
 pub mod pacing;
+pub mod protocol;

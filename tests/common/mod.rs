@@ -3,6 +3,7 @@
 
 #![allow(dead_code)] // each test binary uses its own part of this
 
+use boot::BootOption;
 use boot::{Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
 use demo::scene::Command;
@@ -14,16 +15,16 @@ pub const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
 pub const PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
 
 /// Boots the BIOS image headless, with an optional boot option.
-pub fn boot_bios(option: Option<&str>) -> Qemu {
+pub fn boot_bios(option: Option<BootOption>) -> Qemu {
     boot_bios_on(Graphics::StdVga, option)
 }
 
 /// Boots the BIOS image headless on a display adapter, with an optional boot option.
-pub fn boot_bios_on(graphics: Graphics, option: Option<&str>) -> Qemu {
+pub fn boot_bios_on(graphics: Graphics, option: Option<BootOption>) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let mut options = QemuOptions::new(images.bios);
     options.graphics = graphics;
-    options.boot_option = option.map(str::to_owned);
+    options.boot_option = option;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 

@@ -1,0 +1,223 @@
+//! What the kernel, the runner and the tests say to each other, defined once:
+//! the boot options QEMU hands the kernel through fw_cfg (`opt/modex/boot`),
+//! and the serial lines the harness waits for. A renamed option or line is a
+//! compile error on every side, not a test that silently waits forever.
+
+use core::fmt;
+
+/// The fw_cfg file QEMU passes the boot option in.
+pub const BOOT_OPTION_FILE: &str = "opt/modex/boot";
+
+/// A fault raised on purpose, to prove it is reported and ends in a halt.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Fault {
+    /// `ud2`.
+    InvalidOpcode,
+    /// A read of an unmapped page.
+    Page,
+    /// A read of a non-canonical address.
+    GeneralProtection,
+    /// Unbounded recursion into the guard page: a double fault.
+    StackOverflow,
+    /// Division by zero.
+    Divide,
+    /// `panic!`.
+    Panic,
+    /// `int3`, which is reported and resumed.
+    Breakpoint,
+}
+
+/// How to end QEMU through isa-debug-exit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Exit {
+    /// Status 33.
+    Success,
+    /// Status 35.
+    Failure,
+}
+
+/// A boot option: what the kernel shows or does instead of (or before) the demo.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BootOption {
+    /// The Mode X test pattern on pages 0 and 1; any key flips.
+    TestPattern,
+    /// Three seconds of page flips, the rate reported.
+    FlipRate,
+    /// The clock printed once a second for 12 s.
+    ClockCheck,
+    /// The renderer timed against per-pixel drawing.
+    Bench,
+    /// A deliberate fault.
+    Fault(Fault),
+    /// End QEMU at once.
+    Exit(Exit),
+}
+
+const FAULTS: [(Fault, &str); 7] = [
+    (Fault::InvalidOpcode, "invalid-opcode"),
+    (Fault::Page, "page"),
+    (Fault::GeneralProtection, "general-protection"),
+    (Fault::StackOverflow, "stack-overflow"),
+    (Fault::Divide, "divide"),
+    (Fault::Panic, "panic"),
+    (Fault::Breakpoint, "breakpoint"),
+];
+
+const EXITS: [(Exit, &str); 2] = [(Exit::Success, "success"), (Exit::Failure, "failure")];
+
+/// The value of `name` in a (value, name) table.
+fn named<T: Copy>(table: &[(T, &str)], name: &str) -> Option<T> {
+    table
+        .iter()
+        .find(|(_, known)| *known == name)
+        .map(|&(value, _)| value)
+}
+
+/// The name of `value` in a (value, name) table.
+fn name<T: PartialEq>(table: &[(T, &'static str)], value: T) -> &'static str {
+    table
+        .iter()
+        .find(|(known, _)| *known == value)
+        .map_or("?", |(_, name)| name)
+}
+
+/// An option no one knows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownOption;
+
+impl fmt::Display for UnknownOption {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("unknown boot option; known: test-pattern, flip-rate, clock-check, bench, ")?;
+        for (_, name) in FAULTS {
+            write!(f, "fault={name}, ")?;
+        }
+        f.write_str("exit=success, exit=failure")
+    }
+}
+
+impl BootOption {
+    /// Every option, for help texts and tests.
+    pub fn all() -> impl Iterator<Item = BootOption> {
+        [
+            BootOption::TestPattern,
+            BootOption::FlipRate,
+            BootOption::ClockCheck,
+            BootOption::Bench,
+        ]
+        .into_iter()
+        .chain(FAULTS.iter().map(|&(fault, _)| BootOption::Fault(fault)))
+        .chain(EXITS.iter().map(|&(exit, _)| BootOption::Exit(exit)))
+    }
+
+    /// The option named `text` (as `Display` writes it).
+    pub fn parse(text: &str) -> Result<BootOption, UnknownOption> {
+        match text {
+            "test-pattern" => Ok(BootOption::TestPattern),
+            "flip-rate" => Ok(BootOption::FlipRate),
+            "clock-check" => Ok(BootOption::ClockCheck),
+            "bench" => Ok(BootOption::Bench),
+            _ => {
+                if let Some(fault) = text.strip_prefix("fault=").and_then(|n| named(&FAULTS, n)) {
+                    Ok(BootOption::Fault(fault))
+                } else if let Some(exit) = text.strip_prefix("exit=").and_then(|n| named(&EXITS, n))
+                {
+                    Ok(BootOption::Exit(exit))
+                } else {
+                    Err(UnknownOption)
+                }
+            }
+        }
+    }
+}
+
+impl fmt::Display for BootOption {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            BootOption::TestPattern => f.write_str("test-pattern"),
+            BootOption::FlipRate => f.write_str("flip-rate"),
+            BootOption::ClockCheck => f.write_str("clock-check"),
+            BootOption::Bench => f.write_str("bench"),
+            BootOption::Fault(fault) => write!(f, "fault={}", name(&FAULTS, fault)),
+            BootOption::Exit(exit) => write!(f, "exit={}", name(&EXITS, exit)),
+        }
+    }
+}
+
+/// Serial lines the harness waits for.
+pub mod line {
+    use core::fmt;
+
+    /// The first picture is on screen and keys are read.
+    pub const READY: &str = "screen: ready";
+    /// The start of the goodbye line after Esc.
+    pub const GOODBYE: &str = "demo: goodbye";
+    /// The last line before a fault or panic halts the CPU.
+    pub const HALTED: &str = "HALTED";
+
+    /// "demo: command N done": the kernel has drawn the Nth command's frame.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct CommandDone(pub u64);
+
+    impl CommandDone {
+        const PREFIX: &'static str = "demo: command ";
+        const SUFFIX: &'static str = " done";
+
+        /// The count in a line that starts with this message, if it does.
+        pub fn parse(line: &str) -> Option<u64> {
+            line.strip_prefix(Self::PREFIX)?
+                .split(Self::SUFFIX)
+                .next()?
+                .parse()
+                .ok()
+        }
+    }
+
+    impl fmt::Display for CommandDone {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "{}{}{}", Self::PREFIX, self.0, Self::SUFFIX)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::string::ToString;
+
+    #[test]
+    fn every_option_reads_back_as_written() {
+        let mut count = 0;
+        for option in BootOption::all() {
+            assert_eq!(BootOption::parse(&option.to_string()), Ok(option));
+            count += 1;
+        }
+        assert_eq!(count, 4 + 7 + 2);
+    }
+
+    #[test]
+    fn unknown_options_are_refused_with_the_list() {
+        for text in [
+            "",
+            "fault=",
+            "fault=nope",
+            "exit=maybe",
+            "bench ",
+            "Test-Pattern",
+        ] {
+            assert_eq!(BootOption::parse(text), Err(UnknownOption), "{text:?}");
+        }
+        let message = UnknownOption.to_string();
+        assert!(message.contains("fault=stack-overflow") && message.contains("clock-check"));
+    }
+
+    #[test]
+    fn command_lines_format_and_parse() {
+        let line = line::CommandDone(12).to_string();
+        assert_eq!(line, "demo: command 12 done");
+        assert_eq!(
+            line::CommandDone::parse(&(line + ", paused=false")),
+            Some(12)
+        );
+        assert_eq!(line::CommandDone::parse("demo: goodbye"), None);
+    }
+}
