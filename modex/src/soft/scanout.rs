@@ -1,6 +1,6 @@
 //! Scan-out: the picture the CRTC, Attribute Controller and DAC make of video
 //! memory, in 256-colour graphics modes (Mode X, and mode 13h by QEMU's
-//! compact chain-4 mapping).
+//! compact chain-4 mapping) and, through `text_scanout`, in text modes.
 //!
 //! The model follows QEMU's renderer: memory is fetched at plane offset
 //! `start + line * Offset * 2 + x / 4`, plane `x % 4`, whatever the byte,
@@ -43,10 +43,24 @@ pub fn dac_6_to_8(component: u8) -> u8 {
 }
 
 impl SoftVga {
+    /// The size of the displayed picture: (width, height) in dots, or (0, 0)
+    /// when there is none (Bochs VBE on, or a graphics mode other than
+    /// 256-colour). Text modes show their cells, 9 or 8 dots wide.
+    pub fn picture_size(&self) -> (usize, usize) {
+        if let Some(raster) = self.raster() {
+            (raster.width, raster.height)
+        } else if let Some(text) = self.text_raster() {
+            text.size()
+        } else {
+            (0, 0)
+        }
+    }
+
     /// The displayed picture as DAC indices (pixel data before the DAC's pixel
-    /// mask), row by row; returns (width, height), or (0, 0) when the VGA is
-    /// not in a 256-colour graphics mode or Bochs VBE is on. Blanking does not
-    /// affect the indices (see [`SoftVga::video_enabled`]).
+    /// mask), row by row; returns (width, height), or (0, 0) when there is no
+    /// picture (see [`SoftVga::picture_size`]). In text modes each dot is the
+    /// DAC index its attribute's colour selects. Blanking does not affect the
+    /// indices (see [`SoftVga::video_enabled`]).
     ///
     /// # Panics
     /// If `out` is smaller than width * height.
@@ -116,7 +130,16 @@ impl SoftVga {
     /// Calls `put(pixel number, DAC index)` for every displayed pixel.
     fn scan(&self, mut put: impl FnMut(usize, u8), capacity: usize) -> (usize, usize) {
         let Some(raster) = self.raster() else {
-            return (0, 0);
+            let Some(text) = self.text_raster() else {
+                return (0, 0);
+            };
+            let (width, height) = text.size();
+            assert!(
+                capacity >= width * height,
+                "text scan-out needs {width} x {height} dots, the buffer holds {capacity}"
+            );
+            self.scan_text(&text, put);
+            return (width, height);
         };
         assert!(
             capacity >= raster.width * raster.height,
