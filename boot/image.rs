@@ -77,7 +77,7 @@ impl RgbImage {
         let raster = bytes
             .get(at..at + width * height * 3)
             .ok_or("PPM raster is truncated")?;
-        let pixels = raster.chunks_exact(3).map(|p| [p[0], p[1], p[2]]).collect();
+        let pixels = raster.as_chunks::<3>().0.to_vec();
         Ok(RgbImage::new(width, height, pixels))
     }
 

@@ -8,7 +8,7 @@ use engine::{Face, Model, Vec3};
 
 /// The golden ratio, which places the icosahedron's and dodecahedron's
 /// vertices.
-const PHI: f64 = 1.618_033_988_749_895;
+const PHI: f64 = core::f64::consts::GOLDEN_RATIO;
 
 /// The seed's cube: eight shared vertices in the seed's order (vertex 6 is
 /// (-15, -15, 15); the OCR of the seed lost a digit there), six faces in the

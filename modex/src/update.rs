@@ -27,9 +27,12 @@ impl<B: VgaBus> ModeX<B> {
     /// number of video-memory bytes written.
     pub fn update_page(&mut self, page: Page, shadow: &mut PageImage, target: &PageImage) -> u32 {
         let mut written = 0;
+        const WIDTH: usize = SCREEN_WIDTH as usize;
         let lines = shadow
-            .chunks_exact_mut(SCREEN_WIDTH as usize)
-            .zip(target.chunks_exact(SCREEN_WIDTH as usize));
+            .as_chunks_mut::<WIDTH>()
+            .0
+            .iter_mut()
+            .zip(target.as_chunks::<WIDTH>().0);
         for (y, (old_line, new_line)) in lines.enumerate() {
             if old_line == new_line {
                 continue;
