@@ -61,6 +61,9 @@ pub struct QemuOptions {
     pub boot_option: Option<String>,
     /// Echo the serial console to this process's stdout as it arrives.
     pub echo_serial: bool,
+    /// Fit `isa-debug-exit`, so the kernel can end QEMU. Without it the
+    /// kernel halts instead, and the last screen can still be looked at.
+    pub debug_exit: bool,
 }
 
 impl QemuOptions {
@@ -73,6 +76,7 @@ impl QemuOptions {
             precise_retrace: true,
             boot_option: None,
             echo_serial: false,
+            debug_exit: true,
         }
     }
 }
@@ -156,7 +160,6 @@ impl Qemu {
                 options.image.display()
             ))
             .args(["-m", "256M", "-no-reboot", "-serial", "stdio"])
-            .args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"])
             .arg("-qmp")
             .arg(format!(
                 "unix:{},server=on,wait=off",
@@ -171,6 +174,9 @@ impl Qemu {
         };
         if options.firmware == Firmware::Uefi {
             command.args(["-bios", OVMF_CODE]);
+        }
+        if options.debug_exit {
+            command.args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"]);
         }
         if options.display == Display::Headless {
             command.args(["-display", "none"]);

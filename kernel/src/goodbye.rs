@@ -5,29 +5,8 @@
 use crate::{fault, qemu, serial_println};
 use modex::{ModeX, VgaBus};
 
-/// font8x8's glyphs keep the leftmost pixel in bit 0; the VGA's character
-/// generator reads it from bit 7.
-pub static FONT: [[u8; 8]; 128] = {
-    let mut font = font8x8::legacy::BASIC_LEGACY;
-    let mut glyph = 0;
-    while glyph < font.len() {
-        let mut row = 0;
-        while row < 8 {
-            font[glyph][row] = font[glyph][row].reverse_bits();
-            row += 1;
-        }
-        glyph += 1;
-    }
-    font
-};
-
-const MESSAGE: &str = "modex-cube: goodbye. The machine can be switched off.";
-const WHITE_ON_BLACK: u8 = 0x0F;
-
 pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
-    vga.set_text_mode(&FONT);
-    let column = (modex::TEXT_COLUMNS as usize - MESSAGE.len()) / 2;
-    vga.write_text(modex::TEXT_ROWS / 2, column as u8, MESSAGE, WHITE_ON_BLACK);
+    demo::screens::goodbye(vga);
     serial_println!(
         "demo: goodbye ({} scancodes dropped by a full queue, {} serial characters dropped)",
         crate::keyboard::SCANCODES.dropped(),

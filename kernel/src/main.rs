@@ -15,6 +15,7 @@ mod gdt;
 mod goodbye;
 mod interrupts;
 mod keyboard;
+mod pat;
 mod pit;
 mod qemu;
 mod run;
@@ -24,6 +25,7 @@ mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
+use machine::firmware::Firmware;
 
 const BOOTLOADER_CONFIG: BootloaderConfig = {
     let mut config = BootloaderConfig::new_default();
@@ -71,10 +73,27 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
         panic!("the bootloader did not map physical memory, so VGA memory is out of reach");
     };
+    let (force_true_mode_x, option) = take_display_option(option);
     // SAFETY: the bootloader maps all physical memory at this offset (asked for
     // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
     let mut bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
-    if modex::legacy_vga_present(&mut bus) {
+    // By how the machine booted, not by whether the registers answer: on UEFI
+    // the card may scan out the firmware's framebuffer whatever the VGA
+    // registers say (Intel iGPUs answer them with the VGA plane disabled), so
+    // true Mode X would be a black screen.
+    let true_mode_x = if booted_by == Firmware::Uefi && !force_true_mode_x {
+        serial_println!(
+            "display: UEFI boot: drawing through the firmware framebuffer \
+             (true Mode X needs a BIOS or CSM boot)"
+        );
+        false
+    } else {
+        if force_true_mode_x {
+            serial_println!("display: true Mode X asked for by the boot option");
+        }
+        modex::legacy_vga_present(&mut bus)
+    };
+    if true_mode_x {
         serial_println!("display: legacy VGA found");
         let mut vga = modex::ModeX::new(bus);
         vga.set_mode();
@@ -83,20 +102,32 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         run_screen(&mut vga, option)
     }
 
-    // No legacy VGA (a UEFI-only machine, say): the same Mode X code draws on
-    // the software VGA, and each flip is copied to the firmware's framebuffer.
-    // The real ports are never mode-set, which would kill that framebuffer.
-    serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
+    // The same Mode X code draws on the software VGA, and each flip is
+    // presented into the firmware's framebuffer. The real ports are never
+    // mode-set, which would kill that framebuffer.
+    if booted_by != Firmware::Uefi || force_true_mode_x {
+        serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
+    }
     let Some(framebuffer) = boot_info.framebuffer.as_mut() else {
         panic!("no display: neither a legacy VGA nor a framebuffer from the bootloader");
     };
-    let mut display = framebuffer::Display::new(framebuffer);
-    let mirror =
-        modex::MirroredVga::new(framebuffer::soft_vga(), move |soft| display.present(soft));
+    let (soft, display) = framebuffer::take_over(framebuffer, physical_memory_offset);
+    let mirror = modex::MirroredVga::new(soft, move |soft| display.present(soft));
     let mut vga = modex::ModeX::new(mirror);
     vga.set_mode();
     serial_println!("vga: Mode X 320x240 set on the software VGA");
     run_screen(&mut vga, option)
+}
+
+/// QEMU only: `modex=true-mode-x`, alone or before another option (separated
+/// by a space), forces true Mode X on a UEFI boot, so that OVMF with QEMU's
+/// standard VGA still tests the real registers.
+fn take_display_option(option: Option<&str>) -> (bool, Option<&str>) {
+    const TRUE_MODE_X: &str = "modex=true-mode-x";
+    match option.and_then(|option| option.strip_prefix(TRUE_MODE_X)) {
+        Some(rest) => (true, Some(rest.trim()).filter(|rest| !rest.is_empty())),
+        None => (false, option),
+    }
 }
 
 /// What the screen shows: the cube, or a diagnostic asked for by a boot option.
