@@ -213,8 +213,10 @@ mod tests {
         let page_2_colour = [red, green, blue, 0];
         assert_ne!(page_2_colour, [0; 4]);
         assert!(framebuffer
-            .chunks_exact(4)
-            .all(|pixel| pixel == page_2_colour));
+            .as_chunks::<4>()
+            .0
+            .iter()
+            .all(|pixel| *pixel == page_2_colour));
     }
 
     #[test]

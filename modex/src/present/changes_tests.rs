@@ -64,7 +64,7 @@ fn the_borders_are_written_once() {
     presenter.present(&soft, &layout, &mut out);
     // Mark the borders (left 160 columns, top 40 lines) to see any rewrite.
     out[..40 * 1280 * 4].fill(0x55);
-    for line in out.chunks_exact_mut(1280 * 4) {
+    for line in out.as_chunks_mut::<{ 1280 * 4 }>().0 {
         line[..160 * 4].fill(0x55);
     }
     let mut vga = ModeX::new(&mut *soft);
@@ -78,7 +78,9 @@ fn the_borders_are_written_once() {
     );
     assert!(out[..40 * 1280 * 4].iter().all(|&b| b == 0x55));
     assert!(out
-        .chunks_exact(1280 * 4)
+        .as_chunks::<{ 1280 * 4 }>()
+        .0
+        .iter()
         .all(|line| line[..160 * 4].iter().all(|&b| b == 0x55)));
 }
 
