@@ -124,9 +124,12 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
 /// standard VGA still tests the real registers.
 fn take_display_option(option: Option<&str>) -> (bool, Option<&str>) {
     const TRUE_MODE_X: &str = "modex=true-mode-x";
-    match option.and_then(|option| option.strip_prefix(TRUE_MODE_X)) {
-        Some(rest) => (true, Some(rest.trim()).filter(|rest| !rest.is_empty())),
-        None => (false, option),
+    let Some(option) = option else {
+        return (false, None);
+    };
+    match option.split_once(' ').unwrap_or((option, "")) {
+        (TRUE_MODE_X, rest) => (true, Some(rest.trim()).filter(|rest| !rest.is_empty())),
+        _ => (false, Some(option)),
     }
 }
 

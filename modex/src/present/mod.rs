@@ -1,6 +1,8 @@
-//! Showing a picture on a linear framebuffer, for machines without a legacy
-//! VGA: the software VGA runs Mode X, and its scan-out is copied to the
-//! framebuffer the firmware set up (UEFI GOP, or a VESA linear mode).
+//! Showing a picture on a linear framebuffer, for UEFI boots and machines
+//! without a legacy VGA: the software VGA runs Mode X (or text mode), and its
+//! scan-out is copied to the framebuffer the firmware set up (UEFI GOP, or a
+//! VESA linear mode): in full by [`present`], or only what changed by
+//! [`Presenter`]. Pixels are encoded as `encode` describes.
 //!
 //! The picture is scaled by the largest whole number that fits, so every VGA
 //! pixel becomes the same square of framebuffer pixels, and centred with
@@ -109,15 +111,16 @@ pub fn present_rgb(
 /// Scans out the software VGA's DAC indices into `scratch` and presents them
 /// through its DAC as [`present_rgb`] does (the same colours as
 /// [`SoftVga::scanout_rgb`]: pixel mask applied, black while video is
-/// blanked). Outside 256-colour graphics modes (text mode, Bochs VBE on) the
-/// model has no picture to show and the framebuffer goes black.
+/// blanked). Text modes show their 720x400 (or 640x400) text; with no picture
+/// at all (Bochs VBE on, graphics modes other than 256-colour) the
+/// framebuffer goes black. [`Presenter`] does the same writing only changes.
 ///
 /// Indices rather than RGB: one byte a pixel to scan, and the palette is
 /// encoded once for the framebuffer's pixel order instead of per pixel.
 ///
 /// # Panics
 /// If `scratch` cannot hold the displayed picture ([`crate::PAGE_PIXELS`] in
-/// Mode X).
+/// Mode X, [`MAX_PICTURE_PIXELS`] for 80x25 text).
 pub fn present(
     soft: &SoftVga,
     scratch: &mut [u8],

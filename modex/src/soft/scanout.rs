@@ -19,6 +19,8 @@ use super::SoftVga;
 
 /// In 256-colour modes each character clock (8 dots) shows 4 pixels, each 2 dots wide.
 const PIXELS_PER_CHARACTER: usize = 4;
+/// The widest picture: 256 characters of 4 pixels.
+const MAX_WIDTH: usize = 256 * PIXELS_PER_CHARACTER;
 /// The Offset register counts words: two plane addresses each.
 const ADDRESSES_PER_OFFSET_UNIT: usize = 2;
 
@@ -66,7 +68,10 @@ impl SoftVga {
     /// If `out` is smaller than width * height.
     pub fn scanout_indices(&self, out: &mut [u8]) -> (usize, usize) {
         let capacity = out.len();
-        self.scan(|pixel, index| out[pixel] = index, capacity)
+        self.scan(
+            |first, indices| out[first..first + indices.len()].copy_from_slice(indices),
+            capacity,
+        )
     }
 
     /// The displayed picture as 8-bit RGB, expanded from the DAC's 6 bits as
@@ -80,11 +85,13 @@ impl SoftVga {
         let enabled = self.video_enabled();
         let capacity = out.len();
         self.scan(
-            |pixel, index| {
-                out[pixel] = if enabled {
-                    dac.palette[usize::from(index & dac.pixel_mask)].map(dac_6_to_8)
-                } else {
-                    [0; 3]
+            |first, indices| {
+                for (pixel, &index) in out[first..first + indices.len()].iter_mut().zip(indices) {
+                    *pixel = if enabled {
+                        dac.palette[usize::from(index & dac.pixel_mask)].map(dac_6_to_8)
+                    } else {
+                        [0; 3]
+                    };
                 }
             },
             capacity,
@@ -127,8 +134,10 @@ impl SoftVga {
         })
     }
 
-    /// Calls `put(pixel number, DAC index)` for every displayed pixel.
-    fn scan(&self, mut put: impl FnMut(usize, u8), capacity: usize) -> (usize, usize) {
+    /// Calls `put(first pixel number, DAC indices)` for every displayed
+    /// pixel, a row (or a text cell's line) at a time: the kernel scans out
+    /// every flip, so the loop works in rows rather than pixels.
+    fn scan(&self, mut put: impl FnMut(usize, &[u8]), capacity: usize) -> (usize, usize) {
         let Some(raster) = self.raster() else {
             let Some(text) = self.text_raster() else {
                 return (0, 0);
@@ -148,16 +157,19 @@ impl SoftVga {
             raster.height
         );
         let planes = &self.memory.planes;
+        let mut line = [0u8; MAX_WIDTH];
         let mut address = raster.start;
         let mut repeats_left = raster.scan_lines_per_row - 1;
         for scan_line in 0..raster.scan_lines {
             let row = scan_line / raster.scan_lines_per_row;
             // Each row once, from the first of its repeated scan lines.
             if scan_line % raster.scan_lines_per_row == 0 && row < raster.height {
-                for x in 0..raster.width {
-                    let offset = (address + x / PLANE_COUNT) % PLANE_BYTES;
-                    put(row * raster.width + x, planes[x % PLANE_COUNT][offset]);
+                let line = &mut line[..raster.width];
+                for (quad, pixels) in line.as_chunks_mut::<PLANE_COUNT>().0.iter_mut().enumerate() {
+                    let offset = (address + quad) % PLANE_BYTES;
+                    *pixels = core::array::from_fn(|plane| planes[plane][offset]);
                 }
+                put(row * raster.width, line);
             }
             if repeats_left == 0 {
                 address += raster.addresses_per_row;

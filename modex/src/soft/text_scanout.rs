@@ -110,9 +110,9 @@ impl SoftVga {
         }
     }
 
-    /// Calls `put(dot number, DAC index)` for every dot of the text picture,
-    /// row by row.
-    pub(super) fn scan_text(&self, raster: &TextRaster, mut put: impl FnMut(usize, u8)) {
+    /// Calls `put(first dot number, DAC indices)` for each line of each cell
+    /// of the text picture.
+    pub(super) fn scan_text(&self, raster: &TextRaster, mut put: impl FnMut(usize, &[u8])) {
         let planes = &self.memory.planes;
         let mode = self.registers.attribute[usize::from(ac::MODE_CONTROL)];
         let (width, _) = raster.size();
@@ -136,14 +136,17 @@ impl SoftVga {
                 for line in 0..raster.cell_height {
                     let bits = planes[2][(glyph + line) % PLANE_BYTES];
                     let y = row * raster.cell_height + line;
-                    let x0 = column * raster.cell_width;
-                    for dot in 0..raster.cell_width {
+                    let dots: [u8; 9] = core::array::from_fn(|dot| {
                         let lit = match dot {
                             0..=7 => bits & (0x80 >> dot) != 0,
                             _ => ninth_repeats && bits & 1 != 0,
                         };
-                        put(y * width + x0 + dot, colours[usize::from(lit)]);
-                    }
+                        colours[usize::from(lit)]
+                    });
+                    put(
+                        y * width + column * raster.cell_width,
+                        &dots[..raster.cell_width],
+                    );
                 }
             }
         }
