@@ -12,10 +12,7 @@ use modex::{ModeX, VgaBus};
 const FRAMES: u64 = 120;
 
 /// Mean microseconds per frame for `drawer` over the spinning scene.
-fn time_frames<B: VgaBus, D: FrameDrawer>(
-    vga: &mut ModeX<B>,
-    mut drawer: D,
-) -> u64 {
+fn time_frames<B: VgaBus, D: FrameDrawer>(vga: &mut ModeX<B>, mut drawer: D) -> u64 {
     vga.set_mode(); // blank pages and known registers, as every drawer expects
     let mut scene = Scene::new();
     let start = clock::micros();

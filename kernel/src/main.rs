@@ -56,7 +56,10 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
             calibration.error_ppm
         ),
         Err(problem) => {
-            serial_println!("clock: TSC not calibrated ({:?}); counting PIT ticks", problem)
+            serial_println!(
+                "clock: TSC not calibrated ({:?}); counting PIT ticks",
+                problem
+            )
         }
     }
     serial_println!("kernel: initialised");

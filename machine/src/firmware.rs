@@ -51,7 +51,10 @@ mod tests {
 
     #[test]
     fn the_map_names_the_firmware() {
-        assert_eq!(firmware_from_regions([Neutral, Bios, Neutral]), Firmware::Bios);
+        assert_eq!(
+            firmware_from_regions([Neutral, Bios, Neutral]),
+            Firmware::Bios
+        );
         assert_eq!(firmware_from_regions([Neutral, Uefi, Uefi]), Firmware::Uefi);
         assert_eq!(firmware_from_regions([Neutral, Neutral]), Firmware::Unknown);
         assert_eq!(firmware_from_regions([]), Firmware::Unknown);

@@ -76,6 +76,9 @@ mod tests {
         pacing.idle();
         pacing.flipped(10 * FRAME_MICROS, true);
         pacing.flipped(11 * FRAME_MICROS, false);
-        assert_eq!((pacing.flips, pacing.missed, pacing.wait_timeouts), (3, 0, 1));
+        assert_eq!(
+            (pacing.flips, pacing.missed, pacing.wait_timeouts),
+            (3, 0, 1)
+        );
     }
 }
