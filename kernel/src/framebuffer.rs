@@ -18,7 +18,9 @@ use crate::{clock, serial_println};
 use bootloader_api::info::{FrameBuffer, FrameBufferInfo, PixelFormat};
 use core::sync::atomic::{AtomicPtr, Ordering};
 use machine::pacing::FRAME_MICROS;
-use modex::present::{FramebufferLayout, PackedFormat, PixelOrder, Placement, Presenter};
+use modex::present::{
+    FirmwareFormat, FramebufferLayout, PackedFormat, PixelOrder, Placement, Presenter,
+};
 use modex::soft::SoftVga;
 use modex::{ModeX, SCREEN_HEIGHT, SCREEN_WIDTH};
 use spin::{Mutex, MutexGuard};
@@ -40,51 +42,36 @@ const COST_REPORT_PRESENTS: u64 = 600;
 /// The bootloader's framebuffer as the portable presenter sees it. 16-bit
 /// formats get their bit fields; only formats nobody described are grey.
 pub fn layout_of(info: &FrameBufferInfo) -> FramebufferLayout {
-    let bytes = info.bytes_per_pixel;
-    let pixel_bits = (bytes * 8).min(32) as u8;
-    let order = match info.pixel_format {
-        PixelFormat::Rgb if bytes >= 3 => PixelOrder::Rgb,
-        PixelFormat::Bgr if bytes >= 3 => PixelOrder::Bgr,
-        // Two bytes a pixel named by byte order: 5-6-5, red at the end the
-        // name puts it (Bgr: blue in the low bits, as in 32-bit BGR).
-        PixelFormat::Bgr if bytes == 2 => PixelOrder::Packed(PackedFormat::RGB565),
-        PixelFormat::Rgb if bytes == 2 => PixelOrder::Packed(PackedFormat {
-            red: PackedFormat::RGB565.blue,
-            green: PackedFormat::RGB565.green,
-            blue: PackedFormat::RGB565.red,
-        }),
-        PixelFormat::U8 => PixelOrder::Grey,
+    let format = match info.pixel_format {
+        PixelFormat::Rgb => FirmwareFormat::Rgb,
+        PixelFormat::Bgr => FirmwareFormat::Bgr,
+        PixelFormat::U8 => FirmwareFormat::Grey,
         PixelFormat::Unknown {
             red_position,
             green_position,
             blue_position,
-        } => match PackedFormat::from_positions(
-            red_position,
-            green_position,
-            blue_position,
-            pixel_bits,
-        ) {
-            Some(format) => PixelOrder::Packed(format),
-            None => grey(info),
+        } => FirmwareFormat::BitOffsets {
+            red: red_position,
+            green: green_position,
+            blue: blue_position,
         },
-        _ => grey(info),
+        _ => FirmwareFormat::Other,
     };
+    let order = PixelOrder::for_framebuffer(format, info.bytes_per_pixel).unwrap_or_else(|| {
+        serial_println!(
+            "display: pixel format {:?} with {} bytes/pixel not understood; showing grey",
+            info.pixel_format,
+            info.bytes_per_pixel
+        );
+        PixelOrder::Grey
+    });
     FramebufferLayout {
         width: info.width,
         height: info.height,
         stride: info.stride,
-        bytes_per_pixel: bytes,
+        bytes_per_pixel: info.bytes_per_pixel,
         order,
     }
-}
-
-fn grey(info: &FrameBufferInfo) -> PixelOrder {
-    serial_println!(
-        "display: pixel format {:?} with {} bytes/pixel not understood; showing grey",
-        info.pixel_format,
-        info.bytes_per_pixel
-    );
-    PixelOrder::Grey
 }
 
 /// Takes over the framebuffer and the software VGA, once: returns the model

@@ -97,6 +97,56 @@ impl PackedFormat {
     }
 }
 
+/// A framebuffer's pixel format as firmware and bootloaders name it (the
+/// shape of `bootloader_api`'s `PixelFormat`, without depending on it).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FirmwareFormat {
+    /// Red, green, blue in byte order.
+    Rgb,
+    /// Blue, green, red in byte order.
+    Bgr,
+    /// One grey level.
+    Grey,
+    /// Components at these bit offsets of the pixel word (UEFI's bit masks).
+    BitOffsets {
+        /// Red's lowest bit.
+        red: u8,
+        /// Green's lowest bit.
+        green: u8,
+        /// Blue's lowest bit.
+        blue: u8,
+    },
+    /// Anything else.
+    Other,
+}
+
+impl PixelOrder {
+    /// How to encode colours for a framebuffer of `format` with
+    /// `bytes_per_pixel`; None when the format cannot be understood (a
+    /// caller may fall back to [`PixelOrder::Grey`]). Byte orders with two
+    /// bytes a pixel are 5-6-5 with red at the end the name puts it (BGR:
+    /// blue in the low bits, as in 32-bit BGR).
+    pub fn for_framebuffer(format: FirmwareFormat, bytes_per_pixel: usize) -> Option<Self> {
+        let rgb565_reversed = PackedFormat {
+            red: PackedFormat::RGB565.blue,
+            green: PackedFormat::RGB565.green,
+            blue: PackedFormat::RGB565.red,
+        };
+        match (format, bytes_per_pixel) {
+            (FirmwareFormat::Rgb, 3..=4) => Some(PixelOrder::Rgb),
+            (FirmwareFormat::Bgr, 3..=4) => Some(PixelOrder::Bgr),
+            (FirmwareFormat::Bgr, 2) => Some(PixelOrder::Packed(PackedFormat::RGB565)),
+            (FirmwareFormat::Rgb, 2) => Some(PixelOrder::Packed(rgb565_reversed)),
+            (FirmwareFormat::Grey, 1..=4) => Some(PixelOrder::Grey),
+            (FirmwareFormat::BitOffsets { red, green, blue }, 1..=4) => {
+                PackedFormat::from_positions(red, green, blue, bytes_per_pixel as u8 * 8)
+                    .map(PixelOrder::Packed)
+            }
+            _ => None,
+        }
+    }
+}
+
 /// The Rec. 601 luma weights in 1/256ths (0.299, 0.587, 0.114): the usual
 /// weighting of a colour's brightness to the eye, and what monochrome VGA
 /// BIOSes use to sum the DAC to grey. They add up to 256, so white stays 255.
@@ -177,6 +227,38 @@ mod tests {
             PixelOrder::Packed(xrgb).encode([1, 2, 3]),
             PixelOrder::Bgr.encode([1, 2, 3])
         );
+    }
+
+    #[test]
+    fn firmware_formats_become_pixel_orders() {
+        use FirmwareFormat::*;
+        let order = PixelOrder::for_framebuffer;
+        assert_eq!(order(Bgr, 4), Some(PixelOrder::Bgr));
+        assert_eq!(order(Rgb, 3), Some(PixelOrder::Rgb));
+        assert_eq!(order(Grey, 1), Some(PixelOrder::Grey));
+        assert_eq!(
+            order(Bgr, 2),
+            Some(PixelOrder::Packed(PackedFormat::RGB565))
+        );
+        let Some(PixelOrder::Packed(rgb_16)) = order(Rgb, 2) else {
+            panic!("2-byte RGB is packed");
+        };
+        assert_eq!(
+            PixelOrder::Packed(rgb_16).encode([255, 0, 0])[..2],
+            0x001Fu16.to_le_bytes()
+        );
+        let offsets = |red, green, blue| BitOffsets { red, green, blue };
+        assert_eq!(
+            order(offsets(11, 5, 0), 2),
+            Some(PixelOrder::Packed(PackedFormat::RGB565))
+        );
+        assert_eq!(
+            order(offsets(10, 5, 0), 2),
+            Some(PixelOrder::Packed(PackedFormat::RGB555))
+        );
+        assert_eq!(order(offsets(10, 5, 0), 0), None);
+        assert_eq!(order(Other, 4), None);
+        assert_eq!(order(Bgr, 1), None);
     }
 
     #[test]

@@ -15,7 +15,7 @@ mod changes;
 mod encode;
 
 pub use changes::{PresentReport, Presenter, MAX_PICTURE_PIXELS};
-pub use encode::{luma, Channel, PackedFormat, PixelOrder};
+pub use encode::{luma, Channel, FirmwareFormat, PackedFormat, PixelOrder};
 
 /// A linear framebuffer's geometry and pixel encoding.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
