@@ -20,7 +20,7 @@
 
 use core::ops::Range;
 
-use super::{blit, encoded_palette, FramebufferLayout, Placement};
+use super::{blit, encoded_palette, FramebufferLayout, PixelOrder, Placement};
 use crate::soft::SoftVga;
 
 /// The largest picture the presenter keeps: 80x25 text in 9x16 cells. Mode X
@@ -46,8 +46,11 @@ pub struct Presenter {
     shown: [u8; MAX_PICTURE_PIXELS],
     shown_palette: [[u8; 4]; 256],
     shown_size: (usize, usize),
-    /// The layout presented into last; None before the first present.
-    shown_layout: Option<FramebufferLayout>,
+    /// The layout presented into last, if `presented`. (A flag rather than
+    /// an Option so that a new presenter is all zero bytes: a kernel's static
+    /// one then costs nothing in its image, .bss rather than .data.)
+    shown_layout: FramebufferLayout,
+    presented: bool,
 }
 
 impl Default for Presenter {
@@ -65,13 +68,20 @@ impl Presenter {
             shown: [0; MAX_PICTURE_PIXELS],
             shown_palette: [[0; 4]; 256],
             shown_size: (0, 0),
-            shown_layout: None,
+            shown_layout: FramebufferLayout {
+                width: 0,
+                height: 0,
+                stride: 0,
+                bytes_per_pixel: 0,
+                order: PixelOrder::Rgb,
+            },
+            presented: false,
         }
     }
 
     /// The next present writes everything.
     pub fn forget(&mut self) {
-        self.shown_layout = None;
+        self.presented = false;
     }
 
     /// Presents `soft`'s picture into `out` laid out as `layout`, as
@@ -91,7 +101,7 @@ impl Presenter {
         };
         let pixels = size.0 * size.1;
         let palette = encoded_palette(soft, layout.order);
-        let full = self.shown_layout != Some(*layout) || self.shown_size != size;
+        let full = !self.presented || self.shown_layout != *layout || self.shown_size != size;
         let bytes_written = if full {
             let picture = &self.current[..pixels];
             blit(picture, size, layout, out, |row, column| {
@@ -104,7 +114,8 @@ impl Presenter {
         self.shown[..pixels].copy_from_slice(&self.current[..pixels]);
         self.shown_palette = palette;
         self.shown_size = size;
-        self.shown_layout = Some(*layout);
+        self.shown_layout = *layout;
+        self.presented = true;
         PresentReport {
             bytes_written,
             full,

@@ -3,7 +3,11 @@
 //! formats some firmware hands over.
 
 /// How the bytes of one framebuffer pixel encode a colour.
+///
+/// `repr(u8)` fixes `Rgb`'s tag at 0, so a [`super::Presenter`] that has
+/// presented nothing is all zero bytes (see there).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
 pub enum PixelOrder {
     /// Red, green, blue: one byte each, a fourth byte zero. (With fewer than
     /// 3 bytes a pixel, the components that fit.)
