@@ -16,4 +16,4 @@ pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};
 /// and it is reading keys.
 pub const READY_LINE: &str = machine::protocol::line::READY;
 
-pub use machine::protocol::{line, BootOption, Exit, Fault};
+pub use machine::protocol::{line, BootOption, BootRequest, Exit, Fault};

@@ -3,7 +3,7 @@
 
 use anyhow::Context;
 use boot::qemu::{self, Display, Firmware, Graphics, Qemu, QemuOptions};
-use boot::BootOption;
+use boot::BootRequest;
 use clap::Parser;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -41,9 +41,10 @@ struct Args {
     #[arg(long, value_name = "SECS", value_parser = seconds)]
     timeout: Option<Duration>,
     /// Hand OPTION to the kernel via fw_cfg: test-pattern, flip-rate,
-    /// clock-check, bench, fault=KIND, exit=success|failure (see the README).
-    #[arg(long, value_name = "OPTION", value_parser = boot_option)]
-    boot_option: Option<BootOption>,
+    /// clock-check, bench, fault=KIND, exit=success|failure, and/or
+    /// modex=true-mode-x (see the README).
+    #[arg(long, value_name = "OPTION", value_parser = boot_request, default_value = "")]
+    boot_option: BootRequest,
     /// Instead of booting, write the image (bios.img, or uefi.img with --uefi)
     /// to the whole USB stick DEVICE, e.g. /dev/sdb, after checking it is a
     /// removable, unmounted disk; shows what will be overwritten and asks you
@@ -69,8 +70,8 @@ fn parse_keys(text: &str) -> Result<KeyNames, String> {
         .map(KeyNames)
 }
 
-fn boot_option(text: &str) -> Result<BootOption, String> {
-    BootOption::parse(text).map_err(|unknown| unknown.to_string())
+fn boot_request(text: &str) -> Result<BootRequest, String> {
+    BootRequest::parse(text).map_err(|unknown| unknown.to_string())
 }
 
 fn seconds(text: &str) -> Result<Duration, String> {
@@ -122,7 +123,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         Display::Window
     };
-    options.boot_option = args.boot_option;
+    options.boot = args.boot_option;
     options.graphics = args.graphics;
     options.echo_serial = true;
     println!("Booting {} ({:?})", image.display(), firmware);
@@ -219,7 +220,12 @@ mod tests {
     #[test]
     fn boot_options_are_checked_before_qemu_sees_them() {
         let args = Args::try_parse_from(["runner", "--boot-option", "fault=page"]).unwrap();
-        assert_eq!(args.boot_option, Some(BootOption::Fault(boot::Fault::Page)));
+        assert_eq!(
+            args.boot_option.option,
+            Some(boot::BootOption::Fault(boot::Fault::Page))
+        );
+        let args = Args::try_parse_from(["runner", "--boot-option", "modex=true-mode-x bench"]);
+        assert!(args.unwrap().boot_option.true_mode_x);
         let error = Args::try_parse_from(["runner", "--boot-option", "fault=pgae"]).unwrap_err();
         assert!(error.to_string().contains("fault=page"), "{error}");
     }

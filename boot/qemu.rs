@@ -9,7 +9,7 @@
 //! emulator behind.
 
 use crate::image::RgbImage;
-use machine::protocol::{BootOption, BOOT_OPTION_FILE};
+use machine::protocol::{BootRequest, BOOT_OPTION_FILE};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
@@ -121,9 +121,12 @@ pub struct QemuOptions {
     /// (about 60 Hz in Mode X) instead of toggling them on every read.
     pub precise_retrace: bool,
     /// Passed to the kernel through fw_cfg as `opt/modex/boot`.
-    pub boot_option: Option<BootOption>,
+    pub boot: BootRequest,
     /// Echo the serial console to this process's stdout as it arrives.
     pub echo_serial: bool,
+    /// Fit `isa-debug-exit`, so the kernel can end QEMU. Without it the
+    /// kernel halts instead, and the last screen can still be looked at.
+    pub debug_exit: bool,
 }
 
 impl QemuOptions {
@@ -134,8 +137,9 @@ impl QemuOptions {
             display: Display::Headless,
             graphics: Graphics::StdVga,
             precise_retrace: true,
-            boot_option: None,
+            boot: BootRequest::default(),
             echo_serial: false,
+            debug_exit: true,
         }
     }
 }
@@ -217,7 +221,6 @@ impl Qemu {
                 options.image.display()
             ))
             .args(["-m", "256M", "-no-reboot", "-serial", "stdio"])
-            .args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"])
             .arg("-qmp")
             .arg(format!(
                 "unix:{},server=on,wait=off",
@@ -227,13 +230,16 @@ impl Qemu {
         if options.firmware == Firmware::Uefi {
             command.args(["-bios", OVMF_CODE]);
         }
+        if options.debug_exit {
+            command.args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"]);
+        }
         if options.display == Display::Headless {
             command.args(["-display", "none"]);
         }
-        if let Some(option) = options.boot_option {
+        if !options.boot.is_empty() {
             command
                 .arg("-fw_cfg")
-                .arg(format!("name={BOOT_OPTION_FILE},string={option}"));
+                .arg(format!("name={BOOT_OPTION_FILE},string={}", options.boot));
         }
         command
             .stdin(Stdio::null())

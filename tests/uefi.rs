@@ -1,17 +1,21 @@
-//! Machines without a legacy VGA. Under OVMF with `-vga none -device
-//! bochs-display` nothing answers on the VGA ports: the kernel must notice,
-//! run Mode X on its software VGA and copy each flip into the framebuffer the
-//! bootloader got from UEFI GOP. QEMU's screendump of that framebuffer must
-//! equal the model's picture scaled the same way by the same `present`.
-//! Where a legacy VGA exists (BIOS, or UEFI with QEMU's standard VGA), the
-//! detection must find it.
+//! UEFI boots and machines without a legacy VGA. A UEFI boot draws through
+//! the firmware framebuffer whatever the VGA registers say: Mode X runs on
+//! the kernel's software VGA and each flip is presented into the framebuffer
+//! the bootloader got from UEFI GOP. QEMU's screendump of that framebuffer
+//! must equal the model's picture scaled the same way by the same `present`,
+//! with OVMF and QEMU's standard VGA as with `-vga none -device
+//! bochs-display`, where nothing answers on the VGA ports at all. The BIOS
+//! image, and UEFI with the `modex=true-mode-x` boot option, drive the real
+//! registers. The text screens (fault panels, goodbye) are in `text_screens`.
 
 mod common;
+#[path = "uefi_parts/text_screens.rs"]
+mod text_screens;
 
-use boot::BootOption;
-use boot::{Firmware, Graphics, Qemu, QemuOptions, RgbImage};
+use boot::{BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions, RgbImage};
 use common::{
-    assert_pictures_equal, model_picture, pattern_picture, soft_vga_in_mode_x, BOOT_TIMEOUT,
+    assert_pictures_equal, assert_same_picture, model_picture, pattern_picture, soft_vga_in_mode_x,
+    BOOT_TIMEOUT,
 };
 use demo::app::App;
 use demo::scene::{Axis, Command};
@@ -23,8 +27,23 @@ use std::time::Duration;
 const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
 const LEGACY_FOUND: &str = "display: legacy VGA found";
 const NO_LEGACY: &str = "display: no legacy VGA";
+const UEFI_FRAMEBUFFER: &str = "display: UEFI boot: drawing through the firmware framebuffer";
 
 fn boot(firmware: Firmware, graphics: Graphics, option: Option<BootOption>) -> Qemu {
+    let request = BootRequest {
+        true_mode_x: false,
+        option,
+    };
+    boot_with(firmware, graphics, request, true)
+}
+
+/// As `boot`; without `debug_exit` the kernel halts where it would end QEMU.
+fn boot_with(
+    firmware: Firmware,
+    graphics: Graphics,
+    request: BootRequest,
+    debug_exit: bool,
+) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let image = match firmware {
         Firmware::Bios => images.bios,
@@ -33,7 +52,8 @@ fn boot(firmware: Firmware, graphics: Graphics, option: Option<BootOption>) -> Q
     let mut options = QemuOptions::new(image);
     options.firmware = firmware;
     options.graphics = graphics;
-    options.boot_option = option;
+    options.boot = request;
+    options.debug_exit = debug_exit;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -74,8 +94,8 @@ fn reported_framebuffer(console: &str) -> ReportedFramebuffer {
     }
 }
 
-/// A 320x240 picture presented as the kernel presents the software VGA onto
-/// a `width` x `height` screen, read back as RGB.
+/// A picture (320x240 Mode X, or 720x400 text) presented as the kernel
+/// presents the software VGA onto a `width` x `height` screen, read back as RGB.
 fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
     let layout = FramebufferLayout {
         width,
@@ -105,7 +125,7 @@ fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
         .unwrap();
-    assert!(console.contains(NO_LEGACY), "{console}");
+    assert!(console.contains(UEFI_FRAMEBUFFER), "{console}");
     assert!(!console.contains(LEGACY_FOUND), "{console}");
     let reported = reported_framebuffer(&console);
     println!(
@@ -175,8 +195,12 @@ fn the_bios_image_finds_the_legacy_vga() {
     assert!(!console.contains(NO_LEGACY), "{console}");
 }
 
+/// The default UEFI boot takes the framebuffer path even though QEMU's
+/// standard VGA answers on the legacy registers (a real Intel iGPU answers
+/// too, with its VGA plane disabled), and the registers are never touched:
+/// QEMU shows GOP's mode with the presented picture.
 #[test]
-fn uefi_with_the_standard_vga_still_finds_the_legacy_vga() {
+fn uefi_with_the_standard_vga_draws_through_the_framebuffer() {
     let mut qemu = boot(
         Firmware::Uefi,
         Graphics::StdVga,
@@ -185,9 +209,33 @@ fn uefi_with_the_standard_vga_still_finds_the_legacy_vga() {
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
         .unwrap();
-    assert!(console.contains(LEGACY_FOUND), "{console}");
-    assert!(!console.contains(NO_LEGACY), "{console}");
-    // And Mode X is really on: QEMU shows the VGA's 640x480, not GOP's mode.
+    assert!(console.contains(UEFI_FRAMEBUFFER), "{console}");
+    assert!(!console.contains(LEGACY_FOUND), "{console}");
     let screen = qemu.screendump().unwrap();
-    assert_eq!((screen.width, screen.height), (640, 480));
+    let reported = reported_framebuffer(&console);
+    assert_eq!(
+        (screen.width, screen.height),
+        (reported.width, reported.height)
+    );
+    let expected = presented(&pattern_picture(0), screen.width, screen.height);
+    assert_pictures_equal(&screen, &expected, "uefi std vga framebuffer");
+}
+
+/// `modex=true-mode-x` puts OVMF + standard VGA back on the real registers:
+/// QEMU shows the VGA's own 640x480 Mode X picture, as on a BIOS boot.
+#[test]
+fn uefi_with_the_standard_vga_and_the_option_runs_true_mode_x() {
+    let request = BootRequest {
+        true_mode_x: true,
+        option: Some(BootOption::TestPattern),
+    };
+    let mut qemu = boot_with(Firmware::Uefi, Graphics::StdVga, request, true);
+    let console = qemu
+        .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(console.contains(LEGACY_FOUND), "{console}");
+    assert!(!console.contains(UEFI_FRAMEBUFFER), "{console}");
+    assert!(!console.contains(NO_LEGACY), "{console}");
+    let screen = qemu.screendump().unwrap();
+    assert_same_picture(&screen, &pattern_picture(0), "true mode x under uefi");
 }

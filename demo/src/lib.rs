@@ -18,5 +18,6 @@ pub mod osd;
 pub mod pattern;
 pub mod queue;
 pub mod scene;
+pub mod screens;
 pub mod shading;
 pub mod solids;

@@ -1,6 +1,6 @@
 //! The end of the line: every CPU exception that cannot be resumed, and every
-//! panic, is reported here on serial and on screen (80x25 text, white on red),
-//! and the CPU halts for good. Halting, rather than returning or rebooting,
+//! panic, is reported here on serial and on screen (80x25 text, white on red,
+//! on the VGA or on the framebuffer), and the CPU halts for good. Halting, rather than returning or rebooting,
 //! keeps the report readable and avoids a triple fault's reboot loop.
 
 use core::fmt::{self, Write};
@@ -23,9 +23,8 @@ pub fn report_on_screen(physical_memory_offset: u64, card: Card) {
     SCREEN_PHYSICAL_OFFSET.store(physical_memory_offset, Ordering::Release);
 }
 
-const REPORT_LINES: usize = 4;
+const REPORT_LINES: usize = demo::screens::REPORT_LINES;
 const LINE_BYTES: usize = modex::TEXT_COLUMNS as usize;
-const WHITE_ON_RED: u8 = 0x4F;
 
 /// A screen line built without a heap; text past the line's end is cut.
 struct Line {
@@ -110,35 +109,27 @@ fn report(lines: &[Line]) -> ! {
     halt_forever()
 }
 
-/// Switches the VGA to text mode and writes the report, if a VGA is known to
-/// be there. The interrupted code may have been half-way through a register
-/// write; the mode set starts from scratch, so that does not matter.
+/// Shows the report on screen: on the VGA in text mode if the kernel drives a
+/// legacy VGA, else on the framebuffer through the software VGA's text mode
+/// (`framebuffer::show_fault_panel`). Each is taken with an atomic swap, so
+/// a fault while showing the panel goes to serial only. The interrupted code
+/// may have been half-way through a register write; the mode set starts from
+/// scratch, so that does not matter.
 fn show_on_screen(lines: &[Line]) {
+    let mut text = [""; demo::screens::REPORT_LINES];
+    for (text, line) in text.iter_mut().zip(lines) {
+        *text = line.as_str();
+    }
     let offset = SCREEN_PHYSICAL_OFFSET.swap(0, Ordering::Acquire);
     if offset == 0 {
+        crate::framebuffer::show_fault_panel(&text);
         return;
     }
     // SAFETY: the offset was recorded by the kernel after it found legacy VGA
     // through this mapping; nothing else runs after a fault, so the bus is ours.
     let bus = unsafe { crate::vga_bus::PortBus::new(offset) };
     let card = SCREEN_CARD.get().copied().unwrap_or(Card::Standard);
-    let mut vga = modex::ModeX::for_card(bus, card);
-    vga.set_text_mode(&crate::goodbye::FONT);
-    vga.write_text(
-        1,
-        2,
-        "modex-cube stopped. The report (also on serial):",
-        WHITE_ON_RED,
-    );
-    for (row, line) in lines.iter().enumerate() {
-        vga.write_text(3 + row as u8, 2, line.as_str(), WHITE_ON_RED);
-    }
-    vga.write_text(
-        3 + lines.len() as u8 + 1,
-        2,
-        "The CPU is halted. Reset the machine to start again.",
-        WHITE_ON_RED,
-    );
+    demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), &text);
 }
 
 /// Stops the CPU with interrupts off; only a reset or power-off leaves.

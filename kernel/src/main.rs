@@ -17,6 +17,7 @@ mod goodbye;
 mod interrupts;
 mod keyboard;
 mod legacy_vga;
+mod pat;
 mod pci;
 mod pit;
 mod qemu;
@@ -27,7 +28,8 @@ mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
-use machine::protocol::BootOption;
+use machine::firmware::Firmware;
+use machine::protocol::{BootOption, BootRequest};
 
 const BOOTLOADER_CONFIG: BootloaderConfig = {
     let mut config = BootloaderConfig::new_default();
@@ -67,17 +69,18 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     serial_println!("kernel: initialised");
 
     let mut option_buffer = [0u8; 64];
-    let option = match qemu::boot_option(&mut option_buffer).map(BootOption::parse) {
-        None => None,
-        Some(Ok(option)) => {
-            serial_println!("boot option: {}", option);
-            Some(option)
+    let request = match qemu::boot_option(&mut option_buffer).map(BootRequest::parse) {
+        None => BootRequest::default(),
+        Some(Ok(request)) => {
+            serial_println!("boot option: {}", request);
+            request
         }
         Some(Err(unknown)) => {
             serial_println!("boot option ignored: {}", unknown);
-            None
+            BootRequest::default()
         }
     };
+    let (force_true_mode_x, option) = (request.true_mode_x, request.option);
 
     let booted_by = firmware::firmware(&boot_info.memory_regions);
     serial_println!("firmware: {:?} (told by the memory map)", booted_by);
@@ -88,7 +91,23 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     // SAFETY: the bootloader maps all physical memory at this offset (asked for
     // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
     let mut bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
-    if modex::legacy_vga_present(&mut bus) {
+    // By how the machine booted, not by whether the registers answer: on UEFI
+    // the card may scan out the firmware's framebuffer whatever the VGA
+    // registers say (Intel iGPUs answer them with the VGA plane disabled), so
+    // true Mode X would be a black screen.
+    let true_mode_x = if booted_by == Firmware::Uefi && !force_true_mode_x {
+        serial_println!(
+            "display: UEFI boot: drawing through the firmware framebuffer \
+             (true Mode X needs a BIOS or CSM boot)"
+        );
+        false
+    } else {
+        if force_true_mode_x {
+            serial_println!("display: true Mode X asked for by the boot option");
+        }
+        modex::legacy_vga_present(&mut bus)
+    };
+    if true_mode_x {
         serial_println!("display: legacy VGA found");
         let card = legacy_vga::card();
         let mut vga = legacy_vga::set_mode_x(
@@ -102,16 +121,17 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         run_screen(&mut vga, option)
     }
 
-    // No legacy VGA (a UEFI-only machine, say): the same Mode X code draws on
-    // the software VGA, and each flip is copied to the firmware's framebuffer.
-    // The real ports are never mode-set, which would kill that framebuffer.
-    serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
+    // The same Mode X code draws on the software VGA, and each flip is
+    // presented into the firmware's framebuffer. The real ports are never
+    // mode-set, which would kill that framebuffer.
+    if booted_by != Firmware::Uefi || force_true_mode_x {
+        serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
+    }
     let Some(framebuffer) = boot_info.framebuffer.as_mut() else {
         panic!("no display: neither a legacy VGA nor a framebuffer from the bootloader");
     };
-    let mut display = framebuffer::Display::new(framebuffer);
-    let mirror =
-        modex::MirroredVga::new(framebuffer::soft_vga(), move |soft| display.present(soft));
+    let (soft, display) = framebuffer::take_over(framebuffer, physical_memory_offset);
+    let mirror = modex::MirroredVga::new(soft, move |soft| display.present(soft));
     let mut vga = modex::ModeX::new(mirror);
     vga.set_mode();
     serial_println!("vga: Mode X 320x240 set on the software VGA");

@@ -143,6 +143,53 @@ impl fmt::Display for BootOption {
     }
 }
 
+/// The word that forces true Mode X on a UEFI boot (QEMU only), so OVMF with
+/// QEMU's standard VGA still tests the real registers.
+pub const TRUE_MODE_X: &str = "modex=true-mode-x";
+
+/// Everything one fw_cfg string asks for: true Mode X on UEFI or not, and at
+/// most one boot option, separated by a space ("modex=true-mode-x bench").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BootRequest {
+    /// Drive the real VGA registers even on a UEFI boot.
+    pub true_mode_x: bool,
+    /// The boot option, if any.
+    pub option: Option<BootOption>,
+}
+
+impl BootRequest {
+    /// The request in `text`; an unknown word, or two options, is refused.
+    pub fn parse(text: &str) -> Result<BootRequest, UnknownOption> {
+        let mut request = BootRequest::default();
+        for word in text.split_whitespace() {
+            if word == TRUE_MODE_X && !request.true_mode_x {
+                request.true_mode_x = true;
+            } else if request.option.is_none() {
+                request.option = Some(BootOption::parse(word)?);
+            } else {
+                return Err(UnknownOption);
+            }
+        }
+        Ok(request)
+    }
+
+    /// Nothing asked for.
+    pub fn is_empty(&self) -> bool {
+        *self == BootRequest::default()
+    }
+}
+
+impl fmt::Display for BootRequest {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match (self.true_mode_x, self.option) {
+            (true, Some(option)) => write!(f, "{TRUE_MODE_X} {option}"),
+            (true, None) => f.write_str(TRUE_MODE_X),
+            (false, Some(option)) => write!(f, "{option}"),
+            (false, None) => Ok(()),
+        }
+    }
+}
+
 /// Serial lines the harness waits for.
 pub mod line {
     use core::fmt;
@@ -208,6 +255,32 @@ mod tests {
         }
         let message = UnknownOption.to_string();
         assert!(message.contains("fault=stack-overflow") && message.contains("clock-check"));
+    }
+
+    #[test]
+    fn requests_combine_true_mode_x_with_one_option() {
+        for true_mode_x in [false, true] {
+            for option in BootOption::all().map(Some).chain([None]) {
+                let request = BootRequest {
+                    true_mode_x,
+                    option,
+                };
+                assert_eq!(BootRequest::parse(&request.to_string()), Ok(request));
+            }
+        }
+        assert_eq!(
+            BootRequest::parse(" modex=true-mode-x  bench "),
+            Ok(BootRequest {
+                true_mode_x: true,
+                option: Some(BootOption::Bench)
+            })
+        );
+        assert_eq!(BootRequest::parse("bench flip-rate"), Err(UnknownOption));
+        assert_eq!(
+            BootRequest::parse("modex=true-mode-x nope"),
+            Err(UnknownOption)
+        );
+        assert!(BootRequest::parse("").unwrap().is_empty());
     }
 
     #[test]

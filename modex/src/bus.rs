@@ -39,6 +39,11 @@ pub trait VgaBus {
             self.write_vram8(address as u16, value);
         }
     }
+    /// Makes what has been written visible now. A VGA scans its memory out
+    /// continuously, so by default this does nothing; a software VGA mirrored
+    /// to a framebuffer presents (after text is written, say, which no page
+    /// flip follows).
+    fn flush(&mut self) {}
 }
 
 /// A borrowed bus is a bus, so a large software VGA can stay in its `Box`.
@@ -63,5 +68,8 @@ impl<T: VgaBus + ?Sized> VgaBus for &mut T {
     }
     fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
         (**self).fill_vram(offset, count, value);
+    }
+    fn flush(&mut self) {
+        (**self).flush();
     }
 }

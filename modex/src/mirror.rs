@@ -120,6 +120,14 @@ impl<F: FnMut(&SoftVga)> VgaBus for MirroredVga<'_, F> {
     fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
         self.soft.fill_vram(offset, count, value);
     }
+
+    /// A real VGA shows what was written within a frame; the model needs
+    /// that frame to latch the start address (a text mode set after a flip
+    /// to page 1 would otherwise still scan out from page 1's address).
+    fn flush(&mut self) {
+        self.soft.let_a_frame_pass();
+        self.present_now();
+    }
 }
 
 #[cfg(test)]
@@ -209,6 +217,33 @@ mod tests {
             .0
             .iter()
             .all(|pixel| *pixel == page_2_colour));
+    }
+
+    #[test]
+    fn text_written_after_a_flip_is_presented_by_a_flush() {
+        let layout = FramebufferLayout {
+            width: 720,
+            height: 400,
+            stride: 720,
+            bytes_per_pixel: 4,
+            order: PixelOrder::Rgb,
+        };
+        let mut framebuffer = vec![0u8; layout.required_bytes()];
+        let mut scratch = vec![0u8; crate::present::MAX_PICTURE_PIXELS];
+        let mut soft = Box::new(SoftVga::new());
+        let mut vga = ModeX::new(MirroredVga::new(&mut soft, |soft: &SoftVga| {
+            present(soft, &mut scratch, &layout, &mut framebuffer);
+        }));
+        vga.set_mode();
+        fill_pages(&mut vga);
+        vga.show_page(Page(1));
+        let font = [[0xFF; 8]; 128];
+        vga.set_text_mode(&font);
+        vga.write_text(0, 0, "#", 0x0F);
+        vga.bus_mut().flush();
+        // The first cell's eight lit dots are white, its ninth is black.
+        assert_eq!(&framebuffer[..4], &[255, 255, 255, 0]);
+        assert_eq!(&framebuffer[8 * 4..9 * 4], &[0, 0, 0, 0]);
     }
 
     #[test]

@@ -24,7 +24,7 @@ pub fn boot_bios_on(graphics: Graphics, option: Option<BootOption>) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let mut options = QemuOptions::new(images.bios);
     options.graphics = graphics;
-    options.boot_option = option;
+    options.boot.option = option;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 

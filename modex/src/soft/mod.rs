@@ -4,7 +4,8 @@
 //!
 //! * `registers`: the register files and I/O port decoding;
 //! * `memory`: four 64 KiB planes, latches, the CPU read and write paths;
-//! * `scanout`: the displayed picture, in 256-colour graphics modes;
+//! * `scanout`, `text_scanout`: the displayed picture, in 256-colour
+//!   graphics modes and in text modes;
 //! * `timing`: a deterministic clock, the beam, Input Status 1, and the
 //!   start address latched at the start of each vertical retrace;
 //! * `probe`: bus operation counts and a write guard.
@@ -31,6 +32,7 @@ mod memory;
 mod probe;
 mod registers;
 mod scanout;
+mod text_scanout;
 mod timing;
 
 use core::ops::Range;
@@ -170,6 +172,14 @@ impl SoftVga {
             self.frame_count += retraces;
             self.displayed_start = self.registers.start_address();
         }
+    }
+
+    /// Lets a whole frame pass, so a vertical retrace latches the start
+    /// address as it stands: a real VGA shows any change within a frame.
+    /// Used to present a screen that no page flip waited for (text written
+    /// after a mode set, whose start address is latched only at a retrace).
+    pub fn let_a_frame_pass(&mut self) {
+        self.advance_ns(self.timing.frame_ns().max(1));
     }
 
     /// The frame timing the registers program now.

@@ -1,6 +1,6 @@
 //! Scan-out: the picture the CRTC, Attribute Controller and DAC make of video
 //! memory, in 256-colour graphics modes (Mode X, and mode 13h by QEMU's
-//! compact chain-4 mapping).
+//! compact chain-4 mapping) and, through `text_scanout`, in text modes.
 //!
 //! The model follows QEMU's renderer: memory is fetched at plane offset
 //! `start + line * Offset * 2 + x / 4`, plane `x % 4`, whatever the byte,
@@ -19,6 +19,8 @@ use super::SoftVga;
 
 /// In 256-colour modes each character clock (8 dots) shows 4 pixels, each 2 dots wide.
 const PIXELS_PER_CHARACTER: usize = 4;
+/// The widest picture: 256 characters of 4 pixels.
+const MAX_WIDTH: usize = 256 * PIXELS_PER_CHARACTER;
 /// The Offset register counts words: two plane addresses each.
 const ADDRESSES_PER_OFFSET_UNIT: usize = 2;
 
@@ -43,16 +45,33 @@ pub fn dac_6_to_8(component: u8) -> u8 {
 }
 
 impl SoftVga {
+    /// The size of the displayed picture: (width, height) in dots, or (0, 0)
+    /// when there is none (Bochs VBE on, or a graphics mode other than
+    /// 256-colour). Text modes show their cells, 9 or 8 dots wide.
+    pub fn picture_size(&self) -> (usize, usize) {
+        if let Some(raster) = self.raster() {
+            (raster.width, raster.height)
+        } else if let Some(text) = self.text_raster() {
+            text.size()
+        } else {
+            (0, 0)
+        }
+    }
+
     /// The displayed picture as DAC indices (pixel data before the DAC's pixel
-    /// mask), row by row; returns (width, height), or (0, 0) when the VGA is
-    /// not in a 256-colour graphics mode or Bochs VBE is on. Blanking does not
-    /// affect the indices (see [`SoftVga::video_enabled`]).
+    /// mask), row by row; returns (width, height), or (0, 0) when there is no
+    /// picture (see [`SoftVga::picture_size`]). In text modes each dot is the
+    /// DAC index its attribute's colour selects. Blanking does not affect the
+    /// indices (see [`SoftVga::video_enabled`]).
     ///
     /// # Panics
     /// If `out` is smaller than width * height.
     pub fn scanout_indices(&self, out: &mut [u8]) -> (usize, usize) {
         let capacity = out.len();
-        self.scan(|pixel, index| out[pixel] = index, capacity)
+        self.scan(
+            |first, indices| out[first..first + indices.len()].copy_from_slice(indices),
+            capacity,
+        )
     }
 
     /// The displayed picture as 8-bit RGB, expanded from the DAC's 6 bits as
@@ -66,11 +85,13 @@ impl SoftVga {
         let enabled = self.video_enabled();
         let capacity = out.len();
         self.scan(
-            |pixel, index| {
-                out[pixel] = if enabled {
-                    dac.palette[usize::from(index & dac.pixel_mask)].map(dac_6_to_8)
-                } else {
-                    [0; 3]
+            |first, indices| {
+                for (pixel, &index) in out[first..first + indices.len()].iter_mut().zip(indices) {
+                    *pixel = if enabled {
+                        dac.palette[usize::from(index & dac.pixel_mask)].map(dac_6_to_8)
+                    } else {
+                        [0; 3]
+                    };
                 }
             },
             capacity,
@@ -113,10 +134,21 @@ impl SoftVga {
         })
     }
 
-    /// Calls `put(pixel number, DAC index)` for every displayed pixel.
-    fn scan(&self, mut put: impl FnMut(usize, u8), capacity: usize) -> (usize, usize) {
+    /// Calls `put(first pixel number, DAC indices)` for every displayed
+    /// pixel, a row (or a text cell's line) at a time: the kernel scans out
+    /// every flip, so the loop works in rows rather than pixels.
+    fn scan(&self, mut put: impl FnMut(usize, &[u8]), capacity: usize) -> (usize, usize) {
         let Some(raster) = self.raster() else {
-            return (0, 0);
+            let Some(text) = self.text_raster() else {
+                return (0, 0);
+            };
+            let (width, height) = text.size();
+            assert!(
+                capacity >= width * height,
+                "text scan-out needs {width} x {height} dots, the buffer holds {capacity}"
+            );
+            self.scan_text(&text, put);
+            return (width, height);
         };
         assert!(
             capacity >= raster.width * raster.height,
@@ -125,16 +157,19 @@ impl SoftVga {
             raster.height
         );
         let planes = &self.memory.planes;
+        let mut line = [0u8; MAX_WIDTH];
         let mut address = raster.start;
         let mut repeats_left = raster.scan_lines_per_row - 1;
         for scan_line in 0..raster.scan_lines {
             let row = scan_line / raster.scan_lines_per_row;
             // Each row once, from the first of its repeated scan lines.
             if scan_line % raster.scan_lines_per_row == 0 && row < raster.height {
-                for x in 0..raster.width {
-                    let offset = (address + x / PLANE_COUNT) % PLANE_BYTES;
-                    put(row * raster.width + x, planes[x % PLANE_COUNT][offset]);
+                let line = &mut line[..raster.width];
+                for (quad, pixels) in line.as_chunks_mut::<PLANE_COUNT>().0.iter_mut().enumerate() {
+                    let offset = (address + quad) % PLANE_BYTES;
+                    *pixels = core::array::from_fn(|plane| planes[plane][offset]);
                 }
+                put(row * raster.width, line);
             }
             if repeats_left == 0 {
                 address += raster.addresses_per_row;

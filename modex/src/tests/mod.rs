@@ -9,6 +9,7 @@ mod mode_set;
 mod model;
 mod palette;
 mod text;
+mod text_scanout;
 
 use std::boxed::Box;
 use std::vec;

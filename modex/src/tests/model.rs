@@ -286,8 +286,12 @@ fn counts_charge_one_operation_per_out_and_one_per_byte() {
 }
 
 #[test]
-fn text_mode_scans_out_nothing() {
-    let soft = power_on();
-    let mut pixels = std::vec![0; 320 * 240];
+fn a_graphics_mode_other_than_256_colours_scans_out_nothing() {
+    let mut soft = power_on();
+    // Graphics rather than text, but 16-colour planar shifting: not modelled.
+    crate::VgaBus::write_port16(&mut *soft, crate::regs::GRAPHICS_INDEX, 0x0506);
+    crate::VgaBus::write_port16(&mut *soft, crate::regs::GRAPHICS_INDEX, 0x0005);
+    let mut pixels = std::vec![0; 720 * 400];
+    assert_eq!(soft.picture_size(), (0, 0));
     assert_eq!(soft.scanout_indices(&mut pixels), (0, 0));
 }

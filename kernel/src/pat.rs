@@ -1,0 +1,159 @@
+//! Write-combining for the framebuffer. Firmware framebuffers sit in PCI
+//! memory that the MTRRs usually make uncacheable: every 4-byte pixel store
+//! is then its own bus transaction. Write-combining lets the CPU gather
+//! stores into whole-line bursts, which is how graphics drivers map
+//! framebuffers. The memory type of a page comes from the Page Attribute
+//! Table entry its PTE's PAT, PCD and PWT bits select, so: program a PAT
+//! entry that nothing uses (entry 4: PAT bit set, PCD and PWT clear; the
+//! bootloader never sets the PAT bit) to write-combining, point the
+//! framebuffer's PTEs at it, and flush the TLB.
+//!
+//! The bootloader's own mapping is reported first, so a user's serial log
+//! says what we started from.
+
+use crate::serial_println;
+use x86_64::registers::control::Cr3;
+use x86_64::registers::model_specific::Msr;
+
+const IA32_PAT: u32 = 0x277;
+/// CPUID leaf 1, EDX bit 16: the PAT is there.
+const CPUID_PAT: u32 = 1 << 16;
+/// The PAT entry we make write-combining, and its memory type encoding.
+const WC_ENTRY: u64 = 4;
+const TYPE_WC: u64 = 0x01;
+
+const PRESENT: u64 = 1 << 0;
+const PWT: u64 = 1 << 3;
+const PCD: u64 = 1 << 4;
+/// Bit 7 is PAT in a 4 KiB PTE, "huge page" in a directory entry, whose PAT
+/// bit is then bit 12.
+const PAT_4K: u64 = 1 << 7;
+const HUGE: u64 = 1 << 7;
+const PAT_HUGE: u64 = 1 << 12;
+const ADDRESS: u64 = 0x000F_FFFF_FFFF_F000;
+
+fn type_name(encoding: u64) -> &'static str {
+    match encoding {
+        0x00 => "UC",
+        0x01 => "WC",
+        0x04 => "WT",
+        0x05 => "WP",
+        0x06 => "WB",
+        0x07 => "UC-",
+        _ => "reserved",
+    }
+}
+
+/// The page-table entry mapping `virt` and the size of its page.
+struct Leaf {
+    entry: *mut u64,
+    page_bytes: u64,
+    pat_bit: u64,
+}
+
+impl Leaf {
+    fn pat_index(&self) -> u64 {
+        // SAFETY: `entry` points into a live page table, reached through the
+        // physical-memory mapping (see `leaf`).
+        let entry = unsafe { self.entry.read_volatile() };
+        u64::from(entry & self.pat_bit != 0) << 2
+            | u64::from(entry & PCD != 0) << 1
+            | u64::from(entry & PWT != 0)
+    }
+}
+
+/// Walks the page tables the CPU is using (CR3) through the mapping of all
+/// physical memory at `offset`, down to the entry that maps `virt`.
+fn leaf(virt: u64, offset: u64) -> Option<Leaf> {
+    let mut table = Cr3::read().0.start_address().as_u64() + offset;
+    for level in (1..=4u32).rev() {
+        let shift = 12 + 9 * (level - 1);
+        let index = (virt >> shift) & 0x1FF;
+        let entry = (table + index * 8) as *mut u64;
+        // SAFETY: `table` is a page table's physical address (from CR3 or a
+        // present entry above) plus the offset at which the bootloader maps
+        // all physical memory; an entry is 8 bytes and `index` < 512.
+        let value = unsafe { entry.read_volatile() };
+        if value & PRESENT == 0 {
+            return None;
+        }
+        if level == 1 || (level <= 3 && value & HUGE != 0) {
+            let (page_bytes, pat_bit) = if level == 1 {
+                (4096, PAT_4K)
+            } else {
+                (1 << shift, PAT_HUGE)
+            };
+            return Some(Leaf {
+                entry,
+                page_bytes,
+                pat_bit,
+            });
+        }
+        table = (value & ADDRESS) + offset;
+    }
+    None
+}
+
+/// Maps `buffer` write-combining if the CPU has a PAT, logging the mapping
+/// the bootloader made and what was done.
+pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
+    let start = buffer.as_ptr() as u64;
+    let end = start + buffer.len() as u64;
+    let has_pat = core::arch::x86_64::__cpuid(1).edx & CPUID_PAT != 0;
+    let Some(first) = leaf(start, physical_memory_offset) else {
+        serial_println!("display: framebuffer at {:#x} is not mapped?", start);
+        return;
+    };
+    if !has_pat {
+        serial_println!(
+            "display: no PAT (CPUID), framebuffer mapping left as the bootloader made it"
+        );
+        return;
+    }
+    // SAFETY: the CPU has the PAT (CPUID above), so the MSR exists.
+    let pat = unsafe { Msr::new(IA32_PAT).read() };
+    let entry_type = |index: u64| (pat >> (index * 8)) & 0x07;
+    let before = first.pat_index();
+    serial_println!(
+        "display: framebuffer mapped by the bootloader with {} KiB pages, PAT entry {} = {}",
+        first.page_bytes / 1024,
+        before,
+        type_name(entry_type(before))
+    );
+
+    let wc_pat = (pat & !(0xFF << (WC_ENTRY * 8))) | (TYPE_WC << (WC_ENTRY * 8));
+    x86_64::instructions::interrupts::without_interrupts(|| {
+        // SAFETY: entry 4 is selected only by PTEs with the PAT bit set,
+        // which the bootloader does not use, so no existing mapping changes
+        // type; caches are written back before and after, as the SDM asks
+        // when memory types change.
+        unsafe {
+            core::arch::asm!("wbinvd", options(nostack));
+            Msr::new(IA32_PAT).write(wc_pat);
+            core::arch::asm!("wbinvd", options(nostack));
+        }
+        let mut pages = 0u64;
+        let mut virt = start;
+        while virt < end {
+            let Some(page) = leaf(virt, physical_memory_offset) else {
+                break;
+            };
+            // SAFETY: the entry maps the framebuffer (it was reached from its
+            // address); only its memory-type bits change, to entry 4 (WC).
+            unsafe {
+                let value = page.entry.read_volatile();
+                page.entry
+                    .write_volatile((value & !(PCD | PWT)) | page.pat_bit);
+            }
+            pages += 1;
+            virt = (virt & !(page.page_bytes - 1)) + page.page_bytes;
+        }
+        // Every core's TLB may hold the old types; there is only this core.
+        x86_64::instructions::tlb::flush_all();
+        serial_println!(
+            "display: framebuffer now write-combining (PAT entry {} = WC, {} pages)",
+            WC_ENTRY,
+            pages
+        );
+    });
+}

@@ -1,0 +1,100 @@
+//! The presenter of changes writes only what changed, and leaves what a full
+//! present would (the property test with random steps and layouts is
+//! `tests/present_changes.rs`: proptest cannot be a dev-dependency here
+//! without turning on `std` features in the kernel's build).
+
+use super::*;
+use crate::{ModeX, Page};
+use std::boxed::Box;
+use std::vec;
+use std::vec::Vec;
+
+fn mode_x() -> Box<SoftVga> {
+    let mut soft = Box::new(SoftVga::new());
+    ModeX::new(&mut *soft).set_mode();
+    soft
+}
+
+fn layout(
+    width: usize,
+    height: usize,
+    bytes_per_pixel: usize,
+    order: PixelOrder,
+) -> FramebufferLayout {
+    FramebufferLayout {
+        width,
+        height,
+        stride: width,
+        bytes_per_pixel,
+        order,
+    }
+}
+
+/// A full present onto a fresh buffer of `len` bytes filled with 0xEE.
+fn full(soft: &SoftVga, layout: &FramebufferLayout, len: usize) -> Vec<u8> {
+    let mut out = vec![0xEE; len];
+    let mut scratch = vec![0; MAX_PICTURE_PIXELS];
+    present(soft, &mut scratch, layout, &mut out);
+    out
+}
+
+#[test]
+fn a_still_picture_costs_nothing_and_one_pixel_costs_its_square() {
+    let mut soft = mode_x();
+    let layout = layout(1280, 800, 4, PixelOrder::Bgr);
+    let mut out = vec![0xEE; layout.required_bytes()];
+    let mut presenter = Box::new(Presenter::new());
+    let first = presenter.present(&soft, &layout, &mut out);
+    assert!(first.full);
+    assert_eq!(first.bytes_written, 1280 * 800 * 4);
+    let again = presenter.present(&soft, &layout, &mut out);
+    assert_eq!((again.bytes_written, again.full), (0, false));
+    ModeX::new(&mut *soft).put_pixel(Page(0), 10, 20, 15);
+    let one = presenter.present(&soft, &layout, &mut out);
+    assert_eq!(one.bytes_written, 3 * 3 * 4, "scale 3, 4 bytes a pixel");
+    assert_eq!(out, full(&soft, &layout, out.len()));
+}
+
+#[test]
+fn the_borders_are_written_once() {
+    let mut soft = mode_x();
+    let layout = layout(1280, 800, 4, PixelOrder::Bgr);
+    let mut out = vec![0xEE; layout.required_bytes()];
+    let mut presenter = Box::new(Presenter::new());
+    presenter.present(&soft, &layout, &mut out);
+    // Mark the borders (left 160 columns, top 40 lines) to see any rewrite.
+    out[..40 * 1280 * 4].fill(0x55);
+    for line in out.as_chunks_mut::<{ 1280 * 4 }>().0 {
+        line[..160 * 4].fill(0x55);
+    }
+    let mut vga = ModeX::new(&mut *soft);
+    vga.fill_rect(Page(1), 0, 0, 320, 240, 9);
+    vga.show_page(Page(1));
+    let report = presenter.present(&soft, &layout, &mut out);
+    assert_eq!(
+        report.bytes_written,
+        960 * 720 * 4,
+        "the whole picture, no border"
+    );
+    assert!(out[..40 * 1280 * 4].iter().all(|&b| b == 0x55));
+    assert!(out
+        .as_chunks::<{ 1280 * 4 }>()
+        .0
+        .iter()
+        .all(|line| line[..160 * 4].iter().all(|&b| b == 0x55)));
+}
+
+#[test]
+fn a_palette_change_rewrites_the_pixels_of_that_colour_only() {
+    let mut soft = mode_x();
+    let mut vga = ModeX::new(&mut *soft);
+    vga.fill_rect(Page(0), 10, 10, 20, 15, 200);
+    let layout = layout(640, 480, 4, PixelOrder::Rgb);
+    let mut out = vec![0; layout.required_bytes()];
+    let mut presenter = Box::new(Presenter::new());
+    presenter.present(&soft, &layout, &mut out);
+    ModeX::new(&mut *soft).load_palette(200, &[[63, 0, 0]]);
+    let report = presenter.present(&soft, &layout, &mut out);
+    assert_eq!(report.bytes_written, 10 * 5 * 2 * 2 * 4);
+    assert_eq!(out, full(&soft, &layout, out.len()));
+}

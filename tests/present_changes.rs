@@ -1,0 +1,135 @@
+//! Presenting only what changed (`modex::present::Presenter`) must always
+//! leave the framebuffer exactly as a full present (`modex::present::present`)
+//! would: after any sequence of drawing, flips, DAC loads, pixel masks,
+//! blanking, text and mode changes, on any layout, pixel format and buffer
+//! length. A step that changes nothing must write nothing.
+
+use modex::present::{
+    present, FramebufferLayout, PackedFormat, PixelOrder, Presenter, MAX_PICTURE_PIXELS,
+};
+use modex::regs::{ATTRIBUTE_INDEX, DAC_PIXEL_MASK};
+use modex::soft::SoftVga;
+use modex::{ModeX, Page, VgaBus};
+use proptest::prelude::*;
+
+fn mode_x() -> Box<SoftVga> {
+    let mut soft = Box::new(SoftVga::new());
+    ModeX::new(&mut *soft).set_mode();
+    soft
+}
+
+/// A full present onto a fresh buffer of `len` bytes filled with 0xEE.
+fn full(soft: &SoftVga, layout: &FramebufferLayout, len: usize) -> Vec<u8> {
+    let mut out = vec![0xEE; len];
+    let mut scratch = vec![0; MAX_PICTURE_PIXELS];
+    present(soft, &mut scratch, layout, &mut out);
+    out
+}
+
+/// One thing that changes the picture.
+#[derive(Clone, Debug)]
+enum Step {
+    Fill(u8, i32, i32, i32, i32, u8),
+    Flip(u8),
+    Dac(u8, [u8; 3]),
+    PixelMask(u8),
+    Blank,
+    Text(u8, u8, String, u8),
+    ModeX,
+    Nothing,
+}
+
+fn step() -> impl Strategy<Value = Step> {
+    prop_oneof![
+        4 => (0..3u8, -20..340i32, -20..260i32, 0..120i32, 0..90i32, any::<u8>())
+            .prop_map(|(p, x, y, w, h, c)| Step::Fill(p, x, y, x + w, y + h, c)),
+        2 => (0..3u8).prop_map(Step::Flip),
+        2 => (any::<u8>(), prop::array::uniform3(0..64u8)).prop_map(|(i, c)| Step::Dac(i, c)),
+        1 => prop_oneof![Just(0xFFu8), Just(0x0F), any::<u8>()].prop_map(Step::PixelMask),
+        1 => Just(Step::Blank),
+        1 => (0..26u8, 0..81u8, "[ -~]{0,12}", any::<u8>())
+            .prop_map(|(r, c, t, a)| Step::Text(r, c, t, a)),
+        1 => Just(Step::ModeX),
+        1 => Just(Step::Nothing),
+    ]
+}
+
+fn apply(soft: &mut SoftVga, step: &Step) {
+    let font: [[u8; 8]; 128] =
+        core::array::from_fn(|g| core::array::from_fn(|r| (g * 7 + r * 31) as u8));
+    let text_mode = soft.graphics(modex::regs::gc::MISC) & 1 == 0;
+    let mut vga = ModeX::new(&mut *soft);
+    match step.clone() {
+        Step::Fill(page, x0, y0, x1, y1, colour) => {
+            vga.fill_rect(Page(page), x0, y0, x1, y1, colour)
+        }
+        Step::Flip(page) => {
+            vga.show_page(Page(page));
+        }
+        Step::Dac(index, colour) => vga.load_palette(index, &[colour]),
+        Step::PixelMask(mask) => vga.bus_mut().write_port8(DAC_PIXEL_MASK, mask),
+        // Palette Address Source clear: the screen goes blank.
+        Step::Blank => vga.bus_mut().write_port8(ATTRIBUTE_INDEX, 0),
+        Step::Text(row, column, text, attribute) => {
+            if !text_mode {
+                vga.set_text_mode(&font);
+            }
+            vga.write_text(row, column, &text, attribute);
+        }
+        Step::ModeX => vga.set_mode(),
+        Step::Nothing => {}
+    }
+}
+
+fn any_layout() -> impl Strategy<Value = (FramebufferLayout, usize)> {
+    let order = prop_oneof![
+        Just(PixelOrder::Rgb),
+        Just(PixelOrder::Bgr),
+        Just(PixelOrder::Grey),
+        Just(PixelOrder::Packed(PackedFormat::RGB565)),
+        Just(PixelOrder::Packed(PackedFormat::RGB555)),
+    ];
+    (
+        100..1000usize,
+        80..800usize,
+        0..9usize,
+        1..=4usize,
+        order,
+        0..4usize,
+    )
+        .prop_map(|(width, height, padding, bytes_per_pixel, order, cut)| {
+            let layout = FramebufferLayout {
+                width,
+                height,
+                stride: width + padding,
+                bytes_per_pixel,
+                order,
+            };
+            // Mostly the whole framebuffer; sometimes a buffer cut short.
+            let len = layout.required_bytes();
+            (layout, if cut == 0 { len / 3 } else { len })
+        })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    #[test]
+    fn presenting_changes_leaves_what_a_full_present_leaves(
+        (layout, len) in any_layout(),
+        steps in prop::collection::vec(step(), 1..10),
+    ) {
+        let mut soft = mode_x();
+        let mut presenter = Box::new(Presenter::new());
+        let mut out = vec![0xEE; len];
+        presenter.present(&soft, &layout, &mut out);
+        for (n, step) in steps.iter().enumerate() {
+            apply(&mut soft, step);
+            let report = presenter.present(&soft, &layout, &mut out);
+            prop_assert!(out == full(&soft, &layout, len), "after step {} ({:?})", n, step);
+            if matches!(step, Step::Nothing) {
+                prop_assert_eq!(report.bytes_written, 0);
+            }
+        }
+    }
+}

@@ -1,0 +1,141 @@
+//! The text screens on the framebuffer path. Under OVMF with `-vga none
+//! -device bochs-display` each fault must end in the same white-on-red panel
+//! as on a VGA, and Esc in the same goodbye line: the software VGA's text
+//! scan-out, presented. QEMU's screendump is compared with the same screen
+//! drawn by `demo::screens` on a host software VGA and presented the same way.
+//!
+//! The text scan-out itself is checked against QEMU's own VGA: on a BIOS
+//! boot the panel is real VGA text mode, and QEMU's 720x400 picture of it
+//! must equal the model's scan-out dot for dot.
+
+use super::{boot, boot_with, presented, UEFI_BOOT_TIMEOUT, UEFI_FRAMEBUFFER};
+use crate::common::{assert_pictures_equal, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT};
+use boot::{line, BootOption, BootRequest, Fault, Firmware, Graphics, RgbImage};
+use demo::screens::REPORT_LINES;
+use modex::ModeX;
+use std::time::Duration;
+
+/// The model's text picture, as RGB.
+fn text_picture(soft: &modex::soft::SoftVga) -> RgbImage {
+    let mut rgb = vec![[0u8; 3]; 720 * 400];
+    let (width, height) = soft.scanout_rgb(&mut rgb);
+    assert_eq!(
+        (width, height),
+        (720, 400),
+        "the model is not in 80x25 text"
+    );
+    RgbImage::new(width, height, rgb)
+}
+
+/// The panel's lines as the kernel printed them on serial, each in its row
+/// (serial leaves out empty lines; their prefixes say where each belongs).
+fn report_lines(console: &str) -> [String; REPORT_LINES] {
+    let start = console
+        .find("EXCEPTION: ")
+        .or_else(|| console.find("PANIC: "))
+        .unwrap_or_else(|| panic!("no report on serial:\n{console}"));
+    let mut lines: [String; REPORT_LINES] = Default::default();
+    for line in console[start..]
+        .lines()
+        .take_while(|l| l.trim() != line::HALTED)
+    {
+        let row = match line {
+            l if l.starts_with("  rip=") || l.starts_with("  at ") => 1,
+            l if l.starts_with("  error code=") => 2,
+            l if l.starts_with("  address=") => 3,
+            _ => 0,
+        };
+        lines[row] = line.trim_end_matches('\r').to_owned();
+    }
+    lines
+}
+
+/// The fault panel for `lines`, drawn on a software VGA that was in Mode X.
+fn panel_picture(lines: &[String; REPORT_LINES]) -> RgbImage {
+    let mut soft = soft_vga_in_mode_x();
+    let text: [&str; REPORT_LINES] = std::array::from_fn(|i| lines[i].as_str());
+    demo::screens::fault_panel(&mut ModeX::new(&mut *soft), &text);
+    text_picture(&soft)
+}
+
+/// Boots `option` on OVMF + bochs-display, waits for the halt, and compares
+/// the framebuffer with the panel presented.
+fn assert_panel_on_the_framebuffer(fault: Fault) {
+    let option = BootOption::Fault(fault);
+    let mut qemu = boot(Firmware::Uefi, Graphics::BochsDisplay, Some(option));
+    let console = qemu
+        .wait_for_serial(line::HALTED, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(console.contains(UEFI_FRAMEBUFFER), "{console}");
+    assert_eq!(qemu.wait_exit(Duration::from_secs(1)).unwrap(), None);
+    let screen = qemu.screendump().unwrap();
+    let expected = presented(
+        &panel_picture(&report_lines(&console)),
+        screen.width,
+        screen.height,
+    );
+    assert_pictures_equal(&screen, &expected, &format!("panel for {option}"));
+}
+
+#[test]
+fn a_page_fault_shows_the_panel_on_the_framebuffer() {
+    assert_panel_on_the_framebuffer(Fault::Page);
+}
+
+#[test]
+fn an_invalid_opcode_shows_the_panel_on_the_framebuffer() {
+    assert_panel_on_the_framebuffer(Fault::InvalidOpcode);
+}
+
+#[test]
+fn a_general_protection_fault_shows_the_panel_on_the_framebuffer() {
+    assert_panel_on_the_framebuffer(Fault::GeneralProtection);
+}
+
+#[test]
+fn a_stack_overflow_shows_the_panel_on_the_framebuffer() {
+    assert_panel_on_the_framebuffer(Fault::StackOverflow);
+}
+
+#[test]
+fn a_divide_error_shows_the_panel_on_the_framebuffer() {
+    assert_panel_on_the_framebuffer(Fault::Divide);
+}
+
+#[test]
+fn a_panic_shows_the_panel_on_the_framebuffer() {
+    assert_panel_on_the_framebuffer(Fault::Panic);
+}
+
+/// Esc: the goodbye line on the framebuffer. Without isa-debug-exit the
+/// kernel halts after saying goodbye instead of ending QEMU, so the screen
+/// can be looked at.
+#[test]
+fn escape_shows_the_goodbye_line_on_the_framebuffer() {
+    let mut qemu = boot_with(
+        Firmware::Uefi,
+        Graphics::BochsDisplay,
+        BootRequest::default(),
+        false,
+    );
+    qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    qemu.send_key("esc").unwrap();
+    qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
+    let screen = qemu.screendump().unwrap();
+    let mut soft = soft_vga_in_mode_x();
+    demo::screens::goodbye(&mut ModeX::new(&mut *soft));
+    let expected = presented(&text_picture(&soft), screen.width, screen.height);
+    assert_pictures_equal(&screen, &expected, "goodbye on the framebuffer");
+}
+
+/// The oracle for the text scan-out: QEMU's VGA shows the BIOS boot's panel
+/// exactly as the model scans it out.
+#[test]
+fn the_text_scan_out_matches_qemus_vga_dot_for_dot() {
+    let mut qemu = boot_bios(Some(BootOption::Fault(Fault::Page)));
+    let console = qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
+    let screen = qemu.screendump().unwrap();
+    let expected = panel_picture(&report_lines(&console));
+    assert_pictures_equal(&screen, &expected, "panel on the VGA");
+}
