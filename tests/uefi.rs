@@ -236,6 +236,11 @@ fn uefi_with_the_standard_vga_and_the_option_runs_true_mode_x() {
     assert!(console.contains(LEGACY_FOUND), "{console}");
     assert!(!console.contains(UEFI_FRAMEBUFFER), "{console}");
     assert!(!console.contains(NO_LEGACY), "{console}");
+    // A UEFI boot never calls a video BIOS, even when the registers are used.
+    assert!(
+        console.contains("the video BIOS will not be called: not a BIOS boot (Uefi)"),
+        "{console}"
+    );
     let screen = qemu.screendump().unwrap();
     assert_same_picture(&screen, &pattern_picture(0), "true mode x under uefi");
 }
