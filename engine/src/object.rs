@@ -4,6 +4,7 @@
 //! flag): a frame that moves nothing reuses them.
 
 use crate::cull::is_front_facing;
+use crate::depth::DepthPlane;
 use crate::light::outward_normal;
 use crate::math::{Point, Vec3};
 use crate::project::project_to_screen;
@@ -49,6 +50,11 @@ impl VisibleFace<'_> {
     /// The face's outward unit normal in view space, for shading.
     pub fn normal(&self) -> Vec3 {
         outward_normal(self.face.vertices.iter().map(|&v| self.view[v]))
+    }
+
+    /// −1/z across the face's plane, per screen pixel, for the depth test.
+    pub fn depth_plane(&self) -> Option<DepthPlane> {
+        DepthPlane::new(self.normal(), self.view[self.face.vertices[0]])
     }
 }
 

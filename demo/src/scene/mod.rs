@@ -8,7 +8,7 @@ mod orbit;
 use crate::shading::{default_light, shaded_colour};
 use crate::solids::{Solid, SOLIDS};
 use core::f64::consts::PI;
-use engine::{FaceCounts, Light, Object, Point, Xform};
+use engine::{FaceCounts, Light, Object, Point, VisibleFace, Xform};
 use orbit::{Satellite, ORBITS};
 
 /// Where the cube starts: no rotation, 100 units in front of the viewer.
@@ -245,15 +245,35 @@ impl Scene {
         let mut counts = FaceCounts::default();
         for &index in &order[..count] {
             counts += self.objects[index].each_visible_face(|visible| {
-                let colour = if lighting {
-                    shaded_colour(visible.face.colour, light.intensity(visible.normal()))
-                } else {
-                    visible.face.colour
-                };
-                draw(visible.polygon, colour);
+                draw(visible.polygon, face_colour(visible, lighting, &light));
             });
         }
         counts
+    }
+
+    /// Every face that survives backface removal, object by object in no
+    /// particular depth order, with its colour as `visible_faces` gives it:
+    /// for drawing with a depth test, where order does not matter.
+    pub fn each_visible_face(&mut self, mut draw: impl FnMut(&VisibleFace, u8)) -> FaceCounts {
+        let (lighting, light) = (self.lighting, self.light);
+        let count = self.object_count();
+        let mut counts = FaceCounts::default();
+        for object in &mut self.objects[..count] {
+            counts += object.each_visible_face(|visible| {
+                draw(visible, face_colour(visible, lighting, &light));
+            });
+        }
+        counts
+    }
+}
+
+/// The seed's flat colour, or with lighting on the level of the colour's ramp
+/// that the face's brightness gives.
+fn face_colour(visible: &VisibleFace, lighting: bool, light: &Light) -> u8 {
+    if lighting {
+        shaded_colour(visible.face.colour, light.intensity(visible.normal()))
+    } else {
+        visible.face.colour
     }
 }
 
