@@ -9,7 +9,7 @@
 //! kept in `baseline` for comparison; it writes every visible pixel every frame.
 
 use crate::scene::Scene;
-use engine::{fill_convex_polygon, ClipRect, DepthBand, FaceCounts, BANDS};
+use engine::{fill_convex_polygon, ClipRect, DepthBand, FaceCounts, VisibleFace, BANDS};
 use modex::{FlipReport, ModeX, Page, PageImage, VgaBus, PAGE_PIXELS, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 pub const BACKGROUND: u8 = 0;
@@ -51,12 +51,25 @@ pub fn render_with_depth(
     image: &mut PageImage,
     band: &mut DepthBand,
 ) -> FaceCounts {
+    render_faces_with_depth(image, band, |draw| {
+        scene.each_visible_face(|visible, colour| draw(visible, colour))
+    })
+}
+
+/// The depth-tested drawing of `render_with_depth` for any set of objects:
+/// `faces` is called once per band and must hand every face that survived
+/// backface removal, with its colour, to the function it is given.
+pub fn render_faces_with_depth(
+    image: &mut PageImage,
+    band: &mut DepthBand,
+    mut faces: impl FnMut(&mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
+) -> FaceCounts {
     image.fill(BACKGROUND);
     let mut counts = None;
     for index in 0..BANDS {
         band.start(index);
         let clip = band.clip();
-        let band_counts = scene.each_visible_face(|visible, colour| {
+        let band_counts = faces(&mut |visible, colour| {
             let Some(plane) = visible.depth_plane() else {
                 return;
             };

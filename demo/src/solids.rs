@@ -169,7 +169,7 @@ pub struct Solid {
     pub model: &'static Model,
 }
 
-/// The order N steps through: the seed's cube first.
+/// The convex solids, the starting cube first.
 pub static SOLIDS: [Solid; 5] = [
     Solid {
         name: "cube",
@@ -190,6 +190,47 @@ pub static SOLIDS: [Solid; 5] = [
     Solid {
         name: "icosahedron",
         model: &ICOSAHEDRON,
+    },
+];
+
+/// The models read from `models/` when the demo was built (see
+/// `demo/build.rs`): Ammeraal and Zhang's solid letter L and their three
+/// beams, neither convex, so only the depth test hides them right.
+mod from_files {
+    use engine::{Face, Model, Vec3};
+    include!(concat!(env!("OUT_DIR"), "/models.rs"));
+}
+pub use from_files::{BEAMS, BEAMS_OUTLINES, LETTER_L, LETTER_L_OUTLINES};
+
+/// The order N steps through: the Platonic solids, then the models from files.
+pub static SHAPES: [Solid; 7] = [
+    Solid {
+        name: "cube",
+        model: &CUBE,
+    },
+    Solid {
+        name: "tetrahedron",
+        model: &TETRAHEDRON,
+    },
+    Solid {
+        name: "octahedron",
+        model: &OCTAHEDRON,
+    },
+    Solid {
+        name: "dodecahedron",
+        model: &DODECAHEDRON,
+    },
+    Solid {
+        name: "icosahedron",
+        model: &ICOSAHEDRON,
+    },
+    Solid {
+        name: "letter L",
+        model: &LETTER_L,
+    },
+    Solid {
+        name: "three beams",
+        model: &BEAMS,
     },
 ];
 

@@ -6,7 +6,7 @@
 mod orbit;
 
 use crate::shading::{default_light, shaded_colour};
-use crate::solids::{Solid, SOLIDS};
+use crate::solids::{Solid, SHAPES};
 use core::f64::consts::PI;
 use engine::{FaceCounts, Light, Object, Point, VisibleFace, Xform};
 use orbit::{Satellite, ORBITS};
@@ -98,7 +98,7 @@ impl Scene {
     pub fn initial() -> Self {
         let satellites = ORBITS.map(|orbit| Satellite::start(&orbit));
         let objects = [
-            Object::new(SOLIDS[0].model, Xform::translation(0.0, 0.0, INITIAL_Z)),
+            Object::new(SHAPES[0].model, Xform::translation(0.0, 0.0, INITIAL_Z)),
             Object::new(ORBITS[0].model, satellites[0].object_to_world(&ORBITS[0])),
             Object::new(ORBITS[1].model, satellites[1].object_to_world(&ORBITS[1])),
         ];
@@ -132,7 +132,7 @@ impl Scene {
 
     /// The solid the keys move.
     pub fn solid(&self) -> &'static Solid {
-        &SOLIDS[self.solid]
+        &SHAPES[self.solid]
     }
 
     /// The object the keys move: the seed's cube unless N put another solid
@@ -178,8 +178,8 @@ impl Scene {
             Command::TurnLight(Axis::Y, right) => self.light.turn(signed(LIGHT_STEP, right), 0.0),
             Command::TurnLight(_, up) => self.light.turn(0.0, signed(LIGHT_STEP, up)),
             Command::NextSolid => {
-                self.solid = (self.solid + 1) % SOLIDS.len();
-                self.objects[0].set_model(SOLIDS[self.solid].model);
+                self.solid = (self.solid + 1) % SHAPES.len();
+                self.objects[0].set_model(SHAPES[self.solid].model);
             }
             Command::ToggleSeveral => self.several = !self.several,
             Command::Reset => *self = Self::initial(),

@@ -190,7 +190,7 @@ fn n_puts_each_solid_in_the_cubes_place_in_turn() {
     scene.apply(Command::MoveLeft);
     let place = *scene.primary().object_to_world();
     let mut seen = std::vec::Vec::new();
-    for _ in 0..SOLIDS.len() {
+    for _ in 0..crate::solids::SHAPES.len() {
         scene.apply(Command::NextSolid);
         seen.push(scene.solid().name);
         assert!(core::ptr::eq(scene.primary().model(), scene.solid().model));
@@ -204,6 +204,8 @@ fn n_puts_each_solid_in_the_cubes_place_in_turn() {
             "octahedron",
             "dodecahedron",
             "icosahedron",
+            "letter L",
+            "three beams",
             "cube"
         ]
     );
