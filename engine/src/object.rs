@@ -52,6 +52,17 @@ impl VisibleFace<'_> {
         outward_normal(self.face.vertices.iter().map(|&v| self.view[v]))
     }
 
+    /// The mean of the face's corners in view space: where the painter's
+    /// algorithm takes a face to be.
+    pub fn centre(&self) -> Vec3 {
+        let sum = self
+            .face
+            .vertices
+            .iter()
+            .fold(Vec3::default(), |sum, &v| sum + self.view[v]);
+        sum * (1.0 / self.face.vertices.len() as f64)
+    }
+
     /// −1/z across the face's plane, per screen pixel, for the depth test.
     pub fn depth_plane(&self) -> Option<DepthPlane> {
         DepthPlane::new(self.normal(), self.view[self.face.vertices[0]])
