@@ -199,3 +199,17 @@ fn the_painters_order_fails_with_the_cube_inside_the_orbit() {
     }
     assert!(wrong_frames > 10, "{wrong_frames} frames wrong");
 }
+
+#[test]
+fn the_crowd_is_exact() {
+    let mut scene = Scene::initial();
+    scene.apply(Command::ToggleCrowd);
+    scene.apply(Command::ToggleSpin);
+    assert!(scene.objects().len() >= 50);
+    for frame in 0..300 {
+        scene.tick();
+        if frame % 10 == 0 {
+            assert_exact(&mut scene, &format!("crowd, frame {frame}"));
+        }
+    }
+}

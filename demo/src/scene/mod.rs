@@ -3,11 +3,14 @@
 //! keys, flat shading by a light, other solids in the cube's place, and two
 //! more solids circling on their own, drawn far to near.
 
+mod crowd;
 mod orbit;
 
 use crate::shading::{default_light, shaded_colour};
 use crate::solids::{Solid, SHAPES};
 use core::f64::consts::PI;
+use crowd::Member;
+pub use crowd::CROWD;
 use engine::{FaceCounts, Light, Object, Point, VisibleFace, Xform};
 use orbit::{Satellite, ORBITS};
 
@@ -27,8 +30,10 @@ pub const SPIN_X_PER_FRAME: f64 = PI / 360.0;
 /// Rotations between re-orthonormalisations: often enough that the drift
 /// stays far below what a pixel can show.
 const ROTATIONS_PER_REORTHONORMALIZATION: u32 = 64;
-/// The cube (or the solid in its place) plus two satellites.
-pub const MAX_OBJECTS: usize = 3;
+/// The two satellites of the three-object scene.
+pub const SATELLITES: usize = 2;
+/// The cube (or the solid in its place), two satellites, and the crowd.
+pub const MAX_OBJECTS: usize = 1 + SATELLITES + CROWD;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Axis {
@@ -57,6 +62,8 @@ pub enum Command {
     NextSolid,
     /// One object, or three moving independently.
     ToggleSeveral,
+    /// The crowd of many solids on (with the three objects) or off.
+    ToggleCrowd,
     /// The on-screen help and statistics belong to the app, not the scene.
     ToggleHelp,
     ToggleStats,
@@ -68,10 +75,15 @@ pub enum Command {
 
 #[derive(Clone)]
 pub struct Scene {
-    /// The object the keys move (index 0) and the satellites.
+    /// The object the keys move (index 0), the satellites, then the crowd:
+    /// the objects shown are always a prefix.
     objects: [Object; MAX_OBJECTS],
-    satellites: [Satellite; MAX_OBJECTS - 1],
+    satellites: [Satellite; SATELLITES],
+    members: [Member; CROWD],
     several: bool,
+    crowd: bool,
+    /// Frames ticked with the crowd on: when each member moves.
+    crowd_frames: u32,
     solid: usize,
     lighting: bool,
     light: Light,
@@ -97,15 +109,28 @@ impl Scene {
     /// wait at the start of their orbits until several objects are switched on.
     pub fn initial() -> Self {
         let satellites = ORBITS.map(|orbit| Satellite::start(&orbit));
-        let objects = [
-            Object::new(SHAPES[0].model, Xform::translation(0.0, 0.0, INITIAL_Z)),
-            Object::new(ORBITS[0].model, satellites[0].object_to_world(&ORBITS[0])),
-            Object::new(ORBITS[1].model, satellites[1].object_to_world(&ORBITS[1])),
-        ];
+        let members: [Member; CROWD] = core::array::from_fn(Member::start);
+        let objects = core::array::from_fn(|index| match index {
+            0 => Object::new(SHAPES[0].model, Xform::translation(0.0, 0.0, INITIAL_Z)),
+            1..=SATELLITES => {
+                let orbit = &ORBITS[index - 1];
+                Object::new(orbit.model, satellites[index - 1].object_to_world(orbit))
+            }
+            _ => {
+                let member = &members[index - 1 - SATELLITES];
+                Object::new(
+                    Member::model(index - 1 - SATELLITES),
+                    member.object_to_world(),
+                )
+            }
+        });
         Scene {
             objects,
             satellites,
+            members,
             several: false,
+            crowd: false,
+            crowd_frames: 0,
             solid: 0,
             lighting: false,
             light: default_light(),
@@ -130,6 +155,10 @@ impl Scene {
         self.several
     }
 
+    pub fn crowd(&self) -> bool {
+        self.crowd
+    }
+
     /// The solid the keys move.
     pub fn solid(&self) -> &'static Solid {
         &SHAPES[self.solid]
@@ -145,14 +174,17 @@ impl Scene {
         &mut self.objects[0]
     }
 
-    /// The objects in the scene: the primary alone, or with the satellites.
+    /// The objects in the scene: the primary alone, or with the satellites,
+    /// or with the satellites and the crowd.
     pub fn objects(&self) -> &[Object] {
         &self.objects[..self.object_count()]
     }
 
     fn object_count(&self) -> usize {
-        if self.several {
+        if self.crowd {
             MAX_OBJECTS
+        } else if self.several {
+            1 + SATELLITES
         } else {
             1
         }
@@ -182,6 +214,7 @@ impl Scene {
                 self.objects[0].set_model(SHAPES[self.solid].model);
             }
             Command::ToggleSeveral => self.several = !self.several,
+            Command::ToggleCrowd => self.crowd = !self.crowd,
             Command::Reset => *self = Self::initial(),
             Command::ToggleHelp | Command::ToggleStats | Command::Pause | Command::Quit => {}
         }
@@ -195,11 +228,23 @@ impl Scene {
         }
         self.rotate(Axis::Y, SPIN_Y_PER_FRAME);
         self.rotate(Axis::X, SPIN_X_PER_FRAME);
-        if self.several {
+        if self.several || self.crowd {
             for (index, orbit) in ORBITS.iter().enumerate() {
                 let satellite = &mut self.satellites[index];
                 satellite.advance(orbit);
                 *self.objects[index + 1].object_to_world_mut() = satellite.object_to_world(orbit);
+            }
+        }
+        if self.crowd {
+            self.crowd_frames = self.crowd_frames.wrapping_add(1);
+            let objects = &mut self.objects[1 + SATELLITES..];
+            for (member, object) in self.members.iter_mut().zip(objects) {
+                // Only a member that moves is touched, so only it is
+                // transformed and projected again.
+                if member.moves_on(self.crowd_frames) {
+                    member.advance();
+                    *object.object_to_world_mut() = member.object_to_world();
+                }
             }
         }
     }
@@ -230,7 +275,7 @@ impl Scene {
     /// to each object's centre.
     pub fn drawing_order(&self) -> ([usize; MAX_OBJECTS], usize) {
         let count = self.object_count();
-        let mut order = [0, 1, 2];
+        let mut order: [usize; MAX_OBJECTS] = core::array::from_fn(|index| index);
         let distance = |index: &usize| self.objects[*index].position().length();
         order[..count].sort_unstable_by(|a, b| distance(b).total_cmp(&distance(a)));
         (order, count)
