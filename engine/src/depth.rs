@@ -34,8 +34,9 @@ impl DepthPlane {
     pub fn new(normal: Vec3, point: Vec3) -> Option<DepthPlane> {
         let d = normal.dot(point);
         let scale = normal.length() * point.length();
-        if !(d.abs() > 1e-9 * scale) {
-            return None; // also catches NaN
+        // Written so that a NaN anywhere also gives `None`.
+        if d.abs().partial_cmp(&(1e-9 * scale)) != Some(core::cmp::Ordering::Greater) {
+            return None;
         }
         // Screen X = cx + (x/z)·k, Y = cy − (y/z)·k with k = ratio · width/2
         // (see `project_to_screen`), so x/z = (X − cx)/k, y/z = −(Y − cy)/k.

@@ -1,24 +1,30 @@
 //! The renderer timed on the machine itself (boot option `bench`): the same
 //! spinning frames drawn by our renderer and by per-pixel Map Mask drawing,
-//! without waiting for retrace, timed with the TSC calibrated against the PIT.
+//! without waiting for retrace, timed with the TSC calibrated against the PIT;
+//! then our renderer on the crowd of many solids (key X), all depth-tested.
 
 use crate::clock::{self, rdtsc};
 use crate::serial_println;
 use demo::baseline::PerPixel;
 use demo::frame::{FrameDrawer, Renderer};
-use demo::scene::Scene;
+use demo::scene::{Command, Scene};
 use modex::{ModeX, VgaBus};
 
 const FRAMES: u64 = 120;
 
-/// Mean microseconds per frame for `drawer` over the spinning scene.
+/// Mean microseconds per frame for `drawer` over the spinning scene, with
+/// `commands` applied first.
 fn time_frames<B: VgaBus, D: FrameDrawer>(
     vga: &mut ModeX<B>,
     mut drawer: D,
     per_microsecond: u64,
+    commands: &[Command],
 ) -> u64 {
     vga.set_mode(); // blank pages and known registers, as every drawer expects
     let mut scene = Scene::new();
+    for &command in commands {
+        scene.apply(command);
+    }
     let start = rdtsc();
     for _ in 0..FRAMES {
         scene.tick();
@@ -32,8 +38,14 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
         serial_println!("bench: the PIT did not tick, so the TSC cannot be calibrated");
         return;
     };
-    let ours = time_frames(vga, Renderer::new(), per_microsecond);
-    let per_pixel = time_frames(vga, PerPixel::default(), per_microsecond);
+    let ours = time_frames(vga, Renderer::new(), per_microsecond, &[]);
+    let per_pixel = time_frames(vga, PerPixel::default(), per_microsecond, &[]);
+    let crowd = time_frames(
+        vga,
+        Renderer::new(),
+        per_microsecond,
+        &[Command::ToggleCrowd],
+    );
     vga.set_mode();
     serial_println!(
         "bench: {} frames each, TSC {} MHz: ours {} us/frame, per-pixel {} us/frame, per-pixel/ours = {}.{:02}",
@@ -43,5 +55,11 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
         per_pixel,
         per_pixel / ours.max(1),
         per_pixel * 100 / ours.max(1) % 100
+    );
+    serial_println!(
+        "bench: {} frames of the crowd ({} solids), ours {} us/frame",
+        FRAMES,
+        demo::scene::MAX_OBJECTS,
+        crowd
     );
 }

@@ -57,10 +57,14 @@ impl Member {
     /// the ones that move less often, so all go round at a similar pace.
     pub fn advance(&mut self) {
         let step = (self.index % 4 + 1) as f64;
-        let direction = if self.index % 2 == 0 { 1.0 } else { -1.0 };
+        let direction = if self.index.is_multiple_of(2) {
+            1.0
+        } else {
+            -1.0
+        };
         self.phase = (self.phase + direction * step * PI / 200.0) % (2.0 * PI);
         let spin = step * PI / (60.0 + (self.index % 7) as f64 * 10.0);
-        if self.index % 3 == 0 {
+        if self.index.is_multiple_of(3) {
             self.orientation.append_rotation_x(spin);
         } else {
             self.orientation.append_rotation_y(spin);

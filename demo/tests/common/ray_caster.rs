@@ -60,7 +60,7 @@ pub fn cast(objects: &[Object], background: u8) -> Picture {
     for (object_index, object) in objects.iter().enumerate() {
         let count = object.model().vertices.len();
         let view: Vec<Vec3> = (0..count).map(|i| object.view_vertex(i)).collect();
-        if view.iter().any(|v| !(v.z <= NEAREST_DRAWN_Z)) {
+        if !view.iter().all(|v| v.z <= NEAREST_DRAWN_Z) {
             continue;
         }
         for (face_index, face) in outlines(object).iter().enumerate() {
