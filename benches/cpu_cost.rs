@@ -88,7 +88,7 @@ fn measure(faces: usize) -> Measured {
             object.object_to_world_mut().append_rotation_x(0.01);
         }
         let start = Instant::now();
-        let counts = render_faces_with_depth(&mut image, &mut band, |draw| {
+        let counts = render_faces_with_depth(&mut image, &mut band, |_, draw| {
             let mut counts = FaceCounts::default();
             for object in &mut objects {
                 counts += object.each_visible_face(|visible| draw(visible, visible.face.colour));

@@ -103,7 +103,7 @@ proptest! {
         let mut object = Object::new(model, xform);
         let mut image = Box::new([BACKGROUND; PAGE_PIXELS]);
         let mut band = Box::new(DepthBand::new());
-        render_faces_with_depth(&mut image, &mut band, |draw| {
+        render_faces_with_depth(&mut image, &mut band, |_, draw| {
             object.each_visible_face(|visible| draw(visible, visible.face.colour))
         });
         // Through the page update onto the software VGA, which flags any

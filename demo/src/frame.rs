@@ -51,25 +51,27 @@ pub fn render_with_depth(
     image: &mut PageImage,
     band: &mut DepthBand,
 ) -> FaceCounts {
-    render_faces_with_depth(image, band, |draw| {
-        scene.each_visible_face(|visible, colour| draw(visible, colour))
+    render_faces_with_depth(image, band, |clip, draw| {
+        scene.each_visible_face_in_rows(clip.y0..clip.y1, |visible, colour| draw(visible, colour))
     })
 }
 
 /// The depth-tested drawing of `render_with_depth` for any set of objects:
-/// `faces` is called once per band and must hand every face that survived
-/// backface removal, with its colour, to the function it is given.
+/// `faces` is called once per band, with the band's rows, and must hand every
+/// face that survived backface removal — it may leave out those that miss
+/// the band's rows — with its colour, to the function it is given. The
+/// counts of the first band are returned.
 pub fn render_faces_with_depth(
     image: &mut PageImage,
     band: &mut DepthBand,
-    mut faces: impl FnMut(&mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
+    mut faces: impl FnMut(ClipRect, &mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
 ) -> FaceCounts {
     image.fill(BACKGROUND);
     let mut counts = None;
     for index in 0..BANDS {
         band.start(index);
         let clip = band.clip();
-        let band_counts = faces(&mut |visible, colour| {
+        let band_counts = faces(clip, &mut |visible, colour| {
             let Some(plane) = visible.depth_plane() else {
                 return;
             };

@@ -8,23 +8,35 @@
 //! pixel centre — no interpolation error along edges or spans — and nearer
 //! points have larger w (w → 0 far away, w = 1 at z = −1).
 //!
-//! Why `f32`: w for anything drawn lies in (0, 1]; `f32`'s 24-bit mantissa
-//! resolves depth to about 1e-7 of the distance (1e-5 units at z = −100), far
-//! finer than any two faces the scenes put near each other, and half the
-//! memory of `f64` — the buffer is a band of the frame (see `DepthBand`) that
-//! lives in the kernel's stack frame. A 16-bit fixed-point w would resolve
-//! only ~0.15 units at z = −100, enough to misplace where two shallowly
-//! crossing faces meet by several pixels.
+//! Why fixed point: the kernel's target has no floating-point unit enabled
+//! (x86_64-unknown-none is soft-float), so a per-pixel `f32` test cost ten
+//! times the whole frame there; integers cost one add and one compare a
+//! pixel. The plane's coefficients are computed once per face in `f64` and
+//! rounded to 40 fractional bits; a span steps w by the integer a per pixel,
+//! so the only error is a's rounding, under 320 · 2^-41 ≈ 1.5e-10 in w across
+//! the screen. The buffer keeps w with 32 fractional bits in a `u32` (w = 1,
+//! at z = −1, just fits), a resolution of 2.3e-10: z² times that in depth,
+//! 2e-6 units at z = −100 and 4e-5 at z = −400 — finer than `f32` there, and
+//! far finer than any two faces the scenes bring together.
 
 use crate::math::Vec3;
 use crate::project::{PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
 
-/// w = a·x + b·y + c at screen pixel (x, y).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Fractional bits of w in `DepthPlane`, and the bits dropped from that to
+/// store w in the depth buffer (which keeps 32).
+pub const W_FRACTION_BITS: u32 = 40;
+const STORED_SHIFT: u32 = W_FRACTION_BITS - 32;
+const W_ONE: f64 = (1u64 << W_FRACTION_BITS) as f64;
+/// Coefficients beyond this (a plane seen almost edge-on, whose w would leave
+/// the buffer's range within a pixel) are refused, so no sum can overflow.
+const COEFFICIENT_LIMIT: f64 = (1u64 << 52) as f64;
+
+/// w = a·x + b·y + c at screen pixel (x, y), in units of 2^-40.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DepthPlane {
-    pub a: f32,
-    pub b: f32,
-    pub c: f32,
+    pub a: i64,
+    pub b: i64,
+    pub c: i64,
 }
 
 impl DepthPlane {
@@ -46,21 +58,26 @@ impl DepthPlane {
         let a = -normal.x / (k * d);
         let b = normal.y / (k * d);
         let c = -(normal.z - normal.x * cx / k + normal.y * cy / k) / d;
+        let fixed = |v: f64| {
+            let v = v * W_ONE;
+            (v.abs() < COEFFICIENT_LIMIT).then(|| libm::round(v) as i64)
+        };
         Some(DepthPlane {
-            a: a as f32,
-            b: b as f32,
-            c: c as f32,
+            a: fixed(a)?,
+            b: fixed(b)?,
+            c: fixed(c)?,
         })
     }
 
-    /// w at the centre of pixel (x, y).
-    pub fn at(&self, x: i32, y: i32) -> f32 {
-        self.a * x as f32 + self.b * y as f32 + self.c
+    /// w at the centre of pixel (x, y), for any pixel of the screen (or a
+    /// little beyond) without overflow: |a|, |b|, |c| < 2^52.
+    pub fn at(&self, x: i32, y: i32) -> i64 {
+        self.a * i64::from(x) + self.b * i64::from(y) + self.c
     }
 }
 
 /// Rows of the frame per depth band. The depth buffer covers a band of rows,
-/// not the whole frame, and the frame is drawn band by band: 320 × 40 `f32`
+/// not the whole frame, and the frame is drawn band by band: 320 × 40 `u32`
 /// are 50 KiB instead of 300 KiB for the whole frame, which matters because
 /// the kernel keeps the renderer on its 1 MiB stack beside three 75 KiB
 /// frame images. The cost is walking the visible faces once per band.
@@ -73,7 +90,7 @@ const BAND_PIXELS: usize = (SCREEN_WIDTH * BAND_ROWS) as usize;
 #[derive(Clone)]
 pub struct DepthBand {
     first_row: i32,
-    w: [f32; BAND_PIXELS],
+    w: [u32; BAND_PIXELS],
 }
 
 impl Default for DepthBand {
@@ -86,14 +103,14 @@ impl DepthBand {
     pub const fn new() -> Self {
         DepthBand {
             first_row: 0,
-            w: [0.0; BAND_PIXELS],
+            w: [0; BAND_PIXELS],
         }
     }
 
     /// Starts band `band` (rows band·BAND_ROWS ..): nothing drawn yet.
     pub fn start(&mut self, band: i32) {
         self.first_row = band * BAND_ROWS;
-        self.w.fill(0.0);
+        self.w.fill(0);
     }
 
     /// The band's rows as a clip rectangle.
@@ -118,16 +135,19 @@ impl DepthBand {
         mut pixel: impl FnMut(i32),
     ) {
         let row = ((y - self.first_row) * SCREEN_WIDTH) as usize;
-        // Evaluated afresh at each pixel rather than stepped by `a`, so no
-        // rounding error builds up along a long span.
-        let row_w = plane.b * y as f32 + plane.c;
+        let mut w = plane.at(x0, y);
         for x in x0..x1 {
-            let w = plane.a * x as f32 + row_w;
+            // w ≤ 0 is at or beyond infinity (a plane extended past its face
+            // toward the horizon): never drawn. Nearer than z = −1 is
+            // clamped; nothing drawn comes that near.
+            let clamped = (w >> STORED_SHIFT).clamp(0, i64::from(u32::MAX)) as u32;
             let nearest = &mut self.w[row + x as usize];
-            if w > *nearest {
-                *nearest = w;
+            if clamped > *nearest {
+                *nearest = clamped;
                 pixel(x);
             }
+            // Exact: integers, so the step adds no error.
+            w += plane.a;
         }
     }
 }
@@ -152,11 +172,11 @@ mod tests {
         for p in corners {
             let k = PROJECTION_RATIO * 160.0;
             let (x, y) = (160.0 + p.x / p.z * k, 120.0 - p.y / p.z * k);
-            let w = f64::from(plane.a) * x + f64::from(plane.b) * y + f64::from(plane.c);
-            assert!((w - (-1.0 / p.z)).abs() < 1e-7, "{w} vs {}", -1.0 / p.z);
+            let w = (plane.a as f64 * x + plane.b as f64 * y + plane.c as f64) / W_ONE;
+            assert!((w - (-1.0 / p.z)).abs() < 1e-9, "{w} vs {}", -1.0 / p.z);
             // And the rounded projection is within a pixel's worth.
             let s = project_to_screen(p);
-            assert!((f64::from(plane.at(s.x, s.y)) + 1.0 / p.z).abs() < 1e-3);
+            assert!((plane.at(s.x, s.y) as f64 / W_ONE + 1.0 / p.z).abs() < 1e-3);
         }
     }
 
@@ -174,14 +194,14 @@ mod tests {
         let mut band = DepthBand::new();
         band.start(1);
         let far = DepthPlane {
-            a: 0.0,
-            b: 0.0,
-            c: 0.01,
+            a: 0,
+            b: 0,
+            c: 1 << 33,
         };
         let near = DepthPlane {
-            a: 0.0,
-            b: 0.0,
-            c: 0.02,
+            a: 0,
+            b: 0,
+            c: 1 << 34,
         };
         let mut drawn = std::vec::Vec::new();
         band.test_span(&far, 45, 10, 20, |x| drawn.push(x));

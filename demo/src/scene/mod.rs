@@ -299,13 +299,30 @@ impl Scene {
     /// Every face that survives backface removal, object by object in no
     /// particular depth order, with its colour as `visible_faces` gives it:
     /// for drawing with a depth test, where order does not matter.
-    pub fn each_visible_face(&mut self, mut draw: impl FnMut(&VisibleFace, u8)) -> FaceCounts {
+    pub fn each_visible_face(&mut self, draw: impl FnMut(&VisibleFace, u8)) -> FaceCounts {
+        self.each_visible_face_in_rows(i32::MIN..i32::MAX, draw)
+    }
+
+    /// As `each_visible_face`, but leaving out (while still counting) the
+    /// faces whose corners all lie above or all below `rows`: the renderer
+    /// draws a band of rows at a time, and a face's depth plane and shade
+    /// cost arithmetic that the kernel does without a floating-point unit.
+    pub fn each_visible_face_in_rows(
+        &mut self,
+        rows: core::ops::Range<i32>,
+        mut draw: impl FnMut(&VisibleFace, u8),
+    ) -> FaceCounts {
         let (lighting, light) = (self.lighting, self.light);
         let count = self.object_count();
         let mut counts = FaceCounts::default();
         for object in &mut self.objects[..count] {
             counts += object.each_visible_face(|visible| {
-                draw(visible, face_colour(visible, lighting, &light));
+                let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
+                let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
+                // The filler draws rows top..bottom.
+                if top < rows.end && bottom > rows.start {
+                    draw(visible, face_colour(visible, lighting, &light));
+                }
             });
         }
         counts
