@@ -5,7 +5,7 @@
 
 use crate::cull::is_front_facing;
 use crate::depth::DepthPlane;
-use crate::light::outward_normal;
+use crate::light::{newell_normal, outward_normal};
 use crate::math::{Point, Vec3};
 use crate::project::project_to_screen;
 use crate::xform::Xform;
@@ -65,7 +65,8 @@ impl VisibleFace<'_> {
 
     /// −1/z across the face's plane, per screen pixel, for the depth test.
     pub fn depth_plane(&self) -> Option<DepthPlane> {
-        DepthPlane::new(self.normal(), self.view[self.face.vertices[0]])
+        let newell = newell_normal(self.face.vertices.iter().map(|&v| self.view[v]));
+        DepthPlane::new(newell, self.view[self.face.vertices[0]])
     }
 }
 

@@ -44,8 +44,11 @@ impl<B: VgaBus> ModeX<B> {
                 continue;
             }
             for i in 0..usize::from(BYTES_PER_LINE) {
-                for (planes, _) in address_writes(quad(old_line, i), quad(new_line, i)) {
-                    *masks |= 1 << planes;
+                let (old, new) = (quad(old_line, i), quad(new_line, i));
+                if old != new {
+                    for (planes, _) in address_writes(old, new) {
+                        *masks |= 1 << planes;
+                    }
                 }
             }
             frame_masks |= *masks;
@@ -98,7 +101,12 @@ impl<B: VgaBus> ModeX<B> {
                     continue;
                 }
             }
-            for (planes, colour) in address_writes(quad(old_line, i), quad(new_line, i)) {
+            let (old, new) = (quad(old_line, i), quad(new_line, i));
+            if old == new {
+                i += 1;
+                continue;
+            }
+            for (planes, colour) in address_writes(old, new) {
                 if planes == mask {
                     self.bus.write_vram8(line_base + i as u16, colour);
                     written += 1;
