@@ -77,9 +77,8 @@ pub fn render_faces_with_depth(
             };
             fill_convex_polygon(visible.polygon, clip, |y, x_start, x_end| {
                 let row = (y * SCREEN_WIDTH) as usize;
-                band.test_span(&plane, y, x_start, x_end, |x| {
-                    image[row + x as usize] = colour;
-                });
+                let pixels = &mut image[row + x_start as usize..row + x_end as usize];
+                band.test_span(&plane, y, x_start, pixels, colour);
             });
         });
         counts.get_or_insert(band_counts);

@@ -133,16 +133,17 @@ impl DepthBand {
         }
     }
 
-    /// The span [x0, x1) of row y (inside the band) on the plane: calls
-    /// `pixel(x)` for each pixel where it is nearer than everything drawn there
-    /// so far, and remembers it as the nearest. Ties keep what was drawn first.
+    /// The span [x0, x1) of row y (inside the band) on the plane: sets
+    /// `pixels` (the span's pixels in the frame, x0 first) to `colour`
+    /// where the plane is nearer than everything drawn there so far, and
+    /// remembers it as the nearest. Ties keep what was drawn first.
     pub fn test_span(
         &mut self,
         plane: &DepthPlane,
         y: i32,
         x0: i32,
-        x1: i32,
-        mut pixel: impl FnMut(i32),
+        pixels: &mut [u8],
+        colour: u8,
     ) {
         let local = (y - self.first_row) as usize;
         self.touched = if self.touched.0 == self.touched.1 {
@@ -150,17 +151,17 @@ impl DepthBand {
         } else {
             (self.touched.0.min(local), self.touched.1.max(local + 1))
         };
-        let row = local * SCREEN_WIDTH as usize;
+        let start = local * SCREEN_WIDTH as usize + x0 as usize;
+        let nearest = &mut self.w[start..start + pixels.len()];
         let mut w = plane.at(x0, y);
-        for x in x0..x1 {
+        for (nearest, pixel) in nearest.iter_mut().zip(pixels) {
             // w ≤ 0 is at or beyond infinity (a plane extended past its face
             // toward the horizon): never drawn. Nearer than z = −1 is
             // clamped; nothing drawn comes that near.
-            let clamped = (w >> STORED_SHIFT).clamp(0, i64::from(u32::MAX)) as u32;
-            let nearest = &mut self.w[row + x as usize];
-            if clamped > *nearest {
-                *nearest = clamped;
-                pixel(x);
+            let stored = (w >> STORED_SHIFT).clamp(0, i64::from(u32::MAX)) as u32;
+            if stored > *nearest {
+                *nearest = stored;
+                *pixel = colour;
             }
             // Exact: integers, so the step adds no error.
             w += plane.a;
@@ -219,18 +220,23 @@ mod tests {
             b: 0,
             c: 1 << 34,
         };
-        let mut drawn = std::vec::Vec::new();
-        band.test_span(&far, 45, 10, 20, |x| drawn.push(x));
-        assert_eq!(drawn.len(), 10);
-        drawn.clear();
-        band.test_span(&near, 45, 15, 25, |x| drawn.push(x));
-        assert_eq!(drawn, (15..25).collect::<std::vec::Vec<_>>());
-        drawn.clear();
-        band.test_span(&far, 45, 0, 30, |x| drawn.push(x));
-        assert_eq!(drawn, (0..10).chain(25..30).collect::<std::vec::Vec<_>>());
-        drawn.clear();
-        band.test_span(&near, 45, 15, 25, |x| drawn.push(x));
-        assert!(drawn.is_empty(), "a tie keeps what was drawn first");
+        let mut row = [0u8; 320];
+        band.test_span(&far, 45, 10, &mut row[10..20], 1);
+        band.test_span(&near, 45, 15, &mut row[15..25], 2);
+        band.test_span(&far, 45, 0, &mut row[0..30], 3);
+        band.test_span(&near, 45, 15, &mut row[15..25], 4);
+        let expected: std::vec::Vec<u8> = (0..30)
+            .map(|x| match x {
+                0..10 | 25..30 => 3,
+                10..15 => 1,
+                _ => 2, // a tie keeps what was drawn first
+            })
+            .collect();
+        assert_eq!(&row[..30], &expected[..]);
         assert_eq!(band.clip().y0, BAND_ROWS);
+        // The next band starts with nothing drawn.
+        band.start(2);
+        band.test_span(&far, 85, 10, &mut row[10..20], 5);
+        assert_eq!(&row[10..20], &[5; 10]);
     }
 }
