@@ -46,11 +46,19 @@ pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
 /// surface shows whatever the objects' order, shape or overlap. The depth
 /// buffer covers one band of rows at a time (`band`), so the faces are
 /// walked once per band.
+///
+/// One convex solid alone needs no depth test — its faces that survive
+/// backface removal never overlap — so it is filled without one, in one pass:
+/// the same pixels, at the cost the starting scene had before the depth test
+/// (a test checks the two agree).
 pub fn render_with_depth(
     scene: &mut Scene,
     image: &mut PageImage,
     band: &mut DepthBand,
 ) -> FaceCounts {
+    if !scene.needs_depth_test() {
+        return render_painter(scene, image);
+    }
     render_faces_with_depth(image, band, |clip, draw| {
         scene.each_visible_face_in_rows(clip.y0..clip.y1, |visible, colour| draw(visible, colour))
     })
@@ -161,24 +169,41 @@ mod tests {
     use crate::scene::Command;
     use std::boxed::Box;
 
-    /// The starting scene (one convex cube, flat colours) must look exactly
-    /// as before the depth test, and so must the three solids while their
-    /// orbits keep them apart: there the painter's order was already exact.
+    /// The starting scene (one convex cube, flat colours) looks exactly as
+    /// before the depth test, and so do the three solids while their orbits
+    /// keep them apart: there the painter's order was already exact. (One
+    /// convex solid alone is drawn without the depth test, as before it; for
+    /// solids with faces of five corners, rounding a nearly edge-on face's
+    /// corners to pixels can fold it over its neighbour by a pixel, and there
+    /// the two ways may pick different faces, within the edge band that
+    /// `demo/tests/hidden_surfaces.rs` allows.)
     #[test]
     fn the_depth_test_changes_nothing_where_the_painters_order_was_exact() {
         let mut depth = Box::new([0u8; PAGE_PIXELS]);
         let mut painter = Box::new([0u8; PAGE_PIXELS]);
-        for several in [false, true] {
+        let mut band = Box::new(DepthBand::new());
+        for (shape, several, frames) in [(0, false, 360), (0, true, 360)] {
             let mut scene = Scene::new();
+            for _ in 0..shape {
+                scene.apply(Command::NextSolid);
+            }
+            assert!(scene.solid().convex);
             if several {
                 scene.apply(Command::ToggleSeveral);
             }
-            for frame in 0..360 {
+            assert_eq!(scene.needs_depth_test(), several);
+            for frame in 0..frames {
                 scene.tick();
-                let a = render_to_image(&mut scene, &mut depth);
+                // The depth test itself, even where it would be skipped.
+                let a = render_faces_with_depth(&mut depth, &mut band, |clip, draw| {
+                    scene.each_visible_face_in_rows(clip.y0..clip.y1, |v, c| draw(v, c))
+                });
                 let b = render_painter(&mut scene, &mut painter);
                 assert_eq!(a, b);
-                assert!(depth == painter, "frame {frame}, several: {several}");
+                assert!(
+                    depth == painter,
+                    "shape {shape}, frame {frame}, several: {several}"
+                );
             }
         }
     }

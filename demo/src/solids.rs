@@ -167,6 +167,9 @@ pub static DODECAHEDRON: Model = Model {
 pub struct Solid {
     pub name: &'static str,
     pub model: &'static Model,
+    /// Convex, so that backface removal alone hides exactly what it must
+    /// when it is the only object (the renderer then needs no depth test).
+    pub convex: bool,
 }
 
 /// The convex solids, the starting cube first.
@@ -174,22 +177,27 @@ pub static SOLIDS: [Solid; 5] = [
     Solid {
         name: "cube",
         model: &CUBE,
+        convex: true,
     },
     Solid {
         name: "tetrahedron",
         model: &TETRAHEDRON,
+        convex: true,
     },
     Solid {
         name: "octahedron",
         model: &OCTAHEDRON,
+        convex: true,
     },
     Solid {
         name: "dodecahedron",
         model: &DODECAHEDRON,
+        convex: true,
     },
     Solid {
         name: "icosahedron",
         model: &ICOSAHEDRON,
+        convex: true,
     },
 ];
 
@@ -207,30 +215,37 @@ pub static SHAPES: [Solid; 7] = [
     Solid {
         name: "cube",
         model: &CUBE,
+        convex: true,
     },
     Solid {
         name: "tetrahedron",
         model: &TETRAHEDRON,
+        convex: true,
     },
     Solid {
         name: "octahedron",
         model: &OCTAHEDRON,
+        convex: true,
     },
     Solid {
         name: "dodecahedron",
         model: &DODECAHEDRON,
+        convex: true,
     },
     Solid {
         name: "icosahedron",
         model: &ICOSAHEDRON,
+        convex: true,
     },
     Solid {
         name: "letter L",
         model: &LETTER_L,
+        convex: false,
     },
     Solid {
         name: "three beams",
         model: &BEAMS,
+        convex: false,
     },
 ];
 

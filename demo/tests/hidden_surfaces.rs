@@ -213,3 +213,18 @@ fn the_crowd_is_exact() {
         }
     }
 }
+
+#[test]
+fn each_convex_solid_alone_is_exact_without_the_depth_test() {
+    // One convex solid is drawn without the depth test (see
+    // `render_with_depth`); backface removal alone must then be exact.
+    for shape in 0..5 {
+        let mut scene = scene_with(shape);
+        assert!(!scene.needs_depth_test());
+        for step in 0..30 {
+            assert_exact(&mut scene, &format!("shape {shape}, step {step}"));
+            scene.apply(Command::Rotate(Axis::Y, true));
+            scene.apply(Command::Rotate(Axis::X, step % 2 == 0));
+        }
+    }
+}

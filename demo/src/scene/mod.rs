@@ -174,6 +174,12 @@ impl Scene {
         &mut self.objects[0]
     }
 
+    /// Whether hidden surfaces need the depth test: not for one convex solid
+    /// alone, where backface removal leaves faces that never overlap.
+    pub fn needs_depth_test(&self) -> bool {
+        self.object_count() > 1 || !self.solid().convex
+    }
+
     /// The objects in the scene: the primary alone, or with the satellites,
     /// or with the satellites and the crowd.
     pub fn objects(&self) -> &[Object] {
