@@ -67,7 +67,11 @@ fn ceil_crossing(a: Point, b: Point, y: i32) -> Option<i64> {
     let down = i64::from(y) - i64::from(upper.y);
     if let Some(numerator) = down.checked_mul(dx) {
         let q = numerator.div_euclid(dy);
-        let ceil = if numerator.rem_euclid(dy) == 0 { q } else { q + 1 };
+        let ceil = if numerator.rem_euclid(dy) == 0 {
+            q
+        } else {
+            q + 1
+        };
         return Some(i64::from(upper.x) + ceil);
     }
     let numerator = i128::from(down) * i128::from(dx);
