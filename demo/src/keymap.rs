@@ -1,5 +1,5 @@
 //! From decoded keys to commands: the seed's keys, plus Space, R and Esc, and
-//! the extras' keys (L, N, M, H, S; Home, End, Page Up, Page Down).
+//! the extras' keys (L, N, M, X, H, S; Home, End, Page Up, Page Down).
 //! The numeric keypad rotates with NumLock on (it then types digits, like the
 //! top row); with NumLock off its 4/6/8/2 are arrows and move the cube.
 
@@ -32,6 +32,7 @@ fn command_for_character(character: char) -> Command {
         'l' | 'L' => Command::ToggleLighting,
         'n' | 'N' => Command::NextSolid,
         'm' | 'M' => Command::ToggleSeveral,
+        'x' | 'X' => Command::ToggleCrowd,
         'h' | 'H' => Command::ToggleHelp,
         's' | 'S' => Command::ToggleStats,
         'r' | 'R' => Command::Reset,
@@ -139,7 +140,8 @@ mod tests {
             ),
             (DecodedKey::Unicode('r'), Reset),
             (DecodedKey::Unicode('\u{1b}'), Quit),
-            (DecodedKey::Unicode('x'), Pause),
+            (DecodedKey::Unicode('x'), ToggleCrowd),
+            (DecodedKey::Unicode('q'), Pause),
             (DecodedKey::Unicode('5'), Pause),
             (DecodedKey::RawKey(KeyCode::F3), Pause),
         ];

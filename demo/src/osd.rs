@@ -22,7 +22,7 @@ const CHAR_WIDTH: i32 = 6;
 const LINE_HEIGHT: i32 = 10;
 
 /// Every key, as the help box lists it.
-pub const HELP_LINES: [&str; 17] = [
+pub const HELP_LINES: [&str; 18] = [
     "Arrows       move left/right/up/down",
     "A  T         move away / toward",
     "4 6  8 2     turn about Y / about X",
@@ -33,9 +33,10 @@ pub const HELP_LINES: [&str; 17] = [
     "PgUp PgDn    light up / down",
     "N            next solid",
     "M            one object / three",
+    "X            many objects on/off",
     "S            statistics on/off",
     "H            this help on/off",
-    "R            back to the seed's scene",
+    "R            back to the starting scene",
     "Esc          quit",
     "other keys   pause until next key",
     "",
@@ -339,11 +340,12 @@ mod tests {
             ),
             ("N ", Unicode('n'), NextSolid),
             ("M ", Unicode('m'), ToggleSeveral),
+            ("X ", Unicode('x'), ToggleCrowd),
             ("S ", Unicode('s'), ToggleStats),
             ("H ", Unicode('h'), ToggleHelp),
             ("R ", Unicode('r'), Reset),
             ("Esc", RawKey(KeyCode::Escape), Quit),
-            ("other keys", Unicode('x'), Pause),
+            ("other keys", Unicode('q'), Pause),
         ];
         for (label, key, command) in listed {
             assert!(
@@ -358,7 +360,7 @@ mod tests {
             match command {
                 MoveLeft | MoveRight | MoveUp | MoveDown | Away | Toward | Rotate(..)
                 | ToggleSpin | ToggleLighting | TurnLight(..) | NextSolid | ToggleSeveral
-                | ToggleHelp | ToggleStats | Reset | Pause | Quit => {}
+                | ToggleCrowd | ToggleHelp | ToggleStats | Reset | Pause | Quit => {}
             }
         }
     }

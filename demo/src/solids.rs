@@ -167,29 +167,85 @@ pub static DODECAHEDRON: Model = Model {
 pub struct Solid {
     pub name: &'static str,
     pub model: &'static Model,
+    /// Convex, so that backface removal alone hides exactly what it must
+    /// when it is the only object (the renderer then needs no depth test).
+    pub convex: bool,
 }
 
-/// The order N steps through: the seed's cube first.
+/// The convex solids, the starting cube first.
 pub static SOLIDS: [Solid; 5] = [
     Solid {
         name: "cube",
         model: &CUBE,
+        convex: true,
     },
     Solid {
         name: "tetrahedron",
         model: &TETRAHEDRON,
+        convex: true,
     },
     Solid {
         name: "octahedron",
         model: &OCTAHEDRON,
+        convex: true,
     },
     Solid {
         name: "dodecahedron",
         model: &DODECAHEDRON,
+        convex: true,
     },
     Solid {
         name: "icosahedron",
         model: &ICOSAHEDRON,
+        convex: true,
+    },
+];
+
+/// The models read from `models/` when the demo was built (see
+/// `demo/build.rs`): Ammeraal and Zhang's solid letter L and their three
+/// beams, neither convex, so only the depth test hides them right.
+mod from_files {
+    use engine::{Face, Model, Vec3};
+    include!(concat!(env!("OUT_DIR"), "/models.rs"));
+}
+pub use from_files::{BEAMS, BEAMS_OUTLINES, LETTER_L, LETTER_L_OUTLINES};
+
+/// The order N steps through: the Platonic solids, then the models from files.
+pub static SHAPES: [Solid; 7] = [
+    Solid {
+        name: "cube",
+        model: &CUBE,
+        convex: true,
+    },
+    Solid {
+        name: "tetrahedron",
+        model: &TETRAHEDRON,
+        convex: true,
+    },
+    Solid {
+        name: "octahedron",
+        model: &OCTAHEDRON,
+        convex: true,
+    },
+    Solid {
+        name: "dodecahedron",
+        model: &DODECAHEDRON,
+        convex: true,
+    },
+    Solid {
+        name: "icosahedron",
+        model: &ICOSAHEDRON,
+        convex: true,
+    },
+    Solid {
+        name: "letter L",
+        model: &LETTER_L,
+        convex: false,
+    },
+    Solid {
+        name: "three beams",
+        model: &BEAMS,
+        convex: false,
     },
 ];
 

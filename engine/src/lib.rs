@@ -13,6 +13,7 @@
 extern crate std;
 
 pub mod cull;
+pub mod depth;
 pub mod light;
 pub mod math;
 pub mod object;
@@ -22,6 +23,7 @@ pub mod reference;
 pub mod xform;
 
 pub use cull::is_front_facing;
+pub use depth::{DepthBand, DepthPlane, BANDS, BAND_ROWS};
 pub use light::{outward_normal, quantize, Light};
 pub use math::{Point, Vec3};
 pub use object::{

@@ -9,13 +9,7 @@ use crate::math::Vec3;
 /// edges, so a degenerate first edge or a slightly non-planar face still gives
 /// the right direction; a face with no area gives the zero vector.
 pub fn outward_normal(corners: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
-    let next = corners.clone().cycle().skip(1);
-    let mut newell = Vec3::default();
-    for (a, b) in corners.zip(next) {
-        newell.x += (a.y - b.y) * (a.z + b.z);
-        newell.y += (a.z - b.z) * (a.x + b.x);
-        newell.z += (a.x - b.x) * (a.y + b.y);
-    }
+    let newell = newell_normal(corners);
     // Newell's normal follows the right-hand rule: it points towards the side
     // from which the corners run counter-clockwise, i.e. inward here.
     let length = newell.length();
@@ -24,6 +18,19 @@ pub fn outward_normal(corners: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
     } else {
         newell * (-1.0 / length)
     }
+}
+
+/// Newell's normal, not scaled to unit length (no square root: the depth
+/// test needs only the plane, and the kernel computes without an FPU).
+pub fn newell_normal(corners: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
+    let next = corners.clone().cycle().skip(1);
+    let mut newell = Vec3::default();
+    for (a, b) in corners.zip(next) {
+        newell.x += (a.y - b.y) * (a.z + b.z);
+        newell.y += (a.z - b.z) * (a.x + b.x);
+        newell.z += (a.x - b.x) * (a.y + b.y);
+    }
+    newell
 }
 
 /// A light at infinity, given by where it stands as seen from the scene.

@@ -4,7 +4,8 @@
 //! flag): a frame that moves nothing reuses them.
 
 use crate::cull::is_front_facing;
-use crate::light::outward_normal;
+use crate::depth::DepthPlane;
+use crate::light::{newell_normal, outward_normal};
 use crate::math::{Point, Vec3};
 use crate::project::project_to_screen;
 use crate::xform::Xform;
@@ -49,6 +50,23 @@ impl VisibleFace<'_> {
     /// The face's outward unit normal in view space, for shading.
     pub fn normal(&self) -> Vec3 {
         outward_normal(self.face.vertices.iter().map(|&v| self.view[v]))
+    }
+
+    /// The mean of the face's corners in view space: where the painter's
+    /// algorithm takes a face to be.
+    pub fn centre(&self) -> Vec3 {
+        let sum = self
+            .face
+            .vertices
+            .iter()
+            .fold(Vec3::default(), |sum, &v| sum + self.view[v]);
+        sum * (1.0 / self.face.vertices.len() as f64)
+    }
+
+    /// −1/z across the face's plane, per screen pixel, for the depth test.
+    pub fn depth_plane(&self) -> Option<DepthPlane> {
+        let newell = newell_normal(self.face.vertices.iter().map(|&v| self.view[v]));
+        DepthPlane::new(newell, self.view[self.face.vertices[0]])
     }
 }
 

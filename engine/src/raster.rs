@@ -59,10 +59,23 @@ fn ceil_crossing(a: Point, b: Point, y: i32) -> Option<i64> {
     if !(upper.y <= y && y < lower.y) {
         return None;
     }
-    let dy = i128::from(lower.y) - i128::from(upper.y);
-    let numerator =
-        (i128::from(y) - i128::from(upper.y)) * (i128::from(lower.x) - i128::from(upper.x));
-    let x = i128::from(upper.x) + div_ceil(numerator, dy);
+    // On-screen polygons fit in i64, whose division is one instruction; the
+    // kernel's i128 division is a library call, and this runs for every edge
+    // on every row.
+    let dx = i64::from(lower.x) - i64::from(upper.x);
+    let dy = i64::from(lower.y) - i64::from(upper.y);
+    let down = i64::from(y) - i64::from(upper.y);
+    if let Some(numerator) = down.checked_mul(dx) {
+        let q = numerator.div_euclid(dy);
+        let ceil = if numerator.rem_euclid(dy) == 0 {
+            q
+        } else {
+            q + 1
+        };
+        return Some(i64::from(upper.x) + ceil);
+    }
+    let numerator = i128::from(down) * i128::from(dx);
+    let x = i128::from(upper.x) + div_ceil(numerator, i128::from(dy));
     Some(x.clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64)
 }
 

@@ -6,8 +6,8 @@
 //! plane p, so a page can be updated address by address: pixels that already
 //! hold their new colour are left alone, and the changed ones get one write per
 //! distinct new colour, with the Map Mask selecting exactly their planes. That
-//! is the lower bound on writes for the change; only the Map Mask writes come
-//! on top, and the driver's cache drops the ones that would not change it.
+//! is the lower bound on writes for the change. The writes are then ordered by
+//! Map Mask, so each distinct mask the frame needs costs one port write.
 
 use crate::bus::VgaBus;
 use crate::driver::ModeX;
@@ -25,63 +25,116 @@ impl<B: VgaBus> ModeX<B> {
     /// Makes `page` show `target`, given that it shows `shadow` now; only
     /// changed pixels are written, and `shadow` becomes `target`. Returns the
     /// number of video-memory bytes written.
+    ///
+    /// Writes to different addresses are independent, so they are grouped by
+    /// Map Mask: one pass per distinct mask the frame needs, each setting the
+    /// Map Mask once and then writing every address that needs it. The port
+    /// writes are then the number of distinct masks, not one per change of
+    /// mask between neighbouring addresses. To find the addresses of a mask
+    /// without a list of them, each line keeps the set of masks it needs, and
+    /// a pass visits only the lines that need its mask.
     pub fn update_page(&mut self, page: Page, shadow: &mut PageImage, target: &PageImage) -> u32 {
-        let mut written = 0;
-        const WIDTH: usize = SCREEN_WIDTH as usize;
-        let lines = shadow
-            .as_chunks_mut::<WIDTH>()
-            .0
-            .iter_mut()
-            .zip(target.as_chunks::<WIDTH>().0);
-        for (y, (old_line, new_line)) in lines.enumerate() {
+        let width = SCREEN_WIDTH as usize;
+        let mut line_masks = [0u16; SCREEN_HEIGHT as usize];
+        let mut frame_masks = 0u16;
+        for (y, masks) in line_masks.iter_mut().enumerate() {
+            let (old_line, new_line) =
+                (&shadow[y * width..][..width], &target[y * width..][..width]);
             if old_line == new_line {
                 continue;
             }
-            let line_base = page.base() + y as u16 * BYTES_PER_LINE;
-            let mut i = 0;
-            while i < usize::from(BYTES_PER_LINE) {
+            for i in 0..usize::from(BYTES_PER_LINE) {
                 let (old, new) = (quad(old_line, i), quad(new_line, i));
-                if old == new {
-                    i += 1;
-                    continue;
-                }
-                // A run of addresses whose four pixels all become one colour
-                // is a single fill with all planes enabled.
-                let run = solid_run(old_line, new_line, i);
-                if run > 0 {
-                    self.set_map_mask(ALL_PLANES);
-                    self.bus.fill_vram(line_base + i as u16, run as u16, new[0]);
-                    written += run as u32;
-                    i += run;
-                } else {
-                    written += self.update_address(line_base + i as u16, old, new);
-                    i += 1;
+                if old != new {
+                    for (planes, _) in address_writes(old, new) {
+                        *masks |= 1 << planes;
+                    }
                 }
             }
-            old_line.copy_from_slice(new_line);
+            frame_masks |= *masks;
+        }
+        // The mask already set first, which saves its OUT.
+        let cached = self
+            .cached_map_mask()
+            .filter(|&m| frame_masks & 1 << m != 0);
+        let others = (1..=ALL_PLANES).filter(|&m| Some(m) != cached && frame_masks & 1 << m != 0);
+        let mut written = 0;
+        for mask in cached.into_iter().chain(others) {
+            self.set_map_mask(mask);
+            for (y, _) in line_masks
+                .iter()
+                .enumerate()
+                .filter(|(_, &m)| m & 1 << mask != 0)
+            {
+                let (old_line, new_line) =
+                    (&shadow[y * width..][..width], &target[y * width..][..width]);
+                let line_base = page.base() + y as u16 * BYTES_PER_LINE;
+                written += self.write_line_mask(line_base, old_line, new_line, mask);
+            }
+        }
+        for (y, _) in line_masks.iter().enumerate().filter(|(_, &m)| m != 0) {
+            shadow[y * width..][..width].copy_from_slice(&target[y * width..][..width]);
         }
         written
     }
 
-    /// One write per distinct new colour among the changed pixels of the
-    /// address.
-    fn update_address(&mut self, address: u16, old: [u8; 4], new: [u8; 4]) -> u32 {
-        let mut pending = (0..4)
-            .filter(|&p| old[p] != new[p])
-            .fold(0u8, |mask, p| mask | 1 << p);
-        let mut writes = 0;
-        while pending != 0 {
-            let colour = new[pending.trailing_zeros() as usize];
-            let planes = (0..4)
-                .filter(|&p| pending & 1 << p != 0 && new[p] == colour)
-                .fold(0u8, |m, p| m | 1 << p);
-            self.set_map_mask(planes);
-            self.bus.write_vram8(address, colour);
-            pending &= !planes;
-            writes += 1;
+    /// The writes of one line that use `mask` (already set).
+    fn write_line_mask(
+        &mut self,
+        line_base: u16,
+        old_line: &[u8],
+        new_line: &[u8],
+        mask: u8,
+    ) -> u32 {
+        let mut written = 0;
+        let mut i = 0;
+        while i < usize::from(BYTES_PER_LINE) {
+            // A run of addresses whose four pixels all become one colour
+            // is a single fill with all planes enabled.
+            if mask == ALL_PLANES {
+                let run = solid_run(old_line, new_line, i);
+                if run > 0 {
+                    self.bus
+                        .fill_vram(line_base + i as u16, run as u16, new_line[4 * i]);
+                    written += run as u32;
+                    i += run;
+                    continue;
+                }
+            }
+            let (old, new) = (quad(old_line, i), quad(new_line, i));
+            if old == new {
+                i += 1;
+                continue;
+            }
+            for (planes, colour) in address_writes(old, new) {
+                if planes == mask {
+                    self.bus.write_vram8(line_base + i as u16, colour);
+                    written += 1;
+                }
+            }
+            i += 1;
         }
-        writes
+        written
     }
+}
+
+/// The writes that bring one address from `old` to `new`: one per distinct
+/// new colour among the changed pixels, as (planes, colour).
+fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (u8, u8)> {
+    let mut pending = (0..4)
+        .filter(|&p| old[p] != new[p])
+        .fold(0u8, |mask, p| mask | 1 << p);
+    core::iter::from_fn(move || {
+        if pending == 0 {
+            return None;
+        }
+        let colour = new[pending.trailing_zeros() as usize];
+        let planes = (0..4)
+            .filter(|&p| pending & 1 << p != 0 && new[p] == colour)
+            .fold(0u8, |m, p| m | 1 << p);
+        pending &= !planes;
+        Some((planes, colour))
+    })
 }
 
 fn quad(line: &[u8], address: usize) -> [u8; 4] {
@@ -138,6 +191,11 @@ mod tests {
             let written = vga.update_page(Page(0), &mut shadow, &target);
             let after = vga.bus().counts();
             assert_eq!(after.vram_writes - before.vram_writes, u64::from(written));
+            // At most one Map Mask write per distinct mask (15 at most).
+            assert!(
+                after.port_writes - before.port_writes <= 15,
+                "round {round}"
+            );
             assert_eq!(&*shadow, &*target);
             assert_eq!(indices(vga.bus()), target.to_vec(), "round {round}");
         }
@@ -159,5 +217,31 @@ mod tests {
         target[..4].copy_from_slice(&[5, 7, 7, 7]);
         assert_eq!(vga.update_page(Page(0), &mut shadow, &target), 1);
         assert_eq!(&indices(vga.bus())[..4], &[5, 7, 7, 7]);
+    }
+
+    #[test]
+    fn each_distinct_map_mask_is_set_once_per_frame() {
+        let mut soft = Box::new(SoftVga::new());
+        let mut vga = ModeX::new(&mut *soft);
+        vga.set_mode();
+        let mut shadow = Box::new([0u8; PAGE_PIXELS]);
+        let mut target = Box::new([0u8; PAGE_PIXELS]);
+        // Masks alternating from address to address, on many lines: the
+        // old order would set the Map Mask before nearly every write.
+        for y in 0..100 {
+            for i in 0..80 {
+                let pixel = y * 320 + 4 * i;
+                if i % 2 == 0 {
+                    target[pixel] = 9; // plane 0
+                } else {
+                    target[pixel + 1..pixel + 3].fill(10); // planes 1 and 2
+                }
+            }
+        }
+        let before = vga.bus().counts();
+        assert_eq!(vga.update_page(Page(0), &mut shadow, &target), 8000);
+        let after = vga.bus().counts();
+        assert!(after.port_writes - before.port_writes <= 2);
+        assert_eq!(indices(vga.bus()), target.to_vec());
     }
 }

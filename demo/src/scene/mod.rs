@@ -3,12 +3,15 @@
 //! keys, flat shading by a light, other solids in the cube's place, and two
 //! more solids circling on their own, drawn far to near.
 
+mod crowd;
 mod orbit;
 
 use crate::shading::{default_light, shaded_colour};
-use crate::solids::{Solid, SOLIDS};
+use crate::solids::{Solid, SHAPES};
 use core::f64::consts::PI;
-use engine::{FaceCounts, Light, Object, Point, Xform};
+use crowd::Member;
+pub use crowd::CROWD;
+use engine::{FaceCounts, Light, Object, Point, VisibleFace, Xform};
 use orbit::{Satellite, ORBITS};
 
 /// Where the cube starts: no rotation, 100 units in front of the viewer.
@@ -27,8 +30,10 @@ pub const SPIN_X_PER_FRAME: f64 = PI / 360.0;
 /// Rotations between re-orthonormalisations: often enough that the drift
 /// stays far below what a pixel can show.
 const ROTATIONS_PER_REORTHONORMALIZATION: u32 = 64;
-/// The cube (or the solid in its place) plus two satellites.
-pub const MAX_OBJECTS: usize = 3;
+/// The two satellites of the three-object scene.
+pub const SATELLITES: usize = 2;
+/// The cube (or the solid in its place), two satellites, and the crowd.
+pub const MAX_OBJECTS: usize = 1 + SATELLITES + CROWD;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Axis {
@@ -57,6 +62,8 @@ pub enum Command {
     NextSolid,
     /// One object, or three moving independently.
     ToggleSeveral,
+    /// The crowd of many solids on (with the three objects) or off.
+    ToggleCrowd,
     /// The on-screen help and statistics belong to the app, not the scene.
     ToggleHelp,
     ToggleStats,
@@ -68,10 +75,15 @@ pub enum Command {
 
 #[derive(Clone)]
 pub struct Scene {
-    /// The object the keys move (index 0) and the satellites.
+    /// The object the keys move (index 0), the satellites, then the crowd:
+    /// the objects shown are always a prefix.
     objects: [Object; MAX_OBJECTS],
-    satellites: [Satellite; MAX_OBJECTS - 1],
+    satellites: [Satellite; SATELLITES],
+    members: [Member; CROWD],
     several: bool,
+    crowd: bool,
+    /// Frames ticked with the crowd on: when each member moves.
+    crowd_frames: u32,
     solid: usize,
     lighting: bool,
     light: Light,
@@ -97,15 +109,28 @@ impl Scene {
     /// wait at the start of their orbits until several objects are switched on.
     pub fn initial() -> Self {
         let satellites = ORBITS.map(|orbit| Satellite::start(&orbit));
-        let objects = [
-            Object::new(SOLIDS[0].model, Xform::translation(0.0, 0.0, INITIAL_Z)),
-            Object::new(ORBITS[0].model, satellites[0].object_to_world(&ORBITS[0])),
-            Object::new(ORBITS[1].model, satellites[1].object_to_world(&ORBITS[1])),
-        ];
+        let members: [Member; CROWD] = core::array::from_fn(Member::start);
+        let objects = core::array::from_fn(|index| match index {
+            0 => Object::new(SHAPES[0].model, Xform::translation(0.0, 0.0, INITIAL_Z)),
+            1..=SATELLITES => {
+                let orbit = &ORBITS[index - 1];
+                Object::new(orbit.model, satellites[index - 1].object_to_world(orbit))
+            }
+            _ => {
+                let member = &members[index - 1 - SATELLITES];
+                Object::new(
+                    Member::model(index - 1 - SATELLITES),
+                    member.object_to_world(),
+                )
+            }
+        });
         Scene {
             objects,
             satellites,
+            members,
             several: false,
+            crowd: false,
+            crowd_frames: 0,
             solid: 0,
             lighting: false,
             light: default_light(),
@@ -130,9 +155,13 @@ impl Scene {
         self.several
     }
 
+    pub fn crowd(&self) -> bool {
+        self.crowd
+    }
+
     /// The solid the keys move.
     pub fn solid(&self) -> &'static Solid {
-        &SOLIDS[self.solid]
+        &SHAPES[self.solid]
     }
 
     /// The object the keys move: the seed's cube unless N put another solid
@@ -145,14 +174,23 @@ impl Scene {
         &mut self.objects[0]
     }
 
-    /// The objects in the scene: the primary alone, or with the satellites.
+    /// Whether hidden surfaces need the depth test: not for one convex solid
+    /// alone, where backface removal leaves faces that never overlap.
+    pub fn needs_depth_test(&self) -> bool {
+        self.object_count() > 1 || !self.solid().convex
+    }
+
+    /// The objects in the scene: the primary alone, or with the satellites,
+    /// or with the satellites and the crowd.
     pub fn objects(&self) -> &[Object] {
         &self.objects[..self.object_count()]
     }
 
     fn object_count(&self) -> usize {
-        if self.several {
+        if self.crowd {
             MAX_OBJECTS
+        } else if self.several {
+            1 + SATELLITES
         } else {
             1
         }
@@ -178,10 +216,11 @@ impl Scene {
             Command::TurnLight(Axis::Y, right) => self.light.turn(signed(LIGHT_STEP, right), 0.0),
             Command::TurnLight(_, up) => self.light.turn(0.0, signed(LIGHT_STEP, up)),
             Command::NextSolid => {
-                self.solid = (self.solid + 1) % SOLIDS.len();
-                self.objects[0].set_model(SOLIDS[self.solid].model);
+                self.solid = (self.solid + 1) % SHAPES.len();
+                self.objects[0].set_model(SHAPES[self.solid].model);
             }
             Command::ToggleSeveral => self.several = !self.several,
+            Command::ToggleCrowd => self.crowd = !self.crowd,
             Command::Reset => *self = Self::initial(),
             Command::ToggleHelp | Command::ToggleStats | Command::Pause | Command::Quit => {}
         }
@@ -195,11 +234,23 @@ impl Scene {
         }
         self.rotate(Axis::Y, SPIN_Y_PER_FRAME);
         self.rotate(Axis::X, SPIN_X_PER_FRAME);
-        if self.several {
+        if self.several || self.crowd {
             for (index, orbit) in ORBITS.iter().enumerate() {
                 let satellite = &mut self.satellites[index];
                 satellite.advance(orbit);
                 *self.objects[index + 1].object_to_world_mut() = satellite.object_to_world(orbit);
+            }
+        }
+        if self.crowd {
+            self.crowd_frames = self.crowd_frames.wrapping_add(1);
+            let objects = &mut self.objects[1 + SATELLITES..];
+            for (member, object) in self.members.iter_mut().zip(objects) {
+                // Only a member that moves is touched, so only it is
+                // transformed and projected again.
+                if member.moves_on(self.crowd_frames) {
+                    member.advance();
+                    *object.object_to_world_mut() = member.object_to_world();
+                }
             }
         }
     }
@@ -230,7 +281,7 @@ impl Scene {
     /// to each object's centre.
     pub fn drawing_order(&self) -> ([usize; MAX_OBJECTS], usize) {
         let count = self.object_count();
-        let mut order = [0, 1, 2];
+        let mut order: [usize; MAX_OBJECTS] = core::array::from_fn(|index| index);
         let distance = |index: &usize| self.objects[*index].position().length();
         order[..count].sort_unstable_by(|a, b| distance(b).total_cmp(&distance(a)));
         (order, count)
@@ -245,15 +296,52 @@ impl Scene {
         let mut counts = FaceCounts::default();
         for &index in &order[..count] {
             counts += self.objects[index].each_visible_face(|visible| {
-                let colour = if lighting {
-                    shaded_colour(visible.face.colour, light.intensity(visible.normal()))
-                } else {
-                    visible.face.colour
-                };
-                draw(visible.polygon, colour);
+                draw(visible.polygon, face_colour(visible, lighting, &light));
             });
         }
         counts
+    }
+
+    /// Every face that survives backface removal, object by object in no
+    /// particular depth order, with its colour as `visible_faces` gives it:
+    /// for drawing with a depth test, where order does not matter.
+    pub fn each_visible_face(&mut self, draw: impl FnMut(&VisibleFace, u8)) -> FaceCounts {
+        self.each_visible_face_in_rows(i32::MIN..i32::MAX, draw)
+    }
+
+    /// As `each_visible_face`, but leaving out (while still counting) the
+    /// faces whose corners all lie above or all below `rows`: the renderer
+    /// draws a band of rows at a time, and a face's depth plane and shade
+    /// cost arithmetic that the kernel does without a floating-point unit.
+    pub fn each_visible_face_in_rows(
+        &mut self,
+        rows: core::ops::Range<i32>,
+        mut draw: impl FnMut(&VisibleFace, u8),
+    ) -> FaceCounts {
+        let (lighting, light) = (self.lighting, self.light);
+        let count = self.object_count();
+        let mut counts = FaceCounts::default();
+        for object in &mut self.objects[..count] {
+            counts += object.each_visible_face(|visible| {
+                let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
+                let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
+                // The filler draws rows top..bottom.
+                if top < rows.end && bottom > rows.start {
+                    draw(visible, face_colour(visible, lighting, &light));
+                }
+            });
+        }
+        counts
+    }
+}
+
+/// The seed's flat colour, or with lighting on the level of the colour's ramp
+/// that the face's brightness gives.
+fn face_colour(visible: &VisibleFace, lighting: bool, light: &Light) -> u8 {
+    if lighting {
+        shaded_colour(visible.face.colour, light.intensity(visible.normal()))
+    } else {
+        visible.face.colour
     }
 }
 

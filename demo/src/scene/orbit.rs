@@ -1,7 +1,7 @@
 //! The two satellites of the several-objects scene: where their orbits run,
 //! and how each moves along its orbit a frame at a time.
 
-use super::{INITIAL_Z, MAX_OBJECTS, ROTATIONS_PER_REORTHONORMALIZATION};
+use super::{INITIAL_Z, ROTATIONS_PER_REORTHONORMALIZATION, SATELLITES};
 use crate::solids::{OCTAHEDRON, TETRAHEDRON};
 use core::f64::consts::PI;
 use engine::{Model, Vec3, Xform};
@@ -27,7 +27,7 @@ pub(super) struct Orbit {
 /// from the cube's starting place and from each other, so unless the cube is
 /// moved into them no two solids interpenetrate, and painting whole objects
 /// far to near is exact.
-pub(super) const ORBITS: [Orbit; MAX_OBJECTS - 1] = [
+pub(super) const ORBITS: [Orbit; SATELLITES] = [
     Orbit {
         model: &OCTAHEDRON,
         scale: 0.5,

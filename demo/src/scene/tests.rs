@@ -190,7 +190,7 @@ fn n_puts_each_solid_in_the_cubes_place_in_turn() {
     scene.apply(Command::MoveLeft);
     let place = *scene.primary().object_to_world();
     let mut seen = std::vec::Vec::new();
-    for _ in 0..SOLIDS.len() {
+    for _ in 0..crate::solids::SHAPES.len() {
         scene.apply(Command::NextSolid);
         seen.push(scene.solid().name);
         assert!(core::ptr::eq(scene.primary().model(), scene.solid().model));
@@ -204,6 +204,8 @@ fn n_puts_each_solid_in_the_cubes_place_in_turn() {
             "octahedron",
             "dodecahedron",
             "icosahedron",
+            "letter L",
+            "three beams",
             "cube"
         ]
     );
@@ -235,11 +237,13 @@ fn several_objects_are_drawn_far_to_near() {
     scene.apply(Command::ToggleSeveral);
     // The tetrahedron circles 180 units away, the octahedron starts in
     // front of the cube's right side (about 67 units away).
-    assert_eq!(scene.drawing_order(), ([2, 0, 1], 3));
+    let (order, count) = scene.drawing_order();
+    assert_eq!(&order[..count], [2, 0, 1]);
     for _ in 0..100 {
         scene.apply(Command::Away);
     }
-    assert_eq!(scene.drawing_order(), ([0, 2, 1], 3));
+    let (order, count) = scene.drawing_order();
+    assert_eq!(&order[..count], [0, 2, 1]);
     scene.apply(Command::ToggleSeveral);
     assert_eq!(scene.drawing_order().1, 1);
 }
@@ -355,4 +359,68 @@ fn the_satellites_never_come_near_the_viewer_and_keep_apart() {
         }
         assert!((a - b).length() > 26.0, "{a:?} {b:?}");
     }
+}
+
+#[test]
+fn x_shows_a_crowd_of_more_than_fifty_solids_and_r_takes_it_away() {
+    let mut scene = Scene::initial();
+    scene.apply(Command::ToggleCrowd);
+    assert!(scene.crowd());
+    assert_eq!(scene.objects().len(), 1 + SATELLITES + CROWD);
+    const { assert!(CROWD >= 50) };
+    let counts = scene.visible_faces(|_, _| {});
+    assert!(counts.drawn > 200, "{counts:?}");
+    scene.apply(Command::ToggleCrowd);
+    assert_eq!(scene.objects().len(), 1);
+    scene.apply(Command::ToggleCrowd);
+    scene.apply(Command::Reset);
+    assert!(!scene.crowd());
+    assert_eq!(scene.objects().len(), 1);
+}
+
+#[test]
+fn each_member_of_the_crowd_is_projected_only_on_the_frames_it_moves() {
+    let mut scene = Scene::initial();
+    scene.apply(Command::ToggleCrowd);
+    scene.apply(Command::ToggleSpin);
+    scene.visible_faces(|_, _| {});
+    let first = 1 + SATELLITES;
+    for frame in 1..=24u64 {
+        scene.tick();
+        scene.visible_faces(|_, _| {});
+        for (member, object) in scene.objects()[first..].iter().enumerate() {
+            // Member k moves every (k % 4 + 1)-th frame.
+            let period = member as u64 % 4 + 1;
+            assert_eq!(
+                object.projections(),
+                1 + frame / period,
+                "member {member}, frame {frame}"
+            );
+        }
+    }
+    // The primary and the satellites move every frame.
+    assert!(scene.objects()[..first]
+        .iter()
+        .all(|o| o.projections() == 25));
+}
+
+#[test]
+fn members_of_the_crowd_pass_through_each_other() {
+    // Else the crowd would not need the depth test: some pair of neighbours
+    // must come closer than their size within a few hundred frames.
+    let mut scene = Scene::initial();
+    scene.apply(Command::ToggleCrowd);
+    scene.apply(Command::ToggleSpin);
+    let first = 1 + SATELLITES;
+    let mut closest = f64::INFINITY;
+    for _ in 0..400 {
+        scene.tick();
+        let objects = &scene.objects()[first..];
+        for (i, a) in objects.iter().enumerate() {
+            for b in &objects[i + 1..] {
+                closest = closest.min((a.position() - b.position()).length());
+            }
+        }
+    }
+    assert!(closest < 12.0, "closest {closest}");
 }
