@@ -96,8 +96,10 @@ fn page_image(soft: &SoftVga, page: Page) -> Vec<u8> {
 fn lower_bound(old: &[u8], new: &[u8]) -> (u64, u64) {
     let mut masks = 0u16;
     let writes = old
-        .chunks_exact(4)
-        .zip(new.chunks_exact(4))
+        .as_chunks::<4>()
+        .0
+        .iter()
+        .zip(new.as_chunks::<4>().0)
         .map(|(o, n)| {
             let mut colours: Vec<u8> = (0..4).filter(|&p| o[p] != n[p]).map(|p| n[p]).collect();
             colours.sort_unstable();
