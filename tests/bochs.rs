@@ -13,6 +13,7 @@
 mod common;
 
 use boot::bochs::{Bochs, BochsError, BochsOptions, VgaExtension};
+use boot::line;
 use boot::RgbImage;
 use common::{soft_vga_in_mode_x, PIXELS};
 use demo::app::App;
@@ -147,7 +148,7 @@ fn picture_and_goodbye(vga: VgaExtension) {
     let mut app = App::new();
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     bochs.send_key("r").unwrap_or_else(|e| panic!("{e}"));
-    wait_for_serial(&mut bochs, "demo: command 1 done", KEY_TIMEOUT);
+    wait_for_serial(&mut bochs, &line::CommandDone(1).to_string(), KEY_TIMEOUT);
     app.apply(Command::Reset);
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     let expected = bochs_view_of(&soft);
@@ -167,7 +168,7 @@ fn picture_and_goodbye(vga: VgaExtension) {
     }
 
     bochs.send_key("Escape").unwrap_or_else(|e| panic!("{e}"));
-    wait_for_serial(&mut bochs, "demo: goodbye", KEY_TIMEOUT);
+    wait_for_serial(&mut bochs, line::GOODBYE, KEY_TIMEOUT);
     let shown_at = Instant::now();
     match bochs.wait_for_screen(SCREEN_TIMEOUT, |shown| goodbye_mismatch(shown).is_none()) {
         Ok(_) => println!("{name}: the goodbye screen is shown after {:.1?}", shown_at.elapsed()),

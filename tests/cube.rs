@@ -160,5 +160,5 @@ fn escape_says_goodbye_and_powers_qemu_off() {
         .unwrap()
         .expect("QEMU powered off");
     assert_eq!(status.code(), Some(boot::qemu::EXIT_SUCCESS));
-    assert!(qemu.serial().contains("demo: goodbye"));
+    assert!(qemu.serial().contains(boot::line::GOODBYE));
 }

@@ -41,7 +41,9 @@ fn boots_to_mode_x_through_its_video_bios(graphics: Graphics) {
 
 fn leaves_through_bios_text_mode(qemu: &mut Qemu, graphics: Graphics) {
     qemu.send_key("esc").unwrap();
-    let console = qemu.wait_for_serial("demo: goodbye", BOOT_TIMEOUT).unwrap();
+    let console = qemu
+        .wait_for_serial(boot::line::GOODBYE, BOOT_TIMEOUT)
+        .unwrap();
     assert!(
         console.contains("demo: text mode 3 set by the video BIOS"),
         "{graphics:?}: goodbye did not use the BIOS's text mode:\n{console}"

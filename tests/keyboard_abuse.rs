@@ -5,6 +5,7 @@
 
 mod common;
 
+use boot::line;
 use common::{assert_same_picture, boot_bios, model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
 use demo::app::App;
 use demo::scene::Command;
@@ -171,7 +172,7 @@ fn a_burst_of_two_thousand_keys_leaves_the_kernel_running_and_r_resets_it() {
     for _ in 0..2 {
         let next = commands_done(&qemu.serial()) + 1;
         qemu.send_key("r").unwrap();
-        qemu.wait_for_serial(&format!("demo: command {next} done"), BOOT_TIMEOUT)
+        qemu.wait_for_serial(&line::CommandDone(next as u64).to_string(), BOOT_TIMEOUT)
             .unwrap();
     }
     let console = qemu.serial();
@@ -204,12 +205,6 @@ fn commands_done(console: &str) -> usize {
     console
         .lines()
         .rev()
-        .find_map(|l| {
-            l.strip_prefix("demo: command ")?
-                .split(' ')
-                .next()?
-                .parse()
-                .ok()
-        })
-        .unwrap_or(0)
+        .find_map(line::CommandDone::parse)
+        .map_or(0, |count| count as usize)
 }

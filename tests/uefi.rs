@@ -171,7 +171,7 @@ fn without_legacy_vga_the_lit_solids_reach_the_framebuffer_too() {
     let mut app = App::new();
     for (n, &(key, command)) in keys.iter().enumerate() {
         qemu.send_key(key).unwrap();
-        let done = format!("demo: command {} done", n + 1);
+        let done = boot::line::CommandDone(n as u64 + 1).to_string();
         qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
         app.apply(command);
     }

@@ -35,13 +35,16 @@ fn qemu_shows_what_the_software_vga_shows_for_the_test_pattern_on_both_pages() {
 }
 
 /// With `-vga std,retrace=precise` QEMU times Input Status 1 from the CRTC
-/// values, so page flips locked to vertical retrace run at the refresh rate,
-/// Mode X's 59.71 Hz (800 dots by 527 lines at 25.175 MHz). Flips can never outrun the refresh; on a busy host the
-/// emulator can truly miss a retrace, which the kernel counts, so flips plus
-/// missed retraces must make the refresh rate by the kernel's clock.
+/// values, so page flips locked to vertical retrace run at the refresh rate.
+/// On a VGA that is Mode X's 59.71 Hz (800 dots by 527 lines at 25.175 MHz);
+/// QEMU times a character clock as a whole number of nanoseconds (317 ns
+/// for 317.77), so its refresh is 59.86 Hz. Flips can never outrun that; on
+/// a busy host the emulator can truly miss a retrace, which the kernel counts,
+/// so flips plus missed retraces must make it by the kernel's clock.
 #[test]
 fn page_flips_follow_vertical_retrace_at_60_hz() {
-    const REFRESH_HZ: f64 = 25_175_000.0 / (800.0 * 527.0);
+    const CHARACTER_NANOS: f64 = 317.0; // 1e9 / (25.175 MHz / 8), truncated
+    const REFRESH_HZ: f64 = 1e9 / (100.0 * 527.0 * CHARACTER_NANOS);
     let mut qemu = boot_bios(Some(BootOption::FlipRate));
     let console = qemu.wait_for_serial("wait timeouts", BOOT_TIMEOUT).unwrap();
     let line = console

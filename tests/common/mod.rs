@@ -3,6 +3,7 @@
 
 #![allow(dead_code)] // each test binary uses its own part of this
 
+use boot::line;
 use boot::BootOption;
 use boot::{Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
@@ -119,7 +120,7 @@ pub fn after_each_key_on(
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     for (n, &(key, command)) in keys.iter().enumerate() {
         qemu.send_key(key).unwrap();
-        let done = format!("demo: command {} done", n + 1);
+        let done = line::CommandDone(n as u64 + 1).to_string();
         qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
         app.apply(command);
         app.step(&mut ModeX::new(&mut *soft), &|| 0u64);

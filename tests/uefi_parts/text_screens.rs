@@ -121,7 +121,7 @@ fn escape_shows_the_goodbye_line_on_the_framebuffer() {
     qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
         .unwrap();
     qemu.send_key("esc").unwrap();
-    qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
+    qemu.wait_for_serial(line::HALTED, BOOT_TIMEOUT).unwrap();
     let screen = qemu.screendump().unwrap();
     let mut soft = soft_vga_in_mode_x();
     demo::screens::goodbye(&mut ModeX::new(&mut *soft));
@@ -134,7 +134,7 @@ fn escape_shows_the_goodbye_line_on_the_framebuffer() {
 #[test]
 fn the_text_scan_out_matches_qemus_vga_dot_for_dot() {
     let mut qemu = boot_bios(Some(BootOption::Fault(Fault::Page)));
-    let console = qemu.wait_for_serial("HALTED", BOOT_TIMEOUT).unwrap();
+    let console = qemu.wait_for_serial(line::HALTED, BOOT_TIMEOUT).unwrap();
     let screen = qemu.screendump().unwrap();
     let expected = panel_picture(&report_lines(&console));
     assert_pictures_equal(&screen, &expected, "panel on the VGA");
