@@ -173,7 +173,7 @@ pub struct Solid {
 }
 
 /// The convex solids, the starting cube first.
-pub static SOLIDS: [Solid; 5] = [
+const PLATONIC: [Solid; 5] = [
     Solid {
         name: "cube",
         model: &CUBE,
@@ -200,6 +200,9 @@ pub static SOLIDS: [Solid; 5] = [
         convex: true,
     },
 ];
+
+/// The convex solids, the starting cube first.
+pub static SOLIDS: [Solid; 5] = PLATONIC;
 
 /// The models read from `models/` when the demo was built (see
 /// `demo/build.rs`): Ammeraal and Zhang's solid letter L and their three
@@ -211,43 +214,26 @@ mod from_files {
 pub use from_files::{BEAMS, BEAMS_OUTLINES, LETTER_L, LETTER_L_OUTLINES};
 
 /// The order N steps through: the Platonic solids, then the models from files.
-pub static SHAPES: [Solid; 7] = [
-    Solid {
-        name: "cube",
-        model: &CUBE,
-        convex: true,
-    },
-    Solid {
-        name: "tetrahedron",
-        model: &TETRAHEDRON,
-        convex: true,
-    },
-    Solid {
-        name: "octahedron",
-        model: &OCTAHEDRON,
-        convex: true,
-    },
-    Solid {
-        name: "dodecahedron",
-        model: &DODECAHEDRON,
-        convex: true,
-    },
-    Solid {
-        name: "icosahedron",
-        model: &ICOSAHEDRON,
-        convex: true,
-    },
-    Solid {
-        name: "letter L",
-        model: &LETTER_L,
-        convex: false,
-    },
-    Solid {
-        name: "three beams",
-        model: &BEAMS,
-        convex: false,
-    },
-];
+pub static SHAPES: [Solid; 7] = {
+    let [cube, tetrahedron, octahedron, dodecahedron, icosahedron] = PLATONIC;
+    [
+        cube,
+        tetrahedron,
+        octahedron,
+        dodecahedron,
+        icosahedron,
+        Solid {
+            name: "letter L",
+            model: &LETTER_L,
+            convex: false,
+        },
+        Solid {
+            name: "three beams",
+            model: &BEAMS,
+            convex: false,
+        },
+    ]
+};
 
 #[cfg(test)]
 mod tests {
