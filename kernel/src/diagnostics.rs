@@ -63,9 +63,9 @@ pub fn flip_rate<B: VgaBus>(vga: &mut ModeX<B>) {
 }
 
 /// Seconds the clock check runs for.
-const CLOCK_CHECK_SECONDS: u64 = 12;
+const CLOCK_CHECK_SECONDS: u64 = 10;
 
-/// Prints the clock's reading once a second for twelve seconds, so a test can
+/// Prints the clock's reading once a second for ten seconds, so a test can
 /// compare the kernel's time with the host's wall clock. Sleeps in `hlt`
 /// between readings, as the demo does when idle.
 pub fn clock_check() {
