@@ -69,10 +69,18 @@ const CLOCK_CHECK_SECONDS: u64 = 10;
 /// compare the kernel's time with the host's wall clock. Sleeps in `hlt`
 /// between readings, as the demo does when idle.
 pub fn clock_check() {
-    for second in 0..=CLOCK_CHECK_SECONDS {
-        while clock::micros() < second * 1_000_000 {
+    let start = clock::micros();
+    serial_println!("clock-check: {} us", start);
+    for second in 1..=CLOCK_CHECK_SECONDS {
+        // The reading that ends the wait is the one printed, so the first and
+        // last lines are at least the whole span apart.
+        let now = loop {
+            let now = clock::micros();
+            if now - start >= second * 1_000_000 {
+                break now;
+            }
             x86_64::instructions::hlt();
-        }
-        serial_println!("clock-check: {} us", clock::micros());
+        };
+        serial_println!("clock-check: {} us", now);
     }
 }
