@@ -150,10 +150,23 @@ pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
         }
         // Every core's TLB may hold the old types; there is only this core.
         x86_64::instructions::tlb::flush_all();
-        serial_println!(
-            "display: framebuffer now write-combining (PAT entry {} = WC, {} pages)",
-            WC_ENTRY,
-            pages
-        );
+        // Read back both halves before saying so: the PAT entry, and the
+        // first page's choice of it.
+        // SAFETY: as the read above.
+        let pat_now = unsafe { Msr::new(IA32_PAT).read() };
+        let entry_now = leaf(start, physical_memory_offset).map(|page| page.pat_index());
+        if (pat_now >> (WC_ENTRY * 8)) & 0x07 == TYPE_WC && entry_now == Some(WC_ENTRY) {
+            serial_println!(
+                "display: framebuffer now write-combining (PAT entry {} = WC, {} pages, read back)",
+                WC_ENTRY,
+                pages
+            );
+        } else {
+            serial_println!(
+                "display: write-combining NOT in effect (PAT {:#018x}, first page uses entry {:?})",
+                pat_now,
+                entry_now
+            );
+        }
     });
 }
