@@ -115,42 +115,44 @@ fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
     RgbImage::new(width, height, pixels)
 }
 
-#[test]
-fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
-    let mut qemu = boot(
-        Firmware::Uefi,
-        Graphics::BochsDisplay,
-        Some(BootOption::TestPattern),
-    );
+/// Boots UEFI with the test pattern on `graphics`, checks the framebuffer
+/// path was taken and the screen equals the pattern presented, and returns
+/// what the kernel reported of the framebuffer.
+fn framebuffer_shows_the_pattern(graphics: Graphics, what: &str) -> ReportedFramebuffer {
+    let mut qemu = boot(Firmware::Uefi, graphics, Some(BootOption::TestPattern));
     let console = qemu
         .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
         .unwrap();
     assert!(console.contains(UEFI_FRAMEBUFFER), "{console}");
     assert!(!console.contains(LEGACY_FOUND), "{console}");
     let reported = reported_framebuffer(&console);
-    println!(
-        "framebuffer {}x{} {} {} bytes/pixel, scale {}",
-        reported.width, reported.height, reported.order, reported.bytes_per_pixel, reported.scale
-    );
-
     let screen = qemu.screendump().unwrap();
     assert_eq!(
         (screen.width, screen.height),
         (reported.width, reported.height),
         "QEMU's display and the bootloader's framebuffer differ in size"
     );
-    let expected_scale = Placement::fit((320, 240), (screen.width, screen.height)).scale;
+    // The test pattern: both pages drawn, page 0 shown.
+    let expected = presented(&pattern_picture(0), screen.width, screen.height);
+    assert_pictures_equal(&screen, &expected, what);
+    reported
+}
+
+#[test]
+fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
+    let reported = framebuffer_shows_the_pattern(Graphics::BochsDisplay, "uefi framebuffer");
+    println!(
+        "framebuffer {}x{} {} {} bytes/pixel, scale {}",
+        reported.width, reported.height, reported.order, reported.bytes_per_pixel, reported.scale
+    );
+    let expected_scale = Placement::fit((320, 240), (reported.width, reported.height)).scale;
     assert_eq!(reported.scale, expected_scale);
     assert!(
         expected_scale >= 2,
         "a {}x{} screen",
-        screen.width,
-        screen.height
+        reported.width,
+        reported.height
     );
-
-    // The test pattern: both pages drawn, page 0 shown.
-    let expected = presented(&pattern_picture(0), screen.width, screen.height);
-    assert_pictures_equal(&screen, &expected, "uefi framebuffer");
 }
 
 #[test]
@@ -201,24 +203,7 @@ fn the_bios_image_finds_the_legacy_vga() {
 /// QEMU shows GOP's mode with the presented picture.
 #[test]
 fn uefi_with_the_standard_vga_draws_through_the_framebuffer() {
-    let mut qemu = boot(
-        Firmware::Uefi,
-        Graphics::StdVga,
-        Some(BootOption::TestPattern),
-    );
-    let console = qemu
-        .wait_for_serial("pattern: page 0 shown", UEFI_BOOT_TIMEOUT)
-        .unwrap();
-    assert!(console.contains(UEFI_FRAMEBUFFER), "{console}");
-    assert!(!console.contains(LEGACY_FOUND), "{console}");
-    let screen = qemu.screendump().unwrap();
-    let reported = reported_framebuffer(&console);
-    assert_eq!(
-        (screen.width, screen.height),
-        (reported.width, reported.height)
-    );
-    let expected = presented(&pattern_picture(0), screen.width, screen.height);
-    assert_pictures_equal(&screen, &expected, "uefi std vga framebuffer");
+    framebuffer_shows_the_pattern(Graphics::StdVga, "uefi std vga framebuffer");
 }
 
 /// `modex=true-mode-x` puts OVMF + standard VGA back on the real registers:
