@@ -16,35 +16,39 @@
 
 use demo::baseline::{PerPixel, SeedMethod};
 use demo::frame::{render_painter, render_to_image, FrameDrawer, Renderer};
-use demo::scene::{Axis, Command, Scene};
+use demo::scene::{Axis, Scene, SceneCommand, Sense};
 use modex::soft::{BusCounts, SoftVga};
 use modex::{ModeX, Page, PAGE_PIXELS};
 use std::time::{Duration, Instant};
 
 /// One frame of the set: a command first, or none (the spin alone).
-fn frame_set() -> Vec<Option<Command>> {
-    let mut frames: Vec<Option<Command>> = vec![None; 360];
-    let mut repeat =
-        |command: Command, times: usize| frames.extend(std::iter::repeat_n(Some(command), times));
-    repeat(Command::ToggleSpin, 1);
-    repeat(Command::Rotate(Axis::X, true), 4);
-    repeat(Command::MoveLeft, 45); // past the left edge
-    repeat(Command::MoveUp, 30); // and the top
-    repeat(Command::MoveRight, 90); // across to the right edge
-    repeat(Command::MoveDown, 60);
-    repeat(Command::Toward, 22); // as close as it goes
-    repeat(Command::Away, 60); // and far away
-    repeat(Command::Rotate(Axis::Z, true), 30);
+fn frame_set() -> Vec<Option<SceneCommand>> {
+    let mut frames: Vec<Option<SceneCommand>> = vec![None; 360];
+    let mut repeat = |command: SceneCommand, times: usize| {
+        frames.extend(std::iter::repeat_n(Some(command), times))
+    };
+    repeat(SceneCommand::ToggleSpin, 1);
+    repeat(SceneCommand::Rotate(Axis::X, Sense::Positive), 4);
+    repeat(SceneCommand::MoveLeft, 45); // past the left edge
+    repeat(SceneCommand::MoveUp, 30); // and the top
+    repeat(SceneCommand::MoveRight, 90); // across to the right edge
+    repeat(SceneCommand::MoveDown, 60);
+    repeat(SceneCommand::Toward, 22); // as close as it goes
+    repeat(SceneCommand::Away, 60); // and far away
+    repeat(SceneCommand::Rotate(Axis::Z, Sense::Positive), 30);
     frames
 }
 
 /// The extras: three objects, lit, spinning and circling for a full orbit of
 /// the nearer satellite, then the other solids in the cube's place.
-fn extras_set() -> Vec<Option<Command>> {
-    let mut frames = vec![Some(Command::ToggleSeveral), Some(Command::ToggleLighting)];
+fn extras_set() -> Vec<Option<SceneCommand>> {
+    let mut frames = vec![
+        Some(SceneCommand::ToggleSeveral),
+        Some(SceneCommand::ToggleLighting),
+    ];
     frames.extend(vec![None; 360]);
     for _ in 0..4 {
-        frames.push(Some(Command::NextSolid));
+        frames.push(Some(SceneCommand::NextSolid));
         frames.extend(vec![None; 60]);
     }
     frames
@@ -122,7 +126,7 @@ fn lower_bound(old: &[u8], new: &[u8]) -> (u64, u64) {
 /// one Map Mask write per distinct mask each frame needs.
 fn run<D: FrameDrawer>(
     mut drawer: D,
-    frames: &[Option<Command>],
+    frames: &[Option<SceneCommand>],
     with_bound: bool,
 ) -> (Totals, u64, u64) {
     let mut soft = Box::new(SoftVga::new());
@@ -132,13 +136,13 @@ fn run<D: FrameDrawer>(
     let mut totals = Totals::default();
     let mut bound = 0;
     let mut full_bound = 0;
-    let mut shown = Page(0);
+    let mut shown = Page::Zero;
     for &command in frames {
         if let Some(command) = command {
             scene.apply(command);
         }
         scene.tick();
-        let back = Page(1 - shown.0);
+        let back = shown.other();
         let before_image = with_bound.then(|| page_image(&soft, back));
         let before = soft.counts();
         let start = Instant::now();
@@ -198,7 +202,7 @@ struct Outcome {
 /// Runs our renderer — and, with `baselines`, the two other methods, which
 /// paint far to near and so are right only where the painter's order is —
 /// over `frames` and prints a table.
-fn compare(title: &str, frames: &[Option<Command>], baselines: bool) -> Outcome {
+fn compare(title: &str, frames: &[Option<SceneCommand>], baselines: bool) -> Outcome {
     let (ours, bound, full_bound) = run(Renderer::new(), frames, true);
     println!(
         "{title}: {} frames; per frame, drawing only (flips excluded), on the software VGA:",
@@ -239,24 +243,24 @@ fn compare(title: &str, frames: &[Option<Command>], baselines: bool) -> Outcome 
 /// The three objects with the cube driven into the octahedron's orbit, so
 /// that they pass through each other, for two revolutions of the octahedron;
 /// then the letter L and the beams in the cube's place.
-fn interpenetrating_set() -> Vec<Option<Command>> {
-    let mut frames = vec![Some(Command::ToggleSeveral)];
-    frames.extend(std::iter::repeat_n(Some(Command::MoveRight), 14));
+fn interpenetrating_set() -> Vec<Option<SceneCommand>> {
+    let mut frames = vec![Some(SceneCommand::ToggleSeveral)];
+    frames.extend(std::iter::repeat_n(Some(SceneCommand::MoveRight), 14));
     frames.extend(vec![None; 720]);
     for _ in 0..6 {
-        frames.push(Some(Command::NextSolid));
+        frames.push(Some(SceneCommand::NextSolid));
     }
     frames.extend(vec![None; 120]);
-    frames.push(Some(Command::NextSolid));
+    frames.push(Some(SceneCommand::NextSolid));
     frames.extend(vec![None; 120]);
     frames
 }
 
 /// The crowd (X): 59 solids, flat colours for 300 frames, then lit.
-fn crowd_set() -> Vec<Option<Command>> {
-    let mut frames = vec![Some(Command::ToggleCrowd)];
+fn crowd_set() -> Vec<Option<SceneCommand>> {
+    let mut frames = vec![Some(SceneCommand::ToggleCrowd)];
     frames.extend(vec![None; 300]);
-    frames.push(Some(Command::ToggleLighting));
+    frames.push(Some(SceneCommand::ToggleLighting));
     frames.extend(vec![None; 300]);
     frames
 }

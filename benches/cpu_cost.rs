@@ -96,7 +96,7 @@ fn measure(faces: usize) -> Measured {
             counts
         });
         let rendered = Instant::now();
-        ModeX::new(&mut *soft).update_page(Page(1), &mut shadow, black_box(&image));
+        ModeX::new(&mut *soft).update_page(Page::One, &mut shadow, black_box(&image));
         update += rendered.elapsed();
         render += rendered - start;
         drawn += u64::from(counts.drawn);

@@ -13,7 +13,7 @@
 //! last line is machine-readable.
 
 use demo::app::App;
-use demo::scene::{Axis, Command};
+use demo::scene::{Axis, SceneCommand, Sense};
 use modex::present::{present, FramebufferLayout, PixelOrder, Presenter, MAX_PICTURE_PIXELS};
 use modex::soft::SoftVga;
 use modex::{MirroredVga, ModeX, PAGE_PIXELS};
@@ -21,29 +21,33 @@ use std::time::{Duration, Instant};
 
 /// As `bus_cost`'s cube set: a 360-frame spin, then moved, zoomed and partly
 /// off-screen states.
-fn cube_set() -> Vec<Option<Command>> {
-    let mut frames: Vec<Option<Command>> = vec![None; 360];
-    let mut repeat =
-        |command: Command, times: usize| frames.extend(std::iter::repeat_n(Some(command), times));
-    repeat(Command::ToggleSpin, 1);
-    repeat(Command::Rotate(Axis::X, true), 4);
-    repeat(Command::MoveLeft, 45);
-    repeat(Command::MoveUp, 30);
-    repeat(Command::MoveRight, 90);
-    repeat(Command::MoveDown, 60);
-    repeat(Command::Toward, 22);
-    repeat(Command::Away, 60);
-    repeat(Command::Rotate(Axis::Z, true), 30);
+fn cube_set() -> Vec<Option<SceneCommand>> {
+    let mut frames: Vec<Option<SceneCommand>> = vec![None; 360];
+    let mut repeat = |command: SceneCommand, times: usize| {
+        frames.extend(std::iter::repeat_n(Some(command), times))
+    };
+    repeat(SceneCommand::ToggleSpin, 1);
+    repeat(SceneCommand::Rotate(Axis::X, Sense::Positive), 4);
+    repeat(SceneCommand::MoveLeft, 45);
+    repeat(SceneCommand::MoveUp, 30);
+    repeat(SceneCommand::MoveRight, 90);
+    repeat(SceneCommand::MoveDown, 60);
+    repeat(SceneCommand::Toward, 22);
+    repeat(SceneCommand::Away, 60);
+    repeat(SceneCommand::Rotate(Axis::Z, Sense::Positive), 30);
     frames
 }
 
 /// As `bus_cost`'s extras set: three objects, lit, spinning and circling,
 /// then the other solids in the cube's place.
-fn solids_set() -> Vec<Option<Command>> {
-    let mut frames = vec![Some(Command::ToggleSeveral), Some(Command::ToggleLighting)];
+fn solids_set() -> Vec<Option<SceneCommand>> {
+    let mut frames = vec![
+        Some(SceneCommand::ToggleSeveral),
+        Some(SceneCommand::ToggleLighting),
+    ];
     frames.extend(vec![None; 360]);
     for _ in 0..4 {
-        frames.push(Some(Command::NextSolid));
+        frames.push(Some(SceneCommand::NextSolid));
         frames.extend(vec![None; 60]);
     }
     frames
@@ -63,7 +67,7 @@ struct Costs {
 /// Runs `frames` at `width` x `height`; returns the costs of the flips after
 /// the first present (which writes everything either way) and the bytes a
 /// present of the unchanged last frame writes.
-fn run(frames: &[Option<Command>], width: usize, height: usize) -> (Costs, usize) {
+fn run(frames: &[Option<SceneCommand>], width: usize, height: usize) -> (Costs, usize) {
     let layout = FramebufferLayout {
         width,
         height,
@@ -112,7 +116,7 @@ fn run(frames: &[Option<Command>], width: usize, height: usize) -> (Costs, usize
     let mut app = App::new();
     for &command in frames {
         if let Some(command) = command {
-            app.apply(command);
+            app.apply(command.into());
         }
         app.step(&mut vga, &|| 0u64);
     }

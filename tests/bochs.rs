@@ -17,7 +17,7 @@ use boot::line;
 use boot::RgbImage;
 use common::{soft_vga_in_mode_x, PIXELS};
 use demo::app::App;
-use demo::scene::Command;
+use demo::command::{Command, SceneCommand};
 use modex::soft::SoftVga;
 use modex::ModeX;
 use std::time::{Duration, Instant};
@@ -149,7 +149,7 @@ fn picture_and_goodbye(vga: VgaExtension) {
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     bochs.send_key("r").unwrap_or_else(|e| panic!("{e}"));
     wait_for_serial(&mut bochs, &line::CommandDone(1).to_string(), KEY_TIMEOUT);
-    app.apply(Command::Reset);
+    app.apply(Command::Scene(SceneCommand::Reset));
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     let expected = bochs_view_of(&soft);
 

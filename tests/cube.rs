@@ -7,7 +7,8 @@ use common::{
     after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT, PIXELS,
 };
 use demo::app::App;
-use demo::scene::{Axis, Command, Scene};
+use demo::command::{Axis, Command, SceneCommand, Sense};
+use demo::scene::Scene;
 use engine::{reference, ClipRect};
 use modex::soft::SoftVga;
 use modex::{ModeX, PAGE_BYTES};
@@ -41,14 +42,15 @@ fn displayed_indices(soft: &SoftVga) -> Vec<u8> {
 /// Draws one frame, with the software VGA refusing (counting) any write
 /// outside the page being drawn.
 fn step_guarded(app: &mut App, soft: &mut SoftVga) {
-    let back = 1 - app.shown_page().0;
-    let start = u16::from(back) * PAGE_BYTES;
+    let back = app.shown_page().other();
+    let start = back.base();
     soft.set_write_guard(Some(start..start + PAGE_BYTES));
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     assert_eq!(
         soft.guard_violations(),
         0,
-        "a write landed outside page {back}: {:?}",
+        "a write landed outside page {}: {:?}",
+        back.index(),
         soft.first_violation()
     );
     soft.set_write_guard(None);
@@ -56,16 +58,34 @@ fn step_guarded(app: &mut App, soft: &mut SoftVga) {
 
 /// The QEMU key sequence of the issue, as the commands the keys stand for.
 const SEQUENCE: [(&str, Command); 10] = [
-    ("r", Command::Reset),
-    ("4", Command::Rotate(Axis::Y, false)),
-    ("4", Command::Rotate(Axis::Y, false)),
-    ("4", Command::Rotate(Axis::Y, false)),
-    ("8", Command::Rotate(Axis::X, false)),
-    ("8", Command::Rotate(Axis::X, false)),
-    ("a", Command::Away),
-    ("a", Command::Away),
-    ("f1", Command::Rotate(Axis::Z, true)),
-    ("left", Command::MoveLeft),
+    ("r", Command::Scene(SceneCommand::Reset)),
+    (
+        "4",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
+    ),
+    (
+        "4",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
+    ),
+    (
+        "4",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
+    ),
+    (
+        "8",
+        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+    ),
+    (
+        "8",
+        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+    ),
+    ("a", Command::Scene(SceneCommand::Away)),
+    ("a", Command::Scene(SceneCommand::Away)),
+    (
+        "f1",
+        Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
+    ),
+    ("left", Command::Scene(SceneCommand::MoveLeft)),
 ];
 
 #[test]
@@ -74,12 +94,12 @@ fn frames_through_the_software_vga_equal_the_reference_rasterizer() {
     let mut app = App::new();
     let mut commands: Vec<Command> = SEQUENCE.iter().map(|&(_, c)| c).collect();
     // Then off the edges of the screen and back, turning as it goes.
-    commands.extend([Command::MoveLeft; 40]);
-    commands.extend([Command::Rotate(Axis::Y, true); 7]);
-    commands.extend([Command::MoveUp; 30]);
-    commands.extend([Command::MoveRight; 70]);
-    commands.extend([Command::Toward; 25]);
-    commands.extend([Command::MoveDown; 50]);
+    commands.extend([Command::Scene(SceneCommand::MoveLeft); 40]);
+    commands.extend([Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)); 7]);
+    commands.extend([Command::Scene(SceneCommand::MoveUp); 30]);
+    commands.extend([Command::Scene(SceneCommand::MoveRight); 70]);
+    commands.extend([Command::Scene(SceneCommand::Toward); 25]);
+    commands.extend([Command::Scene(SceneCommand::MoveDown); 50]);
     for (i, &command) in commands.iter().enumerate() {
         app.apply(command);
         step_guarded(&mut app, &mut soft);
@@ -114,7 +134,7 @@ fn drawing_never_changes_the_page_on_screen() {
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     let shown = displayed_indices(&soft);
     // Draw a frame into the back page by hand, without flipping.
-    let back = modex::Page(1 - app.shown_page().0);
+    let back = app.shown_page().other();
     let mut scene = Scene::initial();
     let mut vga = ModeX::new(&mut *soft);
     scene.visible_faces(|polygon, colour| {
@@ -129,10 +149,10 @@ fn drawing_never_changes_the_page_on_screen() {
 fn pause_waits_for_a_key_and_escape_quits() {
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
-    app.apply(Command::Reset);
+    app.apply(Command::Scene(SceneCommand::Reset));
     assert!(app.step(&mut ModeX::new(&mut *soft), &|| 0u64).is_some());
     app.apply(Command::Pause);
-    app.apply(Command::MoveLeft); // consumed by the pause, as the seed's getch()
+    app.apply(Command::Scene(SceneCommand::MoveLeft)); // consumed by the pause, as the seed's getch()
     assert!(app.step(&mut ModeX::new(&mut *soft), &|| 0u64).is_none());
     assert_eq!(
         app.scene().primary().object_to_world(),

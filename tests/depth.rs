@@ -6,7 +6,7 @@
 mod common;
 
 use common::assert_same_picture;
-use demo::scene::{Axis, Command};
+use demo::command::{Axis, Command, SceneCommand, Sense};
 
 fn after_each_key(keys: &[(&str, Command)]) {
     common::after_each_key(keys, |qemu, model, _, what| {
@@ -16,36 +16,57 @@ fn after_each_key(keys: &[(&str, Command)]) {
 
 #[test]
 fn the_letter_l_and_the_beams() {
-    let mut keys = vec![("r", Command::Reset)];
-    keys.extend([("n", Command::NextSolid); 5]); // the letter L
+    let mut keys = vec![("r", Command::Scene(SceneCommand::Reset))];
+    keys.extend([("n", Command::Scene(SceneCommand::NextSolid)); 5]); // the letter L
     keys.extend([
-        ("6", Command::Rotate(Axis::Y, true)),
-        ("6", Command::Rotate(Axis::Y, true)),
-        ("8", Command::Rotate(Axis::X, false)),
-        ("n", Command::NextSolid), // the three beams
-        ("4", Command::Rotate(Axis::Y, false)),
-        ("l", Command::ToggleLighting),
+        (
+            "6",
+            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+        ),
+        (
+            "6",
+            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+        ),
+        (
+            "8",
+            Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+        ),
+        ("n", Command::Scene(SceneCommand::NextSolid)), // the three beams
+        (
+            "4",
+            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
+        ),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
     ]);
     after_each_key(&keys);
 }
 
 #[test]
 fn solids_passing_through_each_other() {
-    let mut keys = vec![("r", Command::Reset), ("m", Command::ToggleSeveral)];
+    let mut keys = vec![
+        ("r", Command::Scene(SceneCommand::Reset)),
+        ("m", Command::Scene(SceneCommand::ToggleSeveral)),
+    ];
     // Into the octahedron's orbit, where it waits at the start.
-    keys.extend([("right", Command::MoveRight); 7]);
-    keys.extend([("up", Command::MoveUp); 3]);
-    keys.push(("6", Command::Rotate(Axis::Y, true)));
+    keys.extend([("right", Command::Scene(SceneCommand::MoveRight)); 7]);
+    keys.extend([("up", Command::Scene(SceneCommand::MoveUp)); 3]);
+    keys.push((
+        "6",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+    ));
     after_each_key(&keys);
 }
 
 #[test]
 fn the_crowd() {
     after_each_key(&[
-        ("r", Command::Reset),
-        ("x", Command::ToggleCrowd),
-        ("6", Command::Rotate(Axis::Y, true)),
-        ("l", Command::ToggleLighting),
-        ("x", Command::ToggleCrowd),
+        ("r", Command::Scene(SceneCommand::Reset)),
+        ("x", Command::Scene(SceneCommand::ToggleCrowd)),
+        (
+            "6",
+            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+        ),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
+        ("x", Command::Scene(SceneCommand::ToggleCrowd)),
     ]);
 }

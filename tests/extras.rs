@@ -7,8 +7,8 @@ mod common;
 
 use boot::RgbImage;
 use common::{assert_pictures_equal, assert_same_picture};
+use demo::command::{Axis, Command, LightTurn, SceneCommand, Sense};
 use demo::osd::BAR_ROWS;
-use demo::scene::{Axis, Command};
 
 /// After each key, exactly the model's picture (with statistics on, all but
 /// their timings).
@@ -24,13 +24,31 @@ fn after_each_key(keys: &[(&str, Command)]) {
 
 /// Still cube, turned so that three faces show.
 const TURNED: [(&str, Command); 7] = [
-    ("r", Command::Reset),
-    ("6", Command::Rotate(Axis::Y, true)),
-    ("6", Command::Rotate(Axis::Y, true)),
-    ("6", Command::Rotate(Axis::Y, true)),
-    ("6", Command::Rotate(Axis::Y, true)),
-    ("8", Command::Rotate(Axis::X, false)),
-    ("8", Command::Rotate(Axis::X, false)),
+    ("r", Command::Scene(SceneCommand::Reset)),
+    (
+        "6",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+    ),
+    (
+        "6",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+    ),
+    (
+        "6",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+    ),
+    (
+        "6",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+    ),
+    (
+        "8",
+        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+    ),
+    (
+        "8",
+        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+    ),
 ];
 
 fn turned_then(more: &[(&'static str, Command)]) -> Vec<(&'static str, Command)> {
@@ -40,38 +58,56 @@ fn turned_then(more: &[(&'static str, Command)]) -> Vec<(&'static str, Command)>
 #[test]
 fn lighting_and_turning_the_light() {
     after_each_key(&turned_then(&[
-        ("l", Command::ToggleLighting),
-        ("end", Command::TurnLight(Axis::Y, true)),
-        ("end", Command::TurnLight(Axis::Y, true)),
-        ("pgdn", Command::TurnLight(Axis::X, false)),
-        ("home", Command::TurnLight(Axis::Y, false)),
-        ("pgup", Command::TurnLight(Axis::X, true)),
-        ("n", Command::NextSolid),
-        ("l", Command::ToggleLighting),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
+        (
+            "end",
+            Command::Scene(SceneCommand::TurnLight(LightTurn::Right)),
+        ),
+        (
+            "end",
+            Command::Scene(SceneCommand::TurnLight(LightTurn::Right)),
+        ),
+        (
+            "pgdn",
+            Command::Scene(SceneCommand::TurnLight(LightTurn::Down)),
+        ),
+        (
+            "home",
+            Command::Scene(SceneCommand::TurnLight(LightTurn::Left)),
+        ),
+        (
+            "pgup",
+            Command::Scene(SceneCommand::TurnLight(LightTurn::Up)),
+        ),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
     ]));
 }
 
 #[test]
 fn every_solid_in_turn() {
     after_each_key(&turned_then(&[
-        ("n", Command::NextSolid),
-        ("n", Command::NextSolid),
-        ("n", Command::NextSolid),
-        ("n", Command::NextSolid),
-        ("f1", Command::Rotate(Axis::Z, true)),
-        ("n", Command::NextSolid),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        (
+            "f1",
+            Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
+        ),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
     ]));
 }
 
 #[test]
 fn several_objects_then_reset() {
     after_each_key(&turned_then(&[
-        ("m", Command::ToggleSeveral),
-        ("right", Command::MoveRight),
-        ("right", Command::MoveRight),
-        ("l", Command::ToggleLighting),
-        ("n", Command::NextSolid),
-        ("r", Command::Reset),
+        ("m", Command::Scene(SceneCommand::ToggleSeveral)),
+        ("right", Command::Scene(SceneCommand::MoveRight)),
+        ("right", Command::Scene(SceneCommand::MoveRight)),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        ("r", Command::Scene(SceneCommand::Reset)),
     ]));
 }
 
@@ -79,7 +115,7 @@ fn several_objects_then_reset() {
 fn help_opens_over_the_scene_and_closes() {
     after_each_key(&turned_then(&[
         ("h", Command::ToggleHelp),
-        ("left", Command::MoveLeft),
+        ("left", Command::Scene(SceneCommand::MoveLeft)),
         ("h", Command::ToggleHelp),
     ]));
 }
@@ -116,8 +152,8 @@ fn exactly_but_the_timings(qemu: &RgbImage, model: &RgbImage, what: &str) {
 fn statistics_in_the_top_and_bottom_rows() {
     after_each_key(&turned_then(&[
         ("s", Command::ToggleStats),
-        ("n", Command::NextSolid),
-        ("m", Command::ToggleSeveral),
-        ("l", Command::ToggleLighting),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        ("m", Command::Scene(SceneCommand::ToggleSeveral)),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
     ]));
 }

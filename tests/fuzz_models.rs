@@ -110,7 +110,7 @@ proptest! {
         // write outside the page being drawn.
         let mut soft = Box::new(SoftVga::new());
         ModeX::new(&mut *soft).set_mode();
-        let page = Page(1);
+        let page = Page::One;
         soft.set_write_guard(Some(page.base()..page.base() + PAGE_BYTES));
         let mut shadow = Box::new([BACKGROUND; PAGE_PIXELS]);
         ModeX::new(&mut *soft).update_page(page, &mut shadow, &image);

@@ -115,13 +115,14 @@ proptest! {
         let start = u16::from(page) * PAGE_BYTES;
         soft.set_write_guard(Some(start..start + PAGE_BYTES));
         let mut vga = ModeX::new(&mut *soft);
+        let page = Page::ALL[usize::from(page)];
         let screen = ClipRect { x0: 0, y0: 0, x1: 320, y1: 240 };
-        fill_convex_polygon(&points, screen, |y, x0, x1| vga.fill_span(Page(page), y, x0, x1, colour));
+        fill_convex_polygon(&points, screen, |y, x0, x1| vga.fill_span(page, y, x0, x1, colour));
         // The driver clips on its own too: spans straight from the fuzzer.
         for pair in points.windows(2) {
-            vga.fill_span(Page(page), pair[0].y, pair[0].x, pair[1].x, colour);
-            vga.fill_rect(Page(page), pair[0].x, pair[0].y, pair[1].x, pair[1].y, colour);
-            vga.put_pixel(Page(page), pair[1].x, pair[1].y, colour);
+            vga.fill_span(page, pair[0].y, pair[0].x, pair[1].x, colour);
+            vga.fill_rect(page, pair[0].x, pair[0].y, pair[1].x, pair[1].y, colour);
+            vga.put_pixel(page, pair[1].x, pair[1].y, colour);
         }
         prop_assert_eq!(soft.guard_violations(), 0);
     }

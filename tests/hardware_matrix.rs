@@ -8,16 +8,22 @@ mod common;
 
 use boot::{Graphics, Qemu};
 use common::{after_each_key_on, assert_same_picture, boot_bios_on, BOOT_TIMEOUT};
-use demo::scene::{Axis, Command};
+use demo::command::{Axis, Command, SceneCommand, Sense};
 use std::time::Duration;
 
 /// A reset (the spin stops), moves, turns and lighting: every kind of frame.
 const KEYS: [(&str, Command); 5] = [
-    ("r", Command::Reset),
-    ("4", Command::Rotate(Axis::Y, false)),
-    ("up", Command::MoveUp),
-    ("f1", Command::Rotate(Axis::Z, true)),
-    ("l", Command::ToggleLighting),
+    ("r", Command::Scene(SceneCommand::Reset)),
+    (
+        "4",
+        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
+    ),
+    ("up", Command::Scene(SceneCommand::MoveUp)),
+    (
+        "f1",
+        Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
+    ),
+    ("l", Command::Scene(SceneCommand::ToggleLighting)),
 ];
 
 fn boots_to_mode_x_through_its_video_bios(graphics: Graphics) {

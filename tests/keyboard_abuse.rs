@@ -8,7 +8,7 @@ mod common;
 use boot::line;
 use common::{assert_same_picture, boot_bios, model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
 use demo::app::App;
-use demo::scene::Command;
+use demo::command::{Command, SceneCommand};
 use modex::ModeX;
 use std::time::{Duration, Instant};
 
@@ -191,7 +191,7 @@ fn a_burst_of_two_thousand_keys_leaves_the_kernel_running_and_r_resets_it() {
 
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
-    app.apply(Command::Reset);
+    app.apply(Command::Scene(SceneCommand::Reset));
     app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
     assert_same_picture(
         &qemu.screendump().unwrap(),

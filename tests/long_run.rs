@@ -6,36 +6,36 @@ mod common;
 use common::{soft_vga_in_mode_x, PIXELS};
 use demo::app::App;
 use demo::frame::{render_to_image, FrameDrawer, Renderer};
-use demo::scene::{Axis, Command, Scene, NEAREST_Z};
+use demo::scene::{Axis, LightTurn, Scene, SceneCommand, Sense, NEAREST_Z};
 use modex::{ModeX, PAGE_BYTES};
 
 const FRAMES: u64 = 1_000_000;
 
 /// Every command the scene handles (Quit, Pause and the display toggles are
 /// the app's).
-const COMMANDS: [Command; 22] = [
-    Command::MoveLeft,
-    Command::MoveRight,
-    Command::MoveUp,
-    Command::MoveDown,
-    Command::Away,
-    Command::Toward,
-    Command::Rotate(Axis::X, true),
-    Command::Rotate(Axis::X, false),
-    Command::Rotate(Axis::Y, true),
-    Command::Rotate(Axis::Y, false),
-    Command::Rotate(Axis::Z, true),
-    Command::Rotate(Axis::Z, false),
-    Command::ToggleSpin,
-    Command::Reset,
-    Command::Toward,
-    Command::ToggleLighting,
-    Command::TurnLight(Axis::X, true),
-    Command::TurnLight(Axis::X, false),
-    Command::TurnLight(Axis::Y, true),
-    Command::TurnLight(Axis::Y, false),
-    Command::NextSolid,
-    Command::ToggleSeveral,
+const COMMANDS: [SceneCommand; 22] = [
+    SceneCommand::MoveLeft,
+    SceneCommand::MoveRight,
+    SceneCommand::MoveUp,
+    SceneCommand::MoveDown,
+    SceneCommand::Away,
+    SceneCommand::Toward,
+    SceneCommand::Rotate(Axis::X, Sense::Positive),
+    SceneCommand::Rotate(Axis::X, Sense::Negative),
+    SceneCommand::Rotate(Axis::Y, Sense::Positive),
+    SceneCommand::Rotate(Axis::Y, Sense::Negative),
+    SceneCommand::Rotate(Axis::Z, Sense::Positive),
+    SceneCommand::Rotate(Axis::Z, Sense::Negative),
+    SceneCommand::ToggleSpin,
+    SceneCommand::Reset,
+    SceneCommand::Toward,
+    SceneCommand::ToggleLighting,
+    SceneCommand::TurnLight(LightTurn::Up),
+    SceneCommand::TurnLight(LightTurn::Down),
+    SceneCommand::TurnLight(LightTurn::Right),
+    SceneCommand::TurnLight(LightTurn::Left),
+    SceneCommand::NextSolid,
+    SceneCommand::ToggleSeveral,
 ];
 
 #[test]
@@ -54,21 +54,22 @@ fn a_million_frames_of_random_commands() {
         // Reset is rare, so long runs without it happen.
         if state.is_multiple_of(3) {
             let command = COMMANDS[((state >> 8) % COMMANDS.len() as u64) as usize];
-            if command != Command::Reset || (state >> 32).is_multiple_of(500) {
+            if command != SceneCommand::Reset || (state >> 32).is_multiple_of(500) {
                 scene.apply(command);
                 drawn_commands += 1;
             }
         }
         scene.tick();
 
-        let back = 1 - renderer.shown_page().0;
-        let start = u16::from(back) * PAGE_BYTES;
+        let back = renderer.shown_page().other();
+        let start = back.base();
         soft.set_write_guard(Some(start..start + PAGE_BYTES));
         renderer.draw(&mut ModeX::new(&mut *soft), &mut scene);
         assert_eq!(
             soft.guard_violations(),
             0,
-            "frame {frame}: write outside page {back}"
+            "frame {frame}: write outside page {}",
+            back.index()
         );
 
         let xform = scene.primary().object_to_world();

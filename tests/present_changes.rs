@@ -29,8 +29,8 @@ fn full(soft: &SoftVga, layout: &FramebufferLayout, len: usize) -> Vec<u8> {
 /// One thing that changes the picture.
 #[derive(Clone, Debug)]
 enum Step {
-    Fill(u8, i32, i32, i32, i32, u8),
-    Flip(u8),
+    Fill(Page, i32, i32, i32, i32, u8),
+    Flip(Page),
     Dac(u8, [u8; 3]),
     PixelMask(u8),
     Blank,
@@ -39,11 +39,15 @@ enum Step {
     Nothing,
 }
 
+fn any_page() -> impl Strategy<Value = Page> {
+    prop::sample::select(Page::ALL.as_slice())
+}
+
 fn step() -> impl Strategy<Value = Step> {
     prop_oneof![
-        4 => (0..3u8, -20..340i32, -20..260i32, 0..120i32, 0..90i32, any::<u8>())
+        4 => (any_page(), -20..340i32, -20..260i32, 0..120i32, 0..90i32, any::<u8>())
             .prop_map(|(p, x, y, w, h, c)| Step::Fill(p, x, y, x + w, y + h, c)),
-        2 => (0..3u8).prop_map(Step::Flip),
+        2 => any_page().prop_map(Step::Flip),
         2 => (any::<u8>(), prop::array::uniform3(0..64u8)).prop_map(|(i, c)| Step::Dac(i, c)),
         1 => prop_oneof![Just(0xFFu8), Just(0x0F), any::<u8>()].prop_map(Step::PixelMask),
         1 => Just(Step::Blank),
@@ -60,11 +64,9 @@ fn apply(soft: &mut SoftVga, step: &Step) {
     let text_mode = soft.graphics(modex::regs::gc::MISC) & 1 == 0;
     let mut vga = ModeX::new(&mut *soft);
     match step.clone() {
-        Step::Fill(page, x0, y0, x1, y1, colour) => {
-            vga.fill_rect(Page(page), x0, y0, x1, y1, colour)
-        }
+        Step::Fill(page, x0, y0, x1, y1, colour) => vga.fill_rect(page, x0, y0, x1, y1, colour),
         Step::Flip(page) => {
-            vga.show_page(Page(page));
+            vga.show_page(page);
         }
         Step::Dac(index, colour) => vga.load_palette(index, &[colour]),
         Step::PixelMask(mask) => vga.bus_mut().write_port8(DAC_PIXEL_MASK, mask),

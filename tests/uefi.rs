@@ -18,7 +18,7 @@ use common::{
     BOOT_TIMEOUT,
 };
 use demo::app::App;
-use demo::scene::{Axis, Command};
+use demo::command::{Axis, Command, SceneCommand, Sense};
 use modex::present::{present_rgb, FramebufferLayout, PixelOrder, Placement};
 use modex::ModeX;
 use std::time::Duration;
@@ -158,13 +158,22 @@ fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
 #[test]
 fn without_legacy_vga_the_lit_solids_reach_the_framebuffer_too() {
     let keys = [
-        ("r", Command::Reset),
-        ("6", Command::Rotate(Axis::Y, true)),
-        ("6", Command::Rotate(Axis::Y, true)),
-        ("8", Command::Rotate(Axis::X, false)),
-        ("n", Command::NextSolid),
-        ("m", Command::ToggleSeveral),
-        ("l", Command::ToggleLighting),
+        ("r", Command::Scene(SceneCommand::Reset)),
+        (
+            "6",
+            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+        ),
+        (
+            "6",
+            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+        ),
+        (
+            "8",
+            Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+        ),
+        ("n", Command::Scene(SceneCommand::NextSolid)),
+        ("m", Command::Scene(SceneCommand::ToggleSeveral)),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
     ];
     let mut qemu = boot(Firmware::Uefi, Graphics::BochsDisplay, None);
     qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)

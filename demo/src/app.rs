@@ -1,10 +1,11 @@
 //! The demo as the kernel runs it: scancodes in, frames out. Everything here is
 //! portable, so the host tests drive exactly what the kernel drives.
 
+use crate::command::{Command, SceneCommand};
 use crate::frame::Renderer;
 use crate::keymap::command_for;
 use crate::osd::{self, Overlay, Stats};
-use crate::scene::{Command, Scene};
+use crate::scene::Scene;
 use crate::shading::{ramp_palette, RAMP_FIRST};
 use engine::FaceCounts;
 use modex::{FlipReport, ModeX, VgaBus};
@@ -130,12 +131,12 @@ impl App {
                 self.overlay.stats = !self.overlay.stats;
                 self.frame_rate = FrameRate::default();
             }
-            Command::Reset => {
-                // The seed's scene has no display over it either.
+            Command::Scene(SceneCommand::Reset) => {
+                // The starting scene has no display over it either.
                 self.overlay = Overlay::default();
-                self.scene.apply(Command::Reset);
+                self.scene.apply(SceneCommand::Reset);
             }
-            other => self.scene.apply(other),
+            Command::Scene(command) => self.scene.apply(command),
         }
         self.dirty = true;
     }
@@ -251,7 +252,7 @@ mod tests {
     fn still_picture(commands: &[Command]) -> Vec<u8> {
         let mut soft = soft_vga_in_mode_x();
         let mut app = App::new();
-        app.apply(Command::Reset);
+        app.apply(Command::Scene(SceneCommand::Reset));
         for &command in commands {
             app.apply(command);
         }
@@ -286,10 +287,10 @@ mod tests {
         let extras = [
             Command::ToggleHelp,
             Command::ToggleStats,
-            Command::ToggleLighting,
-            Command::ToggleSeveral,
-            Command::NextSolid,
-            Command::Reset,
+            Command::Scene(SceneCommand::ToggleLighting),
+            Command::Scene(SceneCommand::ToggleSeveral),
+            Command::Scene(SceneCommand::NextSolid),
+            Command::Scene(SceneCommand::Reset),
         ];
         assert!(still_picture(&extras) == plain);
     }
@@ -297,9 +298,9 @@ mod tests {
     #[test]
     fn statistics_stay_in_the_top_and_bottom_twelve_rows() {
         // Moved up and toward, so the cube itself reaches into the top rows.
-        let moves = [Command::MoveUp; 12]
+        let moves = [Command::Scene(SceneCommand::MoveUp); 12]
             .into_iter()
-            .chain([Command::Toward; 10]);
+            .chain([Command::Scene(SceneCommand::Toward); 10]);
         let plain = still_picture(&moves.clone().collect::<Vec<_>>());
         let with_stats: Vec<Command> = moves.chain([Command::ToggleStats]).collect();
         let stats = still_picture(&with_stats);
@@ -342,7 +343,7 @@ mod tests {
     fn with_statistics_on_an_idle_scene_is_redrawn_once_a_second() {
         let mut soft = soft_vga_in_mode_x();
         let mut app = App::new();
-        app.apply(Command::Reset); // still
+        app.apply(Command::Scene(SceneCommand::Reset)); // still
         let now = Cell::new(0u64);
         let clock = || now.get();
         let mut step = |app: &mut App, at: u64| {

@@ -62,7 +62,7 @@ pub struct ExtentRenderer<P> {
 impl<P> Default for ExtentRenderer<P> {
     fn default() -> Self {
         ExtentRenderer {
-            shown: Page(0),
+            shown: Page::Zero,
             drawn: [None, None],
             path: core::marker::PhantomData,
         }
@@ -72,8 +72,8 @@ impl<P> Default for ExtentRenderer<P> {
 #[allow(private_bounds)]
 impl<P: PixelPath> FrameDrawer for ExtentRenderer<P> {
     fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page {
-        let page = Page(1 - self.shown.0);
-        let slot = usize::from(page.0);
+        let page = self.shown.other();
+        let slot = usize::from(page.index());
         if let Some(old) = self.drawn[slot].take() {
             P::rect(vga, page, old, BACKGROUND);
         }

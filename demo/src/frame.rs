@@ -128,7 +128,7 @@ impl Renderer {
     /// them.
     pub const fn new() -> Self {
         Renderer {
-            shown: Page(0),
+            shown: Page::Zero,
             shadows: [[BACKGROUND; PAGE_PIXELS]; 2],
             next: [BACKGROUND; PAGE_PIXELS],
             depth: DepthBand::new(),
@@ -150,8 +150,12 @@ impl Renderer {
     ) -> (Page, FaceCounts) {
         let faces = render_with_depth(scene, &mut self.next, &mut self.depth);
         overlay(&mut self.next, faces);
-        let page = Page(1 - self.shown.0);
-        vga.update_page(page, &mut self.shadows[usize::from(page.0)], &self.next);
+        let page = self.shown.other();
+        vga.update_page(
+            page,
+            &mut self.shadows[usize::from(page.index())],
+            &self.next,
+        );
         self.shown = page;
         (page, faces)
     }
@@ -166,7 +170,7 @@ impl FrameDrawer for Renderer {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scene::Command;
+    use crate::scene::SceneCommand;
     use std::boxed::Box;
 
     /// The starting scene (one convex cube, flat colours) looks exactly as
@@ -185,11 +189,11 @@ mod tests {
         for (shape, several, frames) in [(0, false, 360), (0, true, 360)] {
             let mut scene = Scene::new();
             for _ in 0..shape {
-                scene.apply(Command::NextSolid);
+                scene.apply(SceneCommand::NextSolid);
             }
             assert!(scene.solid().convex);
             if several {
-                scene.apply(Command::ToggleSeveral);
+                scene.apply(SceneCommand::ToggleSeveral);
             }
             assert_eq!(scene.needs_depth_test(), several);
             for frame in 0..frames {

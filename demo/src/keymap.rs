@@ -3,7 +3,7 @@
 //! The numeric keypad rotates with NumLock on (it then types digits, like the
 //! top row); with NumLock off its 4/6/8/2 are arrows and move the cube.
 
-use crate::scene::{Axis, Command};
+use crate::command::{Axis, Command, LightTurn, SceneCommand, Sense};
 use pc_keyboard::{DecodedKey, KeyCode};
 
 /// The simulator's inspector key: ignored by the demo (see the module docs).
@@ -22,20 +22,20 @@ pub fn command_for(key: DecodedKey) -> Option<Command> {
 
 fn command_for_character(character: char) -> Command {
     match character {
-        'a' | 'A' => Command::Away,
-        't' | 'T' => Command::Toward,
-        '4' => Command::Rotate(Axis::Y, false),
-        '6' => Command::Rotate(Axis::Y, true),
-        '8' => Command::Rotate(Axis::X, false),
-        '2' => Command::Rotate(Axis::X, true),
-        ' ' => Command::ToggleSpin,
-        'l' | 'L' => Command::ToggleLighting,
-        'n' | 'N' => Command::NextSolid,
-        'm' | 'M' => Command::ToggleSeveral,
-        'x' | 'X' => Command::ToggleCrowd,
+        'a' | 'A' => Command::Scene(SceneCommand::Away),
+        't' | 'T' => Command::Scene(SceneCommand::Toward),
+        '4' => Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
+        '6' => Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+        '8' => Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+        '2' => Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Positive)),
+        ' ' => Command::Scene(SceneCommand::ToggleSpin),
+        'l' | 'L' => Command::Scene(SceneCommand::ToggleLighting),
+        'n' | 'N' => Command::Scene(SceneCommand::NextSolid),
+        'm' | 'M' => Command::Scene(SceneCommand::ToggleSeveral),
+        'x' | 'X' => Command::Scene(SceneCommand::ToggleCrowd),
         'h' | 'H' => Command::ToggleHelp,
         's' | 'S' => Command::ToggleStats,
-        'r' | 'R' => Command::Reset,
+        'r' | 'R' => Command::Scene(SceneCommand::Reset),
         '\u{1b}' => Command::Quit,
         _ => Command::Pause,
     }
@@ -43,22 +43,22 @@ fn command_for_character(character: char) -> Command {
 
 fn command_for_raw(code: KeyCode) -> Option<Command> {
     Some(match code {
-        KeyCode::ArrowLeft => Command::MoveLeft,
-        KeyCode::ArrowRight => Command::MoveRight,
-        KeyCode::ArrowUp => Command::MoveUp,
-        KeyCode::ArrowDown => Command::MoveDown,
-        KeyCode::F1 => Command::Rotate(Axis::Z, true),
-        KeyCode::F2 => Command::Rotate(Axis::Z, false),
-        KeyCode::Home => Command::TurnLight(Axis::Y, false),
-        KeyCode::End => Command::TurnLight(Axis::Y, true),
-        KeyCode::PageUp => Command::TurnLight(Axis::X, true),
-        KeyCode::PageDown => Command::TurnLight(Axis::X, false),
+        KeyCode::ArrowLeft => Command::Scene(SceneCommand::MoveLeft),
+        KeyCode::ArrowRight => Command::Scene(SceneCommand::MoveRight),
+        KeyCode::ArrowUp => Command::Scene(SceneCommand::MoveUp),
+        KeyCode::ArrowDown => Command::Scene(SceneCommand::MoveDown),
+        KeyCode::F1 => Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
+        KeyCode::F2 => Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Negative)),
+        KeyCode::Home => Command::Scene(SceneCommand::TurnLight(LightTurn::Left)),
+        KeyCode::End => Command::Scene(SceneCommand::TurnLight(LightTurn::Right)),
+        KeyCode::PageUp => Command::Scene(SceneCommand::TurnLight(LightTurn::Up)),
+        KeyCode::PageDown => Command::Scene(SceneCommand::TurnLight(LightTurn::Down)),
         // Us104Key turns these into digits or arrows by NumLock; a layout or
         // decoder that hands over the keypad key itself still rotates.
-        KeyCode::Numpad4 => Command::Rotate(Axis::Y, false),
-        KeyCode::Numpad6 => Command::Rotate(Axis::Y, true),
-        KeyCode::Numpad8 => Command::Rotate(Axis::X, false),
-        KeyCode::Numpad2 => Command::Rotate(Axis::X, true),
+        KeyCode::Numpad4 => Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
+        KeyCode::Numpad6 => Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
+        KeyCode::Numpad8 => Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
+        KeyCode::Numpad2 => Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Positive)),
         KeyCode::Escape => Command::Quit,
         KeyCode::LShift
         | KeyCode::RShift
@@ -99,48 +99,85 @@ mod tests {
 
     #[test]
     fn the_seeds_keys_map_to_its_commands() {
-        use Command::*;
+        use Command::{Pause, Quit, Scene, ToggleHelp, ToggleStats};
+        use SceneCommand::*;
         let table = [
-            (DecodedKey::RawKey(KeyCode::ArrowLeft), MoveLeft),
-            (DecodedKey::RawKey(KeyCode::ArrowRight), MoveRight),
-            (DecodedKey::RawKey(KeyCode::ArrowUp), MoveUp),
-            (DecodedKey::RawKey(KeyCode::ArrowDown), MoveDown),
-            (DecodedKey::Unicode('a'), Away),
-            (DecodedKey::Unicode('A'), Away),
-            (DecodedKey::Unicode('t'), Toward),
-            (DecodedKey::Unicode('T'), Toward),
-            (DecodedKey::RawKey(KeyCode::F1), Rotate(Axis::Z, true)),
-            (DecodedKey::RawKey(KeyCode::F2), Rotate(Axis::Z, false)),
-            (DecodedKey::Unicode('4'), Rotate(Axis::Y, false)),
-            (DecodedKey::Unicode('6'), Rotate(Axis::Y, true)),
-            (DecodedKey::Unicode('8'), Rotate(Axis::X, false)),
-            (DecodedKey::Unicode('2'), Rotate(Axis::X, true)),
-            (DecodedKey::RawKey(KeyCode::Numpad4), Rotate(Axis::Y, false)),
-            (DecodedKey::RawKey(KeyCode::Numpad6), Rotate(Axis::Y, true)),
-            (DecodedKey::RawKey(KeyCode::Numpad8), Rotate(Axis::X, false)),
-            (DecodedKey::RawKey(KeyCode::Numpad2), Rotate(Axis::X, true)),
+            (DecodedKey::RawKey(KeyCode::ArrowLeft), Scene(MoveLeft)),
+            (DecodedKey::RawKey(KeyCode::ArrowRight), Scene(MoveRight)),
+            (DecodedKey::RawKey(KeyCode::ArrowUp), Scene(MoveUp)),
+            (DecodedKey::RawKey(KeyCode::ArrowDown), Scene(MoveDown)),
+            (DecodedKey::Unicode('a'), Scene(Away)),
+            (DecodedKey::Unicode('A'), Scene(Away)),
+            (DecodedKey::Unicode('t'), Scene(Toward)),
+            (DecodedKey::Unicode('T'), Scene(Toward)),
+            (
+                DecodedKey::RawKey(KeyCode::F1),
+                Scene(Rotate(Axis::Z, Sense::Positive)),
+            ),
+            (
+                DecodedKey::RawKey(KeyCode::F2),
+                Scene(Rotate(Axis::Z, Sense::Negative)),
+            ),
+            (
+                DecodedKey::Unicode('4'),
+                Scene(Rotate(Axis::Y, Sense::Negative)),
+            ),
+            (
+                DecodedKey::Unicode('6'),
+                Scene(Rotate(Axis::Y, Sense::Positive)),
+            ),
+            (
+                DecodedKey::Unicode('8'),
+                Scene(Rotate(Axis::X, Sense::Negative)),
+            ),
+            (
+                DecodedKey::Unicode('2'),
+                Scene(Rotate(Axis::X, Sense::Positive)),
+            ),
+            (
+                DecodedKey::RawKey(KeyCode::Numpad4),
+                Scene(Rotate(Axis::Y, Sense::Negative)),
+            ),
+            (
+                DecodedKey::RawKey(KeyCode::Numpad6),
+                Scene(Rotate(Axis::Y, Sense::Positive)),
+            ),
+            (
+                DecodedKey::RawKey(KeyCode::Numpad8),
+                Scene(Rotate(Axis::X, Sense::Negative)),
+            ),
+            (
+                DecodedKey::RawKey(KeyCode::Numpad2),
+                Scene(Rotate(Axis::X, Sense::Positive)),
+            ),
             (DecodedKey::RawKey(KeyCode::Escape), Quit),
-            (DecodedKey::Unicode('R'), Reset),
-            (DecodedKey::Unicode(' '), ToggleSpin),
-            (DecodedKey::Unicode('l'), ToggleLighting),
-            (DecodedKey::Unicode('L'), ToggleLighting),
-            (DecodedKey::Unicode('n'), NextSolid),
-            (DecodedKey::Unicode('m'), ToggleSeveral),
+            (DecodedKey::Unicode('R'), Scene(Reset)),
+            (DecodedKey::Unicode(' '), Scene(ToggleSpin)),
+            (DecodedKey::Unicode('l'), Scene(ToggleLighting)),
+            (DecodedKey::Unicode('L'), Scene(ToggleLighting)),
+            (DecodedKey::Unicode('n'), Scene(NextSolid)),
+            (DecodedKey::Unicode('m'), Scene(ToggleSeveral)),
             (DecodedKey::Unicode('h'), ToggleHelp),
             (DecodedKey::Unicode('s'), ToggleStats),
-            (DecodedKey::RawKey(KeyCode::Home), TurnLight(Axis::Y, false)),
-            (DecodedKey::RawKey(KeyCode::End), TurnLight(Axis::Y, true)),
+            (
+                DecodedKey::RawKey(KeyCode::Home),
+                Scene(TurnLight(LightTurn::Left)),
+            ),
+            (
+                DecodedKey::RawKey(KeyCode::End),
+                Scene(TurnLight(LightTurn::Right)),
+            ),
             (
                 DecodedKey::RawKey(KeyCode::PageUp),
-                TurnLight(Axis::X, true),
+                Scene(TurnLight(LightTurn::Up)),
             ),
             (
                 DecodedKey::RawKey(KeyCode::PageDown),
-                TurnLight(Axis::X, false),
+                Scene(TurnLight(LightTurn::Down)),
             ),
-            (DecodedKey::Unicode('r'), Reset),
+            (DecodedKey::Unicode('r'), Scene(Reset)),
             (DecodedKey::Unicode('\u{1b}'), Quit),
-            (DecodedKey::Unicode('x'), ToggleCrowd),
+            (DecodedKey::Unicode('x'), Scene(ToggleCrowd)),
             (DecodedKey::Unicode('q'), Pause),
             (DecodedKey::Unicode('5'), Pause),
             (DecodedKey::RawKey(KeyCode::F3), Pause),
@@ -170,7 +207,7 @@ mod tests {
         // V pressed and released between two commands: neither pauses nor counts.
         assert_eq!(
             commands_for_bytes(&[0x2F, 0xAF, 0x1E, 0x9E, 0x2F, 0xAF]),
-            [Command::Away]
+            [Command::Scene(SceneCommand::Away)]
         );
     }
 
@@ -188,7 +225,8 @@ mod tests {
 
     #[test]
     fn raw_scancodes_decode_to_commands() {
-        use Command::*;
+        use Command::{Quit, Scene};
+        use SceneCommand::*;
         // Left (keypad 4 with NumLock off), extended Left, F1 and its release,
         // A, keypad 6 after NumLock on, top-row 8, Shift (nothing), Esc.
         let bytes = [
@@ -199,12 +237,12 @@ mod tests {
         assert_eq!(
             commands_for_bytes(&bytes),
             [
-                Rotate(Axis::Y, false),
-                MoveLeft,
-                Rotate(Axis::Z, true),
-                Away,
-                MoveRight, // NumLock toggled off: keypad 6 is Right
-                Rotate(Axis::X, false),
+                Scene(Rotate(Axis::Y, Sense::Negative)),
+                Scene(MoveLeft),
+                Scene(Rotate(Axis::Z, Sense::Positive)),
+                Scene(Away),
+                Scene(MoveRight), // NumLock toggled off: keypad 6 is Right
+                Scene(Rotate(Axis::X, Sense::Negative)),
                 Quit
             ]
         );
@@ -212,7 +250,8 @@ mod tests {
 
     #[test]
     fn the_extras_keys_decode_from_their_scancodes() {
-        use Command::*;
+        use Command::{Scene, ToggleHelp, ToggleStats};
+        use SceneCommand::*;
         // L, N, M, H, S, then the editing block's Home, End, Page Up and Page
         // Down (E0-prefixed, so NumLock does not touch them), each released.
         let bytes = [
@@ -222,15 +261,15 @@ mod tests {
         assert_eq!(
             commands_for_bytes(&bytes),
             [
-                ToggleLighting,
-                NextSolid,
-                ToggleSeveral,
+                Scene(ToggleLighting),
+                Scene(NextSolid),
+                Scene(ToggleSeveral),
                 ToggleHelp,
                 ToggleStats,
-                TurnLight(Axis::Y, false),
-                TurnLight(Axis::Y, true),
-                TurnLight(Axis::X, true),
-                TurnLight(Axis::X, false),
+                Scene(TurnLight(LightTurn::Left)),
+                Scene(TurnLight(LightTurn::Right)),
+                Scene(TurnLight(LightTurn::Up)),
+                Scene(TurnLight(LightTurn::Down)),
             ]
         );
     }

@@ -11,6 +11,7 @@ extern crate std;
 
 pub mod app;
 pub mod baseline;
+pub mod command;
 pub mod frame;
 pub mod keymap;
 pub mod keys;

@@ -308,42 +308,74 @@ mod tests {
 
     #[test]
     fn the_help_lists_a_key_for_every_command_and_the_keys_do_what_it_says() {
+        use crate::command::{Axis, Command::*, LightTurn, SceneCommand::*, Sense};
         use crate::keymap::command_for;
-        use crate::scene::{Axis, Command::*};
         use pc_keyboard::{DecodedKey::*, KeyCode};
         let listed = [
-            ("Arrows", RawKey(KeyCode::ArrowLeft), MoveLeft),
-            ("Arrows", RawKey(KeyCode::ArrowRight), MoveRight),
-            ("Arrows", RawKey(KeyCode::ArrowUp), MoveUp),
-            ("Arrows", RawKey(KeyCode::ArrowDown), MoveDown),
-            ("A  T", Unicode('a'), Away),
-            ("A  T", Unicode('t'), Toward),
-            ("4 6  8 2", Unicode('4'), Rotate(Axis::Y, false)),
-            ("4 6  8 2", Unicode('6'), Rotate(Axis::Y, true)),
-            ("4 6  8 2", Unicode('8'), Rotate(Axis::X, false)),
-            ("4 6  8 2", Unicode('2'), Rotate(Axis::X, true)),
-            ("F1 F2", RawKey(KeyCode::F1), Rotate(Axis::Z, true)),
-            ("F1 F2", RawKey(KeyCode::F2), Rotate(Axis::Z, false)),
-            ("Space", Unicode(' '), ToggleSpin),
-            ("L ", Unicode('l'), ToggleLighting),
-            ("Home End", RawKey(KeyCode::Home), TurnLight(Axis::Y, false)),
-            ("Home End", RawKey(KeyCode::End), TurnLight(Axis::Y, true)),
+            ("Arrows", RawKey(KeyCode::ArrowLeft), Scene(MoveLeft)),
+            ("Arrows", RawKey(KeyCode::ArrowRight), Scene(MoveRight)),
+            ("Arrows", RawKey(KeyCode::ArrowUp), Scene(MoveUp)),
+            ("Arrows", RawKey(KeyCode::ArrowDown), Scene(MoveDown)),
+            ("A  T", Unicode('a'), Scene(Away)),
+            ("A  T", Unicode('t'), Scene(Toward)),
+            (
+                "4 6  8 2",
+                Unicode('4'),
+                Scene(Rotate(Axis::Y, Sense::Negative)),
+            ),
+            (
+                "4 6  8 2",
+                Unicode('6'),
+                Scene(Rotate(Axis::Y, Sense::Positive)),
+            ),
+            (
+                "4 6  8 2",
+                Unicode('8'),
+                Scene(Rotate(Axis::X, Sense::Negative)),
+            ),
+            (
+                "4 6  8 2",
+                Unicode('2'),
+                Scene(Rotate(Axis::X, Sense::Positive)),
+            ),
+            (
+                "F1 F2",
+                RawKey(KeyCode::F1),
+                Scene(Rotate(Axis::Z, Sense::Positive)),
+            ),
+            (
+                "F1 F2",
+                RawKey(KeyCode::F2),
+                Scene(Rotate(Axis::Z, Sense::Negative)),
+            ),
+            ("Space", Unicode(' '), Scene(ToggleSpin)),
+            ("L ", Unicode('l'), Scene(ToggleLighting)),
+            (
+                "Home End",
+                RawKey(KeyCode::Home),
+                Scene(TurnLight(LightTurn::Left)),
+            ),
+            (
+                "Home End",
+                RawKey(KeyCode::End),
+                Scene(TurnLight(LightTurn::Right)),
+            ),
             (
                 "PgUp PgDn",
                 RawKey(KeyCode::PageUp),
-                TurnLight(Axis::X, true),
+                Scene(TurnLight(LightTurn::Up)),
             ),
             (
                 "PgUp PgDn",
                 RawKey(KeyCode::PageDown),
-                TurnLight(Axis::X, false),
+                Scene(TurnLight(LightTurn::Down)),
             ),
-            ("N ", Unicode('n'), NextSolid),
-            ("M ", Unicode('m'), ToggleSeveral),
-            ("X ", Unicode('x'), ToggleCrowd),
+            ("N ", Unicode('n'), Scene(NextSolid)),
+            ("M ", Unicode('m'), Scene(ToggleSeveral)),
+            ("X ", Unicode('x'), Scene(ToggleCrowd)),
             ("S ", Unicode('s'), ToggleStats),
             ("H ", Unicode('h'), ToggleHelp),
-            ("R ", Unicode('r'), Reset),
+            ("R ", Unicode('r'), Scene(Reset)),
             ("Esc", RawKey(KeyCode::Escape), Quit),
             ("other keys", Unicode('q'), Pause),
         ];
@@ -358,9 +390,24 @@ mod tests {
         // reminder to give it a key, a help line and a row above.
         for (_, _, command) in listed {
             match command {
-                MoveLeft | MoveRight | MoveUp | MoveDown | Away | Toward | Rotate(..)
-                | ToggleSpin | ToggleLighting | TurnLight(..) | NextSolid | ToggleSeveral
-                | ToggleCrowd | ToggleHelp | ToggleStats | Reset | Pause | Quit => {}
+                Scene(MoveLeft)
+                | Scene(MoveRight)
+                | Scene(MoveUp)
+                | Scene(MoveDown)
+                | Scene(Away)
+                | Scene(Toward)
+                | Scene(Rotate(..))
+                | Scene(ToggleSpin)
+                | Scene(ToggleLighting)
+                | Scene(TurnLight(..))
+                | Scene(NextSolid)
+                | Scene(ToggleSeveral)
+                | Scene(ToggleCrowd)
+                | ToggleHelp
+                | ToggleStats
+                | Scene(Reset)
+                | Pause
+                | Quit => {}
             }
         }
     }

@@ -37,14 +37,14 @@ pub fn draw<B: VgaBus>(vga: &mut ModeX<B>, page: Page) {
         }
     }
     // A marker whose place says which page this is.
-    let marker_x = 20 + 40 * i32::from(page.0);
+    let marker_x = 20 + 40 * i32::from(page.index());
     vga.fill_rect(
         page,
         marker_x,
         MARKER_TOP,
         marker_x + MARKER_SIZE,
         MARKER_TOP + MARKER_SIZE,
-        40 + page.0,
+        40 + page.index(),
     );
     // The frame, one pixel wide, on the outermost rows and columns.
     vga.fill_rect(page, 0, 0, SCREEN_WIDTH, 1, WHITE);

@@ -8,7 +8,7 @@
 mod ray_caster;
 
 use demo::frame::{render_painter, render_to_image, BACKGROUND};
-use demo::scene::{Axis, Command, Scene};
+use demo::scene::{Axis, Scene, SceneCommand, Sense};
 use engine::{fill_convex_polygon, Xform};
 use modex::PAGE_PIXELS;
 use ray_caster::{cast, differences_off_the_edges, WIDTH};
@@ -40,7 +40,7 @@ fn assert_exact(scene: &mut Scene, what: &str) {
 fn scene_with(shape: usize) -> Scene {
     let mut scene = Scene::initial();
     for _ in 0..shape {
-        scene.apply(Command::NextSolid);
+        scene.apply(SceneCommand::NextSolid);
     }
     scene
 }
@@ -54,10 +54,17 @@ fn the_three_beams_are_exact_in_many_orientations() {
     assert_eq!(scene.solid().name, "three beams");
     for step in 0..40 {
         assert_exact(&mut scene, &format!("beams, step {step}"));
-        scene.apply(Command::Rotate(Axis::Y, step % 3 != 0));
-        scene.apply(Command::Rotate(Axis::X, true));
+        scene.apply(SceneCommand::Rotate(
+            Axis::Y,
+            if step % 3 != 0 {
+                Sense::Positive
+            } else {
+                Sense::Negative
+            },
+        ));
+        scene.apply(SceneCommand::Rotate(Axis::X, Sense::Positive));
         if step % 5 == 0 {
-            scene.apply(Command::Rotate(Axis::Z, true));
+            scene.apply(SceneCommand::Rotate(Axis::Z, Sense::Positive));
         }
     }
 }
@@ -68,9 +75,16 @@ fn the_letter_l_is_exact_in_many_orientations() {
     assert_eq!(scene.solid().name, "letter L");
     for step in 0..60 {
         assert_exact(&mut scene, &format!("letter L, step {step}"));
-        scene.apply(Command::Rotate(Axis::Y, true));
+        scene.apply(SceneCommand::Rotate(Axis::Y, Sense::Positive));
         if step % 2 == 0 {
-            scene.apply(Command::Rotate(Axis::X, step % 4 == 0));
+            scene.apply(SceneCommand::Rotate(
+                Axis::X,
+                if step % 4 == 0 {
+                    Sense::Positive
+                } else {
+                    Sense::Negative
+                },
+            ));
         }
     }
 }
@@ -115,13 +129,13 @@ fn interpenetrating_solids_are_exact() {
     // orbit: every solid in the cube's place, turned as it goes.
     for shape in 0..7 {
         let mut scene = scene_with(shape);
-        scene.apply(Command::ToggleSeveral);
-        scene.apply(Command::ToggleSpin);
+        scene.apply(SceneCommand::ToggleSeveral);
+        scene.apply(SceneCommand::ToggleSpin);
         for step in 0..24 {
             match step % 4 {
-                0 => scene.apply(Command::MoveRight),
-                1 => scene.apply(Command::Away),
-                2 => scene.apply(Command::Rotate(Axis::Z, true)),
+                0 => scene.apply(SceneCommand::MoveRight),
+                1 => scene.apply(SceneCommand::Away),
+                2 => scene.apply(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
                 _ => {}
             }
             for _ in 0..5 {
@@ -137,9 +151,9 @@ fn the_cube_inside_the_orbit_is_exact_for_a_whole_orbit() {
     // Where the octahedron's orbit crosses the x axis at the cube's depth:
     // it passes straight through the cube once a revolution.
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     *scene.primary_mut().object_to_world_mut() = Xform::translation(42.0, 0.0, -100.0);
-    scene.apply(Command::ToggleSpin);
+    scene.apply(SceneCommand::ToggleSpin);
     for frame in 0..360 {
         scene.tick();
         if frame % 3 == 0 {
@@ -159,8 +173,8 @@ fn a_thousand_random_poses_of_the_three_object_scene_are_exact() {
     };
     for pose in 0..1000 {
         let mut scene = scene_with((random() * 7.0) as usize);
-        scene.apply(Command::ToggleSeveral);
-        scene.apply(Command::ToggleSpin);
+        scene.apply(SceneCommand::ToggleSeveral);
+        scene.apply(SceneCommand::ToggleSpin);
         for _ in 0..(random() * 400.0) as usize {
             scene.tick();
         }
@@ -183,9 +197,9 @@ fn the_painters_order_fails_with_the_cube_inside_the_orbit() {
     // The scenes above do test interpenetration: whole objects far to near
     // go wrong there, by more than an edge's width.
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     *scene.primary_mut().object_to_world_mut() = Xform::translation(42.0, 0.0, -100.0);
-    scene.apply(Command::ToggleSpin);
+    scene.apply(SceneCommand::ToggleSpin);
     let mut image = Box::new([0u8; PAGE_PIXELS]);
     let mut wrong_frames = 0;
     // The octahedron starts a sixth of a revolution past the cube.
@@ -203,8 +217,8 @@ fn the_painters_order_fails_with_the_cube_inside_the_orbit() {
 #[test]
 fn the_crowd_is_exact() {
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleCrowd);
-    scene.apply(Command::ToggleSpin);
+    scene.apply(SceneCommand::ToggleCrowd);
+    scene.apply(SceneCommand::ToggleSpin);
     assert!(scene.objects().len() >= 50);
     for frame in 0..300 {
         scene.tick();
@@ -223,8 +237,15 @@ fn each_convex_solid_alone_is_exact_without_the_depth_test() {
         assert!(!scene.needs_depth_test());
         for step in 0..30 {
             assert_exact(&mut scene, &format!("shape {shape}, step {step}"));
-            scene.apply(Command::Rotate(Axis::Y, true));
-            scene.apply(Command::Rotate(Axis::X, step % 2 == 0));
+            scene.apply(SceneCommand::Rotate(Axis::Y, Sense::Positive));
+            scene.apply(SceneCommand::Rotate(
+                Axis::X,
+                if step % 2 == 0 {
+                    Sense::Positive
+                } else {
+                    Sense::Negative
+                },
+            ));
         }
     }
 }

@@ -7,7 +7,7 @@ use crate::clock;
 use crate::serial_println;
 use demo::baseline::PerPixel;
 use demo::frame::{FrameDrawer, Renderer};
-use demo::scene::{Command, Scene};
+use demo::scene::{Scene, SceneCommand};
 use modex::{ModeX, VgaBus};
 
 const FRAMES: u64 = 120;
@@ -17,7 +17,7 @@ const FRAMES: u64 = 120;
 fn time_frames<B: VgaBus, D: FrameDrawer>(
     vga: &mut ModeX<B>,
     mut drawer: D,
-    commands: &[Command],
+    commands: &[SceneCommand],
 ) -> u64 {
     vga.set_mode(); // blank pages and known registers, as every drawer expects
     let mut scene = Scene::new();
@@ -35,7 +35,7 @@ fn time_frames<B: VgaBus, D: FrameDrawer>(
 pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
     let ours = time_frames(vga, Renderer::new(), &[]);
     let per_pixel = time_frames(vga, PerPixel::default(), &[]);
-    let crowd = time_frames(vga, Renderer::new(), &[Command::ToggleCrowd]);
+    let crowd = time_frames(vga, Renderer::new(), &[SceneCommand::ToggleCrowd]);
     vga.set_mode();
     serial_println!(
         "bench: {} frames each: ours {} us/frame, per-pixel {} us/frame, per-pixel/ours = {}.{:02}",

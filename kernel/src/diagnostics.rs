@@ -10,11 +10,11 @@ use modex::{ModeX, Page, VgaBus};
 /// Draws the pattern into pages 0 and 1, shows page 0, and flips to the other
 /// page on every key press, saying on serial which page is shown.
 pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
-    demo::pattern::draw(vga, Page(0));
-    demo::pattern::draw(vga, Page(1));
-    let mut shown = Page(0);
+    demo::pattern::draw(vga, Page::Zero);
+    demo::pattern::draw(vga, Page::One);
+    let mut shown = Page::Zero;
     vga.show_page(shown);
-    serial_println!("pattern: page {} shown", shown.0);
+    serial_println!("pattern: page {} shown", shown.index());
     serial_println!("{}", machine::protocol::line::READY);
     loop {
         x86_64::instructions::hlt();
@@ -24,9 +24,9 @@ pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
             pressed |= byte & 0x80 == 0 && byte != 0xE0;
         }
         if pressed {
-            shown = Page(1 - shown.0);
+            shown = shown.other();
             vga.show_page(shown);
-            serial_println!("pattern: page {} shown", shown.0);
+            serial_println!("pattern: page {} shown", shown.index());
         }
     }
 }
@@ -38,14 +38,16 @@ const FLIP_RATE_MICROS: u64 = 3_000_000;
 /// truly miss some); with QEMU's precise retrace (or real hardware) flips plus
 /// missed retraces make the refresh rate.
 pub fn flip_rate<B: VgaBus>(vga: &mut ModeX<B>) {
-    demo::pattern::draw(vga, Page(0));
-    demo::pattern::draw(vga, Page(1));
-    vga.show_page(Page(0));
+    demo::pattern::draw(vga, Page::Zero);
+    demo::pattern::draw(vga, Page::One);
+    vga.show_page(Page::Zero);
     let start = clock::micros();
     let mut pacing = Pacing::default();
     pacing.flipped(start, false);
+    let mut shown = Page::Zero;
     while clock::micros() - start < FLIP_RATE_MICROS {
-        let report = vga.show_page(Page((pacing.flips % 2) as u8));
+        shown = shown.other();
+        let report = vga.show_page(shown);
         pacing.flipped(clock::micros(), report.timed_out());
     }
     let elapsed = clock::micros() - start;

@@ -26,9 +26,9 @@
 //!
 //! let mut soft = Box::new(SoftVga::new()); // four 64 KiB planes: keep it off the stack
 //! let mut vga = ModeX::new(&mut *soft);
-//! vga.set_mode(); // Page(0) is shown, all black
-//! vga.fill_rect(Page(1), 10, 20, 14, 22, 12); // x 10..14, y 20..22, colour 12
-//! vga.show_page(Page(1)); // the start address is latched at the next retrace
+//! vga.set_mode(); // Page::Zero is shown, all black
+//! vga.fill_rect(Page::One, 10, 20, 14, 22, 12); // x 10..14, y 20..22, colour 12
+//! vga.show_page(Page::One); // the start address is latched at the next retrace
 //!
 //! let mut screen = vec![0u8; 320 * 240];
 //! assert_eq!(soft.scanout_indices(&mut screen), (320, 240));

@@ -142,8 +142,8 @@ mod tests {
 
     /// Page `page` filled with colour `page + 1`, so each page looks different.
     fn fill_pages(vga: &mut ModeX<impl VgaBus>) {
-        for page in 0..3 {
-            vga.fill_rect(Page(page), 0, 0, 320, 240, page + 1);
+        for page in Page::ALL {
+            vga.fill_rect(page, 0, 0, 320, 240, page.index() + 1);
         }
     }
 
@@ -157,12 +157,19 @@ mod tests {
         vga.set_mode();
         fill_pages(&mut vga);
         let before = vga.bus().presentations();
-        let flips = [0, 1, 2, 1, 0, 2];
+        let flips = [
+            Page::Zero,
+            Page::One,
+            Page::Two,
+            Page::One,
+            Page::Zero,
+            Page::Two,
+        ];
         for (done, page) in flips.into_iter().enumerate() {
-            vga.show_page(Page(page));
+            vga.show_page(page);
             assert_eq!(vga.bus().presentations(), before + done as u64 + 1);
         }
-        let bases: Vec<u16> = flips.iter().map(|&page| Page(page).base()).collect();
+        let bases: Vec<u16> = flips.iter().map(|page| page.base()).collect();
         assert_eq!(presented[before as usize..], bases);
     }
 
@@ -172,10 +179,10 @@ mod tests {
         let mut count = 0;
         let mut vga = ModeX::new(MirroredVga::new(&mut soft, |_: &SoftVga| count += 1));
         vga.set_mode();
-        vga.show_page(Page(0));
+        vga.show_page(Page::Zero);
         let after_first_flip = vga.bus().presentations();
-        vga.show_page(Page(0));
-        vga.show_page(Page(0));
+        vga.show_page(Page::Zero);
+        vga.show_page(Page::Zero);
         assert_eq!(vga.bus().presentations(), after_first_flip + 2);
         assert_eq!(count, after_first_flip + 2);
     }
@@ -187,7 +194,7 @@ mod tests {
         vga.set_mode();
         let after_mode_set = vga.bus().presentations();
         fill_pages(&mut vga);
-        vga.put_pixel(Page(0), 5, 5, 9);
+        vga.put_pixel(Page::Zero, 5, 5, 9);
         assert_eq!(vga.bus().presentations(), after_mode_set);
     }
 
@@ -208,7 +215,7 @@ mod tests {
         }));
         vga.set_mode();
         fill_pages(&mut vga);
-        vga.show_page(Page(2));
+        vga.show_page(Page::Two);
         let [red, green, blue] = soft.dac_entry(3).map(dac_6_to_8);
         let page_2_colour = [red, green, blue, 0];
         assert_ne!(page_2_colour, [0; 4]);
@@ -236,7 +243,7 @@ mod tests {
         }));
         vga.set_mode();
         fill_pages(&mut vga);
-        vga.show_page(Page(1));
+        vga.show_page(Page::One);
         let font = [[0xFF; 8]; 128];
         vga.set_text_mode(&font);
         vga.write_text(0, 0, "#", 0x0F);
@@ -252,12 +259,12 @@ mod tests {
         let mut vga = ModeX::new(MirroredVga::new(&mut soft, |_: &SoftVga| {}));
         vga.set_mode();
         fill_pages(&mut vga);
-        vga.show_page(Page(1));
+        vga.show_page(Page::One);
         let mut reference = Box::new(SoftVga::new());
         let mut direct = ModeX::new(&mut *reference);
         direct.set_mode();
         fill_pages(&mut direct);
-        direct.show_page(Page(1));
+        direct.show_page(Page::One);
         assert_eq!(soft.counts(), reference.counts());
         for plane in 0..4 {
             assert_eq!(soft.plane(plane)[..], reference.plane(plane)[..]);

@@ -79,13 +79,13 @@ const CLEAR_CHUNK_BYTES: u16 = 0x8000;
 impl<B: VgaBus> ModeX<B> {
     /// Sets Mode X from any prior state: the card's extensions off, every VGA register
     /// programmed, the DAC loaded with the default palette, all four planes
-    /// cleared to colour 0, and Page(0) shown (start address latched).
+    /// cleared to colour 0, and Page::Zero shown (start address latched).
     pub fn set_mode(&mut self) {
         self.program(&MODE_X);
         self.load_palette(0, &DEFAULT_PALETTE);
         self.clear_video_memory();
         // Also waits until the start address has been latched by a retrace.
-        self.show_page(Page(0));
+        self.show_page(Page::Zero);
     }
 
     /// Programs every register of `mode`, from any prior state.

@@ -14,15 +14,51 @@ pub const PAGE_COUNT: u8 = 3;
 /// million leaves room for a frame everywhere.
 pub const STATUS_POLL_LIMIT: u32 = 1_000_000;
 
-/// A Mode X page: Page(0) at offset 0, Page(1) at 19200, Page(2) at 38400.
+/// A Mode X page: one of the three screens that fit in video memory. Being an
+/// enum, a page cannot name memory past the third; [`Page::base`] is always
+/// inside the 64 KiB window.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub struct Page(pub u8);
+pub enum Page {
+    /// Offset 0 in each plane: shown after the mode set.
+    Zero,
+    /// Offset 19,200.
+    One,
+    /// Offset 38,400: the spare, outside the flipping.
+    Two,
+}
 
 impl Page {
+    /// Every page, in memory order.
+    pub const ALL: [Page; PAGE_COUNT as usize] = [Page::Zero, Page::One, Page::Two];
+
+    /// The page's number, 0 to 2.
+    pub const fn index(self) -> u8 {
+        self as u8
+    }
+
+    /// The page numbered `index`, if there is one.
+    pub const fn from_index(index: u8) -> Option<Page> {
+        match index {
+            0 => Some(Page::Zero),
+            1 => Some(Page::One),
+            2 => Some(Page::Two),
+            _ => None,
+        }
+    }
+
+    /// The page to draw into while this one is shown. Double buffering flips
+    /// between pages 0 and 1, so those two swap; the spare page 2 hands over
+    /// to page 0. Never `self`, so drawing never lands on the page on screen.
+    pub const fn other(self) -> Page {
+        match self {
+            Page::Zero => Page::One,
+            Page::One | Page::Two => Page::Zero,
+        }
+    }
+
     /// The page's first byte in each plane (and in the CPU window).
     pub const fn base(self) -> u16 {
-        debug_assert!(self.0 < PAGE_COUNT, "Mode X has three pages");
-        self.0 as u16 * PAGE_BYTES
+        self.index() as u16 * PAGE_BYTES
     }
 }
 
@@ -69,5 +105,36 @@ impl<B: VgaBus> ModeX<B> {
     /// have been made; true if `done` held.
     fn poll_status(&mut self, done: impl Fn(u8) -> bool) -> bool {
         (0..STATUS_POLL_LIMIT).any(|_| done(self.bus.read_port8(INPUT_STATUS_1)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pages_sit_one_screen_apart_inside_the_window() {
+        let bases = Page::ALL.map(Page::base);
+        assert_eq!(bases, [0, PAGE_BYTES, 2 * PAGE_BYTES]);
+        let last_byte = u32::from(bases[2]) + u32::from(PAGE_BYTES) - 1;
+        assert!(last_byte < 0x1_0000, "page 2 ends at {last_byte:#x}");
+    }
+
+    #[test]
+    fn index_round_trips_and_nothing_past_page_two_exists() {
+        for page in Page::ALL {
+            assert_eq!(Page::from_index(page.index()), Some(page));
+        }
+        assert_eq!(Page::from_index(PAGE_COUNT), None);
+        assert_eq!(Page::from_index(u8::MAX), None);
+    }
+
+    #[test]
+    fn the_other_page_is_never_the_one_shown() {
+        for page in Page::ALL {
+            assert_ne!(page.other(), page);
+        }
+        assert_eq!(Page::Zero.other().other(), Page::Zero);
+        assert_eq!(Page::One.other().other(), Page::One);
     }
 }

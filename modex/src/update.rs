@@ -188,7 +188,7 @@ mod tests {
                 }
             }
             let before = vga.bus().counts();
-            let written = vga.update_page(Page(0), &mut shadow, &target);
+            let written = vga.update_page(Page::Zero, &mut shadow, &target);
             let after = vga.bus().counts();
             assert_eq!(after.vram_writes - before.vram_writes, u64::from(written));
             // At most one Map Mask write per distinct mask (15 at most).
@@ -201,7 +201,7 @@ mod tests {
         }
         // Nothing changed: nothing is written.
         let before = vga.bus().counts();
-        assert_eq!(vga.update_page(Page(0), &mut shadow, &target), 0);
+        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 0);
         assert_eq!(vga.bus().counts(), before);
     }
 
@@ -213,9 +213,9 @@ mod tests {
         let mut shadow = Box::new([0u8; PAGE_PIXELS]);
         let mut target = Box::new([0u8; PAGE_PIXELS]);
         target[..4].copy_from_slice(&[5, 5, 0, 6]);
-        assert_eq!(vga.update_page(Page(0), &mut shadow, &target), 2);
+        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 2);
         target[..4].copy_from_slice(&[5, 7, 7, 7]);
-        assert_eq!(vga.update_page(Page(0), &mut shadow, &target), 1);
+        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 1);
         assert_eq!(&indices(vga.bus())[..4], &[5, 7, 7, 7]);
     }
 
@@ -239,7 +239,7 @@ mod tests {
             }
         }
         let before = vga.bus().counts();
-        assert_eq!(vga.update_page(Page(0), &mut shadow, &target), 8000);
+        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 8000);
         let after = vga.bus().counts();
         assert!(after.port_writes - before.port_writes <= 2);
         assert_eq!(indices(vga.bus()), target.to_vec());

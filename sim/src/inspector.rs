@@ -92,7 +92,10 @@ pub struct VgaState {
 /// The registers the inspector shows, read from the software VGA.
 pub fn vga_state(vga: &SoftVga) -> VgaState {
     let start_address = vga.displayed_start();
-    let shown_page = (0..PAGE_COUNT).find(|&page| Page(page).base() == start_address);
+    let shown_page = Page::ALL
+        .into_iter()
+        .find(|page| page.base() == start_address)
+        .map(Page::index);
     VgaState {
         start_address,
         shown_page,

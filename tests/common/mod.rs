@@ -7,7 +7,7 @@ use boot::line;
 use boot::BootOption;
 use boot::{Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
-use demo::scene::Command;
+use demo::command::Command;
 use modex::soft::SoftVga;
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
@@ -86,11 +86,11 @@ pub fn assert_pictures_equal(qemu_picture: &RgbImage, model: &RgbImage, what: &s
 pub fn pattern_picture(flips: u8) -> RgbImage {
     let mut soft = soft_vga_in_mode_x();
     let mut vga = ModeX::new(&mut *soft);
-    demo::pattern::draw(&mut vga, Page(0));
-    demo::pattern::draw(&mut vga, Page(1));
-    vga.show_page(Page(0));
+    demo::pattern::draw(&mut vga, Page::Zero);
+    demo::pattern::draw(&mut vga, Page::One);
+    vga.show_page(Page::Zero);
     for flip in 1..=flips {
-        vga.show_page(Page(flip % 2));
+        vga.show_page(Page::ALL[usize::from(flip % 2)]);
     }
     model_picture(&soft)
 }

@@ -3,6 +3,7 @@
 //! keys, flat shading by a light, other solids in the cube's place, and two
 //! more solids circling on their own, drawn far to near.
 
+mod command;
 mod crowd;
 mod orbit;
 
@@ -13,6 +14,8 @@ use crowd::Member;
 pub use crowd::CROWD;
 use engine::{FaceCounts, Light, Object, Point, VisibleFace, Xform};
 use orbit::{Satellite, ORBITS};
+
+pub use command::{Axis, LightTurn, SceneCommand, Sense};
 
 /// Where the cube starts: no rotation, 100 units in front of the viewer.
 pub const INITIAL_Z: f64 = -100.0;
@@ -34,44 +37,6 @@ const ROTATIONS_PER_REORTHONORMALIZATION: u32 = 64;
 pub const SATELLITES: usize = 2;
 /// The cube (or the solid in its place), two satellites, and the crowd.
 pub const MAX_OBJECTS: usize = 1 + SATELLITES + CROWD;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Axis {
-    X,
-    Y,
-    Z,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Command {
-    MoveLeft,
-    MoveRight,
-    MoveUp,
-    MoveDown,
-    Away,
-    Toward,
-    /// Rotate by +6 (true) or -6 (false) degrees about the axis.
-    Rotate(Axis, bool),
-    ToggleSpin,
-    /// Flat shading by the light, or the seed's flat colours.
-    ToggleLighting,
-    /// Turn the light 15 degrees: about Y to the right (true) or left, about
-    /// X up (true) or down.
-    TurnLight(Axis, bool),
-    /// Put the next solid in the cube's place.
-    NextSolid,
-    /// One object, or three moving independently.
-    ToggleSeveral,
-    /// The crowd of many solids on (with the three objects) or off.
-    ToggleCrowd,
-    /// The on-screen help and statistics belong to the app, not the scene.
-    ToggleHelp,
-    ToggleStats,
-    Reset,
-    /// Any key that is not a command: wait for the next key.
-    Pause,
-    Quit,
-}
 
 #[derive(Clone)]
 pub struct Scene {
@@ -196,33 +161,38 @@ impl Scene {
         }
     }
 
-    /// Applies one command (Pause, Quit and the display toggles are the
-    /// caller's business and leave the scene as it is).
-    pub fn apply(&mut self, command: Command) {
+    /// Applies one command.
+    pub fn apply(&mut self, command: SceneCommand) {
         match command {
-            Command::MoveLeft => self.translate(-MOVE_STEP, 0.0, 0.0),
-            Command::MoveRight => self.translate(MOVE_STEP, 0.0, 0.0),
-            Command::MoveUp => self.translate(0.0, MOVE_STEP, 0.0),
-            Command::MoveDown => self.translate(0.0, -MOVE_STEP, 0.0),
-            Command::Away => self.translate(0.0, 0.0, -MOVE_STEP),
-            Command::Toward => {
+            SceneCommand::MoveLeft => self.translate(-MOVE_STEP, 0.0, 0.0),
+            SceneCommand::MoveRight => self.translate(MOVE_STEP, 0.0, 0.0),
+            SceneCommand::MoveUp => self.translate(0.0, MOVE_STEP, 0.0),
+            SceneCommand::MoveDown => self.translate(0.0, -MOVE_STEP, 0.0),
+            SceneCommand::Away => self.translate(0.0, 0.0, -MOVE_STEP),
+            SceneCommand::Toward => {
                 if self.primary().position().z < NEAREST_Z {
                     self.translate(0.0, 0.0, MOVE_STEP);
                 }
             }
-            Command::Rotate(axis, positive) => self.rotate(axis, signed(ROTATION_STEP, positive)),
-            Command::ToggleSpin => self.spinning = !self.spinning,
-            Command::ToggleLighting => self.lighting = !self.lighting,
-            Command::TurnLight(Axis::Y, right) => self.light.turn(signed(LIGHT_STEP, right), 0.0),
-            Command::TurnLight(_, up) => self.light.turn(0.0, signed(LIGHT_STEP, up)),
-            Command::NextSolid => {
+            SceneCommand::Rotate(axis, sense) => self.rotate(axis, sense.signed(ROTATION_STEP)),
+            SceneCommand::ToggleSpin => self.spinning = !self.spinning,
+            SceneCommand::ToggleLighting => self.lighting = !self.lighting,
+            SceneCommand::TurnLight(turn) => {
+                let (yaw, pitch) = match turn {
+                    LightTurn::Left => (-LIGHT_STEP, 0.0),
+                    LightTurn::Right => (LIGHT_STEP, 0.0),
+                    LightTurn::Up => (0.0, LIGHT_STEP),
+                    LightTurn::Down => (0.0, -LIGHT_STEP),
+                };
+                self.light.turn(yaw, pitch);
+            }
+            SceneCommand::NextSolid => {
                 self.solid = (self.solid + 1) % SHAPES.len();
                 self.objects[0].set_model(SHAPES[self.solid].model);
             }
-            Command::ToggleSeveral => self.several = !self.several,
-            Command::ToggleCrowd => self.crowd = !self.crowd,
-            Command::Reset => *self = Self::initial(),
-            Command::ToggleHelp | Command::ToggleStats | Command::Pause | Command::Quit => {}
+            SceneCommand::ToggleSeveral => self.several = !self.several,
+            SceneCommand::ToggleCrowd => self.crowd = !self.crowd,
+            SceneCommand::Reset => *self = Self::initial(),
         }
     }
 
@@ -342,14 +312,6 @@ fn face_colour(visible: &VisibleFace, lighting: bool, light: &Light) -> u8 {
         shaded_colour(visible.face.colour, light.intensity(visible.normal()))
     } else {
         visible.face.colour
-    }
-}
-
-fn signed(step: f64, positive: bool) -> f64 {
-    if positive {
-        step
-    } else {
-        -step
     }
 }
 

@@ -91,12 +91,12 @@ fn screen_culling_agrees_with_the_view_space_dot_product_test() {
 fn commands_move_and_turn_like_the_seed() {
     let mut scene = Scene::initial();
     for (command, expected) in [
-        (Command::MoveLeft, Vec3::new(-3.0, 0.0, -100.0)),
-        (Command::MoveUp, Vec3::new(-3.0, 3.0, -100.0)),
-        (Command::MoveRight, Vec3::new(0.0, 3.0, -100.0)),
-        (Command::MoveDown, Vec3::new(0.0, 0.0, -100.0)),
-        (Command::Away, Vec3::new(0.0, 0.0, -103.0)),
-        (Command::Toward, Vec3::new(0.0, 0.0, -100.0)),
+        (SceneCommand::MoveLeft, Vec3::new(-3.0, 0.0, -100.0)),
+        (SceneCommand::MoveUp, Vec3::new(-3.0, 3.0, -100.0)),
+        (SceneCommand::MoveRight, Vec3::new(0.0, 3.0, -100.0)),
+        (SceneCommand::MoveDown, Vec3::new(0.0, 0.0, -100.0)),
+        (SceneCommand::Away, Vec3::new(0.0, 0.0, -103.0)),
+        (SceneCommand::Toward, Vec3::new(0.0, 0.0, -100.0)),
     ] {
         scene.apply(command);
         assert_eq!(
@@ -105,7 +105,7 @@ fn commands_move_and_turn_like_the_seed() {
             "{command:?}"
         );
     }
-    scene.apply(Command::Rotate(Axis::Y, true));
+    scene.apply(SceneCommand::Rotate(Axis::Y, Sense::Positive));
     let mut expected = Xform::translation(0.0, 0.0, -100.0);
     expected.append_rotation_y(ROTATION_STEP);
     assert_eq!(scene.primary().object_to_world(), &expected);
@@ -115,7 +115,7 @@ fn commands_move_and_turn_like_the_seed() {
 fn toward_stops_at_the_near_limit() {
     let mut scene = Scene::initial();
     for _ in 0..100 {
-        scene.apply(Command::Toward);
+        scene.apply(SceneCommand::Toward);
     }
     let z = scene.primary().object_to_world().translation_part().z;
     assert!((NEAREST_Z..NEAREST_Z + MOVE_STEP).contains(&z), "z = {z}");
@@ -130,7 +130,7 @@ fn vertices_are_projected_only_when_something_moved() {
     scene.tick(); // not spinning: nothing moves
     scene.visible_faces(|_, _| {});
     assert_eq!(scene.primary().projections(), 1);
-    scene.apply(Command::MoveLeft);
+    scene.apply(SceneCommand::MoveLeft);
     scene.visible_faces(|_, _| {});
     assert_eq!(scene.primary().projections(), 2);
 }
@@ -142,8 +142,8 @@ fn spin_is_on_at_boot_and_reset_restores_the_initial_state() {
     for _ in 0..500 {
         scene.tick();
     }
-    scene.apply(Command::MoveLeft);
-    scene.apply(Command::Reset);
+    scene.apply(SceneCommand::MoveLeft);
+    scene.apply(SceneCommand::Reset);
     assert!(!scene.spinning());
     assert_eq!(
         scene.primary().object_to_world(),
@@ -160,7 +160,7 @@ fn colours_drawn(scene: &mut Scene) -> std::vec::Vec<u8> {
 #[test]
 fn lighting_shades_each_face_by_the_angle_to_the_light() {
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleLighting);
+    scene.apply(SceneCommand::ToggleLighting);
     // Only the front face (bright blue, ramp 0) shows; its normal is
     // (0, 0, 1) and the light comes from (-1, 1, 1)/√3: intensity
     // 0.25 + 0.75/√3 = 0.683, level round(0.683 · 31) = 21.
@@ -168,30 +168,30 @@ fn lighting_shades_each_face_by_the_angle_to_the_light() {
     // Three steps right put the light straight above the line of sight:
     // 0.25 + 0.75 · cos 35.26° = 0.862, level 27.
     for _ in 0..3 {
-        scene.apply(Command::TurnLight(Axis::Y, true));
+        scene.apply(SceneCommand::TurnLight(LightTurn::Right));
     }
     assert_eq!(colours_drawn(&mut scene), [16 + 27]);
     // Turned away behind the cube, only the ambient share is left: 0.25,
     // level 8 (7.75 rounded).
     for _ in 0..12 {
-        scene.apply(Command::TurnLight(Axis::Y, true));
+        scene.apply(SceneCommand::TurnLight(LightTurn::Right));
     }
     for _ in 0..3 {
-        scene.apply(Command::TurnLight(Axis::X, false));
+        scene.apply(SceneCommand::TurnLight(LightTurn::Down));
     }
     assert_eq!(colours_drawn(&mut scene), [16 + 8]);
-    scene.apply(Command::ToggleLighting);
+    scene.apply(SceneCommand::ToggleLighting);
     assert_eq!(colours_drawn(&mut scene), [9], "flat colours again");
 }
 
 #[test]
 fn n_puts_each_solid_in_the_cubes_place_in_turn() {
     let mut scene = Scene::initial();
-    scene.apply(Command::MoveLeft);
+    scene.apply(SceneCommand::MoveLeft);
     let place = *scene.primary().object_to_world();
     let mut seen = std::vec::Vec::new();
     for _ in 0..crate::solids::SHAPES.len() {
-        scene.apply(Command::NextSolid);
+        scene.apply(SceneCommand::NextSolid);
         seen.push(scene.solid().name);
         assert!(core::ptr::eq(scene.primary().model(), scene.solid().model));
         assert_eq!(scene.primary().object_to_world(), &place);
@@ -215,15 +215,15 @@ fn n_puts_each_solid_in_the_cubes_place_in_turn() {
 fn reset_returns_to_the_seeds_scene_from_every_extra() {
     let mut scene = Scene::new();
     for command in [
-        Command::ToggleLighting,
-        Command::TurnLight(Axis::X, true),
-        Command::NextSolid,
-        Command::ToggleSeveral,
+        SceneCommand::ToggleLighting,
+        SceneCommand::TurnLight(LightTurn::Up),
+        SceneCommand::NextSolid,
+        SceneCommand::ToggleSeveral,
     ] {
         scene.apply(command);
     }
     scene.tick();
-    scene.apply(Command::Reset);
+    scene.apply(SceneCommand::Reset);
     assert!(!scene.lighting() && !scene.several() && !scene.spinning());
     assert_eq!(scene.solid().name, "cube");
     assert_eq!(scene.light(), &default_light());
@@ -234,17 +234,17 @@ fn reset_returns_to_the_seeds_scene_from_every_extra() {
 #[test]
 fn several_objects_are_drawn_far_to_near() {
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     // The tetrahedron circles 180 units away, the octahedron starts in
     // front of the cube's right side (about 67 units away).
     let (order, count) = scene.drawing_order();
     assert_eq!(&order[..count], [2, 0, 1]);
     for _ in 0..100 {
-        scene.apply(Command::Away);
+        scene.apply(SceneCommand::Away);
     }
     let (order, count) = scene.drawing_order();
     assert_eq!(&order[..count], [0, 2, 1]);
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     assert_eq!(scene.drawing_order().1, 1);
 }
 
@@ -270,7 +270,7 @@ fn picture_of(object: &Object) -> std::vec::Vec<u8> {
 #[test]
 fn where_objects_overlap_the_nearer_one_shows() {
     let mut scene = Scene::new();
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     let mut overlapping_pixels = 0;
     for frame in 0..720 {
         scene.tick();
@@ -315,7 +315,7 @@ fn where_objects_overlap_the_nearer_one_shows() {
 #[test]
 fn only_the_objects_that_moved_are_projected_again() {
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     let projections = |scene: &Scene| -> std::vec::Vec<u64> {
         scene.objects().iter().map(Object::projections).collect()
     };
@@ -325,17 +325,17 @@ fn only_the_objects_that_moved_are_projected_again() {
     scene.tick(); // spin is off: nothing moves
     scene.visible_faces(|_, _| {});
     assert_eq!(projections(&scene), [1, 1, 1]);
-    scene.apply(Command::MoveLeft);
+    scene.apply(SceneCommand::MoveLeft);
     scene.visible_faces(|_, _| {});
     assert_eq!(projections(&scene), [2, 1, 1], "only the cube moved");
-    scene.apply(Command::ToggleSpin);
+    scene.apply(SceneCommand::ToggleSpin);
     scene.tick();
     scene.visible_faces(|_, _| {});
     assert_eq!(projections(&scene), [3, 2, 2], "everything moves");
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     scene.tick();
     scene.visible_faces(|_, _| {});
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     scene.visible_faces(|_, _| {});
     assert_eq!(
         projections(&scene),
@@ -347,7 +347,7 @@ fn only_the_objects_that_moved_are_projected_again() {
 #[test]
 fn the_satellites_never_come_near_the_viewer_and_keep_apart() {
     let mut scene = Scene::new();
-    scene.apply(Command::ToggleSeveral);
+    scene.apply(SceneCommand::ToggleSeveral);
     let initial_cube = Scene::initial().primary().position();
     for _ in 0..2000 {
         scene.tick();
@@ -364,16 +364,16 @@ fn the_satellites_never_come_near_the_viewer_and_keep_apart() {
 #[test]
 fn x_shows_a_crowd_of_more_than_fifty_solids_and_r_takes_it_away() {
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleCrowd);
+    scene.apply(SceneCommand::ToggleCrowd);
     assert!(scene.crowd());
     assert_eq!(scene.objects().len(), 1 + SATELLITES + CROWD);
     const { assert!(CROWD >= 50) };
     let counts = scene.visible_faces(|_, _| {});
     assert!(counts.drawn > 200, "{counts:?}");
-    scene.apply(Command::ToggleCrowd);
+    scene.apply(SceneCommand::ToggleCrowd);
     assert_eq!(scene.objects().len(), 1);
-    scene.apply(Command::ToggleCrowd);
-    scene.apply(Command::Reset);
+    scene.apply(SceneCommand::ToggleCrowd);
+    scene.apply(SceneCommand::Reset);
     assert!(!scene.crowd());
     assert_eq!(scene.objects().len(), 1);
 }
@@ -381,8 +381,8 @@ fn x_shows_a_crowd_of_more_than_fifty_solids_and_r_takes_it_away() {
 #[test]
 fn each_member_of_the_crowd_is_projected_only_on_the_frames_it_moves() {
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleCrowd);
-    scene.apply(Command::ToggleSpin);
+    scene.apply(SceneCommand::ToggleCrowd);
+    scene.apply(SceneCommand::ToggleSpin);
     scene.visible_faces(|_, _| {});
     let first = 1 + SATELLITES;
     for frame in 1..=24u64 {
@@ -409,8 +409,8 @@ fn members_of_the_crowd_pass_through_each_other() {
     // Else the crowd would not need the depth test: some pair of neighbours
     // must come closer than their size within a few hundred frames.
     let mut scene = Scene::initial();
-    scene.apply(Command::ToggleCrowd);
-    scene.apply(Command::ToggleSpin);
+    scene.apply(SceneCommand::ToggleCrowd);
+    scene.apply(SceneCommand::ToggleSpin);
     let first = 1 + SATELLITES;
     let mut closest = f64::INFINITY;
     for _ in 0..400 {

@@ -235,7 +235,7 @@ mod tests {
     fn flips_do_not_fail_the_check() {
         let mut soft = soft_in_mode_x(Card::Standard);
         let mut vga = ModeX::new(&mut *soft);
-        vga.show_page(crate::Page(1));
+        vga.show_page(crate::Page::One);
         assert_eq!(vga.verify(&MODE_X), Ok(()));
     }
 }

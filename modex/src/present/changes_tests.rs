@@ -49,7 +49,7 @@ fn a_still_picture_costs_nothing_and_one_pixel_costs_its_square() {
     assert_eq!(first.bytes_written, 1280 * 800 * 4);
     let again = presenter.present(&soft, &layout, &mut out);
     assert_eq!((again.bytes_written, again.full), (0, false));
-    ModeX::new(&mut *soft).put_pixel(Page(0), 10, 20, 15);
+    ModeX::new(&mut *soft).put_pixel(Page::Zero, 10, 20, 15);
     let one = presenter.present(&soft, &layout, &mut out);
     assert_eq!(one.bytes_written, 3 * 3 * 4, "scale 3, 4 bytes a pixel");
     assert_eq!(out, full(&soft, &layout, out.len()));
@@ -68,8 +68,8 @@ fn the_borders_are_written_once() {
         line[..160 * 4].fill(0x55);
     }
     let mut vga = ModeX::new(&mut *soft);
-    vga.fill_rect(Page(1), 0, 0, 320, 240, 9);
-    vga.show_page(Page(1));
+    vga.fill_rect(Page::One, 0, 0, 320, 240, 9);
+    vga.show_page(Page::One);
     let report = presenter.present(&soft, &layout, &mut out);
     assert_eq!(
         report.bytes_written,
@@ -88,7 +88,7 @@ fn the_borders_are_written_once() {
 fn a_palette_change_rewrites_the_pixels_of_that_colour_only() {
     let mut soft = mode_x();
     let mut vga = ModeX::new(&mut *soft);
-    vga.fill_rect(Page(0), 10, 10, 20, 15, 200);
+    vga.fill_rect(Page::Zero, 10, 10, 20, 15, 200);
     let layout = layout(640, 480, 4, PixelOrder::Rgb);
     let mut out = vec![0; layout.required_bytes()];
     let mut presenter = Box::new(Presenter::new());

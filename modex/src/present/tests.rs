@@ -267,7 +267,7 @@ fn presenting_the_model_matches_presenting_its_rgb_scan_out() {
     for colour in 0..=255u8 {
         let x = i32::from(colour) % 16 * 20;
         let y = i32::from(colour) / 16 * 15;
-        vga.fill_rect(Page(0), x, y, x + 20, y + 15, colour);
+        vga.fill_rect(Page::Zero, x, y, x + 20, y + 15, colour);
     }
     let layout = layout(1024, 768, PixelOrder::Bgr);
     let compare = |soft: &SoftVga, what: &str| {

@@ -79,12 +79,16 @@ fn reference() -> Picture {
 fn a_page_canvas_draws_what_the_reference_draws_and_nothing_else() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.bus_mut().set_write_guard(Some(page_range(Page(1))));
-    scene(&mut PageCanvas::new(&mut vga, Page(1)));
+    vga.bus_mut().set_write_guard(Some(page_range(Page::One)));
+    scene(&mut PageCanvas::new(&mut vga, Page::One));
     assert_eq!(vga.bus().guard_violations(), 0);
     let soft = vga.into_bus();
-    assert_picture(&reference(), &page_pixels(soft, Page(1)), "page 1");
-    assert_picture(&Picture::filled(0), &page_pixels(soft, Page(0)), "page 0");
+    assert_picture(&reference(), &page_pixels(soft, Page::One), "page 1");
+    assert_picture(
+        &Picture::filled(0),
+        &page_pixels(soft, Page::Zero),
+        "page 0",
+    );
 }
 
 #[test]
@@ -98,11 +102,11 @@ fn an_image_canvas_draws_what_the_reference_draws() {
 fn clearing_a_page_canvas_fills_that_page_only() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.bus_mut().set_write_guard(Some(page_range(Page(2))));
-    let _ = PageCanvas::new(&mut vga, Page(2)).clear(PaletteIndex(9));
+    vga.bus_mut().set_write_guard(Some(page_range(Page::Two)));
+    let _ = PageCanvas::new(&mut vga, Page::Two).clear(PaletteIndex(9));
     assert_eq!(vga.bus().guard_violations(), 0);
     let soft = vga.into_bus();
-    assert_picture(&Picture::filled(9), &page_pixels(soft, Page(2)), "page 2");
+    assert_picture(&Picture::filled(9), &page_pixels(soft, Page::Two), "page 2");
 }
 
 /// `fill_solid` straight on a page: clipped like the reference, through the
@@ -132,17 +136,21 @@ fn fill_solid_clips_to_the_screen_and_uses_the_rectangle_fill() {
         let mut other = power_on();
         let mut direct = mode_x(&mut other);
         direct.bus_mut().reset_counts();
-        direct.fill_rect(Page(1), x, y, x1, y1, colour);
+        direct.fill_rect(Page::One, x, y, x1, y1, colour);
         let rect_writes = direct.bus().counts().vram_writes;
 
-        vga.bus_mut().set_write_guard(Some(page_range(Page(1))));
+        vga.bus_mut().set_write_guard(Some(page_range(Page::One)));
         vga.bus_mut().reset_counts();
         let area = Rectangle::new(Point::new(x, y), Size::new(w, h));
-        let _ = PageCanvas::new(&mut vga, Page(1)).fill_solid(&area, PaletteIndex(colour));
+        let _ = PageCanvas::new(&mut vga, Page::One).fill_solid(&area, PaletteIndex(colour));
         assert_eq!(vga.bus().guard_violations(), 0, "case {index}");
         assert_eq!(vga.bus().counts().vram_writes, rect_writes, "case {index}");
     }
     let soft = vga.into_bus();
-    assert_picture(&expected, &page_pixels(soft, Page(1)), "page 1");
-    assert_picture(&Picture::filled(0), &page_pixels(soft, Page(0)), "page 0");
+    assert_picture(&expected, &page_pixels(soft, Page::One), "page 1");
+    assert_picture(
+        &Picture::filled(0),
+        &page_pixels(soft, Page::Zero),
+        "page 0",
+    );
 }

@@ -30,14 +30,14 @@ const AWKWARD_RECTANGLES: [(i32, i32, i32, i32); 16] = [
 fn rectangles_are_clipped_to_the_page_drawn_on() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    for page in [Page(0), Page(1), Page(2)] {
+    for page in Page::ALL {
         for (x0, y0, x1, y1) in AWKWARD_RECTANGLES {
-            for other in [Page(0), Page(1), Page(2)] {
+            for other in Page::ALL {
                 vga.clear_page(other, BACKGROUND);
             }
             vga.bus_mut().set_write_guard(Some(page_range(page)));
             vga.fill_rect(page, x0, y0, x1, y1, INK);
-            let what = std::format!("fill_rect({x0}, {y0}, {x1}, {y1}) on page {}", page.0);
+            let what = std::format!("fill_rect({x0}, {y0}, {x1}, {y1}) on page {}", page.index());
             assert_eq!(
                 vga.bus().guard_violations(),
                 0,
@@ -67,14 +67,14 @@ fn spans_are_clipped_to_the_page_drawn_on() {
         (7, 41, 40),
     ];
     for (y, x0, x1) in spans {
-        vga.clear_page(Page(1), BACKGROUND);
-        vga.bus_mut().set_write_guard(Some(page_range(Page(1))));
-        vga.fill_span(Page(1), y, x0, x1, INK);
+        vga.clear_page(Page::One, BACKGROUND);
+        vga.bus_mut().set_write_guard(Some(page_range(Page::One)));
+        vga.fill_span(Page::One, y, x0, x1, INK);
         let what = std::format!("fill_span({y}, {x0}, {x1})");
         assert_eq!(vga.bus().guard_violations(), 0, "{what}");
         let mut expected = Picture::filled(BACKGROUND);
         expected.fill_rect(x0, y, x1, y.saturating_add(1), INK);
-        assert_picture(&expected, &page_pixels(vga.bus(), Page(1)), &what);
+        assert_picture(&expected, &page_pixels(vga.bus(), Page::One), &what);
     }
 }
 
@@ -82,8 +82,8 @@ fn spans_are_clipped_to_the_page_drawn_on() {
 fn the_guard_catches_a_stray_write() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.bus_mut().set_write_guard(Some(page_range(Page(1))));
-    vga.fill_rect(Page(0), 0, 0, 8, 2, INK);
+    vga.bus_mut().set_write_guard(Some(page_range(Page::One)));
+    vga.fill_rect(Page::Zero, 0, 0, 8, 2, INK);
     assert_eq!(vga.bus().guard_violations(), 4);
     assert_eq!(vga.bus().first_violation(), Some(0));
 }

@@ -27,12 +27,12 @@ fn alignment_cases() -> impl Iterator<Item = (i32, i32, i32, i32)> {
 fn fill_rect_matches_the_reference_at_every_alignment_and_width() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.clear_page(Page(1), OTHER_PAGES);
-    vga.clear_page(Page(2), OTHER_PAGES);
+    vga.clear_page(Page::One, OTHER_PAGES);
+    vga.clear_page(Page::Two, OTHER_PAGES);
     for (x0, y0, x1, y1) in alignment_cases() {
-        vga.clear_page(Page(0), BACKGROUND);
-        vga.bus_mut().set_write_guard(Some(page_range(Page(0))));
-        vga.fill_rect(Page(0), x0, y0, x1, y1, INK);
+        vga.clear_page(Page::Zero, BACKGROUND);
+        vga.bus_mut().set_write_guard(Some(page_range(Page::Zero)));
+        vga.fill_rect(Page::Zero, x0, y0, x1, y1, INK);
         let mut expected = Picture::filled(BACKGROUND);
         expected.fill_rect(x0, y0, x1, y1, INK);
         let what = std::format!("fill_rect({x0}, {y0}, {x1}, {y1})");
@@ -45,12 +45,12 @@ fn fill_rect_matches_the_reference_at_every_alignment_and_width() {
     }
     assert_picture(
         &Picture::filled(OTHER_PAGES),
-        &page_pixels(vga.bus(), Page(1)),
+        &page_pixels(vga.bus(), Page::One),
         "page 1",
     );
     assert_picture(
         &Picture::filled(OTHER_PAGES),
-        &page_pixels(vga.bus(), Page(2)),
+        &page_pixels(vga.bus(), Page::Two),
         "page 2",
     );
 }
@@ -60,8 +60,8 @@ fn fill_span_matches_the_reference_at_every_alignment_and_width() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
     for (x0, y, x1, _) in alignment_cases() {
-        vga.clear_page(Page(0), BACKGROUND);
-        vga.fill_span(Page(0), y, x0, x1, INK);
+        vga.clear_page(Page::Zero, BACKGROUND);
+        vga.fill_span(Page::Zero, y, x0, x1, INK);
         let mut expected = Picture::filled(BACKGROUND);
         expected.fill_rect(x0, y, x1, y + 1, INK);
         assert_picture(
@@ -86,7 +86,7 @@ fn overlapping_fills_compose_like_the_reference() {
             i32::from(random.next_u8() % 60),
         );
         let color = random.next_u8();
-        vga.fill_rect(Page(0), x0, y0, x0 + w, y0 + h, color);
+        vga.fill_rect(Page::Zero, x0, y0, x0 + w, y0 + h, color);
         expected.fill_rect(x0, y0, x0 + w, y0 + h, color);
     }
     assert_picture(&expected, &scanout(vga.bus()), "300 random rectangles");
@@ -110,7 +110,7 @@ fn put_pixel_sets_exactly_one_pixel_in_every_plane() {
     .enumerate()
     {
         let color = 10 + i as u8;
-        vga.put_pixel(Page(0), x, y, color);
+        vga.put_pixel(Page::Zero, x, y, color);
         expected.fill_rect(x, y, x + 1, y + 1, color);
         assert_picture(
             &expected,
@@ -120,7 +120,7 @@ fn put_pixel_sets_exactly_one_pixel_in_every_plane() {
     }
     vga.bus_mut().reset_counts();
     for (x, y) in [(-1, 0), (320, 0), (0, -1), (0, 240), (i32::MIN, i32::MAX)] {
-        vga.put_pixel(Page(0), x, y, 1);
+        vga.put_pixel(Page::Zero, x, y, 1);
     }
     assert_eq!(
         vga.bus().counts().vram_writes,
@@ -133,10 +133,10 @@ fn put_pixel_sets_exactly_one_pixel_in_every_plane() {
 fn clear_page_fills_that_page_only() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.clear_page(Page(0), 1);
-    vga.clear_page(Page(1), 2);
-    vga.clear_page(Page(2), 3);
-    for (page, color) in [(Page(0), 1), (Page(1), 2), (Page(2), 3)] {
+    vga.clear_page(Page::Zero, 1);
+    vga.clear_page(Page::One, 2);
+    vga.clear_page(Page::Two, 3);
+    for (page, color) in [(Page::Zero, 1), (Page::One, 2), (Page::Two, 3)] {
         assert_picture(
             &Picture::filled(color),
             &page_pixels(vga.bus(), page),
@@ -160,7 +160,7 @@ fn the_middle_of_a_span_costs_one_byte_per_four_pixels() {
     ];
     for ((x0, x1), bytes) in cases {
         vga.bus_mut().reset_counts();
-        vga.fill_span(Page(0), 5, x0, x1, 1);
+        vga.fill_span(Page::Zero, 5, x0, x1, 1);
         assert_eq!(vga.bus().counts().vram_writes, bytes, "span [{x0}, {x1})");
     }
 }
@@ -171,10 +171,10 @@ fn map_mask_is_not_rewritten_when_it_would_not_change() {
     let mut vga = mode_x(&mut soft);
 
     // Whole columns only, after a clear: the Map Mask is already all planes.
-    vga.clear_page(Page(0), 0);
+    vga.clear_page(Page::Zero, 0);
     vga.bus_mut().reset_counts();
-    vga.fill_span(Page(0), 1, 8, 40, 5);
-    vga.fill_span(Page(0), 2, 8, 40, 5);
+    vga.fill_span(Page::Zero, 1, 8, 40, 5);
+    vga.fill_span(Page::Zero, 2, 8, 40, 5);
     assert_eq!(
         vga.bus().counts().port_writes,
         0,
@@ -183,22 +183,22 @@ fn map_mask_is_not_rewritten_when_it_would_not_change() {
 
     // Two spans inside one column with the same planes: one Map Mask write.
     vga.bus_mut().reset_counts();
-    vga.fill_span(Page(0), 3, 9, 11, 5);
-    vga.fill_span(Page(0), 4, 9, 11, 5);
+    vga.fill_span(Page::Zero, 3, 9, 11, 5);
+    vga.fill_span(Page::Zero, 4, 9, 11, 5);
     assert_eq!(vga.bus().counts().port_writes, 1);
 
     // Ragged at both ends: left, middle, right; the next span with the same
     // edges starts from the right edge's mask, so needs only two writes.
     vga.bus_mut().reset_counts();
-    vga.fill_span(Page(0), 5, 1, 19, 5);
+    vga.fill_span(Page::Zero, 5, 1, 19, 5);
     assert_eq!(vga.bus().counts().port_writes, 3);
     vga.bus_mut().reset_counts();
-    vga.fill_span(Page(0), 6, 1, 19, 5);
+    vga.fill_span(Page::Zero, 6, 1, 19, 5);
     assert_eq!(vga.bus().counts().port_writes, 2);
 
     // A rectangle changes the Map Mask once per edge or middle, not per line.
     vga.bus_mut().reset_counts();
-    vga.fill_rect(Page(0), 1, 10, 19, 200, 6);
+    vga.fill_rect(Page::Zero, 1, 10, 19, 200, 6);
     assert!(vga.bus().counts().port_writes <= 3);
 
     let mut expected = Picture::filled(0);
@@ -217,14 +217,14 @@ fn map_mask_is_not_rewritten_when_it_would_not_change() {
 fn a_page_is_exactly_its_19200_bytes() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.bus_mut().set_write_guard(Some(page_range(Page(2))));
+    vga.bus_mut().set_write_guard(Some(page_range(Page::Two)));
     vga.bus_mut().reset_counts();
-    vga.fill_rect(Page(2), 0, 0, 320, 240, 9);
+    vga.fill_rect(Page::Two, 0, 0, 320, 240, 9);
     assert_eq!(vga.bus().guard_violations(), 0);
     assert_eq!(vga.bus().counts().vram_writes, u64::from(PAGE_BYTES));
     assert_picture(
         &Picture::filled(9),
-        &page_pixels(vga.bus(), Page(2)),
+        &page_pixels(vga.bus(), Page::Two),
         "page 2",
     );
 }

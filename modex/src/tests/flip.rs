@@ -10,10 +10,10 @@ use crate::{FlipReport, Page, VgaBus, PAGE_BYTES, STATUS_POLL_LIMIT};
 fn show_page_shows_that_page() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    for (page, color) in [(Page(0), 10), (Page(1), 11), (Page(2), 12)] {
+    for (page, color) in [(Page::Zero, 10), (Page::One, 11), (Page::Two, 12)] {
         vga.clear_page(page, color);
     }
-    for page in [Page(1), Page(2), Page(0), Page(2)] {
+    for page in [Page::One, Page::Two, Page::Zero, Page::Two] {
         assert_eq!(
             vga.show_page(page),
             FlipReport::default(),
@@ -21,7 +21,7 @@ fn show_page_shows_that_page() {
         );
         assert_eq!(vga.bus().displayed_start(), page.base());
         assert_picture(
-            &Picture::filled(10 + page.0),
+            &Picture::filled(10 + page.index()),
             &scanout(vga.bus()),
             "the page shown",
         );
@@ -33,7 +33,7 @@ fn show_page_returns_at_the_start_of_vertical_retrace() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
     let frames = vga.bus().frame_count();
-    vga.show_page(Page(1));
+    vga.show_page(Page::One);
     assert_eq!(vga.bus().frame_count(), frames + 1, "one retrace per flip");
     // Straight after the latch: still in vertical retrace.
     assert_ne!(
@@ -44,7 +44,7 @@ fn show_page_returns_at_the_start_of_vertical_retrace() {
     // Back-to-back flips are paced by the frame rate.
     let start = vga.bus().now_ns();
     for flip in 0..10u8 {
-        vga.show_page(Page(flip % 2));
+        vga.show_page(Page::ALL[usize::from(flip % 2)]);
     }
     assert_eq!(vga.bus().frame_count(), frames + 11);
     let frame_ns = vga.bus().timing().frame_ns();
@@ -59,7 +59,7 @@ fn show_page_returns_at_the_start_of_vertical_retrace() {
 fn the_start_address_takes_effect_at_the_next_vertical_retrace() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.show_page(Page(0));
+    vga.show_page(Page::Zero);
     // Leave retrace, then write a new start address behind the driver's back.
     vga.bus_mut().advance_ns(1_000_000);
     let [high, low] = PAGE_BYTES.to_be_bytes();
@@ -81,27 +81,27 @@ fn the_start_address_takes_effect_at_the_next_vertical_retrace() {
 fn drawing_into_the_back_page_never_changes_the_picture() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.clear_page(Page(1), 5);
-    vga.show_page(Page(1));
+    vga.clear_page(Page::One, 5);
+    vga.show_page(Page::One);
     let shown = scanout(vga.bus());
     for step in 0..40 {
         vga.fill_rect(
-            Page(0),
+            Page::Zero,
             step * 7 - 20,
             step * 5,
             step * 7 + 30,
             step * 5 + 20,
             step as u8,
         );
-        vga.fill_span(Page(2), step, -5, 400, 200);
-        vga.put_pixel(Page(0), step, step, 1);
+        vga.fill_span(Page::Two, step, -5, 400, 200);
+        vga.put_pixel(Page::Zero, step, step, 1);
         assert_picture(
             &shown,
             &scanout(vga.bus()),
             "page 1 while drawing page 0 and 2",
         );
     }
-    vga.clear_page(Page(0), 99);
+    vga.clear_page(Page::Zero, 99);
     let frame_ns = vga.bus().timing().frame_ns();
     vga.bus_mut().advance_ns(10 * frame_ns);
     assert_picture(&shown, &scanout(vga.bus()), "page 1 after frames went by");
@@ -111,10 +111,10 @@ fn drawing_into_the_back_page_never_changes_the_picture() {
 fn flip_with_retrace_stuck(stuck: bool) -> (FlipReport, u64) {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.clear_page(Page(1), 4);
+    vga.clear_page(Page::One, 4);
     vga.bus_mut().set_retrace_stuck(Some(stuck));
     let start = vga.bus().now_ns();
-    let report = vga.show_page(Page(1));
+    let report = vga.show_page(Page::One);
     let elapsed = vga.bus().now_ns() - start;
     // The CRT keeps time, so the flip still shows once a retrace comes.
     let frame_ns = vga.bus().timing().frame_ns();

@@ -147,7 +147,7 @@ fn a_standard_card_mode_set_leaves_the_vbe_ports_alone() {
 fn mode_set_twice_is_the_same_as_once() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.fill_rect(crate::Page(0), 10, 10, 100, 100, 7);
+    vga.fill_rect(crate::Page::Zero, 10, 10, 100, 100, 7);
     vga.set_mode();
     assert_mode_x(vga.bus());
 }
@@ -161,8 +161,8 @@ fn scanout_expands_the_dac_as_qemu_screendump_does() {
 
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.fill_rect(crate::Page(0), 0, 0, 1, 1, 9);
-    vga.fill_rect(crate::Page(0), 1, 0, 2, 1, 14);
+    vga.fill_rect(crate::Page::Zero, 0, 0, 1, 1, 9);
+    vga.fill_rect(crate::Page::Zero, 1, 0, 2, 1, 14);
     let mut rgb = std::vec![[0u8; 3]; 320 * 240];
     assert_eq!(vga.bus().scanout_rgb(&mut rgb), (320, 240));
     assert_eq!(rgb[0], [0x57, 0x57, 0xFF]);
@@ -174,7 +174,7 @@ fn scanout_expands_the_dac_as_qemu_screendump_does() {
 fn a_blanked_screen_scans_out_black() {
     let mut soft = power_on();
     let mut vga = mode_x(&mut soft);
-    vga.clear_page(crate::Page(0), 15);
+    vga.clear_page(crate::Page::Zero, 15);
     // Writing an attribute index without Palette Address Source blanks video.
     vga.bus_mut().read_port8(crate::regs::INPUT_STATUS_1);
     vga.bus_mut().write_port8(ATTRIBUTE_INDEX, 0x00);

@@ -133,7 +133,7 @@ fn load_palette_sets_the_entries_given_and_no_others() {
     // The picture follows: a pixel of colour 20 now shows ramp entry 4.
     let mut rgb = [[0u8; 3]; 320 * 240];
     let mut vga = crate::ModeX::new(&mut *soft);
-    vga.put_pixel(crate::Page(0), 5, 5, 20);
+    vga.put_pixel(crate::Page::Zero, 5, 5, 20);
     vga.into_bus().scanout_rgb(&mut rgb);
     let expected = ramp[4].map(crate::soft::dac_6_to_8);
     assert_eq!(rgb[5 * 320 + 5], expected);

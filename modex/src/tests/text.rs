@@ -144,7 +144,7 @@ fn mode_x_comes_back_after_text_mode() {
     vga.set_text_mode(&test_font());
     vga.write_text(1, 1, "x", 0x07);
     vga.set_mode();
-    vga.fill_rect(crate::Page(0), 1, 1, 3, 3, 9);
+    vga.fill_rect(crate::Page::Zero, 1, 1, 3, 3, 9);
     let mut expected = super::Picture::filled(0);
     expected.fill_rect(1, 1, 3, 3, 9);
     super::assert_picture(

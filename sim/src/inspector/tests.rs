@@ -66,7 +66,7 @@ fn the_registers_are_the_soft_vgas() {
         let vga = machine.vga();
         let state = vga_state(vga);
         assert_eq!(state.start_address, vga.displayed_start());
-        assert_eq!(state.shown_page, Some(machine.app().shown_page().0));
+        assert_eq!(state.shown_page, Some(machine.app().shown_page().index()));
         assert_eq!(state.map_mask, vga.sequencer(seq::MAP_MASK));
         assert_eq!(state.bit_mask, vga.graphics(gc::BIT_MASK));
         assert_eq!(state.write_mode, vga.graphics(gc::MODE) & 3);
