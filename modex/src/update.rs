@@ -12,11 +12,11 @@
 use crate::bus::VgaBus;
 use crate::driver::ModeX;
 use crate::page::Page;
+use crate::regs::ALL_PLANES;
 use crate::{BYTES_PER_LINE, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Pixels in a page: one byte each in a RAM image of it.
 pub const PAGE_PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
-const ALL_PLANES: u8 = 0x0F;
 
 /// A page's picture in RAM: row-major colour indices.
 pub type PageImage = [u8; PAGE_PIXELS];
