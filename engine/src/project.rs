@@ -3,7 +3,9 @@
 
 use crate::math::{Point, Vec3};
 
+/// Width of the screen projected onto, in pixels.
 pub const SCREEN_WIDTH: i32 = 320;
+/// Height of the screen projected onto, in pixels.
 pub const SCREEN_HEIGHT: i32 = 240;
 /// Distance from the viewpoint to the projection plane over the plane's
 /// width; negative because the view looks toward -Z.

@@ -4,6 +4,8 @@
 
 use crate::math::Vec3;
 
+/// A rigid motion (rotation, then translation), optionally scaled; see the
+/// module documentation for the layout.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Xform {
     m: [[f64; 4]; 3],
@@ -16,6 +18,7 @@ impl Default for Xform {
 }
 
 impl Xform {
+    /// No rotation, no translation: the default.
     pub const fn identity() -> Self {
         Xform {
             m: [
@@ -26,6 +29,7 @@ impl Xform {
         }
     }
 
+    /// A translation by (x, y, z) and no rotation.
     pub const fn translation(x: f64, y: f64, z: f64) -> Self {
         Xform {
             m: [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, y], [0.0, 0.0, 1.0, z]],
@@ -64,15 +68,20 @@ impl Xform {
         Xform { m }
     }
 
+    /// Applies the rotation (and any scale), then the translation, to `v`:
+    /// object space to world space.
     pub fn transform_point(&self, v: Vec3) -> Vec3 {
         let row = |r: &[f64; 4]| r[0] * v.x + r[1] * v.y + r[2] * v.z + r[3];
         Vec3::new(row(&self.m[0]), row(&self.m[1]), row(&self.m[2]))
     }
 
+    /// The translation: where the transform takes the origin.
     pub fn translation_part(&self) -> Vec3 {
         Vec3::new(self.m[0][3], self.m[1][3], self.m[2][3])
     }
 
+    /// Moves the transform's result by (dx, dy, dz) in world space; the
+    /// rotation is unchanged.
     pub fn translate(&mut self, dx: f64, dy: f64, dz: f64) {
         self.m[0][3] += dx;
         self.m[1][3] += dy;
