@@ -104,6 +104,16 @@ pub struct DepthBand {
     w: [u32; BAND_PIXELS],
 }
 
+/// Leaves out the 50 KiB of depths.
+impl core::fmt::Debug for DepthBand {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("DepthBand")
+            .field("first_row", &self.first_row)
+            .field("touched", &self.touched)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Default for DepthBand {
     fn default() -> Self {
         Self::new()

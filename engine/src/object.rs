@@ -48,6 +48,7 @@ pub struct Model {
 }
 
 /// A face that survived culling, as handed to the drawing code.
+#[derive(Debug)]
 pub struct VisibleFace<'a> {
     /// The model's face.
     pub face: &'a Face,
