@@ -4,7 +4,8 @@
 //! culled, and the rest are scan-converted into clipped horizontal spans.
 //!
 //! No hardware, no heap, no `unsafe`: the kernel and the host tests run the
-//! very same code.
+//! very same code. The `test-support` feature adds what only tests need: the
+//! `reference` rasterizer and `Object::projections`.
 //!
 //! # Example
 //!
@@ -66,6 +67,7 @@ pub mod math;
 pub mod object;
 pub mod project;
 pub mod raster;
+#[cfg(any(test, feature = "test-support"))]
 pub mod reference;
 pub mod xform;
 

@@ -108,6 +108,7 @@ pub struct Object {
     /// Every vertex lies beyond `NEAREST_DRAWN_Z`.
     in_front: bool,
     recalc: bool,
+    #[cfg(any(test, feature = "test-support"))]
     projections: u64,
 }
 
@@ -142,6 +143,7 @@ impl Object {
             screen: [Point::default(); MAX_VERTICES],
             in_front: false,
             recalc: true,
+            #[cfg(any(test, feature = "test-support"))]
             projections: 0,
         }
     }
@@ -176,7 +178,10 @@ impl Object {
         self.object_to_world.translation_part()
     }
 
-    /// How many times the vertices have been transformed and projected.
+    /// How many times the vertices have been transformed and projected
+    /// (`test-support` only: a test's way to see that an unmoved object is
+    /// not projected again).
+    #[cfg(any(test, feature = "test-support"))]
     pub fn projections(&self) -> u64 {
         self.projections
     }
@@ -197,7 +202,10 @@ impl Object {
             .iter()
             .all(|view| view.z <= NEAREST_DRAWN_Z);
         self.recalc = false;
-        self.projections += 1;
+        #[cfg(any(test, feature = "test-support"))]
+        {
+            self.projections += 1;
+        }
     }
 
     /// The screen position of each vertex (view space is world space here).
