@@ -1,7 +1,7 @@
 //! A solid: shared vertices, faces that index them, and the object-to-world
 //! transform. The view-space and screen position of each vertex are computed
-//! once per change of the transform, and only then (the seed's RecalcXform
-//! flag): a frame that moves nothing reuses them.
+//! once per change of the transform, and only then (the RecalcXform flag of
+//! Abrash's listing): a frame that moves nothing reuses them.
 
 use crate::cull::is_front_facing;
 use crate::depth::DepthPlane;

@@ -1,5 +1,6 @@
-//! Perspective projection from view space to the screen, exactly as the seed
-//! does it: the viewpoint at the origin looking toward -Z, right-handed.
+//! Perspective projection from view space to the screen, exactly as Abrash's
+//! original program does it: the viewpoint at the origin looking toward -Z,
+//! right-handed.
 
 use crate::math::{Point, Vec3};
 
@@ -39,7 +40,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn projects_like_the_seed() {
+    fn projects_like_abrashs_program() {
         // (15, 15, -85): X = 15/-85 · -2 · 160 = 56.47 -> 56 -> 216; Y -> 120 - 56 = 64.
         assert_eq!(
             project_to_screen(Vec3::new(15.0, 15.0, -85.0)),

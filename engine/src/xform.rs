@@ -1,5 +1,5 @@
 //! The object-to-world transform: a 3x3 rotation and a translation, stored as
-//! the top three rows of a 4x4 row-major matrix as in the seed
+//! the top three rows of a 4x4 row-major matrix as in Abrash's listing
 //! (`m[row][col]`, translation in column 3; the fourth row is always 0 0 0 1).
 
 use crate::math::Vec3;
@@ -90,7 +90,7 @@ impl Xform {
 
     /// Rotates by `angle` radians about the world X axis, on top of whatever
     /// rotation is there: rows 1 and 2 of the rotation change, nothing else
-    /// (the seed's AppendRotationX; the translation is kept).
+    /// (Abrash's AppendRotationX; the translation is kept).
     pub fn append_rotation_x(&mut self, angle: f64) {
         self.rotate_rows(1, 2, angle);
     }
@@ -128,7 +128,7 @@ impl Xform {
 
     /// Makes the rotation orthonormal again (Gram-Schmidt on its rows), undoing
     /// the drift of many incremental rotations, which would otherwise shear
-    /// and scale the object. The seed warns of the drift and leaves it.
+    /// and scale the object. Abrash warns of the drift and leaves it.
     pub fn reorthonormalize(&mut self) {
         let r0 = self.rotation_row(0);
         let r0 = r0 * (1.0 / r0.length());
