@@ -1,12 +1,13 @@
-//! Backface removal in screen space, as the seed does it: a face is drawn only
-//! if it is clockwise on the screen (y down), i.e. its outward side faces the
-//! viewer. Integer screen coordinates make the test exact.
+//! Backface removal in screen space, as Abrash's original program does it: a
+//! face is drawn only if it is clockwise on the screen (y down), i.e. its
+//! outward side faces the viewer. Integer screen coordinates make the test
+//! exact.
 
 use crate::math::Point;
 
 /// True if the polygon (clockwise seen from outside, y down) faces the viewer.
 ///
-/// The seed's test: the z of the cross product of the first edge (v1 − v0) and
+/// Abrash's test: the z of the cross product of the first edge (v1 − v0) and
 /// the last edge (v[n−1] − v0) must be positive. That fails when either edge
 /// has zero length or the two are collinear (rounding can merge vertices), so
 /// then the polygon's signed area decides, which uses every vertex.
@@ -67,7 +68,7 @@ mod tests {
 
     #[test]
     fn a_zero_length_first_edge_falls_back_to_the_area() {
-        // v0 == v1: the seed's cross product is 0 and would cull a visible face.
+        // v0 == v1: Abrash's cross product is 0 and would cull a visible face.
         let face = [p(0, 0), p(0, 0), p(10, 0), p(10, 10), p(0, 10)];
         assert!(is_front_facing(&face));
         let mut back = face;

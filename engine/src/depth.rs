@@ -34,8 +34,11 @@ const COEFFICIENT_LIMIT: f64 = (1u64 << 52) as f64;
 /// w = a·x + b·y + c at screen pixel (x, y), in units of 2^-40.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DepthPlane {
+    /// Change in w per pixel to the right.
     pub a: i64,
+    /// Change in w per pixel down.
     pub b: i64,
+    /// w at pixel (0, 0).
     pub c: i64,
 }
 
@@ -85,6 +88,8 @@ impl DepthPlane {
 /// the kernel keeps the renderer on its 1 MiB stack beside three 75 KiB
 /// frame images. The cost is walking the visible faces once per band.
 pub const BAND_ROWS: i32 = 40;
+/// Depth bands in a frame: the frame is drawn this many times over, one band
+/// at a time.
 pub const BANDS: i32 = SCREEN_HEIGHT / BAND_ROWS;
 const BAND_PIXELS: usize = (SCREEN_WIDTH * BAND_ROWS) as usize;
 
@@ -99,6 +104,16 @@ pub struct DepthBand {
     w: [u32; BAND_PIXELS],
 }
 
+/// Leaves out the 50 KiB of depths.
+impl core::fmt::Debug for DepthBand {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("DepthBand")
+            .field("first_row", &self.first_row)
+            .field("touched", &self.touched)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Default for DepthBand {
     fn default() -> Self {
         Self::new()
@@ -106,6 +121,7 @@ impl Default for DepthBand {
 }
 
 impl DepthBand {
+    /// Band 0 (the frame's top rows), with nothing drawn.
     pub const fn new() -> Self {
         DepthBand {
             first_row: 0,

@@ -4,10 +4,58 @@
 //! culled, and the rest are scan-converted into clipped horizontal spans.
 //!
 //! No hardware, no heap, no `unsafe`: the kernel and the host tests run the
-//! very same code.
+//! very same code. The `test-support` feature adds what only tests need: the
+//! `reference` rasterizer and `Object::projections`.
+//!
+//! # Example
+//!
+//! A square card with a face on each side, placed in front of the viewer:
+//! only the side turned toward the viewer is drawn, and it fills the screen
+//! square its corners project to.
+//!
+//! ```
+//! use engine::{fill_convex_polygon, ClipRect, Face, FaceCounts, Model, Object};
+//! use engine::{Point, Vec3, Xform};
+//!
+//! // Faces run clockwise seen from outside: the front (colour 1) from +z,
+//! // the back (colour 2) from -z.
+//! static CARD: Model = Model {
+//!     vertices: &[
+//!         Vec3::new(-10.0, 10.0, 0.0),
+//!         Vec3::new(10.0, 10.0, 0.0),
+//!         Vec3::new(10.0, -10.0, 0.0),
+//!         Vec3::new(-10.0, -10.0, 0.0),
+//!     ],
+//!     faces: &[Face::new(&[0, 1, 2, 3], 1), Face::new(&[3, 2, 1, 0], 2)],
+//! };
+//!
+//! // 50 units away; the viewer looks toward -z.
+//! let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+//! let mut front = Vec::new();
+//! let counts = card.visible_faces(|polygon, colour| {
+//!     assert_eq!(colour, 1);
+//!     front.extend_from_slice(polygon);
+//! });
+//! assert_eq!(counts, FaceCounts { drawn: 1, culled: 1 });
+//! // x/z · -2 · 160 = 10/-50 · -320: 64 pixels either side of (160, 120).
+//! let corners = [(96, 56), (224, 56), (224, 184), (96, 184)].map(|(x, y)| Point::new(x, y));
+//! assert_eq!(front, corners);
+//!
+//! // Spans exclude their right end and the bottom row: 128 × 128 pixels.
+//! let screen = ClipRect { x0: 0, y0: 0, x1: 320, y1: 240 };
+//! let mut pixels = 0;
+//! fill_convex_polygon(&front, screen, |_y, x0, x1| pixels += x1 - x0);
+//! assert_eq!(pixels, 128 * 128);
+//!
+//! // Half a turn about the vertical axis, and the back is the side drawn.
+//! card.object_to_world_mut().append_rotation_y(core::f64::consts::PI);
+//! let counts = card.visible_faces(|_, colour| assert_eq!(colour, 2));
+//! assert_eq!(counts.drawn, 1);
+//! ```
 
 #![no_std]
 #![forbid(unsafe_code)]
+#![warn(missing_docs, missing_debug_implementations)]
 
 #[cfg(test)]
 extern crate std;
@@ -19,6 +67,7 @@ pub mod math;
 pub mod object;
 pub mod project;
 pub mod raster;
+#[cfg(any(test, feature = "test-support"))]
 pub mod reference;
 pub mod xform;
 

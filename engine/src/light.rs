@@ -56,10 +56,13 @@ impl Light {
         }
     }
 
+    /// Turn about the view Y axis, radians in −π..=π; 0 is straight behind
+    /// the viewer, negative is to the left.
     pub fn yaw(&self) -> f64 {
         self.yaw
     }
 
+    /// Height above the horizontal plane, radians in −π/2..=π/2.
     pub fn pitch(&self) -> f64 {
         self.pitch
     }

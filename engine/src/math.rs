@@ -5,20 +5,26 @@ use core::ops::{Add, Mul, Neg, Sub};
 /// A point or direction in object, world or view space.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Vec3 {
+    /// In view space, to the right.
     pub x: f64,
+    /// In view space, up.
     pub y: f64,
+    /// In view space, toward the viewer: all that is in sight has z < 0.
     pub z: f64,
 }
 
 impl Vec3 {
+    /// The vector (x, y, z); `const`, so that models can be statics.
     pub const fn new(x: f64, y: f64, z: f64) -> Self {
         Vec3 { x, y, z }
     }
 
+    /// The scalar product.
     pub fn dot(self, other: Vec3) -> f64 {
         self.x * other.x + self.y * other.y + self.z * other.z
     }
 
+    /// The vector product, right-handed: x × y = z.
     pub fn cross(self, other: Vec3) -> Vec3 {
         Vec3 {
             x: self.y * other.z - self.z * other.y,
@@ -27,6 +33,7 @@ impl Vec3 {
         }
     }
 
+    /// The Euclidean length.
     pub fn length(self) -> f64 {
         libm::sqrt(self.dot(self))
     }
@@ -63,11 +70,14 @@ impl Neg for Vec3 {
 /// A screen position in pixels: x to the right, y down.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Point {
+    /// Pixels from the left edge.
     pub x: i32,
+    /// Pixels from the top edge.
     pub y: i32,
 }
 
 impl Point {
+    /// The pixel (x, y).
     pub const fn new(x: i32, y: i32) -> Self {
         Point { x, y }
     }

@@ -1,7 +1,7 @@
 //! A solid: shared vertices, faces that index them, and the object-to-world
 //! transform. The view-space and screen position of each vertex are computed
-//! once per change of the transform, and only then (the seed's RecalcXform
-//! flag): a frame that moves nothing reuses them.
+//! once per change of the transform, and only then (the RecalcXform flag of
+//! Abrash's listing): a frame that moves nothing reuses them.
 
 use crate::cull::is_front_facing;
 use crate::depth::DepthPlane;
@@ -10,7 +10,10 @@ use crate::math::{Point, Vec3};
 use crate::project::project_to_screen;
 use crate::xform::Xform;
 
+/// Most vertices a model may have: an object keeps its projected vertices in
+/// fixed-size arrays, as there is no heap.
 pub const MAX_VERTICES: usize = 32;
+/// Most corners a face may have, for the same reason.
 pub const MAX_FACE_VERTICES: usize = 8;
 /// An object with any vertex nearer than this (view z above it; the viewer
 /// looks toward -Z) is not drawn at all: there is no near-plane clipping, and
@@ -21,11 +24,15 @@ pub const NEAREST_DRAWN_Z: f64 = -1.0;
 /// outside, and a palette colour.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Face {
+    /// Indices into [`Model::vertices`], clockwise seen from outside.
     pub vertices: &'static [usize],
+    /// The face's flat palette colour.
     pub colour: u8,
 }
 
 impl Face {
+    /// A face with these corners and colour; `const`, so that models can be
+    /// statics.
     pub const fn new(vertices: &'static [usize], colour: u8) -> Self {
         Face { vertices, colour }
     }
@@ -34,12 +41,16 @@ impl Face {
 /// The unchanging description of a solid, in object space.
 #[derive(Debug)]
 pub struct Model {
+    /// The corners, shared by the faces that meet there.
     pub vertices: &'static [Vec3],
+    /// The faces, each naming its corners in `vertices`.
     pub faces: &'static [Face],
 }
 
 /// A face that survived culling, as handed to the drawing code.
+#[derive(Debug)]
 pub struct VisibleFace<'a> {
+    /// The model's face.
     pub face: &'a Face,
     /// The face's corners on the screen, in the face's order.
     pub polygon: &'a [Point],
@@ -74,7 +85,9 @@ impl VisibleFace<'_> {
 /// the faces of an object too near to draw).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FaceCounts {
+    /// Faces handed to the drawing code.
     pub drawn: u32,
+    /// Faces turned away from the viewer, or of an object too near to draw.
     pub culled: u32,
 }
 
@@ -95,6 +108,7 @@ pub struct Object {
     /// Every vertex lies beyond `NEAREST_DRAWN_Z`.
     in_front: bool,
     recalc: bool,
+    #[cfg(any(test, feature = "test-support"))]
     projections: u64,
 }
 
@@ -129,10 +143,12 @@ impl Object {
             screen: [Point::default(); MAX_VERTICES],
             in_front: false,
             recalc: true,
+            #[cfg(any(test, feature = "test-support"))]
             projections: 0,
         }
     }
 
+    /// The solid this object shows.
     pub fn model(&self) -> &'static Model {
         self.model
     }
@@ -145,6 +161,7 @@ impl Object {
         self.recalc = true;
     }
 
+    /// Where the object is and how it is turned.
     pub fn object_to_world(&self) -> &Xform {
         &self.object_to_world
     }
@@ -161,7 +178,10 @@ impl Object {
         self.object_to_world.translation_part()
     }
 
-    /// How many times the vertices have been transformed and projected.
+    /// How many times the vertices have been transformed and projected
+    /// (`test-support` only: a test's way to see that an unmoved object is
+    /// not projected again).
+    #[cfg(any(test, feature = "test-support"))]
     pub fn projections(&self) -> u64 {
         self.projections
     }
@@ -182,7 +202,10 @@ impl Object {
             .iter()
             .all(|view| view.z <= NEAREST_DRAWN_Z);
         self.recalc = false;
-        self.projections += 1;
+        #[cfg(any(test, feature = "test-support"))]
+        {
+            self.projections += 1;
+        }
     }
 
     /// The screen position of each vertex (view space is world space here).

@@ -1,9 +1,12 @@
-//! Perspective projection from view space to the screen, exactly as the seed
-//! does it: the viewpoint at the origin looking toward -Z, right-handed.
+//! Perspective projection from view space to the screen, exactly as Abrash's
+//! original program does it: the viewpoint at the origin looking toward -Z,
+//! right-handed.
 
 use crate::math::{Point, Vec3};
 
+/// Width of the screen projected onto, in pixels.
 pub const SCREEN_WIDTH: i32 = 320;
+/// Height of the screen projected onto, in pixels.
 pub const SCREEN_HEIGHT: i32 = 240;
 /// Distance from the viewpoint to the projection plane over the plane's
 /// width; negative because the view looks toward -Z.
@@ -37,7 +40,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn projects_like_the_seed() {
+    fn projects_like_abrashs_program() {
         // (15, 15, -85): X = 15/-85 · -2 · 160 = 56.47 -> 56 -> 216; Y -> 120 - 56 = 64.
         assert_eq!(
             project_to_screen(Vec3::new(15.0, 15.0, -85.0)),

@@ -15,9 +15,13 @@ use crate::math::Point;
 /// A half-open clip rectangle [x0, x1) x [y0, y1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ClipRect {
+    /// The leftmost column drawn.
     pub x0: i32,
+    /// The top row drawn.
     pub y0: i32,
+    /// The column just right of the last one drawn.
     pub x1: i32,
+    /// The row just below the last one drawn.
     pub y1: i32,
 }
 

@@ -1,6 +1,7 @@
 //! A plain, slow reference rasterizer: every pixel of the clip rectangle is
 //! tested against every edge. It shares no code with the scan converter, so
-//! agreement between the two means something. For tests only.
+//! agreement between the two means something. For tests only: the
+//! `test-support` feature.
 
 use crate::cull::twice_signed_area;
 use crate::math::Point;

@@ -1,9 +1,11 @@
 //! The object-to-world transform: a 3x3 rotation and a translation, stored as
-//! the top three rows of a 4x4 row-major matrix as in the seed
+//! the top three rows of a 4x4 row-major matrix as in Abrash's listing
 //! (`m[row][col]`, translation in column 3; the fourth row is always 0 0 0 1).
 
 use crate::math::Vec3;
 
+/// A rigid motion (rotation, then translation), optionally scaled; see the
+/// module documentation for the layout.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Xform {
     m: [[f64; 4]; 3],
@@ -16,6 +18,7 @@ impl Default for Xform {
 }
 
 impl Xform {
+    /// No rotation, no translation: the default.
     pub const fn identity() -> Self {
         Xform {
             m: [
@@ -26,6 +29,7 @@ impl Xform {
         }
     }
 
+    /// A translation by (x, y, z) and no rotation.
     pub const fn translation(x: f64, y: f64, z: f64) -> Self {
         Xform {
             m: [[1.0, 0.0, 0.0, x], [0.0, 1.0, 0.0, y], [0.0, 0.0, 1.0, z]],
@@ -64,15 +68,20 @@ impl Xform {
         Xform { m }
     }
 
+    /// Applies the rotation (and any scale), then the translation, to `v`:
+    /// object space to world space.
     pub fn transform_point(&self, v: Vec3) -> Vec3 {
         let row = |r: &[f64; 4]| r[0] * v.x + r[1] * v.y + r[2] * v.z + r[3];
         Vec3::new(row(&self.m[0]), row(&self.m[1]), row(&self.m[2]))
     }
 
+    /// The translation: where the transform takes the origin.
     pub fn translation_part(&self) -> Vec3 {
         Vec3::new(self.m[0][3], self.m[1][3], self.m[2][3])
     }
 
+    /// Moves the transform's result by (dx, dy, dz) in world space; the
+    /// rotation is unchanged.
     pub fn translate(&mut self, dx: f64, dy: f64, dz: f64) {
         self.m[0][3] += dx;
         self.m[1][3] += dy;
@@ -81,7 +90,7 @@ impl Xform {
 
     /// Rotates by `angle` radians about the world X axis, on top of whatever
     /// rotation is there: rows 1 and 2 of the rotation change, nothing else
-    /// (the seed's AppendRotationX; the translation is kept).
+    /// (Abrash's AppendRotationX; the translation is kept).
     pub fn append_rotation_x(&mut self, angle: f64) {
         self.rotate_rows(1, 2, angle);
     }
@@ -119,7 +128,7 @@ impl Xform {
 
     /// Makes the rotation orthonormal again (Gram-Schmidt on its rows), undoing
     /// the drift of many incremental rotations, which would otherwise shear
-    /// and scale the object. The seed warns of the drift and leaves it.
+    /// and scale the object. Abrash warns of the drift and leaves it.
     pub fn reorthonormalize(&mut self) {
         let r0 = self.rotation_row(0);
         let r0 = r0 * (1.0 / r0.length());

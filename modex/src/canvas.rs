@@ -49,6 +49,15 @@ pub struct PageCanvas<'a, B: VgaBus> {
     page: Page,
 }
 
+impl<B: VgaBus> core::fmt::Debug for PageCanvas<'_, B> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("PageCanvas")
+            .field("vga", &self.vga)
+            .field("page", &self.page)
+            .finish()
+    }
+}
+
 impl<'a, B: VgaBus> PageCanvas<'a, B> {
     /// A canvas over `page`.
     pub fn new(vga: &'a mut ModeX<B>, page: Page) -> Self {
@@ -92,6 +101,13 @@ impl<B: VgaBus> DrawTarget for PageCanvas<'_, B> {
 /// Draws into a RAM image of a page, one byte per pixel, row by row.
 pub struct ImageCanvas<'a> {
     image: &'a mut PageImage,
+}
+
+/// Leaves out the image's 75 KiB.
+impl core::fmt::Debug for ImageCanvas<'_> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("ImageCanvas").finish_non_exhaustive()
+    }
 }
 
 impl<'a> ImageCanvas<'a> {

@@ -17,7 +17,20 @@ pub struct ModeX<B: VgaBus> {
     graphics: RegisterCache<{ gc::COUNT }>,
 }
 
+/// Shows what the driver knows of the hardware, not the bus: a bus need not be
+/// `Debug`, and a software VGA's would be its whole video memory.
+impl<B: VgaBus> core::fmt::Debug for ModeX<B> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("ModeX")
+            .field("card", &self.card)
+            .field("sequencer", &self.sequencer)
+            .field("graphics", &self.graphics)
+            .finish_non_exhaustive()
+    }
+}
+
 /// The last value written to each register of an index/data pair, if known.
+#[derive(Debug)]
 struct RegisterCache<const N: usize>([Option<u8>; N]);
 
 impl<const N: usize> RegisterCache<N> {

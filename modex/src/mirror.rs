@@ -33,6 +33,18 @@ pub struct MirroredVga<'a, F: FnMut(&SoftVga)> {
     presentations: u64,
 }
 
+/// Leaves out the presenting closure, which has no `Debug`.
+impl<F: FnMut(&SoftVga)> core::fmt::Debug for MirroredVga<'_, F> {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("MirroredVga")
+            .field("soft", &self.soft)
+            .field("crtc_index", &self.crtc_index)
+            .field("flip_written_in_frame", &self.flip_written_in_frame)
+            .field("presentations", &self.presentations)
+            .finish_non_exhaustive()
+    }
+}
+
 impl<'a, F: FnMut(&SoftVga)> MirroredVga<'a, F> {
     /// Mirrors `soft`, calling `present` with it for each new page shown.
     /// Nothing is presented until the first flip (or [`Self::present_now`]).

@@ -53,6 +53,17 @@ pub struct Presenter {
     presented: bool,
 }
 
+/// Leaves out the pictures and the palette, ~580 KiB.
+impl core::fmt::Debug for Presenter {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Presenter")
+            .field("shown_size", &self.shown_size)
+            .field("shown_layout", &self.shown_layout)
+            .field("presented", &self.presented)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Default for Presenter {
     fn default() -> Self {
         Self::new()

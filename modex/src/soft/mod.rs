@@ -66,6 +66,20 @@ pub struct SoftVga {
     guard: WriteGuard,
 }
 
+/// The clock and the counts, not the registers or the 256 KiB of video
+/// memory, which have their own accessors.
+impl core::fmt::Debug for SoftVga {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("SoftVga")
+            .field("timing", &self.timing)
+            .field("now_ns", &self.now_ns)
+            .field("frame_count", &self.frame_count)
+            .field("displayed_start", &self.displayed_start)
+            .field("counts", &self.counts)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Default for SoftVga {
     fn default() -> Self {
         Self::new()
