@@ -101,7 +101,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         Firmware::Bios
     };
-    let images = boot::images::publish().map_err(anyhow::Error::msg)?;
+    let images = boot::images::publish()?;
     let image = match firmware {
         Firmware::Bios => images.bios,
         Firmware::Uefi => images.uefi,
@@ -140,7 +140,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
             // Let the last key's frame reach the screen.
             std::thread::sleep(args.wait);
             let picture = qemu.screendump()?;
-            picture.write_png(path).map_err(anyhow::Error::msg)?;
+            picture.write_png(path)?;
             println!(
                 "Saved a {}x{} screenshot to {}",
                 picture.width,
