@@ -60,6 +60,12 @@ impl fmt::Debug for RgbImage {
     }
 }
 
+impl From<xvfb::xwd::Image> for RgbImage {
+    fn from(image: xvfb::xwd::Image) -> Self {
+        RgbImage::new(image.width, image.height, image.pixels)
+    }
+}
+
 impl RgbImage {
     pub fn new(width: usize, height: usize, pixels: Vec<[u8; 3]>) -> Self {
         assert_eq!(

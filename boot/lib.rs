@@ -7,7 +7,6 @@ pub mod image;
 pub mod images;
 pub mod qemu;
 pub mod usb;
-pub mod xwd;
 
 pub use image::{ImageError, RgbImage};
 pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};
