@@ -2,27 +2,21 @@
 //! the same picture tests as QEMU.
 //!
 //! Bochs has no monitor to take screenshots or type keys, so a `Bochs` runs
-//! it under its own Xvfb with the X display library: keys are typed into the
-//! window with `xdotool`, and the window is read back with `xwd`. The serial
+//! it under its own Xvfb with the X display library (the `xvfb` crate, which
+//! the simulator's window tests use too): keys are typed into the window
+//! with `xdotool`, and the window is read back with `xwd`. The serial
 //! console goes to a file that is read as it grows. Dropping a `Bochs` kills
 //! Bochs and its X server.
 
 use crate::image::RgbImage;
-use crate::xwd;
-use std::io::{BufRead, BufReader, Read};
+use std::io;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
+use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
+use xvfb::{X11Error, Xvfb};
 
-/// The executables a Bochs run needs, and the Debian packages that hold them
-/// (`bochs-x` is Bochs's X display plugin, `bochsbios` and `vgabios` its ROMs).
-const TOOLS: [(&str, &str); 4] = [
-    ("bochs", "bochs"),
-    ("Xvfb", "xvfb"),
-    ("xdotool", "xdotool"),
-    ("xwd", "x11-apps"),
-];
+/// The Debian packages a Bochs run needs besides the X tools' (`bochs-x` is
+/// Bochs's X display plugin, `bochsbios` and `vgabios` its ROMs).
 pub const APT_PACKAGES: &str = "bochs bochsbios vgabios bochs-x xvfb xdotool x11-apps";
 
 const SYSTEM_BIOS: &str = "/usr/share/bochs/BIOS-bochs-latest";
@@ -52,6 +46,8 @@ const WINDOW_NAME: &str = "^Bochs";
 /// How long to wait for Xvfb and for Bochs's window; both take well under a
 /// second on an idle machine.
 const START_TIMEOUT: Duration = Duration::from_secs(30);
+/// Xvfb's screen: room for Bochs's largest window here (720x450).
+const SCREEN: (u32, u32) = (1024, 768);
 /// How often the serial file and the window are looked at while waiting.
 const POLL_INTERVAL: Duration = Duration::from_millis(20);
 
@@ -81,49 +77,85 @@ impl BochsOptions {
     }
 }
 
-#[derive(Debug)]
+/// What went wrong with Bochs; the messages say what to do or what was seen.
+#[derive(Debug, thiserror::Error)]
 pub enum BochsError {
-    /// A tool is missing: how to install it.
-    NotInstalled(String),
-    Io(String),
-    Timeout(String),
-    Exited(String),
-    /// `xdotool` or `xwd` failed.
-    Display(String),
-    /// The window never showed what was waited for; `last` is what it showed.
-    ScreenTimeout {
+    /// Debian packages are missing: how to install them.
+    #[error(
+        "the Bochs tests need the Debian packages {}. Install them with `boot/setup.sh` \
+         (or `sudo apt-get install {APT_PACKAGES}`).",
+        .missing.join(", ")
+    )]
+    NotInstalled { missing: Vec<&'static str> },
+    /// The `bochs` executable could not be started.
+    #[error("cannot start bochs: {0}")]
+    Spawn(io::Error),
+    /// A file of the run (the padded disk, the bochsrc) could not be made.
+    #[error("{what}: {error}")]
+    Io { what: String, error: io::Error },
+    /// The X server, `xdotool` or `xwd` failed.
+    #[error(transparent)]
+    X11(#[from] X11Error),
+    /// Bochs ended before what was waited for happened.
+    #[error("bochs exited ({status}) {when}; console:\n{console}{diagnostics}")]
+    Exited {
+        status: ExitStatus,
+        /// "before ... appeared on serial", "before opening its window", ...
+        when: String,
+        console: String,
+        diagnostics: String,
+    },
+    /// The serial console never showed `needle`.
+    #[error(
+        "timed out after {waited:?} waiting for {needle:?} on serial; console so far:\n\
+         {console}{diagnostics}"
+    )]
+    SerialTimeout {
+        needle: String,
         waited: Duration,
-        last: RgbImage,
+        console: String,
+        diagnostics: String,
+    },
+    /// Bochs opened no window.
+    #[error("Bochs opened no window named {WINDOW_NAME:?} within {waited:?}{diagnostics}")]
+    NoWindow {
+        waited: Duration,
+        diagnostics: String,
+    },
+    /// The window is not laid out as Bochs 2.7 lays it out.
+    #[error("{0}")]
+    Layout(LayoutError),
+    /// The window never held a guest picture while it was waited on.
+    #[error("after {waited:?} the window still has no guest picture: {why}")]
+    NoGuestPicture { waited: Duration, why: LayoutError },
+    /// The window never showed what was waited for; `last` is what it showed.
+    #[error("the window did not show the expected picture within {waited:?}; it shows {last:?}")]
+    ScreenTimeout { waited: Duration, last: RgbImage },
+}
+
+/// Why a window picture has no guest picture where Bochs 2.7 puts it.
+#[derive(Debug, thiserror::Error)]
+pub enum LayoutError {
+    /// Not taller than the toolbar and the status bar.
+    #[error("a {width}x{height} window has no room for a guest picture")]
+    TooShort { width: usize, height: usize },
+    /// The status bar's white top line is not where the layout puts it.
+    #[error("row {row} of the {width}x{height} window is not the status bar's white top line")]
+    NoStatusBar {
+        row: usize,
+        width: usize,
+        height: usize,
     },
 }
-
-impl std::fmt::Display for BochsError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            BochsError::NotInstalled(s)
-            | BochsError::Io(s)
-            | BochsError::Timeout(s)
-            | BochsError::Exited(s)
-            | BochsError::Display(s) => f.write_str(s),
-            BochsError::ScreenTimeout { waited, last } => write!(
-                f,
-                "the window did not show the expected picture within {waited:?}; it shows {last:?}"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for BochsError {}
 
 type Result<T> = std::result::Result<T, BochsError>;
 
 /// Fails with an actionable message when a tool or ROM is missing.
 pub fn check_installed() -> Result<()> {
-    let mut missing: Vec<&str> = TOOLS
-        .iter()
-        .filter(|(tool, _)| !on_path(tool))
-        .map(|&(_, package)| package)
-        .collect();
+    let mut missing = xvfb::missing_packages();
+    if !xvfb::on_path("bochs") {
+        missing.insert(0, "bochs");
+    }
     if !x_display_plugin_installed() {
         missing.push("bochs-x");
     }
@@ -136,11 +168,7 @@ pub fn check_installed() -> Result<()> {
     if missing.is_empty() {
         return Ok(());
     }
-    Err(BochsError::NotInstalled(format!(
-        "the Bochs tests need the Debian packages {}. Install them with `boot/setup.sh` \
-         (or `sudo apt-get install {APT_PACKAGES}`).",
-        missing.join(", ")
-    )))
+    Err(BochsError::NotInstalled { missing })
 }
 
 /// Bochs's X display library is a plugin in `/usr/lib/<multiarch>/bochs/plugins`.
@@ -151,16 +179,10 @@ fn x_display_plugin_installed() -> bool {
     })
 }
 
-fn on_path(program: &str) -> bool {
-    std::env::var_os("PATH")
-        .is_some_and(|path| std::env::split_paths(&path).any(|dir| dir.join(program).is_file()))
-}
-
 pub struct Bochs {
     bochs: Child,
-    xvfb: Child,
-    /// The X display, `:N`.
-    display: String,
+    /// Dropped after Bochs is killed (see `Drop`).
+    xvfb: Xvfb,
     /// Bochs's window, as xdotool and xwd name it.
     window: String,
     scratch: tempfile::TempDir,
@@ -186,18 +208,12 @@ impl Bochs {
         std::fs::write(&debugger_commands, "c\n")
             .map_err(|e| io_error("cannot write the debugger commands", e))?;
 
-        let (mut xvfb, display) = start_xvfb(scratch.path())?;
-        let bochs = match spawn_bochs(&bochsrc, &debugger_commands, &display, scratch.path()) {
-            Ok(bochs) => bochs,
-            Err(e) => {
-                stop_xvfb(&mut xvfb);
-                return Err(e);
-            }
-        };
+        let xvfb = Xvfb::start(SCREEN, START_TIMEOUT)?;
+        // On an error `xvfb` is dropped, which stops it.
+        let bochs = spawn_bochs(&bochsrc, &debugger_commands, xvfb.display(), scratch.path())?;
         let mut bochs = Bochs {
             bochs,
             xvfb,
-            display,
             window: String::new(),
             scratch,
         };
@@ -221,10 +237,12 @@ impl Bochs {
             }
             self.fail_if_exited(&format!("before {needle:?} appeared on serial"))?;
             if Instant::now() >= deadline {
-                return Err(BochsError::Timeout(format!(
-                    "timed out after {timeout:?} waiting for {needle:?} on serial; console so far:\n{text}{}",
-                    self.diagnostics()
-                )));
+                return Err(BochsError::SerialTimeout {
+                    needle: needle.to_owned(),
+                    waited: timeout,
+                    console: text,
+                    diagnostics: self.diagnostics(),
+                });
             }
             std::thread::sleep(POLL_INTERVAL);
         }
@@ -233,23 +251,20 @@ impl Bochs {
     /// Presses and releases a key, named as X names keysyms (`r`, `4`,
     /// `Escape`, `Left`, `F1`, ...).
     pub fn send_key(&mut self, keysym: &str) -> Result<()> {
-        self.x_tool(
-            "xdotool",
-            &["key", "--window", &self.window.clone(), keysym],
-        )
-        .map(drop)
+        self.xvfb
+            .run("xdotool", &["key", "--window", &self.window, keysym])?;
+        Ok(())
     }
 
     /// Bochs's whole window as the X server shows it: toolbar, guest
     /// picture, status bar (without the X border, which `xwd` would include).
     pub fn window_picture(&mut self) -> Result<RgbImage> {
-        let dump = self.x_tool("xwd", &["-silent", "-nobdrs", "-id", &self.window.clone()])?;
-        xwd::parse(&dump).map_err(BochsError::Display)
+        Ok(self.xvfb.capture(&self.window)?.into())
     }
 
     /// The guest's picture: the window without its toolbar and status bar.
     pub fn screen(&mut self) -> Result<RgbImage> {
-        guest_area(&self.window_picture()?).map_err(BochsError::Display)
+        guest_area(&self.window_picture()?).map_err(BochsError::Layout)
     }
 
     /// Looks at the guest's picture until `accept` takes it (and returns it)
@@ -269,7 +284,7 @@ impl Bochs {
             let last = guest_area(&self.window_picture()?);
             if let Ok(picture) = &last {
                 if accept(picture) {
-                    return last.map_err(BochsError::Display);
+                    return last.map_err(BochsError::Layout);
                 }
             }
             self.fail_if_exited("while waiting for a picture")?;
@@ -279,9 +294,10 @@ impl Bochs {
                         waited: timeout,
                         last,
                     },
-                    Err(e) => BochsError::Timeout(format!(
-                        "after {timeout:?} the window still has no guest picture: {e}"
-                    )),
+                    Err(why) => BochsError::NoGuestPicture {
+                        waited: timeout,
+                        why,
+                    },
                 });
             }
             std::thread::sleep(POLL_INTERVAL);
@@ -308,39 +324,21 @@ impl Bochs {
 
     fn fail_if_exited(&mut self, when: &str) -> Result<()> {
         match self.bochs.try_wait() {
-            Ok(Some(status)) => Err(BochsError::Exited(format!(
-                "bochs exited ({status}) {when}; console:\n{}{}",
-                self.serial(),
-                self.diagnostics()
-            ))),
+            Ok(Some(status)) => Err(BochsError::Exited {
+                status,
+                when: when.to_owned(),
+                console: self.serial(),
+                diagnostics: self.diagnostics(),
+            }),
             _ => Ok(()),
         }
-    }
-
-    /// Runs an X client on our display; returns its stdout.
-    fn x_tool(&self, program: &str, args: &[&str]) -> Result<Vec<u8>> {
-        let output = Command::new(program)
-            .args(args)
-            .env("DISPLAY", &self.display)
-            .stdin(Stdio::null())
-            .output()
-            .map_err(|e| BochsError::NotInstalled(format!("cannot run {program}: {e}")))?;
-        if !output.status.success() {
-            return Err(BochsError::Display(format!(
-                "{program} {} failed ({}): {}",
-                args.join(" "),
-                output.status,
-                String::from_utf8_lossy(&output.stderr).trim()
-            )));
-        }
-        Ok(output.stdout)
     }
 
     /// Bochs opens its window while it initialises, before the guest runs.
     fn find_window(&mut self) -> Result<String> {
         let deadline = Instant::now() + START_TIMEOUT;
         loop {
-            if let Ok(found) = self.x_tool("xdotool", &["search", "--name", WINDOW_NAME]) {
+            if let Ok(found) = self.xvfb.run("xdotool", &["search", "--name", WINDOW_NAME]) {
                 let found = String::from_utf8_lossy(&found);
                 if let Some(window) = found.split_whitespace().next() {
                     return Ok(window.to_owned());
@@ -348,10 +346,10 @@ impl Bochs {
             }
             self.fail_if_exited("before opening its window")?;
             if Instant::now() >= deadline {
-                return Err(BochsError::Timeout(format!(
-                    "Bochs opened no window named {WINDOW_NAME:?} within {START_TIMEOUT:?}{}",
-                    self.diagnostics()
-                )));
+                return Err(BochsError::NoWindow {
+                    waited: START_TIMEOUT,
+                    diagnostics: self.diagnostics(),
+                });
             }
             std::thread::sleep(POLL_INTERVAL);
         }
@@ -359,30 +357,12 @@ impl Bochs {
 }
 
 impl Drop for Bochs {
+    /// Bochs goes first, so that its X server never sees it lose the
+    /// display; the `xvfb` field's own drop then stops the server.
     fn drop(&mut self) {
         let _ = self.bochs.kill();
         let _ = self.bochs.wait();
-        stop_xvfb(&mut self.xvfb);
     }
-}
-
-/// Stops Xvfb with SIGTERM, on which it removes its socket and lock file
-/// (SIGKILL would leave them in /tmp), and kills it if it has not gone
-/// within a second.
-fn stop_xvfb(xvfb: &mut Child) {
-    let asked = Command::new("kill")
-        .args(["-TERM", &xvfb.id().to_string()])
-        .status()
-        .is_ok_and(|s| s.success());
-    let deadline = Instant::now() + Duration::from_secs(1);
-    while asked && Instant::now() < deadline {
-        if let Ok(Some(_)) = xvfb.try_wait() {
-            return;
-        }
-        std::thread::sleep(POLL_INTERVAL);
-    }
-    let _ = xvfb.kill();
-    let _ = xvfb.wait();
 }
 
 /// Starts Bochs on `display` with its output (its own messages and the
@@ -408,11 +388,14 @@ fn spawn_bochs(
         .stdout(output.try_clone().map_err(|e| io_error("bochs.out", e))?)
         .stderr(output)
         .spawn()
-        .map_err(|e| BochsError::NotInstalled(format!("cannot start bochs: {e}")))
+        .map_err(BochsError::Spawn)
 }
 
-fn io_error(what: &str, error: std::io::Error) -> BochsError {
-    BochsError::Io(format!("{what}: {error}"))
+fn io_error(what: &str, error: io::Error) -> BochsError {
+    BochsError::Io {
+        what: what.to_owned(),
+        error,
+    }
 }
 
 /// Bochs's hard disks are whole cylinders of 16 heads x 63 sectors: a copy
@@ -474,64 +457,28 @@ fn bochsrc_text(options: &BochsOptions, disk: &Path, cylinders: u64, dir: &Path)
     )
 }
 
-/// Starts Xvfb on a free display: with `-displayfd` the server picks the
-/// first free display number itself and writes it to us once it accepts
-/// clients, so neither a guessed number nor a wait is needed. `-noreset`:
-/// by default the server resets whenever its last client leaves, and a
-/// short-lived `xdotool` leaving while Bochs connects made Bochs fail with
-/// "cannot connect to X server".
-fn start_xvfb(dir: &Path) -> Result<(Child, String)> {
-    let log = std::fs::File::create(dir.join("xvfb.log"))
-        .map_err(|e| io_error("cannot create xvfb.log", e))?;
-    let mut xvfb = Command::new("Xvfb")
-        .args(["-displayfd", "1", "-noreset", "-nolisten", "tcp"])
-        .args(["-screen", "0", "1024x768x24"])
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(log)
-        .spawn()
-        .map_err(|e| BochsError::NotInstalled(format!("cannot start Xvfb: {e}")))?;
-    let stdout = xvfb.stdout.take().expect("stdout is piped");
-    let (sender, receiver) = mpsc::channel();
-    std::thread::spawn(move || {
-        let mut line = String::new();
-        let _ = BufReader::new(stdout).read_line(&mut line);
-        let _ = sender.send(line);
-    });
-    match receiver.recv_timeout(START_TIMEOUT) {
-        Ok(line) if line.trim().parse::<u32>().is_ok() => Ok((xvfb, format!(":{}", line.trim()))),
-        outcome => {
-            let _ = xvfb.kill();
-            let _ = xvfb.wait();
-            let mut log = String::new();
-            let _ = std::fs::File::open(dir.join("xvfb.log"))
-                .and_then(|mut f| f.read_to_string(&mut log));
-            Err(BochsError::Timeout(format!(
-                "Xvfb gave no display number ({outcome:?}); its log:\n{log}"
-            )))
-        }
-    }
-}
-
 /// The guest picture inside Bochs's window: the full width, between the
 /// toolbar and the status bar. The status bar's top row is a white line
 /// across the window; finding it where the layout puts it confirms that the
 /// bars are the heights Bochs 2.7 draws them (and that the picture is not
 /// cut short or shifted).
-pub fn guest_area(window: &RgbImage) -> std::result::Result<RgbImage, String> {
+pub fn guest_area(window: &RgbImage) -> std::result::Result<RgbImage, LayoutError> {
     const WHITE: [u8; 3] = [255; 3];
     let bars = TOOLBAR_HEIGHT + STATUS_BAR_HEIGHT;
     if window.height <= bars {
-        return Err(format!(
-            "a {window:?} window has no room for a guest picture"
-        ));
+        return Err(LayoutError::TooShort {
+            width: window.width,
+            height: window.height,
+        });
     }
     let height = window.height - bars;
     let status_bar_top = TOOLBAR_HEIGHT + height;
     if (0..window.width).any(|x| window.pixel(x, status_bar_top) != WHITE) {
-        return Err(format!(
-            "row {status_bar_top} of the {window:?} window is not the status bar's white top line"
-        ));
+        return Err(LayoutError::NoStatusBar {
+            row: status_bar_top,
+            width: window.width,
+            height: window.height,
+        });
     }
     let start = TOOLBAR_HEIGHT * window.width;
     let pixels = window.pixels[start..start + height * window.width].to_vec();

@@ -2,7 +2,46 @@
 //! the comparison of QEMU's doubled 640x480 Mode X picture with a 320x240 one.
 
 use std::fmt;
-use std::path::Path;
+use std::io;
+use std::path::{Path, PathBuf};
+
+/// Why a picture could not be read, written, halved or compared.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// The PPM ends inside its header.
+    #[error("PPM header ends early")]
+    PpmHeaderEndsEarly,
+    /// A PPM, but not P6 with 8-bit components.
+    #[error("not a binary 8-bit PPM (magic {magic}, maxval {maxval})")]
+    PpmNotBinary8Bit { magic: String, maxval: String },
+    /// A width or height that is not a number.
+    #[error("bad PPM size field {0:?}")]
+    PpmBadSize(String),
+    /// Fewer pixels than the header says.
+    #[error("PPM raster is truncated")]
+    PpmTruncated,
+    /// The PNG file could not be created.
+    #[error("cannot create {}: {error}", path.display())]
+    CreatePng { path: PathBuf, error: io::Error },
+    /// The PNG could not be written into the file.
+    #[error("cannot write the PNG {}: {error}", path.display())]
+    WritePng {
+        path: PathBuf,
+        error: png::EncodingError,
+    },
+    /// Odd sizes cannot be a doubled picture.
+    #[error("{width}x{height} cannot be halved")]
+    OddSize { width: usize, height: usize },
+    /// A 2x2 block of two colours: not a doubled picture.
+    #[error("2x2 block at ({x}, {y}) is not one colour")]
+    NotDoubled { x: usize, y: usize },
+    /// Pictures of different sizes have no pixel-by-pixel differences.
+    #[error("sizes differ: {}x{} and {}x{}", .this.0, .this.1, .other.0, .other.1)]
+    SizesDiffer {
+        this: (usize, usize),
+        other: (usize, usize),
+    },
+}
 
 /// One differing pixel: x, y, this picture's colour, the other's.
 pub type PixelDifference = (usize, usize, [u8; 3], [u8; 3]);
@@ -18,6 +57,12 @@ pub struct RgbImage {
 impl fmt::Debug for RgbImage {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "RgbImage({}x{})", self.width, self.height)
+    }
+}
+
+impl From<xvfb::xwd::Image> for RgbImage {
+    fn from(image: xvfb::xwd::Image) -> Self {
+        RgbImage::new(image.width, image.height, image.pixels)
     }
 }
 
@@ -40,7 +85,7 @@ impl RgbImage {
     }
 
     /// Parses a binary PPM (P6, maxval 255), as QEMU's `screendump` writes it.
-    pub fn from_ppm(bytes: &[u8]) -> Result<Self, String> {
+    pub fn from_ppm(bytes: &[u8]) -> Result<Self, ImageError> {
         let mut fields = Vec::new();
         let mut at = 0;
         while fields.len() < 4 {
@@ -58,32 +103,38 @@ impl RgbImage {
                 at += 1;
             }
             if start == at {
-                return Err("PPM header ends early".into());
+                return Err(ImageError::PpmHeaderEndsEarly);
             }
             fields.push(String::from_utf8_lossy(&bytes[start..at]).into_owned());
         }
         at += 1; // the single whitespace byte before the raster
         if fields[0] != "P6" || fields[3] != "255" {
-            return Err(format!(
-                "not a binary 8-bit PPM (magic {}, maxval {})",
-                fields[0], fields[3]
-            ));
+            return Err(ImageError::PpmNotBinary8Bit {
+                magic: fields[0].clone(),
+                maxval: fields[3].clone(),
+            });
         }
         let parse = |s: &str| {
             s.parse::<usize>()
-                .map_err(|_| format!("bad PPM size field {s:?}"))
+                .map_err(|_| ImageError::PpmBadSize(s.to_owned()))
         };
         let (width, height) = (parse(&fields[1])?, parse(&fields[2])?);
         let raster = bytes
             .get(at..at + width * height * 3)
-            .ok_or("PPM raster is truncated")?;
+            .ok_or(ImageError::PpmTruncated)?;
         let pixels = raster.as_chunks::<3>().0.to_vec();
         Ok(RgbImage::new(width, height, pixels))
     }
 
-    pub fn write_png(&self, path: &Path) -> Result<(), String> {
-        let file = std::fs::File::create(path)
-            .map_err(|e| format!("cannot create {}: {e}", path.display()))?;
+    pub fn write_png(&self, path: &Path) -> Result<(), ImageError> {
+        let file = std::fs::File::create(path).map_err(|error| ImageError::CreatePng {
+            path: path.to_owned(),
+            error,
+        })?;
+        let png_error = |error| ImageError::WritePng {
+            path: path.to_owned(),
+            error,
+        };
         let mut encoder = png::Encoder::new(
             std::io::BufWriter::new(file),
             self.width as u32,
@@ -91,17 +142,20 @@ impl RgbImage {
         );
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
-        let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+        let mut writer = encoder.write_header().map_err(png_error)?;
         writer
             .write_image_data(self.pixels.as_flattened())
-            .map_err(|e| e.to_string())
+            .map_err(png_error)
     }
 
     /// Undoes QEMU's doubling of a 320x240 Mode X picture into 640x480: every
     /// 2x2 block must be one colour, or the picture was not a doubled one.
-    pub fn halve(&self) -> Result<RgbImage, String> {
+    pub fn halve(&self) -> Result<RgbImage, ImageError> {
         if !self.width.is_multiple_of(2) || !self.height.is_multiple_of(2) {
-            return Err(format!("{}x{} cannot be halved", self.width, self.height));
+            return Err(ImageError::OddSize {
+                width: self.width,
+                height: self.height,
+            });
         }
         let (width, height) = (self.width / 2, self.height / 2);
         let mut pixels = Vec::with_capacity(width * height);
@@ -110,7 +164,7 @@ impl RgbImage {
                 let colour = self.pixel(2 * x, 2 * y);
                 for (dx, dy) in [(1, 0), (0, 1), (1, 1)] {
                     if self.pixel(2 * x + dx, 2 * y + dy) != colour {
-                        return Err(format!("2x2 block at ({x}, {y}) is not one colour"));
+                        return Err(ImageError::NotDoubled { x, y });
                     }
                 }
                 pixels.push(colour);
@@ -120,12 +174,12 @@ impl RgbImage {
     }
 
     /// Where two pictures of the same size differ: the count and the first few.
-    pub fn differences(&self, other: &RgbImage) -> Result<Vec<PixelDifference>, String> {
+    pub fn differences(&self, other: &RgbImage) -> Result<Vec<PixelDifference>, ImageError> {
         if (self.width, self.height) != (other.width, other.height) {
-            return Err(format!(
-                "sizes differ: {}x{} and {}x{}",
-                self.width, self.height, other.width, other.height
-            ));
+            return Err(ImageError::SizesDiffer {
+                this: (self.width, self.height),
+                other: (other.width, other.height),
+            });
         }
         Ok((0..self.pixels.len())
             .filter(|&i| self.pixels[i] != other.pixels[i])
@@ -157,7 +211,10 @@ mod tests {
         assert_eq!((image.width, image.height), (4, 2));
         assert_eq!(image.pixel(3, 1), [100, 1, 7]);
         // Rows differ (y is in green), so it is not a doubled picture.
-        assert!(image.halve().is_err());
+        assert!(matches!(
+            image.halve(),
+            Err(ImageError::NotDoubled { x: 0, y: 0 })
+        ));
     }
 
     #[test]
@@ -176,11 +233,29 @@ mod tests {
         );
         assert_eq!(big.halve().unwrap(), small);
         assert_eq!(big.differences(&big).unwrap().len(), 0);
+        assert!(matches!(
+            big.differences(&small),
+            Err(ImageError::SizesDiffer {
+                this: (4, 2),
+                other: (2, 1)
+            })
+        ));
     }
 
     #[test]
     fn truncated_ppm_is_an_error() {
-        assert!(RgbImage::from_ppm(b"P6 4 4 255\n\x00\x00").is_err());
-        assert!(RgbImage::from_ppm(b"P3 1 1 255\n0 0 0").is_err());
+        assert!(matches!(
+            RgbImage::from_ppm(b"P6 4 4 255\n\x00\x00"),
+            Err(ImageError::PpmTruncated)
+        ));
+        let error = RgbImage::from_ppm(b"P3 1 1 255\n0 0 0").unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "not a binary 8-bit PPM (magic P3, maxval 255)"
+        );
+        assert!(matches!(
+            RgbImage::from_ppm(b"P6 4"),
+            Err(ImageError::PpmHeaderEndsEarly)
+        ));
     }
 }

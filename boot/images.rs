@@ -1,7 +1,9 @@
 //! The disk images the build script made, copied to stable paths a user can
 //! find and write to a USB stick: `target/images/bios.img` and `uefi.img`.
 
+use std::io;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
 
 /// Built by `boot/build.rs` into cargo's OUT_DIR.
 const BUILT_BIOS_IMAGE: &str = env!("BIOS_IMAGE");
@@ -21,16 +23,47 @@ pub fn images_dir() -> PathBuf {
     target.join("images")
 }
 
+/// Why the images could not be published. Cloned, because every caller of
+/// [`publish`] in a process gets the one outcome; the I/O error is shared.
+#[derive(Clone, Debug, thiserror::Error)]
+pub enum PublishError {
+    /// The build script's image is not there: the build did not finish.
+    #[error("cannot read the built image {}: {error}", path.display())]
+    ReadBuilt {
+        path: PathBuf,
+        error: Arc<io::Error>,
+    },
+    /// The stable path's directory, or a file in it, could not be written.
+    #[error("cannot {action} {}: {error}", path.display())]
+    Write {
+        /// "create", "write" or "rename to".
+        action: &'static str,
+        path: PathBuf,
+        error: Arc<io::Error>,
+    },
+}
+
+impl PublishError {
+    fn write(action: &'static str, path: &Path) -> impl FnOnce(io::Error) -> Self {
+        let path = path.to_owned();
+        move |error| PublishError::Write {
+            action,
+            path,
+            error: Arc::new(error),
+        }
+    }
+}
+
 /// Copies the freshly built images to their stable paths, once per process
 /// (tests call this from many threads at once).
-pub fn publish() -> Result<Images, String> {
-    static PUBLISHED: std::sync::OnceLock<Result<Images, String>> = std::sync::OnceLock::new();
+pub fn publish() -> Result<Images, PublishError> {
+    static PUBLISHED: OnceLock<Result<Images, PublishError>> = OnceLock::new();
     PUBLISHED.get_or_init(publish_now).clone()
 }
 
-fn publish_now() -> Result<Images, String> {
+fn publish_now() -> Result<Images, PublishError> {
     let dir = images_dir();
-    std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+    std::fs::create_dir_all(&dir).map_err(PublishError::write("create", &dir))?;
     let images = Images {
         bios: dir.join("bios.img"),
         uefi: dir.join("uefi.img"),
@@ -40,16 +73,17 @@ fn publish_now() -> Result<Images, String> {
     Ok(images)
 }
 
-fn copy_if_changed(from: &Path, to: &Path) -> Result<(), String> {
-    let fresh = std::fs::read(from)
-        .map_err(|e| format!("cannot read the built image {}: {e}", from.display()))?;
+fn copy_if_changed(from: &Path, to: &Path) -> Result<(), PublishError> {
+    let fresh = std::fs::read(from).map_err(|error| PublishError::ReadBuilt {
+        path: from.to_owned(),
+        error: Arc::new(error),
+    })?;
     if std::fs::read(to).is_ok_and(|old| old == fresh) {
         return Ok(());
     }
     // Write then rename, so a concurrent reader (another test process) never
     // sees half an image.
     let partial = to.with_extension(format!("img.{}", std::process::id()));
-    std::fs::write(&partial, &fresh)
-        .map_err(|e| format!("cannot write {}: {e}", partial.display()))?;
-    std::fs::rename(&partial, to).map_err(|e| format!("cannot rename to {}: {e}", to.display()))
+    std::fs::write(&partial, &fresh).map_err(PublishError::write("write", &partial))?;
+    std::fs::rename(&partial, to).map_err(PublishError::write("rename to", to))
 }

@@ -7,9 +7,8 @@ pub mod image;
 pub mod images;
 pub mod qemu;
 pub mod usb;
-pub mod xwd;
 
-pub use image::RgbImage;
+pub use image::{ImageError, RgbImage};
 pub use qemu::{Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};
 
 /// The line the kernel prints on serial once its first picture is on screen

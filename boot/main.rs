@@ -1,8 +1,8 @@
 //! `cargo run --release -- [OPTIONS]`: builds the kernel and its disk images
 //! (cargo does that through the build script), then boots one in QEMU.
 
-use anyhow::Context;
 use boot::qemu::{self, Display, Firmware, Graphics, Qemu, QemuOptions};
+use boot::usb::UsbError;
 use boot::BootRequest;
 use clap::Parser;
 use std::path::{Path, PathBuf};
@@ -101,7 +101,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     } else {
         Firmware::Bios
     };
-    let images = boot::images::publish().map_err(anyhow::Error::msg)?;
+    let images = boot::images::publish()?;
     let image = match firmware {
         Firmware::Bios => images.bios,
         Firmware::Uefi => images.uefi,
@@ -140,7 +140,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
             // Let the last key's frame reach the screen.
             std::thread::sleep(args.wait);
             let picture = qemu.screendump()?;
-            picture.write_png(path).map_err(anyhow::Error::msg)?;
+            picture.write_png(path)?;
             println!(
                 "Saved a {}x{} screenshot to {}",
                 picture.width,
@@ -181,8 +181,16 @@ fn write_usb(image: &Path, device: &Path) -> anyhow::Result<ExitCode> {
             && (answer == device.to_string_lossy()
                 || Some(answer) == device.file_name().and_then(|name| name.to_str()))
     })
-    .map_err(anyhow::Error::msg)
-    .with_context(|| format!("nothing was written to {}", device.display()))?;
+    .map_err(|error| {
+        // "Nothing was written" only where it is true, and not twice where
+        // the error itself says so.
+        if error.device_untouched() && !matches!(error, UsbError::NotConfirmed { .. }) {
+            anyhow::Error::new(error)
+                .context(format!("nothing was written to {}", device.display()))
+        } else {
+            anyhow::Error::new(error)
+        }
+    })?;
     println!(
         "Wrote {written} bytes to {} and flushed it.",
         device.display()

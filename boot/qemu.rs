@@ -8,7 +8,7 @@
 //! events.) Dropping a `Qemu` kills the process, so no test can leave an
 //! emulator behind.
 
-use crate::image::RgbImage;
+use crate::image::{ImageError, RgbImage};
 use machine::protocol::{BootRequest, BOOT_OPTION_FILE};
 use serde_json::{json, Value};
 use std::io::{BufRead, BufReader, Read, Write};
@@ -162,6 +162,9 @@ pub enum QemuError {
     /// The QMP monitor refused a command or answered nonsense.
     #[error("{0}")]
     Monitor(String),
+    /// The picture QEMU's screendump wrote could not be read.
+    #[error("cannot read QEMU's screendump: {0}")]
+    Screendump(ImageError),
 }
 
 type Result<T> = std::result::Result<T, QemuError>;
@@ -369,7 +372,7 @@ impl Qemu {
                 "screendump wrote no file ({e}); QEMU said: {reply}"
             ))
         })?;
-        RgbImage::from_ppm(&bytes).map_err(QemuError::Monitor)
+        RgbImage::from_ppm(&bytes).map_err(QemuError::Screendump)
     }
 
     /// Waits for QEMU to exit by itself; `None` if it is still running.

@@ -6,7 +6,7 @@
 //! replace with a fake tree, so no test ever needs a real device.
 
 use std::fs::{self, File, OpenOptions};
-use std::io::{Read, Write};
+use std::io::{self, Read, Write};
 use std::os::unix::fs::{FileTypeExt, MetadataExt};
 use std::path::{Path, PathBuf};
 
@@ -14,11 +14,134 @@ use std::path::{Path, PathBuf};
 const SYSFS_SECTOR_BYTES: u64 = 512;
 const COPY_CHUNK_BYTES: usize = 4 << 20;
 
+/// Why the image was not written, or not all of it. Every variant but
+/// [`UsbError::Copy`], [`UsbError::Write`] and [`UsbError::Flush`] is found
+/// before a byte is written (see [`UsbError::device_untouched`]).
+#[derive(Debug, thiserror::Error)]
+pub enum UsbError {
+    /// The named device could not be looked at (it does not exist, say).
+    #[error("cannot look at {}: {error}", path.display())]
+    Inspect { path: PathBuf, error: io::Error },
+    /// The named path is a file, a directory or a character device.
+    #[error(
+        "{} is not a block device; name the USB stick's device, e.g. /dev/sdb \
+         (see `lsblk -o NAME,SIZE,RM,TRAN,MODEL`)",
+        path.display()
+    )]
+    NotBlockDevice { path: PathBuf },
+    /// sysfs has no disk with the device's number.
+    #[error(
+        "{} (device {number}) is not a disk the kernel lists in {}",
+        path.display(),
+        listing.display()
+    )]
+    NotListed {
+        path: PathBuf,
+        number: String,
+        listing: PathBuf,
+    },
+    /// A partition, where the image needs the whole disk.
+    #[error(
+        "{} is partition {partition} of disk {disk}: the image needs the whole disk, /dev/{disk}",
+        path.display()
+    )]
+    Partition {
+        path: PathBuf,
+        partition: String,
+        disk: String,
+    },
+    /// The kernel does not call the disk removable: perhaps a system disk.
+    #[error(
+        "{} ({name}) is not a removable disk (sysfs says removable={}): refusing to \
+         overwrite what may be a system disk",
+        path.display(),
+        if removable.is_empty() { "?" } else { removable }
+    )]
+    NotRemovable {
+        path: PathBuf,
+        name: String,
+        /// sysfs's `removable`, empty if it could not be read.
+        removable: String,
+    },
+    /// sysfs gave no size for the disk.
+    #[error("cannot read the size of {name} from sysfs")]
+    UnknownSize { name: String },
+    /// The disk's sysfs directory could not be listed.
+    #[error("cannot list {}: {error}", dir.display())]
+    ListSysfs { dir: PathBuf, error: io::Error },
+    /// Part of the disk is mounted, swapped to or held by another device.
+    #[error(
+        "/dev/{member} is {how}: unmount every partition of /dev/{disk} first \
+         (`lsblk -no MOUNTPOINTS /dev/{disk}` must print nothing)"
+    )]
+    InUse {
+        /// The disk or partition in use (`sdb1`).
+        member: String,
+        /// How: "mounted on /media/stick", "used as swap", "held by dm-0".
+        how: String,
+        disk: String,
+    },
+    /// The image could not be read.
+    #[error("cannot read the image {}: {error}", path.display())]
+    ReadImage { path: PathBuf, error: io::Error },
+    /// The disk is smaller than the image.
+    #[error(
+        "the image ({}) does not fit on {} ({})",
+        human_size(*image_bytes),
+        device.display(),
+        human_size(*disk_bytes)
+    )]
+    TooSmall {
+        device: PathBuf,
+        image_bytes: u64,
+        disk_bytes: u64,
+    },
+    /// The user did not confirm.
+    #[error("not confirmed: nothing was written to {}", device.display())]
+    NotConfirmed { device: PathBuf },
+    /// The device could not be opened for writing (permissions, usually).
+    #[error("cannot open {} for writing: {error}", device.display())]
+    OpenDevice { device: PathBuf, error: io::Error },
+    /// Reading the image failed during the copy: the device may hold part of it.
+    #[error(
+        "reading {} failed after {written} bytes were written to {}: {error}",
+        image.display(),
+        device.display()
+    )]
+    Copy {
+        image: PathBuf,
+        device: PathBuf,
+        written: u64,
+        error: io::Error,
+    },
+    /// Writing failed part of the way: the device holds part of the image.
+    #[error("writing {} failed after {written} bytes: {error}", device.display())]
+    Write {
+        device: PathBuf,
+        written: u64,
+        error: io::Error,
+    },
+    /// Everything was written but the device did not confirm it has it.
+    #[error("flushing {} failed: {error}", device.display())]
+    Flush { device: PathBuf, error: io::Error },
+}
+
+impl UsbError {
+    /// Whether the device is as it was: true of every refusal, false once
+    /// writing has begun.
+    pub fn device_untouched(&self) -> bool {
+        !matches!(
+            self,
+            UsbError::Copy { .. } | UsbError::Write { .. } | UsbError::Flush { .. }
+        )
+    }
+}
+
 /// Writes `image` to the whole removable disk `device` (e.g. `/dev/sdb`)
 /// after checking it and calling `confirm` with a description of what will
 /// be overwritten; returns the bytes written, flushed to the device.
 ///
-/// Refused, with a message saying why: anything that is not a block device,
+/// Refused, with an error saying why: anything that is not a block device,
 /// a partition rather than a whole disk, a disk the kernel does not report as
 /// removable, a disk with a partition mounted, used as swap or held by
 /// device-mapper, RAID or LVM, a disk smaller than the image, and an answer
@@ -27,7 +150,7 @@ pub fn write_image_to_usb(
     image: &Path,
     device: &Path,
     confirm: impl FnOnce(&str) -> bool,
-) -> Result<u64, String> {
+) -> Result<u64, UsbError> {
     let node = DeviceNode::inspect(device)?;
     write_checked(image, &node, &SystemRoots::live(), confirm)
 }
@@ -56,15 +179,15 @@ struct DeviceNode {
 }
 
 impl DeviceNode {
-    fn inspect(path: &Path) -> Result<Self, String> {
-        let metadata =
-            fs::metadata(path).map_err(|e| format!("cannot look at {}: {e}", path.display()))?;
+    fn inspect(path: &Path) -> Result<Self, UsbError> {
+        let metadata = fs::metadata(path).map_err(|error| UsbError::Inspect {
+            path: path.to_owned(),
+            error,
+        })?;
         if !metadata.file_type().is_block_device() {
-            return Err(format!(
-                "{} is not a block device; name the USB stick's device, e.g. /dev/sdb \
-                 (see `lsblk -o NAME,SIZE,RM,TRAN,MODEL`)",
-                path.display()
-            ));
+            return Err(UsbError::NotBlockDevice {
+                path: path.to_owned(),
+            });
         }
         Ok(DeviceNode {
             path: path.to_owned(),
@@ -92,45 +215,42 @@ struct Disk {
 
 impl Disk {
     /// The whole, removable disk behind `node`, or why not.
-    fn identify(node: &DeviceNode, roots: &SystemRoots) -> Result<Disk, String> {
-        let link = roots.sys.join("dev/block").join(&node.number);
-        let dir = fs::canonicalize(&link).map_err(|_| {
-            format!(
-                "{} (device {}) is not a disk the kernel lists in {}",
-                node.path.display(),
-                node.number,
-                roots.sys.join("dev/block").display()
-            )
-        })?;
+    fn identify(node: &DeviceNode, roots: &SystemRoots) -> Result<Disk, UsbError> {
+        let listing = roots.sys.join("dev/block");
+        let Ok(dir) = fs::canonicalize(listing.join(&node.number)) else {
+            return Err(UsbError::NotListed {
+                path: node.path.clone(),
+                number: node.number.clone(),
+                listing,
+            });
+        };
         let name = file_name(&dir);
         if dir.join("partition").exists() {
-            let disk = dir.parent().map(file_name).unwrap_or_default();
-            return Err(format!(
-                "{} is partition {name} of disk {disk}: the image needs the whole disk, /dev/{disk}",
-                node.path.display()
-            ));
+            return Err(UsbError::Partition {
+                path: node.path.clone(),
+                disk: dir.parent().map(file_name).unwrap_or_default(),
+                partition: name,
+            });
         }
         let removable = read_trimmed(&dir.join("removable")).unwrap_or_default();
         if removable != "1" {
-            return Err(format!(
-                "{} ({name}) is not a removable disk (sysfs says removable={}): refusing to \
-                 overwrite what may be a system disk",
-                node.path.display(),
-                if removable.is_empty() {
-                    "?"
-                } else {
-                    &removable
-                }
-            ));
+            return Err(UsbError::NotRemovable {
+                path: node.path.clone(),
+                name,
+                removable,
+            });
         }
-        let sectors: u64 = read_trimmed(&dir.join("size"))
-            .and_then(|s| s.parse().ok())
-            .ok_or_else(|| format!("cannot read the size of {name} from sysfs"))?;
+        let Some(sectors) = read_trimmed(&dir.join("size")).and_then(|s| s.parse::<u64>().ok())
+        else {
+            return Err(UsbError::UnknownSize { name });
+        };
         let mut members = vec![(name.clone(), node.number.clone())];
-        for entry in
-            fs::read_dir(&dir).map_err(|e| format!("cannot list {}: {e}", dir.display()))?
-        {
-            let partition = entry.map_err(|e| e.to_string())?.path();
+        let list_error = |error| UsbError::ListSysfs {
+            dir: dir.clone(),
+            error,
+        };
+        for entry in fs::read_dir(&dir).map_err(list_error)? {
+            let partition = entry.map_err(list_error)?.path();
             if partition.join("partition").exists() {
                 if let Some(number) = read_trimmed(&partition.join("dev")) {
                     members.push((file_name(&partition), number));
@@ -147,7 +267,7 @@ impl Disk {
 
     /// Refuses a disk any part of which is mounted, swapped to, or held by
     /// another block device (device-mapper, RAID, LVM).
-    fn ensure_unused(&self, roots: &SystemRoots) -> Result<(), String> {
+    fn ensure_unused(&self, roots: &SystemRoots) -> Result<(), UsbError> {
         // mountinfo's third field is the mounted filesystem's device number,
         // whatever name the mount was made by (/dev/disk/by-uuid/..., /dev/root).
         let mountinfo = fs::read_to_string(roots.proc.join("self/mountinfo")).unwrap_or_default();
@@ -155,7 +275,7 @@ impl Disk {
             let fields: Vec<&str> = line.split_whitespace().collect();
             if let (Some(number), Some(mount_point)) = (fields.get(2), fields.get(4)) {
                 if let Some((member, _)) = self.members.iter().find(|(_, n)| n == number) {
-                    return Err(self.in_use(member, &format!("mounted on {mount_point}")));
+                    return Err(self.in_use(member, format!("mounted on {mount_point}")));
                 }
             }
         }
@@ -178,7 +298,7 @@ impl Disk {
                         "mounts" => format!("{how} {}", rest.unwrap_or("?")),
                         _ => how.to_owned(),
                     };
-                    return Err(self.in_use(member, &what));
+                    return Err(self.in_use(member, what));
                 }
             }
         }
@@ -190,18 +310,18 @@ impl Disk {
             };
             if let Some(holder) = fs::read_dir(holders).ok().and_then(|mut d| d.next()) {
                 let holder = holder.map(|h| file_name(&h.path())).unwrap_or_default();
-                return Err(self.in_use(member, &format!("held by {holder}")));
+                return Err(self.in_use(member, format!("held by {holder}")));
             }
         }
         Ok(())
     }
 
-    fn in_use(&self, member: &str, how: &str) -> String {
-        format!(
-            "/dev/{member} is {how}: unmount every partition of /dev/{} first \
-             (`lsblk -no MOUNTPOINTS /dev/{}` must print nothing)",
-            self.name, self.name
-        )
+    fn in_use(&self, member: &str, how: String) -> UsbError {
+        UsbError::InUse {
+            member: member.to_owned(),
+            how,
+            disk: self.name.clone(),
+        }
     }
 
     /// What will be overwritten, for the confirmation.
@@ -235,59 +355,70 @@ fn write_checked(
     node: &DeviceNode,
     roots: &SystemRoots,
     confirm: impl FnOnce(&str) -> bool,
-) -> Result<u64, String> {
+) -> Result<u64, UsbError> {
     let disk = Disk::identify(node, roots)?;
     disk.ensure_unused(roots)?;
     let image_bytes = fs::metadata(image)
-        .map_err(|e| format!("cannot read the image {}: {e}", image.display()))?
+        .map_err(|error| UsbError::ReadImage {
+            path: image.to_owned(),
+            error,
+        })?
         .len();
     if image_bytes > disk.bytes {
-        return Err(format!(
-            "the image ({}) does not fit on {} ({})",
-            human_size(image_bytes),
-            node.path.display(),
-            human_size(disk.bytes)
-        ));
+        return Err(UsbError::TooSmall {
+            device: node.path.clone(),
+            image_bytes,
+            disk_bytes: disk.bytes,
+        });
     }
     if !confirm(&disk.describe(node, image, image_bytes)) {
-        return Err(format!(
-            "not confirmed: nothing was written to {}",
-            node.path.display()
-        ));
+        return Err(UsbError::NotConfirmed {
+            device: node.path.clone(),
+        });
     }
     copy_and_sync(image, &node.path)
 }
 
 /// Copies `image` to the start of `device` and waits until the device has it.
-fn copy_and_sync(image: &Path, device: &Path) -> Result<u64, String> {
-    let mut source =
-        File::open(image).map_err(|e| format!("cannot open {}: {e}", image.display()))?;
+fn copy_and_sync(image: &Path, device: &Path) -> Result<u64, UsbError> {
+    let mut source = File::open(image).map_err(|error| UsbError::ReadImage {
+        path: image.to_owned(),
+        error,
+    })?;
     // No create, no truncate: the device must exist, and a block device has
     // no length to cut.
     let mut target = OpenOptions::new()
         .write(true)
         .open(device)
-        .map_err(|e| format!("cannot open {} for writing: {e}", device.display()))?;
+        .map_err(|error| UsbError::OpenDevice {
+            device: device.to_owned(),
+            error,
+        })?;
     let mut chunk = vec![0; COPY_CHUNK_BYTES];
     let mut written = 0u64;
     loop {
-        let read = source
-            .read(&mut chunk)
-            .map_err(|e| format!("cannot read {}: {e}", image.display()))?;
+        let read = source.read(&mut chunk).map_err(|error| UsbError::Copy {
+            image: image.to_owned(),
+            device: device.to_owned(),
+            written,
+            error,
+        })?;
         if read == 0 {
             break;
         }
-        target.write_all(&chunk[..read]).map_err(|e| {
-            format!(
-                "writing {} failed after {written} bytes: {e}",
-                device.display()
-            )
-        })?;
+        target
+            .write_all(&chunk[..read])
+            .map_err(|error| UsbError::Write {
+                device: device.to_owned(),
+                written,
+                error,
+            })?;
         written += read as u64;
     }
-    target
-        .sync_all()
-        .map_err(|e| format!("flushing {} failed: {e}", device.display()))?;
+    target.sync_all().map_err(|error| UsbError::Flush {
+        device: device.to_owned(),
+        error,
+    })?;
     Ok(written)
 }
 
@@ -388,7 +519,7 @@ mod tests {
             }
         }
 
-        fn write(&self, confirm: impl FnOnce(&str) -> bool) -> Result<u64, String> {
+        fn write(&self, confirm: impl FnOnce(&str) -> bool) -> Result<u64, UsbError> {
             write_checked(&self.image, &self.node, &self.roots, confirm)
         }
 
@@ -412,7 +543,8 @@ mod tests {
         }
     }
 
-    fn refused(fixture: &Fixture) -> String {
+    /// The refusal, which must come before the question, with nothing written.
+    fn refused(fixture: &Fixture) -> UsbError {
         let mut asked = false;
         let error = fixture
             .write(|_| {
@@ -422,6 +554,10 @@ mod tests {
             .expect_err("must be refused");
         assert!(!asked, "refused only after asking: {error}");
         assert!(fixture.device_untouched(), "written although refused");
+        assert!(
+            error.device_untouched(),
+            "{error:?} says the device was written"
+        );
         error
     }
 
@@ -453,13 +589,19 @@ mod tests {
     fn declining_the_confirmation_writes_nothing() {
         let fixture = Fixture::new("1");
         let error = fixture.write(|_| false).unwrap_err();
-        assert!(error.contains("nothing was written"), "{error}");
+        assert!(matches!(error, UsbError::NotConfirmed { .. }), "{error:?}");
+        assert!(error.to_string().contains("nothing was written"), "{error}");
         assert!(fixture.device_untouched());
     }
 
     #[test]
     fn a_fixed_disk_is_refused() {
         let error = refused(&Fixture::new("0"));
+        assert!(
+            matches!(&error, UsbError::NotRemovable { removable, .. } if removable == "0"),
+            "{error:?}"
+        );
+        let error = error.to_string();
         assert!(error.contains("not a removable disk"), "{error}");
         assert!(error.contains("removable=0"), "{error}");
     }
@@ -469,6 +611,11 @@ mod tests {
         let mut fixture = Fixture::new("1");
         fixture.node.number = "8:17".into();
         let error = refused(&fixture);
+        assert!(
+            matches!(&error, UsbError::Partition { disk, .. } if disk == "sdb"),
+            "{error:?}"
+        );
+        let error = error.to_string();
         assert!(error.contains("partition sdb1 of disk sdb"), "{error}");
         assert!(error.contains("/dev/sdb"), "{error}");
     }
@@ -478,6 +625,11 @@ mod tests {
         let fixture = Fixture::new("1");
         fixture.append("mounts", "/dev/sdb1 /media/stick vfat rw 0 0\n");
         let error = refused(&fixture);
+        assert!(
+            matches!(&error, UsbError::InUse { member, .. } if member == "sdb1"),
+            "{error:?}"
+        );
+        let error = error.to_string();
         assert!(
             error.contains("/dev/sdb1 is mounted on /media/stick"),
             "{error}"
@@ -491,7 +643,7 @@ mod tests {
             "self/mountinfo",
             "40 22 8:17 / /media/stick rw - vfat /dev/disk/by-label/STICK rw\n",
         );
-        let error = refused(&fixture);
+        let error = refused(&fixture).to_string();
         assert!(
             error.contains("/dev/sdb1 is mounted on /media/stick"),
             "{error}"
@@ -505,14 +657,16 @@ mod tests {
             "self/mountinfo",
             "40 22 8:16 / /mnt rw - iso9660 /dev/sdb ro\n",
         );
-        assert!(refused(&fixture).contains("/dev/sdb is mounted on /mnt"));
+        let error = refused(&fixture).to_string();
+        assert!(error.contains("/dev/sdb is mounted on /mnt"), "{error}");
     }
 
     #[test]
     fn a_partition_used_as_swap_or_held_by_device_mapper_is_refused() {
         let fixture = Fixture::new("1");
         fixture.append("swaps", "/dev/sdb1 partition 1024 0 -2\n");
-        assert!(refused(&fixture).contains("used as swap"));
+        let error = refused(&fixture).to_string();
+        assert!(error.contains("used as swap"), "{error}");
 
         let fixture = Fixture::new("1");
         let holder = fixture
@@ -520,7 +674,8 @@ mod tests {
             .sys
             .join("devices/pci0000:00/usb1/block/sdb/sdb1/holders/dm-0");
         fs::create_dir_all(holder).unwrap();
-        assert!(refused(&fixture).contains("held by dm-0"));
+        let error = refused(&fixture).to_string();
+        assert!(error.contains("held by dm-0"), "{error}");
     }
 
     #[test]
@@ -531,14 +686,19 @@ mod tests {
             .sys
             .join("devices/pci0000:00/usb1/block/sdb/size");
         fs::write(sectors, "1024\n").unwrap(); // 512 KiB
-        assert!(refused(&fixture).contains("does not fit"));
+        let error = refused(&fixture);
+        assert!(matches!(error, UsbError::TooSmall { .. }), "{error:?}");
+        assert!(error.to_string().contains("does not fit"), "{error}");
     }
 
     #[test]
     fn a_device_sysfs_does_not_list_is_refused() {
         let mut fixture = Fixture::new("1");
         fixture.node.number = "8:32".into();
-        assert!(refused(&fixture).contains("not a disk the kernel lists"));
+        let error = refused(&fixture);
+        assert!(matches!(error, UsbError::NotListed { .. }), "{error:?}");
+        let error = error.to_string();
+        assert!(error.contains("not a disk the kernel lists"), "{error}");
     }
 
     #[test]
@@ -550,13 +710,21 @@ mod tests {
             Path::new("/"),
         ] {
             let error = write_image_to_usb(&fixture.image, path, |_| panic!("asked")).unwrap_err();
-            assert!(error.contains("is not a block device"), "{error}");
+            assert!(
+                matches!(error, UsbError::NotBlockDevice { .. }),
+                "{error:?}"
+            );
+            assert!(
+                error.to_string().contains("is not a block device"),
+                "{error}"
+            );
         }
         let error = write_image_to_usb(&fixture.image, &fixture.root.join("missing"), |_| {
             panic!("asked")
         })
         .unwrap_err();
-        assert!(error.contains("cannot look at"), "{error}");
+        assert!(matches!(error, UsbError::Inspect { .. }), "{error:?}");
+        assert!(error.to_string().contains("cannot look at"), "{error}");
     }
 
     #[test]

@@ -98,7 +98,7 @@ fn mode_x_mismatch(shown: &RgbImage, expected: &RgbImage) -> Option<String> {
             differences.len(),
             &differences[..differences.len().min(5)]
         )),
-        Err(e) => Some(e),
+        Err(e) => Some(e.to_string()),
     }
 }
 

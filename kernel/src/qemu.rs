@@ -4,6 +4,7 @@
 //! Both are probed only when CPUID says a hypervisor is present, so on a real PC
 //! not one of these ports is touched.
 
+use machine::fw_cfg;
 use x86_64::instructions::port::Port;
 
 /// `-device isa-debug-exit,iobase=0xf4,iosize=0x04`: QEMU exits with
@@ -36,56 +37,31 @@ pub fn hypervisor_present() -> bool {
 
 const FW_CFG_SELECTOR: u16 = 0x510;
 const FW_CFG_DATA: u16 = 0x511;
-const FW_CFG_SIGNATURE: u16 = 0x0000;
-const FW_CFG_FILE_DIR: u16 = 0x0019;
-const FILE_NAME_LEN: usize = 56;
-const BOOT_OPTION_FILE: &[u8] = machine::protocol::BOOT_OPTION_FILE.as_bytes();
 
-/// The boot option given on the QEMU command line, copied into `buffer`.
+/// The boot option given on the QEMU command line, copied into `buffer`
+/// (`machine::fw_cfg` reads the file directory; this supplies the ports).
 pub fn boot_option(buffer: &mut [u8; 64]) -> Option<&str> {
     if !hypervisor_present() {
         return None;
     }
-    let mut fw_cfg = FwCfg::new();
-    fw_cfg.select(FW_CFG_SIGNATURE);
-    if fw_cfg.read_array::<4>() != *b"QEMU" {
-        return None;
-    }
-    fw_cfg.select(FW_CFG_FILE_DIR);
-    let count = u32::from_be_bytes(fw_cfg.read_array());
-    for _ in 0..count {
-        let size = u32::from_be_bytes(fw_cfg.read_array()) as usize;
-        let select = u16::from_be_bytes(fw_cfg.read_array());
-        let _reserved: [u8; 2] = fw_cfg.read_array();
-        let name: [u8; FILE_NAME_LEN] = fw_cfg.read_array();
-        let name_len = name.iter().position(|&b| b == 0).unwrap_or(FILE_NAME_LEN);
-        if &name[..name_len] == BOOT_OPTION_FILE {
-            fw_cfg.select(select);
-            let len = size.min(buffer.len());
-            for byte in &mut buffer[..len] {
-                *byte = fw_cfg.read_byte();
-            }
-            return core::str::from_utf8(&buffer[..len])
-                .ok()
-                .map(|s| s.trim_end_matches('\0').trim());
-        }
-    }
-    None
+    fw_cfg::boot_option(&mut FwCfgPorts::new(), buffer)
 }
 
-struct FwCfg {
+struct FwCfgPorts {
     selector: Port<u16>,
     data: Port<u8>,
 }
 
-impl FwCfg {
+impl FwCfgPorts {
     fn new() -> Self {
-        FwCfg {
+        FwCfgPorts {
             selector: Port::new(FW_CFG_SELECTOR),
             data: Port::new(FW_CFG_DATA),
         }
     }
+}
 
+impl fw_cfg::FwCfg for FwCfgPorts {
     fn select(&mut self, key: u16) {
         // SAFETY: only reached under a hypervisor, where 0x510 is QEMU's fw_cfg
         // selector (or unassigned).
@@ -96,13 +72,5 @@ impl FwCfg {
         // SAFETY: as for `select`; reading fw_cfg data has no side effect but
         // advancing its offset.
         unsafe { self.data.read() }
-    }
-
-    fn read_array<const N: usize>(&mut self) -> [u8; N] {
-        let mut bytes = [0; N];
-        for byte in &mut bytes {
-            *byte = self.read_byte();
-        }
-        bytes
     }
 }

@@ -1,7 +1,8 @@
 //! The kernel's logic that needs no hardware, so that the host can test it:
 //! the arithmetic that calibrates the time-stamp counter against the PIT, the
-//! bookkeeping that counts missed vertical retraces, and telling from the
-//! memory map which firmware booted the machine.
+//! bookkeeping that counts missed vertical retraces, telling from the
+//! memory map which firmware booted the machine, and finding the boot option
+//! in QEMU's fw_cfg file directory.
 //!
 //! The kernel supplies the readings (port reads, `rdtsc`); everything that
 //! decides what those readings mean lives here.
@@ -30,5 +31,6 @@ extern crate std;
 
 pub mod calibration;
 pub mod firmware;
+pub mod fw_cfg;
 pub mod pacing;
 pub mod protocol;

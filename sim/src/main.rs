@@ -11,6 +11,7 @@ use std::io::BufWriter;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::Context;
 use clap::Parser;
 use sim::keys::parse_keys;
 use sim::record::{record_gif, Script};
@@ -67,20 +68,22 @@ fn main() -> ExitCode {
             scale: args.scale as usize,
             inspect: args.inspect,
             script,
-        }),
+        })
+        .map_err(anyhow::Error::new),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            eprintln!("error: {message}");
+        Err(error) => {
+            eprintln!("error: {error:#}");
             ExitCode::FAILURE
         }
     }
 }
 
-fn record(path: &PathBuf, script: &Script, args: &Args) -> Result<(), String> {
-    let file = File::create(path).map_err(|e| format!("cannot create {}: {e}", path.display()))?;
-    let recorded = record_gif(script, args.frames, args.every, BufWriter::new(file))?;
+fn record(path: &PathBuf, script: &Script, args: &Args) -> anyhow::Result<()> {
+    let file = File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    let recorded = record_gif(script, args.frames, args.every, BufWriter::new(file))
+        .with_context(|| format!("recording {}", path.display()))?;
     let bytes = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     println!(
         "Wrote {} ({} bytes): {} images of 320x240, one every {} of {} frames run, {} cs apart",

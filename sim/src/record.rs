@@ -17,6 +17,25 @@ const HEIGHT: usize = SCREEN_HEIGHT as usize;
 /// GIF delays count hundredths of a second.
 const NANOS_PER_CENTISECOND: u64 = 10_000_000;
 
+/// Why no GIF, or only part of one, was written.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The GIF's header could not be written.
+    #[error("starting the GIF: {0}")]
+    Start(gif::EncodingError),
+    /// An image could not be written (the disk is full, say).
+    #[error("writing the GIF: {0}")]
+    Write(gif::EncodingError),
+    /// The run ended (Esc) before the first frame that is kept.
+    #[error("no frame recorded: {frames_run} frames run, one in {every} kept")]
+    NothingRecorded {
+        /// Frames the demo ran.
+        frames_run: u32,
+        /// One frame kept in this many.
+        every: u32,
+    },
+}
+
 /// Keys typed into a run, one every `key_every` frames from the first.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Script {
@@ -81,7 +100,7 @@ pub fn record_gif(
     frames: u32,
     every: u32,
     out: impl Write,
-) -> Result<Recorded, String> {
+) -> Result<Recorded, RecordError> {
     let mut encoder: Option<Encoder<_>> = None;
     let mut out = Some(out);
     let mut previous: Option<(Vec<u8>, Vec<u8>)> = None;
@@ -104,9 +123,7 @@ pub fn record_gif(
         .and_then(|()| {
             let encoder = encoder.as_mut().expect("started above");
             let image = changed_image(&indices, &palette, previous.as_ref(), delay);
-            encoder
-                .write_frame(&image)
-                .map_err(|e| format!("writing the GIF: {e}"))
+            encoder.write_frame(&image).map_err(RecordError::Write)
         });
         match result {
             Ok(()) => {
@@ -120,9 +137,7 @@ pub fn record_gif(
         return Err(failure);
     }
     if images == 0 {
-        return Err(format!(
-            "no frame recorded: {frames_run} frames run, one in {every} kept"
-        ));
+        return Err(RecordError::NothingRecorded { frames_run, every });
     }
     Ok(Recorded {
         frames_run,
@@ -131,12 +146,12 @@ pub fn record_gif(
     })
 }
 
-fn start<W: Write>(out: W, palette: &[u8]) -> Result<Encoder<W>, String> {
-    let mut encoder = Encoder::new(out, WIDTH as u16, HEIGHT as u16, palette)
-        .map_err(|e| format!("starting the GIF: {e}"))?;
+fn start<W: Write>(out: W, palette: &[u8]) -> Result<Encoder<W>, RecordError> {
+    let mut encoder =
+        Encoder::new(out, WIDTH as u16, HEIGHT as u16, palette).map_err(RecordError::Start)?;
     encoder
         .set_repeat(Repeat::Infinite)
-        .map_err(|e| format!("starting the GIF: {e}"))?;
+        .map_err(RecordError::Start)?;
     Ok(encoder)
 }
 
@@ -225,5 +240,61 @@ mod tests {
             key_every: 5,
         };
         assert_eq!(run_script(&script, 100, |_, _| {}), 5);
+    }
+
+    #[test]
+    fn a_run_that_keeps_no_frame_is_an_error() {
+        let script = Script {
+            keys: crate::keys::parse_keys("esc").unwrap(),
+            key_every: 1,
+        };
+        let error = record_gif(&script, 10, 2, Vec::new()).unwrap_err();
+        assert!(
+            matches!(
+                error,
+                RecordError::NothingRecorded {
+                    frames_run: 0,
+                    every: 2
+                }
+            ),
+            "{error:?}"
+        );
+    }
+
+    /// A writer that takes `room` bytes, then fails as a full disk does.
+    struct Full {
+        room: usize,
+    }
+
+    impl Write for Full {
+        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+            if self.room == 0 {
+                return Err(std::io::Error::from(std::io::ErrorKind::StorageFull));
+            }
+            let taken = bytes.len().min(self.room);
+            self.room -= taken;
+            Ok(taken)
+        }
+
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_writer_that_fails_stops_the_recording_with_the_step_named() {
+        let script = Script {
+            keys: Vec::new(),
+            key_every: 1,
+        };
+        let error = record_gif(&script, 4, 1, Full { room: 0 }).unwrap_err();
+        assert!(matches!(error, RecordError::Start(_)), "{error:?}");
+        // Room for the header and the global palette, not for the first image.
+        let error = record_gif(&script, 4, 1, Full { room: 1024 }).unwrap_err();
+        assert!(matches!(error, RecordError::Write(_)), "{error:?}");
+        assert!(
+            error.to_string().starts_with("writing the GIF: "),
+            "{error}"
+        );
     }
 }

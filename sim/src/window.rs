@@ -70,10 +70,27 @@ fn has_display() -> bool {
 const NO_WINDOW_HINT: &str = "record the demo without a window instead, e.g.\n  \
      cargo run --release -p sim -- --record cube.gif --frames 240";
 
-fn open(scale: usize, inspect: bool, queue: &Arc<ScancodeQueue>) -> Result<Window, String> {
+/// Why the window could not be shown; the first two say to use `--record`.
+#[derive(Debug, thiserror::Error)]
+pub enum WindowError {
+    /// Neither $DISPLAY nor $WAYLAND_DISPLAY is set.
+    #[error(
+        "no display: $DISPLAY and $WAYLAND_DISPLAY are unset, so there is no window to open; \
+         {NO_WINDOW_HINT}"
+    )]
+    NoDisplay,
+    /// A display is set but the window did not open on it.
+    #[error("the window did not open ({0:?}); {NO_WINDOW_HINT}")]
+    Open(minifb::Error),
+    /// The window refused a picture.
+    #[error("the window did not take the picture: {0}")]
+    Update(minifb::Error),
+}
+
+fn open(scale: usize, inspect: bool, queue: &Arc<ScancodeQueue>) -> Result<Window, WindowError> {
     let (width, height) = window_size(scale, inspect.then_some(PANEL_WIDTH));
-    let mut window = Window::new(TITLE, width, height, WindowOptions::default())
-        .map_err(|e| format!("the window did not open ({e:?}); {NO_WINDOW_HINT}"))?;
+    let mut window =
+        Window::new(TITLE, width, height, WindowOptions::default()).map_err(WindowError::Open)?;
     window.set_input_callback(Box::new(Keyboard(Arc::clone(queue))));
     // The frame loop paces itself by the model's refresh rate.
     window.set_target_fps(0);
@@ -155,12 +172,9 @@ impl KeyReader {
 }
 
 /// Runs the demo in a window until Esc or the window is closed.
-pub fn run(options: &Options) -> Result<(), String> {
+pub fn run(options: &Options) -> Result<(), WindowError> {
     if !has_display() {
-        return Err(format!(
-            "no display: $DISPLAY and $WAYLAND_DISPLAY are unset, so there is no window to open; \
-             {NO_WINDOW_HINT}"
-        ));
+        return Err(WindowError::NoDisplay);
     }
     let queue = Arc::new(ScancodeQueue::new());
     let mut inspect = options.inspect;
@@ -198,7 +212,7 @@ pub fn run(options: &Options) -> Result<(), String> {
         let pixels = compose(&machine.scanout_rgb(), options.scale, panel.as_ref());
         window
             .update_with_buffer(&pixels, width, height)
-            .map_err(|e| format!("the window did not take the picture: {e}"))?;
+            .map_err(WindowError::Update)?;
         reports.frame_presented();
         if new_window {
             new_window = false;

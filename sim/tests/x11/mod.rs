@@ -1,115 +1,56 @@
-//! What the window tests need from X: a virtual X server (`Xvfb`) of their
-//! own, the simulator running in it, keys typed with `xdotool`, and the
-//! window's picture captured with `xwd` and read here (XWD is a simple format).
+//! What the window tests need from X: a virtual X server of their own with
+//! the simulator running in it, keys typed with `xdotool` and the window's
+//! picture captured with `xwd`; the X parts are the `xvfb` crate's, which
+//! the Bochs tests use too.
 
-use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::mpsc::{channel, Receiver, RecvTimeoutError};
-use std::thread;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::{Duration, Instant};
+use xvfb::Xvfb;
 
-const TOOLS: [&str; 3] = ["Xvfb", "xdotool", "xwd"];
+/// Room for the simulator's widest window (1040x480 with the inspector): a
+/// window must fit on the screen to be captured.
+const SCREEN: (u32, u32) = (1280, 1024);
 
-/// Fails (never skips) when a tool is missing, saying how to get it.
-fn require_tools() {
-    let path = std::env::var_os("PATH").unwrap_or_default();
-    for tool in TOOLS {
-        let found = std::env::split_paths(&path).any(|dir| dir.join(tool).is_file());
-        assert!(
-            found,
-            "{tool} is not installed: boot/setup.sh installs it \
-             (apt packages xvfb xdotool x11-apps)"
-        );
-    }
-}
-
-/// The lines a child prints on stdout, read by a thread as they come.
-fn line_reader(stdout: impl Read + Send + 'static) -> Receiver<String> {
-    let (sender, receiver) = channel();
-    thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().map_while(Result::ok) {
-            if sender.send(line).is_err() {
-                break;
-            }
-        }
-    });
-    receiver
-}
-
-/// A private X server on a display number it picks itself (`-displayfd`
-/// tells the number once the server is ready for clients).
-pub struct VirtualDisplay {
-    server: Child,
-    /// `:N`
-    pub name: String,
-}
+/// A private X server; fails (never skips) when a tool is missing, saying
+/// how to get it.
+pub struct VirtualDisplay(Xvfb);
 
 impl VirtualDisplay {
     pub fn start(timeout: Duration) -> Self {
-        require_tools();
-        let mut server = Command::new("Xvfb")
-            .args([
-                "-displayfd",
-                "1",
-                "-screen",
-                "0",
-                "1280x1024x24",
-                "-nolisten",
-                "tcp",
-            ])
-            .stdin(Stdio::null())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("Xvfb did not start");
-        let lines = line_reader(server.stdout.take().unwrap());
-        let number = match lines.recv_timeout(timeout) {
-            Ok(number) => number,
-            Err(e) => {
-                let _ = server.kill();
-                panic!("Xvfb did not report its display number: {e}");
-            }
-        };
-        VirtualDisplay {
-            server,
-            name: format!(":{}", number.trim()),
-        }
+        VirtualDisplay(Xvfb::start(SCREEN, timeout).unwrap_or_else(|e| panic!("{e}")))
     }
 
-    fn run(&self, program: &str, args: &[&str]) -> Vec<u8> {
-        let output = Command::new(program)
-            .args(args)
-            .env("DISPLAY", &self.name)
-            .stdin(Stdio::null())
-            .output()
-            .unwrap_or_else(|e| panic!("{program} did not run: {e}"));
-        assert!(
-            output.status.success(),
-            "{program} {args:?} failed: {}",
-            String::from_utf8_lossy(&output.stderr)
-        );
-        output.stdout
+    /// `:N`
+    pub fn name(&self) -> &str {
+        self.0.display()
     }
 
     /// Gives the window the keyboard and types one key (an X keysym name),
     /// both from one client, so the server sees them in that order.
     pub fn type_key(&self, window: u64, keysym: &str) {
         let id = window.to_string();
-        self.run("xdotool", &["windowfocus", &id, "key", keysym]);
+        self.0
+            .run("xdotool", &["windowfocus", &id, "key", keysym])
+            .unwrap_or_else(|e| panic!("{e}"));
     }
 
     /// The window's picture as the X server holds it.
     pub fn capture(&self, window: u64) -> Picture {
-        let id = format!("0x{window:x}");
-        Picture::from_xwd(&self.run("xwd", &["-silent", "-id", &id]))
-    }
-}
-
-impl Drop for VirtualDisplay {
-    fn drop(&mut self) {
-        let _ = self.server.kill();
-        let _ = self.server.wait();
+        let image = self
+            .0
+            .capture(&format!("0x{window:x}"))
+            .unwrap_or_else(|e| panic!("{e}"));
+        Picture {
+            width: image.width,
+            height: image.height,
+            pixels: image
+                .pixels
+                .iter()
+                .map(|&[r, g, b]| u32::from_be_bytes([0, r, g, b]))
+                .collect(),
+        }
     }
 }
 
@@ -146,13 +87,13 @@ impl Simulator {
     pub fn start(display: &VirtualDisplay, args: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_sim"))
             .args(args)
-            .env("DISPLAY", &display.name)
+            .env("DISPLAY", display.name())
             .env_remove("WAYLAND_DISPLAY")
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .spawn()
             .expect("the simulator did not start");
-        let lines = line_reader(child.stdout.take().unwrap());
+        let lines = xvfb::lines(child.stdout.take().unwrap());
         Simulator {
             child,
             lines,
@@ -246,63 +187,7 @@ pub struct Picture {
     pub pixels: Vec<u32>,
 }
 
-/// Reads a big-endian 32-bit header field.
-fn field(bytes: &[u8], index: usize) -> u32 {
-    u32::from_be_bytes(bytes[index * 4..index * 4 + 4].try_into().unwrap())
-}
-
-// XWD header fields (X11 XWDFile.h), each a big-endian CARD32.
-const HEADER_SIZE: usize = 0;
-const PIXMAP_FORMAT: usize = 2;
-const WIDTH: usize = 4;
-const HEIGHT: usize = 5;
-const BYTE_ORDER: usize = 7;
-const BITS_PER_PIXEL: usize = 11;
-const BYTES_PER_LINE: usize = 12;
-const RED_MASK: usize = 14;
-const GREEN_MASK: usize = 15;
-const BLUE_MASK: usize = 16;
-const COLORMAP_ENTRIES: usize = 19;
-const XWD_COLOR_BYTES: usize = 12;
-const Z_PIXMAP: u32 = 2;
-const LSB_FIRST: u32 = 0;
-
 impl Picture {
-    /// A 32-bit TrueColor ZPixmap dump, as `xwd` writes one of a 24-bit
-    /// Xvfb screen.
-    pub fn from_xwd(bytes: &[u8]) -> Self {
-        assert!(bytes.len() >= 100, "xwd wrote {} bytes", bytes.len());
-        assert_eq!(field(bytes, PIXMAP_FORMAT), Z_PIXMAP, "not a ZPixmap dump");
-        assert_eq!(field(bytes, BITS_PER_PIXEL), 32, "not 32 bits per pixel");
-        let width = field(bytes, WIDTH) as usize;
-        let height = field(bytes, HEIGHT) as usize;
-        let stride = field(bytes, BYTES_PER_LINE) as usize;
-        let data_start = field(bytes, HEADER_SIZE) as usize
-            + field(bytes, COLORMAP_ENTRIES) as usize * XWD_COLOR_BYTES;
-        let masks = [RED_MASK, GREEN_MASK, BLUE_MASK].map(|index| field(bytes, index));
-        let little_endian = field(bytes, BYTE_ORDER) == LSB_FIRST;
-        let data = &bytes[data_start..];
-        assert!(data.len() >= stride * height, "the dump is cut short");
-        let mut pixels = Vec::with_capacity(width * height);
-        for y in 0..height {
-            for x in 0..width {
-                let raw: [u8; 4] = data[y * stride + x * 4..][..4].try_into().unwrap();
-                let value = if little_endian {
-                    u32::from_le_bytes(raw)
-                } else {
-                    u32::from_be_bytes(raw)
-                };
-                let [r, g, b] = masks.map(|mask| (value & mask) >> mask.trailing_zeros());
-                pixels.push(r << 16 | g << 8 | b);
-            }
-        }
-        Picture {
-            width,
-            height,
-            pixels,
-        }
-    }
-
     /// The leftmost `columns` columns.
     pub fn left(&self, columns: usize) -> Picture {
         Picture {

@@ -1,5 +1,5 @@
 //! X Window Dump files, as `xwd -id WINDOW` writes them, read into an
-//! [`RgbImage`]: how the Bochs tests see Bochs's window.
+//! [`Image`]: how the tests see a window.
 //!
 //! The format (X11's `XWDFile.h`): a header of 25 big-endian 32-bit fields,
 //! the window's name, `ncolors` colour entries of 12 bytes, then the pixels in
@@ -7,7 +7,49 @@
 //! header's `byte_order`. `xwd` writes the header and colours big-endian
 //! whatever the host; only the pixels keep the X server's byte order.
 
-use crate::image::RgbImage;
+/// A picture read from an XWD file.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Image {
+    /// Pixels a row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Row-major, red, green and blue a pixel.
+    pub pixels: Vec<[u8; 3]>,
+}
+
+/// Why an XWD file could not be read.
+#[derive(Debug, thiserror::Error)]
+pub enum XwdError {
+    /// Shorter than the fixed part of the header.
+    #[error("XWD header is truncated")]
+    HeaderTruncated,
+    /// Another version of the format, or an XY (plane by plane) pixmap.
+    #[error("not a version-7 Z-pixmap XWD (version {version}, format {format})")]
+    NotVersion7ZPixmap {
+        /// `file_version`.
+        version: u32,
+        /// `pixmap_format`.
+        format: u32,
+    },
+    /// A pixel size other than 8, 16, 24 or 32 bits.
+    #[error("XWD with {0} bits a pixel")]
+    BitsPerPixel(usize),
+    /// `bytes_per_line` is less than a row of pixels takes.
+    #[error("XWD rows of {bytes_per_line} bytes hold no {width} pixels")]
+    ShortRows {
+        /// `bytes_per_line`.
+        bytes_per_line: usize,
+        /// `pixmap_width`.
+        width: usize,
+    },
+    /// The file ends inside the colour map.
+    #[error("XWD colour map is truncated")]
+    ColourMapTruncated,
+    /// The file ends before the last row of pixels.
+    #[error("XWD pixels are truncated")]
+    PixelsTruncated,
+}
 
 const HEADER_FIELDS: usize = 25;
 const HEADER_BYTES: usize = HEADER_FIELDS * 4;
@@ -39,10 +81,10 @@ mod field {
 }
 
 /// Parses an XWD file of a Z-format pixmap of 8, 16, 24 or 32 bits a pixel.
-pub fn parse(bytes: &[u8]) -> Result<RgbImage, String> {
+pub fn parse(bytes: &[u8]) -> Result<Image, XwdError> {
     let header: Vec<u32> = bytes
         .get(..HEADER_BYTES)
-        .ok_or("XWD header is truncated")?
+        .ok_or(XwdError::HeaderTruncated)?
         .as_chunks::<4>()
         .0
         .iter()
@@ -50,34 +92,41 @@ pub fn parse(bytes: &[u8]) -> Result<RgbImage, String> {
         .collect();
     let value = |i: usize| header[i] as usize;
     if header[field::FILE_VERSION] != FILE_VERSION || header[field::PIXMAP_FORMAT] != Z_PIXMAP {
-        return Err(format!(
-            "not a version-7 Z-pixmap XWD (version {}, format {})",
-            header[field::FILE_VERSION],
-            header[field::PIXMAP_FORMAT]
-        ));
+        return Err(XwdError::NotVersion7ZPixmap {
+            version: header[field::FILE_VERSION],
+            format: header[field::PIXMAP_FORMAT],
+        });
     }
     let (width, height) = (value(field::PIXMAP_WIDTH), value(field::PIXMAP_HEIGHT));
     let bits_per_pixel = value(field::BITS_PER_PIXEL);
     if ![8, 16, 24, 32].contains(&bits_per_pixel) {
-        return Err(format!("XWD with {bits_per_pixel} bits a pixel"));
+        return Err(XwdError::BitsPerPixel(bits_per_pixel));
     }
     let bytes_per_pixel = bits_per_pixel / 8;
     let bytes_per_line = value(field::BYTES_PER_LINE);
     if bytes_per_line < width * bytes_per_pixel {
-        return Err(format!(
-            "XWD rows of {bytes_per_line} bytes hold no {width} pixels"
-        ));
+        return Err(XwdError::ShortRows {
+            bytes_per_line,
+            width,
+        });
     }
 
     let colours_at = value(field::HEADER_SIZE);
     let colour_count = value(field::NCOLORS);
-    let pixels_at = colours_at + colour_count * COLOUR_BYTES;
+    // Checked: the sizes come from the file, and a nonsense header must be
+    // an error, not an overflow.
+    let pixels_at = colour_count
+        .checked_mul(COLOUR_BYTES)
+        .and_then(|colours| colours.checked_add(colours_at))
+        .ok_or(XwdError::ColourMapTruncated)?;
     let colour_map = bytes
         .get(colours_at..pixels_at)
-        .ok_or("XWD colour map is truncated")?;
-    let raster = bytes
-        .get(pixels_at..pixels_at + bytes_per_line * height)
-        .ok_or("XWD pixels are truncated")?;
+        .ok_or(XwdError::ColourMapTruncated)?;
+    let raster = bytes_per_line
+        .checked_mul(height)
+        .and_then(|raster| raster.checked_add(pixels_at))
+        .and_then(|end| bytes.get(pixels_at..end))
+        .ok_or(XwdError::PixelsTruncated)?;
 
     let decode: Box<dyn Fn(u32) -> [u8; 3]> = match header[field::VISUAL_CLASS] {
         TRUE_COLOR | DIRECT_COLOR => {
@@ -112,7 +161,11 @@ pub fn parse(bytes: &[u8]) -> Result<RgbImage, String> {
             pixels.push(decode(pixel));
         }
     }
-    Ok(RgbImage::new(width, height, pixels))
+    Ok(Image {
+        width,
+        height,
+        pixels,
+    })
 }
 
 /// One colour component under `mask`, widened to 8 bits. With the usual
@@ -208,10 +261,22 @@ mod tests {
     #[test]
     fn truncated_or_foreign_files_are_errors() {
         let file = true_colour_xwd(2, &[0; 4], 8, true);
-        assert!(parse(&file[..file.len() - 1]).is_err());
-        assert!(parse(&file[..50]).is_err());
+        assert!(matches!(
+            parse(&file[..file.len() - 1]),
+            Err(XwdError::PixelsTruncated)
+        ));
+        assert!(matches!(parse(&file[..50]), Err(XwdError::HeaderTruncated)));
         let mut version_6 = file.clone();
         version_6[7] = 6;
-        assert!(parse(&version_6).is_err());
+        assert!(matches!(
+            parse(&version_6),
+            Err(XwdError::NotVersion7ZPixmap {
+                version: 6,
+                format: Z_PIXMAP
+            })
+        ));
+        let mut huge_colour_map = file.clone();
+        huge_colour_map[field::NCOLORS * 4..][..4].copy_from_slice(&u32::MAX.to_be_bytes());
+        assert!(parse(&huge_colour_map).is_err());
     }
 }
