@@ -2,7 +2,7 @@
 //!
 //! `cargo bench --bench bus_cost` renders a fixed set of frames — a 360-frame
 //! spin, then moved, zoomed and partly off-screen states — three ways: our
-//! renderer, the seed's method (erase the last extent, fill every visible face
+//! renderer, Abrash's method (erase the last extent, fill every visible face
 //! with Map Mask spans) and per-pixel drawing with a Map Mask OUT per pixel.
 //! Per frame it counts the bus operations of drawing (flips excluded: they
 //! cost the same for all three) and the lower bound on video-memory writes:
@@ -14,7 +14,7 @@
 //! paint far to near, which is wrong there): solids passing through each
 //! other, and the crowd of many solids. The last line is machine-readable.
 
-use demo::baseline::{PerPixel, SeedMethod};
+use demo::baseline::{PerPixel, OriginalMethod};
 use demo::frame::{render_painter, render_to_image, FrameDrawer, Renderer};
 use demo::scene::{Axis, Scene, SceneCommand, Sense};
 use modex::soft::{BusCounts, SoftVga};
@@ -194,9 +194,9 @@ struct Outcome {
     /// All our bus operations over the full bound (video-memory lower bound
     /// plus the distinct Map Mask values each frame needs).
     bus_over_full_bound: f64,
-    /// Per-pixel's and the seed method's bus operations over ours, when run.
+    /// Per-pixel's and Abrash's method's bus operations over ours, when run.
     vs_per_pixel: f64,
-    vs_seed: f64,
+    vs_original: f64,
 }
 
 /// Runs our renderer — and, with `baselines`, the two other methods, which
@@ -213,14 +213,14 @@ fn compare(title: &str, frames: &[Option<SceneCommand>], baselines: bool) -> Out
         "method", "vram writes", "port writes", "port reads", "vram reads", "bus ops", "host µs"
     );
     report("ours (changes only)", &ours, frames.len());
-    let (mut vs_per_pixel, mut vs_seed) = (f64::NAN, f64::NAN);
+    let (mut vs_per_pixel, mut vs_original) = (f64::NAN, f64::NAN);
     if baselines {
-        let (seed, _, _) = run(SeedMethod::default(), frames, false);
+        let (original, _, _) = run(OriginalMethod::default(), frames, false);
         let (per_pixel, _, _) = run(PerPixel::default(), frames, false);
-        report("seed method (b)", &seed, frames.len());
+        report("Abrash's method (b)", &original, frames.len());
         report("per-pixel (a)", &per_pixel, frames.len());
         vs_per_pixel = per_pixel.bus_ops() as f64 / ours.bus_ops() as f64;
-        vs_seed = seed.bus_ops() as f64 / ours.bus_ops() as f64;
+        vs_original = original.bus_ops() as f64 / ours.bus_ops() as f64;
     }
     let per = |n: u64| n as f64 / frames.len() as f64;
     println!("{:<22} {:>12.1}", "lower bound (vram)", per(bound));
@@ -236,7 +236,7 @@ fn compare(title: &str, frames: &[Option<SceneCommand>], baselines: bool) -> Out
         vram_over_bound: ours.counts.vram_writes as f64 / bound as f64,
         bus_over_full_bound: ours.bus_ops() as f64 / full_bound as f64,
         vs_per_pixel,
-        vs_seed,
+        vs_original,
     }
 }
 
@@ -281,11 +281,11 @@ fn main() {
         cube.vram_over_bound,
         cube.bus_over_full_bound,
         cube.vs_per_pixel,
-        cube.vs_seed,
+        cube.vs_original,
         extras.vram_over_bound,
         extras.bus_over_full_bound,
         extras.vs_per_pixel,
-        extras.vs_seed,
+        extras.vs_original,
         through.vram_over_bound,
         through.bus_over_full_bound,
         crowd.vram_over_bound,

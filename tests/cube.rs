@@ -152,7 +152,7 @@ fn pause_waits_for_a_key_and_escape_quits() {
     app.apply(Command::Scene(SceneCommand::Reset));
     assert!(app.step(&mut ModeX::new(&mut *soft), &|| 0u64).is_some());
     app.apply(Command::Pause);
-    app.apply(Command::Scene(SceneCommand::MoveLeft)); // consumed by the pause, as the seed's getch()
+    app.apply(Command::Scene(SceneCommand::MoveLeft)); // consumed by the pause, as Abrash's getch()
     assert!(app.step(&mut ModeX::new(&mut *soft), &|| 0u64).is_none());
     assert_eq!(
         app.scene().primary().object_to_world(),

@@ -109,7 +109,7 @@ impl App {
         }
     }
 
-    /// The seed's rules: while paused, the next key only resumes.
+    /// Abrash's rules: while paused, the next key only resumes.
     pub fn apply(&mut self, command: Command) {
         self.commands += 1;
         if self.paused {

@@ -1,6 +1,6 @@
 //! The two ways of drawing Mode X that the renderer is measured against.
 //!
-//! * [`SeedMethod`]: the seed's — erase the rectangle drawn into this page
+//! * [`OriginalMethod`]: Abrash's — erase the rectangle drawn into this page
 //!   last time with the Map Mask rectangle fill, then fill every visible face
 //!   with Map Mask spans.
 //! * [`PerPixel`]: the common one (the `vga` crate draws Mode X this way) — the
@@ -129,7 +129,7 @@ impl PixelPath for MapMaskPerPixel {
     }
 }
 
-/// The seed's method.
-pub type SeedMethod = ExtentRenderer<MapMaskSpans>;
+/// The method of Abrash's original program.
+pub type OriginalMethod = ExtentRenderer<MapMaskSpans>;
 /// Pixel by pixel, a Map Mask OUT each.
 pub type PerPixel = ExtentRenderer<MapMaskPerPixel>;

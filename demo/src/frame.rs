@@ -5,7 +5,7 @@
 //! image per page, since the two pages hold different frames — and the page is
 //! shown in step with vertical retrace.
 //!
-//! The seed's own method (erase the last extent, fill every visible face) is
+//! Abrash's own method (erase the last extent, fill every visible face) is
 //! kept in `baseline` for comparison; it writes every visible pixel every frame.
 
 use crate::scene::Scene;

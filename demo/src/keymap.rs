@@ -1,4 +1,4 @@
-//! From decoded keys to commands: the seed's keys, plus Space, R and Esc, and
+//! From decoded keys to commands: Abrash's keys, plus Space, R and Esc, and
 //! the extras' keys (L, N, M, X, H, S; Home, End, Page Up, Page Down).
 //! The numeric keypad rotates with NumLock on (it then types digits, like the
 //! top row); with NumLock off its 4/6/8/2 are arrows and move the cube.
@@ -98,7 +98,7 @@ mod tests {
     }
 
     #[test]
-    fn the_seeds_keys_map_to_its_commands() {
+    fn abrashs_keys_map_to_his_commands() {
         use Command::{Pause, Quit, Scene, ToggleHelp, ToggleStats};
         use SceneCommand::*;
         let table = [
@@ -214,7 +214,7 @@ mod tests {
     #[test]
     fn modifier_and_lock_scancodes_and_all_releases_give_no_command() {
         // Shifts, Ctrls, Alts, Windows keys, Caps, Num and Scroll Lock, each
-        // pressed and released: the seed would not have seen a key.
+        // pressed and released: Abrash's program would not have seen a key.
         let bytes = [
             0x2A, 0xAA, 0x36, 0xB6, 0x1D, 0x9D, 0xE0, 0x1D, 0xE0, 0x9D, 0x38, 0xB8, 0xE0, 0x38,
             0xE0, 0xB8, 0xE0, 0x5B, 0xE0, 0xDB, 0x3A, 0xBA, 0x45, 0xC5, 0x46, 0xC6, 0x45, 0xC5,

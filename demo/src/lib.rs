@@ -5,6 +5,8 @@
 
 #![no_std]
 #![forbid(unsafe_code)]
+#![warn(missing_docs)]
+#![warn(missing_debug_implementations)]
 
 #[cfg(test)]
 extern crate std;

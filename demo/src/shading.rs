@@ -1,7 +1,7 @@
-//! Flat shading through the palette. Each of the seed's face colours (DAC
+//! Flat shading through the palette. Each of Abrash's face colours (DAC
 //! entries 9-15) gets a ramp of 32 levels from black up to that very colour,
 //! loaded into DAC entries 16-239; a lit face is drawn in the level its
-//! brightness rounds to. Entries 0-15, which the seed's flat colours and the
+//! brightness rounds to. Entries 0-15, which Abrash's flat colours and the
 //! on-screen display use, are left alone, so lighting can be switched on and
 //! off without touching the DAC again.
 

@@ -1,4 +1,4 @@
-//! The convex solids the demo can show: the seed's cube and four more
+//! The convex solids the demo can show: Abrash's cube and four more
 //! Platonic solids of about the same size (every vertex about 26 units from
 //! the centre). Faces run clockwise seen from outside, so backface removal
 //! alone hides exactly the faces turned away; the tests check that for every
@@ -10,9 +10,9 @@ use engine::{Face, Model, Vec3};
 /// vertices.
 const PHI: f64 = core::f64::consts::GOLDEN_RATIO;
 
-/// The seed's cube: eight shared vertices in the seed's order (vertex 6 is
-/// (-15, -15, 15); the OCR of the seed lost a digit there), six faces in the
-/// seed's colours (white, yellow, bright red, bright cyan, bright green,
+/// Abrash's cube: eight shared vertices in his listing's order (vertex 6 is
+/// (-15, -15, 15); the OCR of the listing lost a digit there), six faces in
+/// Abrash's colours (white, yellow, bright red, bright cyan, bright green,
 /// bright blue).
 pub static CUBE: Model = Model {
     vertices: &[
@@ -120,7 +120,7 @@ pub static ICOSAHEDRON: Model = Model {
     ],
 };
 
-/// The dodecahedron holds the seed's cube (corners ±B) and twelve more
+/// The dodecahedron holds Abrash's cube (corners ±B) and twelve more
 /// vertices on three golden rectangles, B/φ by B·φ.
 const B: f64 = 15.0;
 
@@ -343,7 +343,7 @@ mod tests {
     }
 
     #[test]
-    fn every_vertex_is_on_a_sphere_about_the_size_of_the_seeds_cube() {
+    fn every_vertex_is_on_a_sphere_about_the_size_of_abrashs_cube() {
         let cube_radius = CUBE.vertices[0].length();
         for solid in &SOLIDS {
             for vertex in solid.model.vertices {

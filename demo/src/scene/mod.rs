@@ -1,4 +1,4 @@
-//! The scene: the seed's cube floating in front of the viewer, moved and
+//! The scene: Abrash's cube floating in front of the viewer, moved and
 //! turned by commands, optionally spinning by itself; and, switched on by
 //! keys, flat shading by a light, other solids in the cube's place, and two
 //! more solids circling on their own, drawn far to near.
@@ -66,14 +66,14 @@ impl Default for Scene {
 }
 
 impl Scene {
-    /// The scene at boot: the seed's initial cube, spinning.
+    /// The scene at boot: Abrash's initial cube, spinning.
     pub fn new() -> Self {
         let mut scene = Self::initial();
         scene.spinning = true;
         scene
     }
 
-    /// The seed's initial state, still: what Reset returns to. The satellites
+    /// The starting scene, still: what Reset returns to. The satellites
     /// wait at the start of their orbits until several objects are switched on.
     pub fn initial() -> Self {
         let satellites = ORBITS.map(|orbit| Satellite::start(&orbit));
@@ -132,7 +132,7 @@ impl Scene {
         &SHAPES[self.solid]
     }
 
-    /// The object the keys move: the seed's cube unless N put another solid
+    /// The object the keys move: Abrash's cube unless N put another solid
     /// in its place.
     pub fn primary(&self) -> &Object {
         &self.objects[0]
@@ -233,8 +233,8 @@ impl Scene {
         }
     }
 
-    /// One frame of motion, if the spin is on: the primary spins as in the
-    /// seed, and the satellites, when shown, move along their orbits.
+    /// One frame of motion, if the spin is on: the primary spins as in
+    /// Abrash's original program, and the satellites, when shown, move along their orbits.
     pub fn tick(&mut self) {
         if !self.spinning {
             return;
@@ -295,7 +295,7 @@ impl Scene {
     }
 
     /// The faces to draw this frame, far to near, as screen polygons with
-    /// their colours: the seed's flat colours, or with lighting on the level of
+    /// their colours: Abrash's flat colours, or with lighting on the level of
     /// the colour's ramp that the face's brightness gives.
     pub fn visible_faces(&mut self, mut draw: impl FnMut(&[Point], u8)) -> FaceCounts {
         let (order, count) = self.drawing_order();
@@ -342,7 +342,7 @@ impl Scene {
     }
 }
 
-/// The seed's flat colour, or with lighting on the level of the colour's ramp
+/// Abrash's flat colour, or with lighting on the level of the colour's ramp
 /// that the face's brightness gives.
 fn face_colour(visible: &VisibleFace, lighting: bool, light: &Light) -> u8 {
     if lighting {

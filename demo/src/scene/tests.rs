@@ -1,4 +1,4 @@
-//! The scene's tests: the seed's behaviour, then the extras.
+//! The scene's tests: the behaviour of Abrash's original program, then the extras.
 
 use super::*;
 use crate::solids::CUBE;
@@ -88,7 +88,7 @@ fn screen_culling_agrees_with_the_view_space_dot_product_test() {
 }
 
 #[test]
-fn commands_move_and_turn_like_the_seed() {
+fn commands_move_and_turn_like_abrashs_program() {
     let mut scene = Scene::initial();
     for (command, expected) in [
         (SceneCommand::MoveLeft, Vec3::new(-3.0, 0.0, -100.0)),
@@ -212,7 +212,7 @@ fn n_puts_each_solid_in_the_cubes_place_in_turn() {
 }
 
 #[test]
-fn reset_returns_to_the_seeds_scene_from_every_extra() {
+fn reset_returns_to_the_starting_scene_from_every_extra() {
     let mut scene = Scene::new();
     for command in [
         SceneCommand::ToggleLighting,
