@@ -50,7 +50,7 @@ fn write_model(out: &mut String, name: &str, model: &model_file::ParsedModel) {
         .collect();
     writeln!(
         out,
-        "pub static {name}: Model = Model {{\n    vertices: &[\n{vertices}    ],\n    faces: &[\n{}    ],\n}};\n",
+        "/// The model of that name in `models/`, its faces cut into convex pieces.\npub static {name}: Model = Model {{\n    vertices: &[\n{vertices}    ],\n    faces: &[\n{}    ],\n}};\n",
         faces(&model.faces).replace("\n    Face", "\n        Face").replacen("    Face", "        Face", 1)
     )
     .unwrap();

@@ -14,6 +14,7 @@ use pc_keyboard::{layouts::Us104Key, HandleControl, PS2Keyboard as Keyboard, Sca
 /// Microseconds from any fixed start: the kernel reads the TSC, tests pass
 /// a closure over a counter they advance themselves.
 pub trait Clock {
+    /// Microseconds since the clock's start.
     fn micros(&self) -> u64;
 }
 
@@ -56,6 +57,8 @@ impl FrameRate {
     }
 }
 
+/// The demo: keyboard decoding, the scene, the renderer and the overlay,
+/// stepped once per frame by the kernel or a test.
 pub struct App {
     scene: Scene,
     renderer: Renderer,
@@ -73,6 +76,19 @@ pub struct App {
     palette_loaded: bool,
 }
 
+impl core::fmt::Debug for App {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("App")
+            .field("scene", &self.scene)
+            .field("renderer", &self.renderer)
+            .field("paused", &self.paused)
+            .field("quit", &self.quit)
+            .field("commands", &self.commands)
+            .field("overlay", &self.overlay)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Default for App {
     fn default() -> Self {
         Self::new()
@@ -80,6 +96,7 @@ impl Default for App {
 }
 
 impl App {
+    /// The demo at boot: the cube spinning, no overlay.
     pub fn new() -> Self {
         App {
             scene: Scene::new(),
@@ -141,10 +158,12 @@ impl App {
         self.dirty = true;
     }
 
+    /// Esc was pressed: the caller should leave.
     pub fn quit_requested(&self) -> bool {
         self.quit
     }
 
+    /// Waiting for any key (after a key that is not a command).
     pub fn paused(&self) -> bool {
         self.paused
     }
@@ -154,10 +173,12 @@ impl App {
         self.commands
     }
 
+    /// The scene being drawn.
     pub fn scene(&self) -> &Scene {
         &self.scene
     }
 
+    /// Which of help and statistics are shown.
     pub fn overlay(&self) -> Overlay {
         self.overlay
     }

@@ -15,9 +15,13 @@ use modex::{ModeX, Page, VgaBus, BYTES_PER_LINE};
 /// A half-open screen rectangle [x0, x1) x [y0, y1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Extent {
+    /// Leftmost column.
     pub x0: i32,
+    /// Top row.
     pub y0: i32,
+    /// One past the rightmost column.
     pub x1: i32,
+    /// One past the bottom row.
     pub y1: i32,
 }
 
@@ -53,6 +57,7 @@ trait PixelPath {
 }
 
 /// Erase-then-fill with per-page erase extents, generic over the pixel path.
+#[derive(Debug)]
 pub struct ExtentRenderer<P> {
     shown: Page,
     drawn: [Option<Extent>; 2],
@@ -90,6 +95,8 @@ impl<P: PixelPath> FrameDrawer for ExtentRenderer<P> {
     }
 }
 
+/// Fills spans through the Map Mask, four pixels a write, as Abrash does.
+#[derive(Debug)]
 pub struct MapMaskSpans;
 
 impl PixelPath for MapMaskSpans {
@@ -101,6 +108,8 @@ impl PixelPath for MapMaskSpans {
     }
 }
 
+/// Sets the Map Mask for every pixel: the slowest honest way.
+#[derive(Debug)]
 pub struct MapMaskPerPixel;
 
 impl MapMaskPerPixel {

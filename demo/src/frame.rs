@@ -13,7 +13,9 @@ use core::ops::Range;
 use engine::{fill_convex_polygon, ClipRect, DepthBand, FaceCounts, VisibleFace, BANDS, BAND_ROWS};
 use modex::{ModeX, Page, PageImage, VgaBus, PAGE_PIXELS, SCREEN_HEIGHT, SCREEN_WIDTH};
 
+/// The colour index behind everything drawn.
 pub const BACKGROUND: u8 = 0;
+/// The whole Mode X screen, for clipping.
 pub const SCREEN_CLIP: ClipRect = ClipRect {
     x0: 0,
     y0: 0,
@@ -139,6 +141,15 @@ impl Default for Renderer {
     }
 }
 
+impl core::fmt::Debug for Renderer {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        // Not the three frame images: 230 KiB of colour indices.
+        f.debug_struct("Renderer")
+            .field("shown", &self.shown)
+            .finish_non_exhaustive()
+    }
+}
+
 impl Renderer {
     /// Expects both pages blank and page 0 shown, as `ModeX::set_mode` leaves
     /// them.
@@ -151,6 +162,7 @@ impl Renderer {
         }
     }
 
+    /// The page last drawn: the one on screen once the caller has flipped.
     pub fn shown_page(&self) -> Page {
         self.shown
     }

@@ -2,6 +2,30 @@
 //! the scancode queue, the frame renderer and the app that ties them together.
 //! The kernel supplies a VGA bus and scancodes; the host tests supply a
 //! software VGA and the same scancodes.
+//!
+//! ```
+//! use demo::app::App;
+//! use modex::soft::SoftVga;
+//! use modex::ModeX;
+//!
+//! let mut soft = Box::new(SoftVga::new());
+//! ModeX::new(&mut *soft).set_mode();
+//! let mut app = App::new();
+//! let clock = || 0u64; // microseconds; the kernel reads the TSC
+//!
+//! // One frame: the spinning cube is drawn into the hidden page and shown.
+//! let flip = app.step(&mut ModeX::new(&mut *soft), &clock).expect("a frame");
+//! assert!(!flip.timed_out());
+//! let mut screen = vec![0u8; 320 * 240];
+//! soft.scanout_indices(&mut screen);
+//! assert_ne!(screen[120 * 320 + 160], 0, "the cube covers the centre");
+//! assert_eq!(screen[0], 0, "and not the corner");
+//!
+//! // Esc, pressed and released, in scancode set 1: the demo asks to quit.
+//! app.feed_scancode(0x01);
+//! app.feed_scancode(0x81);
+//! assert!(app.quit_requested());
+//! ```
 
 #![no_std]
 #![forbid(unsafe_code)]

@@ -51,16 +51,22 @@ pub struct Stats {
     pub frames_per_second_tenths: Option<u32>,
     /// CPU and bus time of the last frame, without the wait for retrace.
     pub frame_micros: u32,
+    /// Faces drawn and culled in the last frame.
     pub faces: FaceCounts,
+    /// The name of the solid the keys move.
     pub solid: &'static str,
+    /// Objects in the scene.
     pub objects: usize,
+    /// Whether the faces are shaded by the light.
     pub lighting: bool,
 }
 
 /// Which parts of the display are on.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Overlay {
+    /// The statistics lines, top and bottom.
     pub stats: bool,
+    /// The help box.
     pub help: bool,
 }
 
@@ -76,6 +82,12 @@ impl Line {
             bytes: [0; 64],
             len: 0,
         }
+    }
+}
+
+impl core::fmt::Debug for Line {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        core::fmt::Debug::fmt(&**self, f)
     }
 }
 

@@ -16,6 +16,8 @@ const ALIGNMENT_COLUMN_WIDTH: i32 = 26;
 const MARKER_TOP: i32 = 180;
 const MARKER_SIZE: i32 = 37;
 
+/// Draws the test pattern into `page`: colour swatches, a border and a
+/// marker whose place says which page it is.
 pub fn draw<B: VgaBus>(vga: &mut ModeX<B>, page: Page) {
     vga.clear_page(page, 0);
     // All 256 palette colours, 32 to a row.

@@ -7,8 +7,11 @@
 
 use core::sync::atomic::{AtomicU64, AtomicU8, AtomicUsize, Ordering};
 
+/// Bytes the queue holds before it drops new ones.
 pub const CAPACITY: usize = 256;
 
+/// Scancodes from the keyboard interrupt to the main loop: one producer, one
+/// consumer, no lock.
 pub struct ScancodeQueue {
     bytes: [AtomicU8; CAPACITY],
     /// Total bytes ever pushed (wrapping); only the producer stores it.
@@ -18,7 +21,17 @@ pub struct ScancodeQueue {
     dropped: AtomicU64,
 }
 
+impl core::fmt::Debug for ScancodeQueue {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("ScancodeQueue")
+            .field("len", &self.len())
+            .field("dropped", &self.dropped())
+            .finish_non_exhaustive()
+    }
+}
+
 impl ScancodeQueue {
+    /// An empty queue.
     pub const fn new() -> Self {
         ScancodeQueue {
             bytes: [const { AtomicU8::new(0) }; CAPACITY],
@@ -54,11 +67,13 @@ impl ScancodeQueue {
         Some(byte)
     }
 
+    /// Bytes waiting.
     pub fn len(&self) -> usize {
         let written = self.written.load(Ordering::Acquire);
         written.wrapping_sub(self.read.load(Ordering::Acquire))
     }
 
+    /// No bytes waiting.
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }

@@ -15,6 +15,7 @@ pub const RAMP_FIRST: u8 = 16;
 /// The flat colours that have ramps: `FIRST_RAMPED`, `FIRST_RAMPED + 1`, ...
 const FIRST_RAMPED: u8 = 9;
 const RAMPS: usize = 7;
+/// DAC entries the shading ramps take.
 pub const RAMP_ENTRIES: usize = RAMPS * RAMP_LEVELS as usize;
 
 /// Where the light starts: above, to the left of and behind the viewer, so it

@@ -38,6 +38,7 @@ pub static CUBE: Model = Model {
 /// Half the edge of the cube whose alternate corners make the tetrahedron.
 const S: f64 = 15.0;
 
+/// Four triangles.
 pub static TETRAHEDRON: Model = Model {
     vertices: &[
         Vec3::new(S, S, S),
@@ -56,6 +57,7 @@ pub static TETRAHEDRON: Model = Model {
 /// The octahedron's vertices lie on the axes, this far out.
 const R: f64 = 26.0;
 
+/// Eight triangles.
 pub static OCTAHEDRON: Model = Model {
     vertices: &[
         Vec3::new(R, 0.0, 0.0),
@@ -81,6 +83,7 @@ pub static OCTAHEDRON: Model = Model {
 /// A by A·φ, in the three coordinate planes.
 const A: f64 = 13.5;
 
+/// Twenty triangles.
 pub static ICOSAHEDRON: Model = Model {
     vertices: &[
         Vec3::new(0.0, A, A * PHI),
@@ -124,6 +127,7 @@ pub static ICOSAHEDRON: Model = Model {
 /// vertices on three golden rectangles, B/φ by B·φ.
 const B: f64 = 15.0;
 
+/// Twelve pentagons.
 pub static DODECAHEDRON: Model = Model {
     vertices: &[
         Vec3::new(B, B, B),
@@ -164,8 +168,11 @@ pub static DODECAHEDRON: Model = Model {
 };
 
 /// A solid with the name the on-screen display gives it.
+#[derive(Debug)]
 pub struct Solid {
+    /// As the statistics line shows it.
     pub name: &'static str,
+    /// Vertices and faces.
     pub model: &'static Model,
     /// Convex, so that backface removal alone hides exactly what it must
     /// when it is the only object (the renderer then needs no depth test).

@@ -25,7 +25,7 @@ const CIRCLE: f64 = 14.0;
 const DEPTH: f64 = -300.0;
 
 /// Where one member of the crowd is and how it moves.
-#[derive(Clone)]
+#[derive(Clone, Debug)]
 pub(super) struct Member {
     index: usize,
     phase: f64,

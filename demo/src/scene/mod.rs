@@ -32,6 +32,7 @@ pub const ROTATION_STEP: f64 = PI / 30.0;
 pub const LIGHT_STEP: f64 = PI / 12.0;
 /// The automatic spin per frame: about Y and, more slowly, about X.
 pub const SPIN_Y_PER_FRAME: f64 = PI / 180.0;
+/// The automatic spin's turn about X per frame.
 pub const SPIN_X_PER_FRAME: f64 = PI / 360.0;
 /// Rotations between re-orthonormalisations: often enough that the drift
 /// stays far below what a pixel can show.
@@ -41,7 +42,8 @@ pub const SATELLITES: usize = 2;
 /// The cube (or the solid in its place), two satellites, and the crowd.
 pub const MAX_OBJECTS: usize = 1 + SATELLITES + CROWD;
 
-#[derive(Clone)]
+/// What is drawn: the objects, the light, and the switches the keys flip.
+#[derive(Clone, Debug)]
 pub struct Scene {
     /// The object the keys move (index 0), the satellites, then the crowd:
     /// the objects shown are always a prefix.
@@ -107,22 +109,27 @@ impl Scene {
         }
     }
 
+    /// The automatic spin is on.
     pub fn spinning(&self) -> bool {
         self.spinning
     }
 
+    /// Faces are shaded by the light.
     pub fn lighting(&self) -> bool {
         self.lighting
     }
 
+    /// The light the shading uses.
     pub fn light(&self) -> &Light {
         &self.light
     }
 
+    /// The two satellites are shown.
     pub fn several(&self) -> bool {
         self.several
     }
 
+    /// The crowd is shown.
     pub fn crowd(&self) -> bool {
         self.crowd
     }
@@ -138,6 +145,7 @@ impl Scene {
         &self.objects[0]
     }
 
+    /// The object the keys move, to change.
     pub fn primary_mut(&mut self) -> &mut Object {
         &mut self.objects[0]
     }

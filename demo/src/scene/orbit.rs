@@ -51,7 +51,7 @@ pub(super) const ORBITS: [Orbit; SATELLITES] = [
 ];
 
 /// Where a satellite is along its orbit and how it is turned.
-#[derive(Clone)]
+#[derive(Clone, Debug)]
 pub(super) struct Satellite {
     phase: f64,
     /// Rotation only, so it can be re-orthonormalized; position and scale are
