@@ -14,45 +14,15 @@
 //! paint far to near, which is wrong there): solids passing through each
 //! other, and the crowd of many solids. The last line is machine-readable.
 
+mod frame_sets;
+
 use demo::baseline::{OriginalMethod, PerPixel};
 use demo::frame::{render_painter, render_to_image, FrameDrawer, Renderer};
-use demo::scene::{Axis, Scene, SceneCommand, Sense};
+use demo::scene::{Scene, SceneCommand};
+use frame_sets::{cube_set, extras_set};
 use modex::soft::{BusCounts, SoftVga};
 use modex::{ModeX, Page, PAGE_PIXELS};
 use std::time::{Duration, Instant};
-
-/// One frame of the set: a command first, or none (the spin alone).
-fn frame_set() -> Vec<Option<SceneCommand>> {
-    let mut frames: Vec<Option<SceneCommand>> = vec![None; 360];
-    let mut repeat = |command: SceneCommand, times: usize| {
-        frames.extend(std::iter::repeat_n(Some(command), times))
-    };
-    repeat(SceneCommand::ToggleSpin, 1);
-    repeat(SceneCommand::Rotate(Axis::X, Sense::Positive), 4);
-    repeat(SceneCommand::MoveLeft, 45); // past the left edge
-    repeat(SceneCommand::MoveUp, 30); // and the top
-    repeat(SceneCommand::MoveRight, 90); // across to the right edge
-    repeat(SceneCommand::MoveDown, 60);
-    repeat(SceneCommand::Toward, 22); // as close as it goes
-    repeat(SceneCommand::Away, 60); // and far away
-    repeat(SceneCommand::Rotate(Axis::Z, Sense::Positive), 30);
-    frames
-}
-
-/// The extras: three objects, lit, spinning and circling for a full orbit of
-/// the nearer satellite, then the other solids in the cube's place.
-fn extras_set() -> Vec<Option<SceneCommand>> {
-    let mut frames = vec![
-        Some(SceneCommand::ToggleSeveral),
-        Some(SceneCommand::ToggleLighting),
-    ];
-    frames.extend(vec![None; 360]);
-    for _ in 0..4 {
-        frames.push(Some(SceneCommand::NextSolid));
-        frames.extend(vec![None; 60]);
-    }
-    frames
-}
 
 #[derive(Default, Clone, Copy)]
 struct Totals {
@@ -266,7 +236,7 @@ fn crowd_set() -> Vec<Option<SceneCommand>> {
 }
 
 fn main() {
-    let cube = compare("The cube", &frame_set(), true);
+    let cube = compare("The cube", &cube_set(), true);
     let extras = compare("Three lit solids", &extras_set(), true);
     let through = compare("Interpenetrating solids", &interpenetrating_set(), false);
     let crowd = compare("The crowd of 59 solids", &crowd_set(), false);

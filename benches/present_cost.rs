@@ -12,46 +12,15 @@
 //! costs, at 1280x800 and 1920x1080 (4 bytes a pixel, as GOP gives). The
 //! last line is machine-readable.
 
+mod frame_sets;
+
 use demo::app::App;
-use demo::scene::{Axis, SceneCommand, Sense};
+use demo::scene::SceneCommand;
+use frame_sets::{cube_set, extras_set};
 use modex::present::{present, FramebufferLayout, PixelOrder, Presenter, MAX_PICTURE_PIXELS};
 use modex::soft::SoftVga;
 use modex::{MirroredVga, ModeX, PAGE_PIXELS};
 use std::time::{Duration, Instant};
-
-/// As `bus_cost`'s cube set: a 360-frame spin, then moved, zoomed and partly
-/// off-screen states.
-fn cube_set() -> Vec<Option<SceneCommand>> {
-    let mut frames: Vec<Option<SceneCommand>> = vec![None; 360];
-    let mut repeat = |command: SceneCommand, times: usize| {
-        frames.extend(std::iter::repeat_n(Some(command), times))
-    };
-    repeat(SceneCommand::ToggleSpin, 1);
-    repeat(SceneCommand::Rotate(Axis::X, Sense::Positive), 4);
-    repeat(SceneCommand::MoveLeft, 45);
-    repeat(SceneCommand::MoveUp, 30);
-    repeat(SceneCommand::MoveRight, 90);
-    repeat(SceneCommand::MoveDown, 60);
-    repeat(SceneCommand::Toward, 22);
-    repeat(SceneCommand::Away, 60);
-    repeat(SceneCommand::Rotate(Axis::Z, Sense::Positive), 30);
-    frames
-}
-
-/// As `bus_cost`'s extras set: three objects, lit, spinning and circling,
-/// then the other solids in the cube's place.
-fn solids_set() -> Vec<Option<SceneCommand>> {
-    let mut frames = vec![
-        Some(SceneCommand::ToggleSeveral),
-        Some(SceneCommand::ToggleLighting),
-    ];
-    frames.extend(vec![None; 360]);
-    for _ in 0..4 {
-        frames.push(Some(SceneCommand::NextSolid));
-        frames.extend(vec![None; 60]);
-    }
-    frames
-}
 
 #[derive(Default)]
 struct Costs {
@@ -144,7 +113,7 @@ fn main() {
         "still"
     );
     let mut summary = Vec::new();
-    for (name, frames) in [("cube", cube_set()), ("three lit solids", solids_set())] {
+    for (name, frames) in [("cube", cube_set()), ("three lit solids", extras_set())] {
         for (width, height) in [(1280, 800), (1920, 1080)] {
             let (costs, still) = run(&frames, width, height);
             let per = |n: u64| n as f64 / costs.presents as f64;
