@@ -59,32 +59,14 @@ fn step_guarded(app: &mut App, soft: &mut SoftVga) {
 /// The QEMU key sequence of the issue, as the commands the keys stand for.
 const SEQUENCE: [(&str, Command); 10] = [
     ("r", Command::Scene(SceneCommand::Reset)),
-    (
-        "4",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
-    ),
-    (
-        "4",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
-    ),
-    (
-        "4",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
-    ),
-    (
-        "8",
-        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
-    ),
-    (
-        "8",
-        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
-    ),
+    ("4", common::turn(Axis::Y, Sense::Negative)),
+    ("4", common::turn(Axis::Y, Sense::Negative)),
+    ("4", common::turn(Axis::Y, Sense::Negative)),
+    ("8", common::turn(Axis::X, Sense::Negative)),
+    ("8", common::turn(Axis::X, Sense::Negative)),
     ("a", Command::Scene(SceneCommand::Away)),
     ("a", Command::Scene(SceneCommand::Away)),
-    (
-        "f1",
-        Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
-    ),
+    ("f1", common::turn(Axis::Z, Sense::Positive)),
     ("left", Command::Scene(SceneCommand::MoveLeft)),
 ];
 
@@ -95,7 +77,7 @@ fn frames_through_the_software_vga_equal_the_reference_rasterizer() {
     let mut commands: Vec<Command> = SEQUENCE.iter().map(|&(_, c)| c).collect();
     // Then off the edges of the screen and back, turning as it goes.
     commands.extend([Command::Scene(SceneCommand::MoveLeft); 40]);
-    commands.extend([Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)); 7]);
+    commands.extend([common::turn(Axis::Y, Sense::Positive); 7]);
     commands.extend([Command::Scene(SceneCommand::MoveUp); 30]);
     commands.extend([Command::Scene(SceneCommand::MoveRight); 70]);
     commands.extend([Command::Scene(SceneCommand::Toward); 25]);

@@ -19,23 +19,11 @@ fn the_letter_l_and_the_beams() {
     let mut keys = vec![("r", Command::Scene(SceneCommand::Reset))];
     keys.extend([("n", Command::Scene(SceneCommand::NextSolid)); 5]); // the letter L
     keys.extend([
-        (
-            "6",
-            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-        ),
-        (
-            "6",
-            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-        ),
-        (
-            "8",
-            Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
-        ),
+        ("6", common::turn(Axis::Y, Sense::Positive)),
+        ("6", common::turn(Axis::Y, Sense::Positive)),
+        ("8", common::turn(Axis::X, Sense::Negative)),
         ("n", Command::Scene(SceneCommand::NextSolid)), // the three beams
-        (
-            "4",
-            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
-        ),
+        ("4", common::turn(Axis::Y, Sense::Negative)),
         ("l", Command::Scene(SceneCommand::ToggleLighting)),
     ]);
     after_each_key(&keys);
@@ -50,10 +38,7 @@ fn solids_passing_through_each_other() {
     // Into the octahedron's orbit, where it waits at the start.
     keys.extend([("right", Command::Scene(SceneCommand::MoveRight)); 7]);
     keys.extend([("up", Command::Scene(SceneCommand::MoveUp)); 3]);
-    keys.push((
-        "6",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-    ));
+    keys.push(("6", common::turn(Axis::Y, Sense::Positive)));
     after_each_key(&keys);
 }
 
@@ -62,10 +47,7 @@ fn the_crowd() {
     after_each_key(&[
         ("r", Command::Scene(SceneCommand::Reset)),
         ("x", Command::Scene(SceneCommand::ToggleCrowd)),
-        (
-            "6",
-            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-        ),
+        ("6", common::turn(Axis::Y, Sense::Positive)),
         ("l", Command::Scene(SceneCommand::ToggleLighting)),
         ("x", Command::Scene(SceneCommand::ToggleCrowd)),
     ]);

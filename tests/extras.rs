@@ -6,7 +6,7 @@
 mod common;
 
 use boot::RgbImage;
-use common::{assert_pictures_equal, assert_same_picture};
+use common::{assert_pictures_equal, assert_same_picture, TURNED};
 use demo::command::{Axis, Command, LightTurn, SceneCommand, Sense};
 use demo::osd::BAR_ROWS;
 
@@ -21,35 +21,6 @@ fn after_each_key(keys: &[(&str, Command)]) {
         }
     });
 }
-
-/// Still cube, turned so that three faces show.
-const TURNED: [(&str, Command); 7] = [
-    ("r", Command::Scene(SceneCommand::Reset)),
-    (
-        "6",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-    ),
-    (
-        "6",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-    ),
-    (
-        "6",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-    ),
-    (
-        "6",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-    ),
-    (
-        "8",
-        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
-    ),
-    (
-        "8",
-        Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
-    ),
-];
 
 fn turned_then(more: &[(&'static str, Command)]) -> Vec<(&'static str, Command)> {
     TURNED.iter().chain(more).copied().collect()
@@ -91,10 +62,7 @@ fn every_solid_in_turn() {
         ("n", Command::Scene(SceneCommand::NextSolid)),
         ("n", Command::Scene(SceneCommand::NextSolid)),
         ("n", Command::Scene(SceneCommand::NextSolid)),
-        (
-            "f1",
-            Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
-        ),
+        ("f1", common::turn(Axis::Z, Sense::Positive)),
         ("n", Command::Scene(SceneCommand::NextSolid)),
     ]));
 }

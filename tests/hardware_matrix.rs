@@ -14,15 +14,9 @@ use std::time::Duration;
 /// A reset (the spin stops), moves, turns and lighting: every kind of frame.
 const KEYS: [(&str, Command); 5] = [
     ("r", Command::Scene(SceneCommand::Reset)),
-    (
-        "4",
-        Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Negative)),
-    ),
+    ("4", common::turn(Axis::Y, Sense::Negative)),
     ("up", Command::Scene(SceneCommand::MoveUp)),
-    (
-        "f1",
-        Command::Scene(SceneCommand::Rotate(Axis::Z, Sense::Positive)),
-    ),
+    ("f1", common::turn(Axis::Z, Sense::Positive)),
     ("l", Command::Scene(SceneCommand::ToggleLighting)),
 ];
 

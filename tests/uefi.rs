@@ -159,18 +159,9 @@ fn without_legacy_vga_the_framebuffer_shows_the_software_vga_scaled() {
 fn without_legacy_vga_the_lit_solids_reach_the_framebuffer_too() {
     let keys = [
         ("r", Command::Scene(SceneCommand::Reset)),
-        (
-            "6",
-            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-        ),
-        (
-            "6",
-            Command::Scene(SceneCommand::Rotate(Axis::Y, Sense::Positive)),
-        ),
-        (
-            "8",
-            Command::Scene(SceneCommand::Rotate(Axis::X, Sense::Negative)),
-        ),
+        ("6", common::turn(Axis::Y, Sense::Positive)),
+        ("6", common::turn(Axis::Y, Sense::Positive)),
+        ("8", common::turn(Axis::X, Sense::Negative)),
         ("n", Command::Scene(SceneCommand::NextSolid)),
         ("m", Command::Scene(SceneCommand::ToggleSeveral)),
         ("l", Command::Scene(SceneCommand::ToggleLighting)),

@@ -7,10 +7,27 @@ use boot::line;
 use boot::BootOption;
 use boot::{Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
-use demo::command::Command;
+use demo::command::{Axis, Command, SceneCommand, Sense};
 use modex::soft::SoftVga;
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
+
+/// A key's command that turns the object: key tables stay one line a key.
+pub const fn turn(axis: Axis, sense: Sense) -> Command {
+    Command::Scene(SceneCommand::Rotate(axis, sense))
+}
+
+/// From the starting scene, the cube still and turned so that three faces
+/// show: the keys and the commands they stand for.
+pub const TURNED: [(&str, Command); 7] = [
+    ("r", Command::Scene(SceneCommand::Reset)),
+    ("6", turn(Axis::Y, Sense::Positive)),
+    ("6", turn(Axis::Y, Sense::Positive)),
+    ("6", turn(Axis::Y, Sense::Positive)),
+    ("6", turn(Axis::Y, Sense::Positive)),
+    ("8", turn(Axis::X, Sense::Negative)),
+    ("8", turn(Axis::X, Sense::Negative)),
+];
 
 pub const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
 pub const PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
