@@ -8,6 +8,8 @@
 #[path = "../demo/build/model_file.rs"]
 mod model_file;
 
+mod common;
+
 use demo::frame::{render_faces_with_depth, BACKGROUND};
 use engine::{DepthBand, Face, Model, Object, Vec3, Xform};
 use model_file::parse;
@@ -18,11 +20,7 @@ use proptest::prelude::*;
 const DEFAULT_CASES: u32 = 1000;
 
 fn config() -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(DEFAULT_CASES);
-    ProptestConfig::with_cases(cases)
+    common::proptest_config(DEFAULT_CASES)
 }
 
 fn coordinate() -> impl Strategy<Value = f64> {

@@ -17,11 +17,7 @@ use proptest::prelude::*;
 const DEFAULT_CASES: u32 = 2000;
 
 fn config() -> ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(DEFAULT_CASES);
-    ProptestConfig::with_cases(cases)
+    common::proptest_config(DEFAULT_CASES)
 }
 
 fn any_coordinate() -> impl Strategy<Value = i32> {

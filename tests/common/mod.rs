@@ -29,6 +29,16 @@ pub const TURNED: [(&str, Command); 7] = [
     ("8", turn(Axis::X, Sense::Negative)),
 ];
 
+/// Proptest's settings: `default_cases` cases, or as many as the
+/// `PROPTEST_CASES` environment variable asks for.
+pub fn proptest_config(default_cases: u32) -> proptest::prelude::ProptestConfig {
+    let cases = std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default_cases);
+    proptest::prelude::ProptestConfig::with_cases(cases)
+}
+
 pub const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
 pub const PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
 
