@@ -121,14 +121,25 @@ pub fn scancode_for_key(key: Key) -> Option<Scancode> {
         .and_then(|&(_, name)| scancode_for_name(name))
 }
 
+/// A key name that `--keys` does not know; its message lists the names.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown key {name:?}; key names: {}", known_names())]
+pub struct UnknownKey {
+    /// The name as given.
+    pub name: String,
+}
+
+fn known_names() -> String {
+    demo::keys::names().collect::<Vec<_>>().join(" ")
+}
+
 /// A `--keys` argument ("r 4 4 f1 left spc"), as scan codes; an unknown name
 /// is refused with the list of names.
-pub fn parse_keys(text: &str) -> Result<Vec<Scancode>, String> {
+pub fn parse_keys(text: &str) -> Result<Vec<Scancode>, UnknownKey> {
     text.split_whitespace()
         .map(|name| {
-            scancode_for_name(name).ok_or_else(|| {
-                let names: Vec<&str> = demo::keys::names().collect();
-                format!("unknown key {name:?}; key names: {}", names.join(" "))
+            scancode_for_name(name).ok_or_else(|| UnknownKey {
+                name: name.to_string(),
             })
         })
         .collect()
@@ -158,6 +169,8 @@ mod tests {
     #[test]
     fn unknown_names_are_refused_with_the_list() {
         let error = parse_keys("r bogus").unwrap_err();
+        assert_eq!(error.name, "bogus");
+        let error = error.to_string();
         assert!(
             error.contains("\"bogus\"") && error.contains("pgdn"),
             "{error}"

@@ -26,6 +26,9 @@ pub enum RecordError {
     /// An image could not be written (the disk is full, say).
     #[error("writing the GIF: {0}")]
     Write(gif::EncodingError),
+    /// The GIF's end could not be written or flushed: the file is cut short.
+    #[error("finishing the GIF: {0}")]
+    Finish(std::io::Error),
     /// The run ended (Esc) before the first frame that is kept.
     #[error("no frame recorded: {frames_run} frames run, one in {every} kept")]
     NothingRecorded {
@@ -136,9 +139,13 @@ pub fn record_gif(
     if let Some(failure) = failure {
         return Err(failure);
     }
-    if images == 0 {
+    let Some(encoder) = encoder else {
         return Err(RecordError::NothingRecorded { frames_run, every });
-    }
+    };
+    // The trailer, then whatever a buffered writer still holds: an error here
+    // (a full disk) must not be dropped with the writer.
+    let mut out = encoder.into_inner().map_err(RecordError::Finish)?;
+    out.flush().map_err(RecordError::Finish)?;
     Ok(Recorded {
         frames_run,
         images,
@@ -294,6 +301,23 @@ mod tests {
         assert!(matches!(error, RecordError::Write(_)), "{error:?}");
         assert!(
             error.to_string().starts_with("writing the GIF: "),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_disk_that_fills_while_the_last_buffer_is_flushed_is_an_error() {
+        // Everything fits in the buffer, so only the final flush reaches the
+        // full disk: the case `sim --record /dev/full` used to call a success.
+        let script = Script {
+            keys: Vec::new(),
+            key_every: 1,
+        };
+        let out = std::io::BufWriter::with_capacity(1 << 20, Full { room: 0 });
+        let error = record_gif(&script, 4, 1, out).unwrap_err();
+        assert!(matches!(error, RecordError::Finish(_)), "{error:?}");
+        assert!(
+            error.to_string().starts_with("finishing the GIF: "),
             "{error}"
         );
     }
