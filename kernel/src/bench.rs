@@ -32,6 +32,10 @@ fn time_frames<B: VgaBus, D: FrameDrawer>(
     (clock::micros() - start) / FRAMES
 }
 
+// Never inlined: its renderers take ~280 KiB of stack, and inlined into the
+// boot-option dispatch that frame stayed allocated under the demo's own
+// ~350 KiB, overflowing the 1 MiB stack on the first R.
+#[inline(never)]
 pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
     let ours = time_frames(vga, Renderer::new(), &[]);
     let per_pixel = time_frames(vga, PerPixel::default(), &[]);

@@ -26,6 +26,9 @@ fn count_flip(pacing: &mut Pacing, timed_out: bool) {
     }
 }
 
+// Never inlined, for the same reason as `bench::run`: the app (~350 KiB) must
+// not share a frame with the other boot options' state.
+#[inline(never)]
 pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut app = App::new();
     app.step(vga, &clock::micros);
