@@ -1,6 +1,8 @@
 //! The host side: the disk images, QEMU and Bochs, and the pictures they
 //! take. The runner (`boot/main.rs`) and the integration tests (`tests/`)
 //! share all of it.
+#![warn(missing_docs)]
+#![warn(missing_debug_implementations)]
 
 pub mod bochs;
 pub mod image;
