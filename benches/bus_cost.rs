@@ -14,7 +14,7 @@
 //! paint far to near, which is wrong there): solids passing through each
 //! other, and the crowd of many solids. The last line is machine-readable.
 
-use demo::baseline::{PerPixel, OriginalMethod};
+use demo::baseline::{OriginalMethod, PerPixel};
 use demo::frame::{render_painter, render_to_image, FrameDrawer, Renderer};
 use demo::scene::{Axis, Scene, SceneCommand, Sense};
 use modex::soft::{BusCounts, SoftVga};
