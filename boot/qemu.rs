@@ -20,9 +20,11 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 /// QEMU exits with `(code << 1) | 1` for a write of `code` to isa-debug-exit.
-/// The kernel writes 0x10 when its checks passed.
+/// QEMU's status when the kernel ends it with success (0x10): after its
+/// goodbye, or when a boot request asks.
 pub const EXIT_SUCCESS: i32 = (0x10 << 1) | 1;
-/// The kernel writes 0x11 on a failure or a fault.
+/// QEMU's status when the kernel ends it with failure (0x11), as a boot
+/// request can ask.
 pub const EXIT_FAILURE: i32 = (0x11 << 1) | 1;
 
 /// OVMF from Debian's `ovmf` package.
