@@ -60,14 +60,20 @@ pub enum VgaExtension {
     Cirrus,
 }
 
+/// How to start Bochs: [`BochsOptions::new`] and changes from there.
 #[derive(Clone, Debug)]
 pub struct BochsOptions {
+    /// The BIOS disk image; Bochs has no UEFI, and the image is padded to
+    /// whole cylinders in a scratch copy.
     pub image: PathBuf,
+    /// Which VGA, and so which VGA BIOS.
     pub vga: VgaExtension,
+    /// Emulated instructions per second ([`DEFAULT_IPS`]).
     pub ips: u64,
 }
 
 impl BochsOptions {
+    /// The given image and VGA at [`DEFAULT_IPS`].
     pub fn new(image: impl Into<PathBuf>, vga: VgaExtension) -> Self {
         BochsOptions {
             image: image.into(),
@@ -86,23 +92,34 @@ pub enum BochsError {
          (or `sudo apt-get install {APT_PACKAGES}`).",
         .missing.join(", ")
     )]
-    NotInstalled { missing: Vec<&'static str> },
+    NotInstalled {
+        /// The packages to install, in `apt-get install` order.
+        missing: Vec<&'static str>,
+    },
     /// The `bochs` executable could not be started.
     #[error("cannot start bochs: {0}")]
     Spawn(io::Error),
     /// A file of the run (the padded disk, the bochsrc) could not be made.
     #[error("{what}: {error}")]
-    Io { what: String, error: io::Error },
+    Io {
+        /// What was being done, as the message's first words.
+        what: String,
+        /// Why it failed.
+        error: io::Error,
+    },
     /// The X server, `xdotool` or `xwd` failed.
     #[error(transparent)]
     X11(#[from] X11Error),
     /// Bochs ended before what was waited for happened.
     #[error("bochs exited ({status}) {when}; console:\n{console}{diagnostics}")]
     Exited {
+        /// How Bochs ended.
         status: ExitStatus,
         /// "before ... appeared on serial", "before opening its window", ...
         when: String,
+        /// The serial console up to the exit.
         console: String,
+        /// Bochs's own output and log tail ([`Bochs::diagnostics`]).
         diagnostics: String,
     },
     /// The serial console never showed `needle`.
@@ -111,15 +128,21 @@ pub enum BochsError {
          {console}{diagnostics}"
     )]
     SerialTimeout {
+        /// The text waited for.
         needle: String,
+        /// How long it was waited for.
         waited: Duration,
+        /// The serial console when the wait ran out.
         console: String,
+        /// Bochs's own output and log tail ([`Bochs::diagnostics`]).
         diagnostics: String,
     },
     /// Bochs opened no window.
     #[error("Bochs opened no window named {WINDOW_NAME:?} within {waited:?}{diagnostics}")]
     NoWindow {
+        /// How long the window was waited for.
         waited: Duration,
+        /// Bochs's own output and log tail ([`Bochs::diagnostics`]).
         diagnostics: String,
     },
     /// The window is not laid out as Bochs 2.7 lays it out.
@@ -127,10 +150,20 @@ pub enum BochsError {
     Layout(LayoutError),
     /// The window never held a guest picture while it was waited on.
     #[error("after {waited:?} the window still has no guest picture: {why}")]
-    NoGuestPicture { waited: Duration, why: LayoutError },
+    NoGuestPicture {
+        /// How long the window was looked at.
+        waited: Duration,
+        /// What was wrong with its last look.
+        why: LayoutError,
+    },
     /// The window never showed what was waited for; `last` is what it showed.
     #[error("the window did not show the expected picture within {waited:?}; it shows {last:?}")]
-    ScreenTimeout { waited: Duration, last: RgbImage },
+    ScreenTimeout {
+        /// How long the window was looked at.
+        waited: Duration,
+        /// The guest picture it showed last.
+        last: RgbImage,
+    },
 }
 
 /// Why a window picture has no guest picture where Bochs 2.7 puts it.
@@ -138,12 +171,20 @@ pub enum BochsError {
 pub enum LayoutError {
     /// Not taller than the toolbar and the status bar.
     #[error("a {width}x{height} window has no room for a guest picture")]
-    TooShort { width: usize, height: usize },
+    TooShort {
+        /// The window's width in pixels.
+        width: usize,
+        /// The window's height in pixels.
+        height: usize,
+    },
     /// The status bar's white top line is not where the layout puts it.
     #[error("row {row} of the {width}x{height} window is not the status bar's white top line")]
     NoStatusBar {
+        /// Where the status bar's top line should be.
         row: usize,
+        /// The window's width in pixels.
         width: usize,
+        /// The window's height in pixels.
         height: usize,
     },
 }
@@ -179,6 +220,8 @@ fn x_display_plugin_installed() -> bool {
     })
 }
 
+/// A running Bochs in its own Xvfb: serial console, keys and window
+/// pictures. Dropping it kills Bochs, then its X server.
 pub struct Bochs {
     bochs: Child,
     /// Dropped after Bochs is killed (see `Drop`).
@@ -188,7 +231,19 @@ pub struct Bochs {
     scratch: tempfile::TempDir,
 }
 
+impl std::fmt::Debug for Bochs {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bochs")
+            .field("pid", &self.bochs.id())
+            .field("window", &self.window)
+            .field("scratch", &self.scratch.path())
+            .finish_non_exhaustive()
+    }
+}
+
 impl Bochs {
+    /// Starts Xvfb and Bochs, and waits for Bochs's window to open; the
+    /// kernel may not have printed anything yet.
     pub fn start(options: &BochsOptions) -> Result<Bochs> {
         check_installed()?;
         let scratch = tempfile::Builder::new()
@@ -304,6 +359,7 @@ impl Bochs {
         }
     }
 
+    /// Whether Bochs has not exited yet.
     pub fn is_running(&mut self) -> bool {
         matches!(self.bochs.try_wait(), Ok(None))
     }

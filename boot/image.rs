@@ -13,7 +13,12 @@ pub enum ImageError {
     PpmHeaderEndsEarly,
     /// A PPM, but not P6 with 8-bit components.
     #[error("not a binary 8-bit PPM (magic {magic}, maxval {maxval})")]
-    PpmNotBinary8Bit { magic: String, maxval: String },
+    PpmNotBinary8Bit {
+        /// The first header field, `P6` in a binary PPM.
+        magic: String,
+        /// The largest component value; only 255 is read.
+        maxval: String,
+    },
     /// A width or height that is not a number.
     #[error("bad PPM size field {0:?}")]
     PpmBadSize(String),
@@ -22,23 +27,42 @@ pub enum ImageError {
     PpmTruncated,
     /// The PNG file could not be created.
     #[error("cannot create {}: {error}", path.display())]
-    CreatePng { path: PathBuf, error: io::Error },
+    CreatePng {
+        /// The PNG that was to be written.
+        path: PathBuf,
+        /// Why the file could not be created.
+        error: io::Error,
+    },
     /// The PNG could not be written into the file.
     #[error("cannot write the PNG {}: {error}", path.display())]
     WritePng {
+        /// The PNG being written.
         path: PathBuf,
+        /// The encoder's or the file's failure.
         error: png::EncodingError,
     },
     /// Odd sizes cannot be a doubled picture.
     #[error("{width}x{height} cannot be halved")]
-    OddSize { width: usize, height: usize },
+    OddSize {
+        /// The picture's width in pixels.
+        width: usize,
+        /// The picture's height in pixels.
+        height: usize,
+    },
     /// A 2x2 block of two colours: not a doubled picture.
     #[error("2x2 block at ({x}, {y}) is not one colour")]
-    NotDoubled { x: usize, y: usize },
+    NotDoubled {
+        /// The block's column in the halved picture.
+        x: usize,
+        /// The block's row in the halved picture.
+        y: usize,
+    },
     /// Pictures of different sizes have no pixel-by-pixel differences.
     #[error("sizes differ: {}x{} and {}x{}", .this.0, .this.1, .other.0, .other.1)]
     SizesDiffer {
+        /// Width and height of the picture compared.
         this: (usize, usize),
+        /// Width and height of the picture it was compared with.
         other: (usize, usize),
     },
 }
@@ -46,9 +70,13 @@ pub enum ImageError {
 /// One differing pixel: x, y, this picture's colour, the other's.
 pub type PixelDifference = (usize, usize, [u8; 3], [u8; 3]);
 
+/// An 8-bit RGB picture: what QEMU's screendump, Bochs's window capture and
+/// the software VGA's scan-out are all turned into to be compared.
 #[derive(Clone, PartialEq, Eq)]
 pub struct RgbImage {
+    /// Pixels a row.
     pub width: usize,
+    /// Rows.
     pub height: usize,
     /// Row-major, three bytes a pixel.
     pub pixels: Vec<[u8; 3]>,
@@ -67,6 +95,11 @@ impl From<xvfb::xwd::Image> for RgbImage {
 }
 
 impl RgbImage {
+    /// A picture from its row-major pixels.
+    ///
+    /// # Panics
+    ///
+    /// If there are not `width * height` pixels.
     pub fn new(width: usize, height: usize, pixels: Vec<[u8; 3]>) -> Self {
         assert_eq!(
             pixels.len(),
@@ -80,6 +113,7 @@ impl RgbImage {
         }
     }
 
+    /// The colour at column `x`, row `y`; panics outside the picture.
     pub fn pixel(&self, x: usize, y: usize) -> [u8; 3] {
         self.pixels[y * self.width + x]
     }
@@ -126,6 +160,8 @@ impl RgbImage {
         Ok(RgbImage::new(width, height, pixels))
     }
 
+    /// Saves the picture as an 8-bit RGB PNG, for a person to look at when a
+    /// comparison fails.
     pub fn write_png(&self, path: &Path) -> Result<(), ImageError> {
         let file = std::fs::File::create(path).map_err(|error| ImageError::CreatePng {
             path: path.to_owned(),

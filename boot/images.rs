@@ -7,11 +7,15 @@ use std::sync::{Arc, OnceLock};
 
 /// Built by `boot/build.rs` into cargo's OUT_DIR.
 const BUILT_BIOS_IMAGE: &str = env!("BIOS_IMAGE");
+/// Built by `boot/build.rs` into cargo's OUT_DIR.
 const BUILT_UEFI_IMAGE: &str = env!("UEFI_IMAGE");
 
+/// Where the published images are: stable paths that survive rebuilds.
 #[derive(Clone, Debug)]
 pub struct Images {
+    /// The legacy-BIOS disk image (MBR boot sector and stage loaders).
     pub bios: PathBuf,
+    /// The UEFI disk image (GPT with an EFI system partition).
     pub uefi: PathBuf,
 }
 
@@ -30,7 +34,9 @@ pub enum PublishError {
     /// The build script's image is not there: the build did not finish.
     #[error("cannot read the built image {}: {error}", path.display())]
     ReadBuilt {
+        /// The image in cargo's OUT_DIR.
         path: PathBuf,
+        /// Why it could not be read.
         error: Arc<io::Error>,
     },
     /// The stable path's directory, or a file in it, could not be written.
@@ -38,7 +44,9 @@ pub enum PublishError {
     Write {
         /// "create", "write" or "rename to".
         action: &'static str,
+        /// The directory or file acted on.
         path: PathBuf,
+        /// Why the action failed.
         error: Arc<io::Error>,
     },
 }

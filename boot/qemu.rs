@@ -11,6 +11,7 @@
 use crate::image::{ImageError, RgbImage};
 use machine::protocol::{BootRequest, BOOT_OPTION_FILE};
 use serde_json::{json, Value};
+use std::fmt;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::os::unix::net::UnixStream;
 use std::path::{Path, PathBuf};
@@ -19,7 +20,11 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
 
 /// QEMU exits with `(code << 1) | 1` for a write of `code` to isa-debug-exit.
+/// QEMU's status when the kernel ends it with success (0x10): after its
+/// goodbye, or when a boot request asks.
 pub const EXIT_SUCCESS: i32 = (0x10 << 1) | 1;
+/// QEMU's status when the kernel ends it with failure (0x11), as a boot
+/// request can ask.
 pub const EXIT_FAILURE: i32 = (0x11 << 1) | 1;
 
 /// OVMF from Debian's `ovmf` package.
@@ -28,12 +33,16 @@ pub const OVMF_CODE: &str = "/usr/share/OVMF/OVMF_CODE.fd";
 /// How long `send_key` holds a key down, as QEMU's own default.
 const DEFAULT_HOLD_MILLIS: u32 = 100;
 
+/// What QEMU boots the disk with; each needs its own disk image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Firmware {
+    /// SeaBIOS, QEMU's default, booting the BIOS image from its MBR.
     Bios,
+    /// OVMF ([`OVMF_CODE`]), booting the UEFI image's EFI partition.
     Uefi,
 }
 
+/// Whether QEMU shows a window; tests look at the screen through QMP either way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Display {
     /// No window: `-display none`.
@@ -111,11 +120,17 @@ impl Graphics {
     }
 }
 
+/// How to start QEMU: [`QemuOptions::new`] gives what the tests use, and the
+/// fields are changed from there.
 #[derive(Clone, Debug)]
 pub struct QemuOptions {
+    /// The disk image, attached raw in snapshot mode (the file is never written).
     pub image: PathBuf,
+    /// Must match the image: BIOS or UEFI.
     pub firmware: Firmware,
+    /// Headless for tests, a window for a person.
     pub display: Display,
+    /// The emulated display adapter.
     pub graphics: Graphics,
     /// Make QEMU time Input Status 1's retrace bits from the CRTC timings
     /// (about 60 Hz in Mode X) instead of toggling them on every read.
@@ -130,6 +145,8 @@ pub struct QemuOptions {
 }
 
 impl QemuOptions {
+    /// BIOS, headless, standard VGA with precise retrace timing, the default
+    /// boot request, no serial echo, and `isa-debug-exit` fitted.
     pub fn new(image: impl Into<PathBuf>) -> Self {
         QemuOptions {
             image: image.into(),
@@ -169,6 +186,7 @@ pub enum QemuError {
 
 type Result<T> = std::result::Result<T, QemuError>;
 
+/// The emulator the runner and the tests start, found on PATH.
 pub const QEMU_BINARY: &str = "qemu-system-x86_64";
 
 /// Fails with an actionable message when QEMU (or OVMF, for UEFI) is missing.
@@ -200,6 +218,8 @@ struct SerialLog {
     grew: Condvar,
 }
 
+/// A running QEMU: its serial console (read on a thread as it arrives) and
+/// its QMP monitor for keys and screendumps. Dropping it kills QEMU.
 pub struct Qemu {
     child: Child,
     serial: Arc<SerialLog>,
@@ -207,7 +227,18 @@ pub struct Qemu {
     scratch: tempfile::TempDir,
 }
 
+impl fmt::Debug for Qemu {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Qemu")
+            .field("pid", &self.child.id())
+            .field("scratch", &self.scratch.path())
+            .finish_non_exhaustive()
+    }
+}
+
 impl Qemu {
+    /// Starts QEMU and waits until its QMP monitor answers; the kernel may
+    /// not have printed anything yet.
     pub fn start(options: &QemuOptions) -> Result<Qemu> {
         check_installed(options.firmware)?;
         let scratch = tempfile::Builder::new()
@@ -393,6 +424,7 @@ impl Qemu {
         }
     }
 
+    /// Whether QEMU has not exited yet.
     pub fn is_running(&mut self) -> bool {
         matches!(self.child.try_wait(), Ok(None))
     }

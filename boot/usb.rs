@@ -21,14 +21,22 @@ const COPY_CHUNK_BYTES: usize = 4 << 20;
 pub enum UsbError {
     /// The named device could not be looked at (it does not exist, say).
     #[error("cannot look at {}: {error}", path.display())]
-    Inspect { path: PathBuf, error: io::Error },
+    Inspect {
+        /// The device as named.
+        path: PathBuf,
+        /// The operating system's error.
+        error: io::Error,
+    },
     /// The named path is a file, a directory or a character device.
     #[error(
         "{} is not a block device; name the USB stick's device, e.g. /dev/sdb \
          (see `lsblk -o NAME,SIZE,RM,TRAN,MODEL`)",
         path.display()
     )]
-    NotBlockDevice { path: PathBuf },
+    NotBlockDevice {
+        /// The path as named.
+        path: PathBuf,
+    },
     /// sysfs has no disk with the device's number.
     #[error(
         "{} (device {number}) is not a disk the kernel lists in {}",
@@ -36,8 +44,11 @@ pub enum UsbError {
         listing.display()
     )]
     NotListed {
+        /// The device as named.
         path: PathBuf,
+        /// The device number, `major:minor`.
         number: String,
+        /// Where sysfs lists block devices by number.
         listing: PathBuf,
     },
     /// A partition, where the image needs the whole disk.
@@ -46,8 +57,11 @@ pub enum UsbError {
         path.display()
     )]
     Partition {
+        /// The partition as named.
         path: PathBuf,
+        /// The partition's name (`sdb1`).
         partition: String,
+        /// The whole disk it belongs to (`sdb`).
         disk: String,
     },
     /// The kernel does not call the disk removable: perhaps a system disk.
@@ -58,17 +72,27 @@ pub enum UsbError {
         if removable.is_empty() { "?" } else { removable }
     )]
     NotRemovable {
+        /// The device as named.
         path: PathBuf,
+        /// The disk's kernel name (`sdb`).
         name: String,
         /// sysfs's `removable`, empty if it could not be read.
         removable: String,
     },
     /// sysfs gave no size for the disk.
     #[error("cannot read the size of {name} from sysfs")]
-    UnknownSize { name: String },
+    UnknownSize {
+        /// The disk's kernel name (`sdb`).
+        name: String,
+    },
     /// The disk's sysfs directory could not be listed.
     #[error("cannot list {}: {error}", dir.display())]
-    ListSysfs { dir: PathBuf, error: io::Error },
+    ListSysfs {
+        /// The sysfs directory.
+        dir: PathBuf,
+        /// The operating system's error.
+        error: io::Error,
+    },
     /// Part of the disk is mounted, swapped to or held by another device.
     #[error(
         "/dev/{member} is {how}: unmount every partition of /dev/{disk} first \
@@ -79,11 +103,17 @@ pub enum UsbError {
         member: String,
         /// How: "mounted on /media/stick", "used as swap", "held by dm-0".
         how: String,
+        /// The whole disk it belongs to (`sdb`).
         disk: String,
     },
     /// The image could not be read.
     #[error("cannot read the image {}: {error}", path.display())]
-    ReadImage { path: PathBuf, error: io::Error },
+    ReadImage {
+        /// The image file.
+        path: PathBuf,
+        /// The operating system's error.
+        error: io::Error,
+    },
     /// The disk is smaller than the image.
     #[error(
         "the image ({}) does not fit on {} ({})",
@@ -92,16 +122,27 @@ pub enum UsbError {
         human_size(*disk_bytes)
     )]
     TooSmall {
+        /// The device being written.
         device: PathBuf,
+        /// The image's size.
         image_bytes: u64,
+        /// The disk's size.
         disk_bytes: u64,
     },
     /// The user did not confirm.
     #[error("not confirmed: nothing was written to {}", device.display())]
-    NotConfirmed { device: PathBuf },
+    NotConfirmed {
+        /// The device being written.
+        device: PathBuf,
+    },
     /// The device could not be opened for writing (permissions, usually).
     #[error("cannot open {} for writing: {error}", device.display())]
-    OpenDevice { device: PathBuf, error: io::Error },
+    OpenDevice {
+        /// The device being written.
+        device: PathBuf,
+        /// The operating system's error.
+        error: io::Error,
+    },
     /// Reading the image failed during the copy: the device may hold part of it.
     #[error(
         "reading {} failed after {written} bytes were written to {}: {error}",
@@ -109,21 +150,33 @@ pub enum UsbError {
         device.display()
     )]
     Copy {
+        /// The image being copied.
         image: PathBuf,
+        /// The device being written.
         device: PathBuf,
+        /// Bytes written before the failure.
         written: u64,
+        /// The operating system's error.
         error: io::Error,
     },
     /// Writing failed part of the way: the device holds part of the image.
     #[error("writing {} failed after {written} bytes: {error}", device.display())]
     Write {
+        /// The device being written.
         device: PathBuf,
+        /// Bytes written before the failure.
         written: u64,
+        /// The operating system's error.
         error: io::Error,
     },
     /// Everything was written but the device did not confirm it has it.
     #[error("flushing {} failed: {error}", device.display())]
-    Flush { device: PathBuf, error: io::Error },
+    Flush {
+        /// The device being written.
+        device: PathBuf,
+        /// The operating system's error.
+        error: io::Error,
+    },
 }
 
 impl UsbError {

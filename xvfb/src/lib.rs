@@ -7,6 +7,33 @@
 //! One crate of its own because both sides need it and neither should
 //! depend on the other: the runner's package builds the kernel, and the
 //! simulator pulls in a window library.
+//!
+//! Reading a window dump needs no X server. A 2x1 dump as `xwd` writes one
+//! from a 24-bit TrueColor window on an x86 X server:
+//!
+//! ```
+//! // 25 big-endian header fields; the parser reads these.
+//! let mut header = [0u32; 25];
+//! header[0] = 100; // header_size: no window name follows
+//! header[1] = 7; // file_version
+//! header[2] = 2; // pixmap_format: ZPixmap
+//! header[4] = 2; // pixmap_width
+//! header[5] = 1; // pixmap_height
+//! header[7] = 0; // byte_order: LSBFirst
+//! header[11] = 32; // bits_per_pixel
+//! header[12] = 8; // bytes_per_line
+//! header[13] = 4; // visual_class: TrueColor
+//! header[14..17].copy_from_slice(&[0xFF0000, 0x00FF00, 0x0000FF]); // masks
+//! let mut dump: Vec<u8> = header.iter().flat_map(|f| f.to_be_bytes()).collect();
+//! for pixel in [0x00FC_0000u32, 0x0001_0203] {
+//!     dump.extend_from_slice(&pixel.to_le_bytes());
+//! }
+//!
+//! let image = xvfb::xwd::parse(&dump)?;
+//! assert_eq!((image.width, image.height), (2, 1));
+//! assert_eq!(image.pixels, vec![[252, 0, 0], [1, 2, 3]]);
+//! # Ok::<(), xvfb::xwd::XwdError>(())
+//! ```
 
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
