@@ -54,14 +54,7 @@ fn the_three_beams_are_exact_in_many_orientations() {
     assert_eq!(scene.solid().name, "three beams");
     for step in 0..40 {
         assert_exact(&mut scene, &format!("beams, step {step}"));
-        scene.apply(SceneCommand::Rotate(
-            Axis::Y,
-            if step % 3 != 0 {
-                Sense::Positive
-            } else {
-                Sense::Negative
-            },
-        ));
+        scene.apply(SceneCommand::Rotate(Axis::Y, positive_if(step % 3 != 0)));
         scene.apply(SceneCommand::Rotate(Axis::X, Sense::Positive));
         if step % 5 == 0 {
             scene.apply(SceneCommand::Rotate(Axis::Z, Sense::Positive));
@@ -77,14 +70,7 @@ fn the_letter_l_is_exact_in_many_orientations() {
         assert_exact(&mut scene, &format!("letter L, step {step}"));
         scene.apply(SceneCommand::Rotate(Axis::Y, Sense::Positive));
         if step % 2 == 0 {
-            scene.apply(SceneCommand::Rotate(
-                Axis::X,
-                if step % 4 == 0 {
-                    Sense::Positive
-                } else {
-                    Sense::Negative
-                },
-            ));
+            scene.apply(SceneCommand::Rotate(Axis::X, positive_if(step % 4 == 0)));
         }
     }
 }
@@ -238,14 +224,17 @@ fn each_convex_solid_alone_is_exact_without_the_depth_test() {
         for step in 0..30 {
             assert_exact(&mut scene, &format!("shape {shape}, step {step}"));
             scene.apply(SceneCommand::Rotate(Axis::Y, Sense::Positive));
-            scene.apply(SceneCommand::Rotate(
-                Axis::X,
-                if step % 2 == 0 {
-                    Sense::Positive
-                } else {
-                    Sense::Negative
-                },
-            ));
+            scene.apply(SceneCommand::Rotate(Axis::X, positive_if(step % 2 == 0)));
         }
+    }
+}
+
+/// The positive sense where `positive` holds, else the negative: for
+/// alternating turns.
+fn positive_if(positive: bool) -> Sense {
+    if positive {
+        Sense::Positive
+    } else {
+        Sense::Negative
     }
 }
