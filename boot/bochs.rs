@@ -177,6 +177,9 @@ pub enum LayoutError {
         /// The window's height in pixels.
         height: usize,
     },
+    /// The window changed size while it was being captured.
+    #[error("the window changed size while it was captured")]
+    Resizing,
     /// The status bar's white top line is not where the layout puts it.
     #[error("row {row} of the {width}x{height} window is not the status bar's white top line")]
     NoStatusBar {
@@ -327,8 +330,8 @@ impl Bochs {
     /// own display timer, so a picture the kernel has finished reaches the
     /// window a little later; this waits for it to be shown, not for a time.
     /// A window whose bars are not where they belong (just after Bochs has
-    /// resized it for a new mode, before it repaints them) counts as not yet
-    /// showing the picture.
+    /// resized it for a new mode, before it repaints them), or that changes
+    /// size while `xwd` reads it, counts as not yet showing the picture.
     pub fn wait_for_screen(
         &mut self,
         timeout: Duration,
@@ -336,7 +339,13 @@ impl Bochs {
     ) -> Result<RgbImage> {
         let deadline = Instant::now() + timeout;
         loop {
-            let last = guest_area(&self.window_picture()?);
+            let last = match self.window_picture() {
+                Ok(window) => guest_area(&window),
+                Err(BochsError::X11(e)) if e.window_resized_during_capture() => {
+                    Err(LayoutError::Resizing)
+                }
+                Err(e) => return Err(e),
+            };
             if let Ok(picture) = &last {
                 if accept(picture) {
                     return last.map_err(BochsError::Layout);

@@ -243,6 +243,16 @@ impl Xvfb {
     }
 }
 
+impl X11Error {
+    /// `xwd` lost a race with the window changing size: it read the window's
+    /// geometry, the window shrank, and the image request no longer fitted
+    /// (X answers `BadMatch`). The window is being resized, not broken.
+    pub fn window_resized_during_capture(&self) -> bool {
+        matches!(self, X11Error::ClientFailed { command, stderr, .. }
+            if command.starts_with("xwd") && stderr.contains("BadMatch"))
+    }
+}
+
 impl Drop for Xvfb {
     /// Stops the server with SIGTERM, on which it removes its socket and
     /// lock file (SIGKILL would leave them in /tmp), and kills it if it has
@@ -261,5 +271,31 @@ impl Drop for Xvfb {
         }
         let _ = self.server.kill();
         let _ = self.server.wait();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::process::ExitStatusExt;
+
+    fn failed(command: &str, stderr: &str) -> X11Error {
+        X11Error::ClientFailed {
+            command: command.into(),
+            status: ExitStatus::from_raw(256),
+            stderr: stderr.into(),
+        }
+    }
+
+    #[test]
+    fn only_xwds_badmatch_is_a_resize_race() {
+        let race = "X Error of failed request:  BadMatch (invalid parameter attributes)\n  \
+                    Major opcode of failed request:  73 (X_GetImage)";
+        assert!(failed("xwd -silent -nobdrs -id 2097153", race).window_resized_during_capture());
+        assert!(
+            !failed("xwd -silent -id 7", "BadWindow (invalid Window parameter)")
+                .window_resized_during_capture()
+        );
+        assert!(!failed("xdotool key Escape", race).window_resized_during_capture());
     }
 }
