@@ -45,28 +45,34 @@ pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
 /// walked once per band.
 ///
 /// The test is paid only where it can change a pixel. Within one convex
-/// solid the faces that survive backface removal never overlap, so the
-/// picture is first filled without the test, in one pass — the cost the
-/// starting scene had before the depth test — and then only the bands holding
-/// rows where two objects' screen rectangles meet, or a non-convex solid, are
-/// drawn again with it (`Scene::rows_needing_depth_test`). Tests check this
-/// gives the picture of the depth test everywhere.
+/// solid the faces that survive backface removal never overlap, so only the
+/// bands holding rows where two objects' screen rectangles meet, or a
+/// non-convex solid, are drawn with the test (`Scene::rows_needing_depth_test`);
+/// the rows above and below them are filled without it, far to near — for the
+/// starting scene that is the whole frame, at the cost it had before the depth
+/// test. Each row is drawn once, one way or the other. Tests check this gives
+/// the picture of the depth test everywhere.
 pub fn render_with_depth(
     scene: &mut Scene,
     image: &mut PageImage,
     band: &mut DepthBand,
 ) -> FaceCounts {
-    let counts = render_painter(scene, image);
-    if let Some(rows) = scene.rows_needing_depth_test() {
-        let first = rows.start.clamp(0, SCREEN_HEIGHT) / BAND_ROWS;
-        let last = (rows.end.clamp(0, SCREEN_HEIGHT) + BAND_ROWS - 1) / BAND_ROWS;
-        depth_test_bands(image, band, first..last, |clip, draw| {
-            scene.each_visible_face_in_rows(clip.y0..clip.y1, |visible, colour| {
-                draw(visible, colour)
-            })
-        });
+    let Some(rows) = scene.rows_needing_depth_test() else {
+        return render_painter(scene, image);
+    };
+    let first = rows.start.clamp(0, SCREEN_HEIGHT) / BAND_ROWS;
+    let last = (rows.end.clamp(0, SCREEN_HEIGHT) + BAND_ROWS - 1) / BAND_ROWS;
+    if first == last {
+        return render_painter(scene, image);
     }
-    counts
+    for untested in [0..first * BAND_ROWS, last * BAND_ROWS..SCREEN_HEIGHT] {
+        if !untested.is_empty() {
+            painter_rows(scene, image, untested);
+        }
+    }
+    depth_test_bands(image, band, first..last, |clip, draw| {
+        scene.each_visible_face_in_rows(clip.y0..clip.y1, |visible, colour| draw(visible, colour))
+    })
 }
 
 /// The depth-tested drawing of `render_with_depth` for any set of objects:
@@ -116,9 +122,21 @@ fn depth_test_bands(
 /// the distance of their centres, faces in model order, no depth test. Exact
 /// only for convex objects that do not interpenetrate.
 pub fn render_painter(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
-    image.fill(BACKGROUND);
+    painter_rows(scene, image, 0..SCREEN_HEIGHT)
+}
+
+/// `render_painter` for the rows in `rows` only; the rest of `image` is left
+/// as it is.
+fn painter_rows(scene: &mut Scene, image: &mut PageImage, rows: Range<i32>) -> FaceCounts {
+    image[(rows.start * SCREEN_WIDTH) as usize..(rows.end * SCREEN_WIDTH) as usize]
+        .fill(BACKGROUND);
+    let clip = ClipRect {
+        y0: rows.start,
+        y1: rows.end,
+        ..SCREEN_CLIP
+    };
     scene.visible_faces(|polygon, colour| {
-        fill_convex_polygon(polygon, SCREEN_CLIP, |y, x_start, x_end| {
+        fill_convex_polygon(polygon, clip, |y, x_start, x_end| {
             let row = (y * SCREEN_WIDTH) as usize;
             image[row + x_start as usize..row + x_end as usize].fill(colour);
         });
