@@ -178,15 +178,14 @@ impl Presenter {
 
 /// Bytes a full present writes: every visible pixel of every line that fits.
 fn full_present_bytes(layout: &FramebufferLayout, out_len: usize) -> usize {
-    let visible_bytes = layout.visible_width() * layout.bytes_per_pixel;
     if !(1..=4).contains(&layout.bytes_per_pixel) {
         return 0;
     }
+    let visible_pixels = layout.visible_width();
     (0..layout.height)
         .map(|y| {
-            out_len
-                .saturating_sub(y * layout.line_bytes())
-                .min(visible_bytes)
+            let pixels = out_len.saturating_sub(y * layout.line_bytes()) / layout.bytes_per_pixel;
+            pixels.min(visible_pixels) * layout.bytes_per_pixel
         })
         .sum()
 }
@@ -203,7 +202,6 @@ fn write_span(
     out: &mut [u8],
 ) -> usize {
     let scale = placement.scale;
-    let visible_bytes = layout.visible_width() * layout.bytes_per_pixel;
     let mut written = 0;
     for repeat in 0..scale {
         let y = placement.top + (row * scale + repeat) as isize;
@@ -213,11 +211,9 @@ fn write_span(
         if y >= layout.height {
             break;
         }
-        let Some(line) = out.get_mut(y * layout.line_bytes()..) else {
+        let Some(line) = layout.visible_line(out, y) else {
             break;
         };
-        let line_end = visible_bytes.min(line.len());
-        let line = &mut line[..line_end];
         written += match layout.bytes_per_pixel {
             1 => span_on_line::<1>(line, placement, columns.clone(), &pixel),
             2 => span_on_line::<2>(line, placement, columns.clone(), &pixel),

@@ -51,6 +51,16 @@ impl FramebufferLayout {
     pub(crate) fn visible_width(&self) -> usize {
         self.width.min(self.stride)
     }
+
+    /// Line `y`'s visible pixels within `out`, whole pixels only: a buffer
+    /// cut short mid-pixel leaves that pixel alone, whoever draws the line.
+    pub(crate) fn visible_line<'a>(&self, out: &'a mut [u8], y: usize) -> Option<&'a mut [u8]> {
+        let line = out.get_mut(y * self.line_bytes()..)?;
+        let pixels = self
+            .visible_width()
+            .min(line.len() / self.bytes_per_pixel.max(1));
+        Some(&mut line[..pixels * self.bytes_per_pixel])
+    }
 }
 
 /// Where a picture lands on a screen.
@@ -167,14 +177,10 @@ pub(crate) fn blit<T>(
         picture.len()
     );
     let placement = Placement::fit(size, (layout.width, layout.height));
-    let line_bytes = layout.line_bytes();
-    let visible_bytes = layout.visible_width() * layout.bytes_per_pixel;
     for y in 0..layout.height {
-        let Some(line) = out.get_mut(y * line_bytes..) else {
+        let Some(line) = layout.visible_line(out, y) else {
             break;
         };
-        let line_end = visible_bytes.min(line.len());
-        let line = &mut line[..line_end];
         let Some(row) = source_row(y, &placement, picture_height) else {
             line.fill(0);
             continue;
