@@ -111,12 +111,84 @@ impl Graphics {
             Graphics::StdVga => &["-vga", "std"],
             Graphics::BochsDisplay => &["-vga", "none", "-device", "bochs-display"],
             Graphics::Cirrus => &["-vga", "none", "-device", "cirrus-vga"],
-            Graphics::IsaCirrus => &["-M", "isapc", "-vga", "none", "-device", "isa-cirrus-vga"],
+            // The board (`isapc`) and its CPU come from `Board::qemu_machine`.
+            Graphics::IsaCirrus => &["-vga", "none", "-device", "isa-cirrus-vga"],
             Graphics::Ati => &["-vga", "none", "-device", "ati-vga"],
             Graphics::Vmware => &["-vga", "none", "-device", "vmware-svga"],
             Graphics::Qxl => &["-vga", "none", "-device", "qxl-vga"],
             Graphics::Virtio => &["-vga", "none", "-device", "virtio-vga"],
         }
+    }
+}
+
+/// The emulated PC's chipset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Chipset {
+    /// `-M pc`: the i440FX, QEMU's default, a late-1990s PC.
+    I440fx,
+    /// `-M q35`: the Q35 with ICH9, PCI Express, AHCI, as a PC of today looks.
+    Q35,
+}
+
+/// The emulated PC: its chipset and which legacy devices it has. Recent Intel
+/// platforms gate the 8254 PIT's clock, UEFI-only desktops have no i8042, and
+/// many boards leave the HPET out of their ACPI tables; each can be taken away.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Board {
+    /// The chipset.
+    pub chipset: Chipset,
+    /// The 8254 PIT is fitted (`pit=off` takes it away).
+    pub pit: bool,
+    /// The i8042 keyboard controller is fitted (`i8042=off`).
+    pub i8042: bool,
+    /// The HPET is fitted and in the ACPI tables (`hpet=off`).
+    pub hpet: bool,
+}
+
+impl Board {
+    /// QEMU's default PC: i440FX with a PIT, an i8042 and an HPET.
+    pub const PC: Board = Board {
+        chipset: Chipset::I440fx,
+        pit: true,
+        i8042: true,
+        hpet: true,
+    };
+
+    /// A Q35 with every legacy device.
+    pub const Q35: Board = Board {
+        chipset: Chipset::Q35,
+        ..Board::PC
+    };
+
+    /// QEMU's `-M` value. An ISA-only adapter needs the `isapc` board, whose
+    /// default CPU (a 486) cannot run a 64-bit kernel: the CPU is named too.
+    fn qemu_machine(&self, graphics: Graphics) -> Vec<String> {
+        let on_off = |fitted: bool| if fitted { "on" } else { "off" };
+        let name = match (graphics, self.chipset) {
+            (Graphics::IsaCirrus, _) => "isapc",
+            (_, Chipset::I440fx) => "pc",
+            (_, Chipset::Q35) => "q35",
+        };
+        let mut machine = format!(
+            "{name},pit={},i8042={}",
+            on_off(self.pit),
+            on_off(self.i8042)
+        );
+        if name != "isapc" {
+            // isapc has no HPET property (nor an HPET).
+            machine.push_str(&format!(",hpet={}", on_off(self.hpet)));
+        }
+        let mut args = vec!["-M".to_string(), machine];
+        if name == "isapc" {
+            args.extend(["-cpu".to_string(), "qemu64".to_string()]);
+        }
+        args
+    }
+}
+
+impl Default for Board {
+    fn default() -> Self {
+        Board::PC
     }
 }
 
@@ -132,6 +204,11 @@ pub struct QemuOptions {
     pub display: Display,
     /// The emulated display adapter.
     pub graphics: Graphics,
+    /// The chipset and the legacy devices fitted.
+    pub board: Board,
+    /// More devices, each given to QEMU as `-device VALUE` in order (for
+    /// example `qemu-xhci` then `usb-kbd,id=usbkbd`).
+    pub devices: Vec<String>,
     /// Make QEMU time Input Status 1's retrace bits from the CRTC timings
     /// (about 60 Hz in Mode X) instead of toggling them on every read.
     pub precise_retrace: bool,
@@ -145,7 +222,7 @@ pub struct QemuOptions {
 }
 
 impl QemuOptions {
-    /// BIOS, headless, standard VGA with precise retrace timing, the default
+    /// BIOS, headless, QEMU's default PC, standard VGA with precise retrace timing, the default
     /// boot request, no serial echo, and `isa-debug-exit` fitted.
     pub fn new(image: impl Into<PathBuf>) -> Self {
         QemuOptions {
@@ -153,6 +230,8 @@ impl QemuOptions {
             firmware: Firmware::Bios,
             display: Display::Headless,
             graphics: Graphics::StdVga,
+            board: Board::PC,
+            devices: Vec::new(),
             precise_retrace: true,
             boot: BootRequest::default(),
             echo_serial: false,
@@ -260,7 +339,11 @@ impl Qemu {
                 "unix:{},server=on,wait=off",
                 monitor_path.display()
             ));
+        command.args(options.board.qemu_machine(options.graphics));
         command.args(options.graphics.qemu_args(options.precise_retrace));
+        for device in &options.devices {
+            command.arg("-device").arg(device);
+        }
         if options.firmware == Firmware::Uefi {
             command.args(["-bios", OVMF_CODE]);
         }
