@@ -12,14 +12,14 @@ mod common;
 #[path = "uefi_parts/text_screens.rs"]
 mod text_screens;
 
-use boot::{BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions, RgbImage};
+use boot::{BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions};
 use common::{
-    assert_pictures_equal, assert_same_picture, model_picture, pattern_picture, soft_vga_in_mode_x,
-    BOOT_TIMEOUT,
+    assert_pictures_equal, assert_same_picture, model_picture, pattern_picture, presented,
+    soft_vga_in_mode_x, BOOT_TIMEOUT,
 };
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};
-use modex::present::{present_rgb, FramebufferLayout, PixelOrder, Placement};
+use modex::present::Placement;
 use modex::ModeX;
 use std::time::Duration;
 
@@ -31,13 +31,14 @@ const UEFI_FRAMEBUFFER: &str = "display: UEFI boot: drawing through the firmware
 
 fn boot(firmware: Firmware, graphics: Graphics, option: Option<BootOption>) -> Qemu {
     let request = BootRequest {
-        true_mode_x: false,
         option,
+        ..BootRequest::default()
     };
     boot_with(firmware, graphics, request, true)
 }
 
-/// As `boot`; without `debug_exit` the kernel halts where it would end QEMU.
+/// As `boot`; without `debug_exit` the kernel powers the machine off through
+/// ACPI where it would end QEMU, and QEMU keeps the last screen.
 fn boot_with(
     firmware: Firmware,
     graphics: Graphics,
@@ -54,6 +55,7 @@ fn boot_with(
     options.graphics = graphics;
     options.boot = request;
     options.debug_exit = debug_exit;
+    options.keep_after_power_off = !debug_exit;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -92,27 +94,6 @@ fn reported_framebuffer(console: &str) -> ReportedFramebuffer {
         bytes_per_pixel: number(words.get(4).copied()),
         scale: number(words.get(7).copied()),
     }
-}
-
-/// A picture (320x240 Mode X, or 720x400 text) presented as the kernel
-/// presents the software VGA onto a `width` x `height` screen, read back as RGB.
-fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
-    let layout = FramebufferLayout {
-        width,
-        height,
-        stride: width,
-        bytes_per_pixel: 3,
-        order: PixelOrder::Rgb,
-    };
-    let mut bytes = vec![0; layout.required_bytes()];
-    present_rgb(
-        &picture.pixels,
-        (picture.width, picture.height),
-        &layout,
-        &mut bytes,
-    );
-    let pixels = bytes.as_chunks::<3>().0.to_vec();
-    RgbImage::new(width, height, pixels)
 }
 
 /// Boots UEFI with the test pattern on `graphics`, checks the framebuffer
@@ -213,6 +194,7 @@ fn uefi_with_the_standard_vga_and_the_option_runs_true_mode_x() {
     let request = BootRequest {
         true_mode_x: true,
         option: Some(BootOption::TestPattern),
+        ..BootRequest::default()
     };
     let mut qemu = boot_with(Firmware::Uefi, Graphics::StdVga, request, true);
     let console = qemu
