@@ -99,6 +99,13 @@ fn cpuid_tsc() -> CpuidTsc {
     }
 }
 
+/// Microseconds in `cycles` of the TSC (0 without a running clock).
+pub fn cycles_to_micros(cycles: u64) -> u64 {
+    CLOCK
+        .get()
+        .map_or(0, |clock| TscClock { start: 0, ..*clock }.micros(cycles))
+}
+
 /// Microseconds since `init`.
 pub fn micros() -> u64 {
     match CLOCK.get() {
