@@ -8,6 +8,7 @@
 mod bench;
 mod bios;
 mod clock;
+mod dma;
 mod diagnostics;
 mod fault;
 mod firmware;
@@ -24,6 +25,7 @@ mod qemu;
 mod run;
 mod selftest;
 mod serial;
+mod usb;
 mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
@@ -88,6 +90,7 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
         panic!("the bootloader did not map physical memory, so VGA memory is out of reach");
     };
+    usb::init(&boot_info.memory_regions, physical_memory_offset);
     // SAFETY: the bootloader maps all physical memory at this offset (asked for
     // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
     let mut bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };

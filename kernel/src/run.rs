@@ -3,7 +3,7 @@
 //! interrupt when nothing did, so an idle cube costs no bus traffic at all.
 //! While the cube spins it also keeps count of missed retraces.
 
-use crate::{clock, goodbye, keyboard, serial_println};
+use crate::{clock, goodbye, keyboard, serial_println, usb};
 use demo::app::App;
 use machine::pacing::Pacing;
 use machine::protocol::line;
@@ -36,6 +36,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut reported_commands = 0;
     let mut pacing = Pacing::default();
     loop {
+        usb::poll();
         while let Some(byte) = keyboard::SCANCODES.pop() {
             app.feed_scancode(byte);
         }

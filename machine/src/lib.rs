@@ -34,3 +34,4 @@ pub mod firmware;
 pub mod fw_cfg;
 pub mod pacing;
 pub mod protocol;
+pub mod usb;
