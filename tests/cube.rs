@@ -4,7 +4,8 @@
 mod common;
 
 use common::{
-    after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT, PIXELS,
+    after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT, CUBE_SEQUENCE,
+    PIXELS,
 };
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};
@@ -56,25 +57,11 @@ fn step_guarded(app: &mut App, soft: &mut SoftVga) {
     soft.set_write_guard(None);
 }
 
-/// The QEMU key sequence of the issue, as the commands the keys stand for.
-const SEQUENCE: [(&str, Command); 10] = [
-    ("r", Command::Scene(SceneCommand::Reset)),
-    ("4", common::turn(Axis::Y, Sense::Negative)),
-    ("4", common::turn(Axis::Y, Sense::Negative)),
-    ("4", common::turn(Axis::Y, Sense::Negative)),
-    ("8", common::turn(Axis::X, Sense::Negative)),
-    ("8", common::turn(Axis::X, Sense::Negative)),
-    ("a", Command::Scene(SceneCommand::Away)),
-    ("a", Command::Scene(SceneCommand::Away)),
-    ("f1", common::turn(Axis::Z, Sense::Positive)),
-    ("left", Command::Scene(SceneCommand::MoveLeft)),
-];
-
 #[test]
 fn frames_through_the_software_vga_equal_the_reference_rasterizer() {
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
-    let mut commands: Vec<Command> = SEQUENCE.iter().map(|&(_, c)| c).collect();
+    let mut commands: Vec<Command> = CUBE_SEQUENCE.iter().map(|&(_, c)| c).collect();
     // Then off the edges of the screen and back, turning as it goes.
     commands.extend([Command::Scene(SceneCommand::MoveLeft); 40]);
     commands.extend([common::turn(Axis::Y, Sense::Positive); 7]);
@@ -146,7 +133,7 @@ fn pause_waits_for_a_key_and_escape_quits() {
 
 #[test]
 fn qemu_shows_what_the_software_vga_shows_after_each_key() {
-    after_each_key(&SEQUENCE, |qemu, model, _, what| {
+    after_each_key(&CUBE_SEQUENCE, |qemu, model, _, what| {
         assert_same_picture(qemu, model, what)
     });
 }

@@ -14,12 +14,12 @@ mod text_screens;
 
 use boot::{BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions, RgbImage};
 use common::{
-    assert_pictures_equal, assert_same_picture, model_picture, pattern_picture, soft_vga_in_mode_x,
-    BOOT_TIMEOUT,
+    assert_pictures_equal, assert_same_picture, model_picture, pattern_picture, presented,
+    soft_vga_in_mode_x, BOOT_TIMEOUT,
 };
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};
-use modex::present::{present_rgb, FramebufferLayout, PixelOrder, Placement};
+use modex::present::Placement;
 use modex::ModeX;
 use std::time::Duration;
 
@@ -92,27 +92,6 @@ fn reported_framebuffer(console: &str) -> ReportedFramebuffer {
         bytes_per_pixel: number(words.get(4).copied()),
         scale: number(words.get(7).copied()),
     }
-}
-
-/// A picture (320x240 Mode X, or 720x400 text) presented as the kernel
-/// presents the software VGA onto a `width` x `height` screen, read back as RGB.
-fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
-    let layout = FramebufferLayout {
-        width,
-        height,
-        stride: width,
-        bytes_per_pixel: 3,
-        order: PixelOrder::Rgb,
-    };
-    let mut bytes = vec![0; layout.required_bytes()];
-    present_rgb(
-        &picture.pixels,
-        (picture.width, picture.height),
-        &layout,
-        &mut bytes,
-    );
-    let pixels = bytes.as_chunks::<3>().0.to_vec();
-    RgbImage::new(width, height, pixels)
 }
 
 /// Boots UEFI with the test pattern on `graphics`, checks the framebuffer

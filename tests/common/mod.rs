@@ -9,6 +9,7 @@ use boot::{Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};
 use modex::soft::SoftVga;
+use modex::present::{present_rgb, FramebufferLayout, PixelOrder};
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
 
@@ -27,6 +28,20 @@ pub const TURNED: [(&str, Command); 7] = [
     ("6", turn(Axis::Y, Sense::Positive)),
     ("8", turn(Axis::X, Sense::Negative)),
     ("8", turn(Axis::X, Sense::Negative)),
+];
+
+/// The QEMU key sequence of the issue, as the commands the keys stand for.
+pub const CUBE_SEQUENCE: [(&str, Command); 10] = [
+    ("r", Command::Scene(SceneCommand::Reset)),
+    ("4", turn(Axis::Y, Sense::Negative)),
+    ("4", turn(Axis::Y, Sense::Negative)),
+    ("4", turn(Axis::Y, Sense::Negative)),
+    ("8", turn(Axis::X, Sense::Negative)),
+    ("8", turn(Axis::X, Sense::Negative)),
+    ("a", Command::Scene(SceneCommand::Away)),
+    ("a", Command::Scene(SceneCommand::Away)),
+    ("f1", turn(Axis::Z, Sense::Positive)),
+    ("left", Command::Scene(SceneCommand::MoveLeft)),
 ];
 
 /// Proptest's settings: `default_cases` cases, or as many as the
@@ -79,6 +94,27 @@ pub fn model_picture(soft: &SoftVga) -> RgbImage {
         "the model is not showing 320x240"
     );
     RgbImage::new(width, height, rgb)
+}
+
+/// A picture (320x240 Mode X, or 720x400 text) presented as the kernel
+/// presents the software VGA onto a `width` x `height` screen, read back as RGB.
+pub fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
+    let layout = FramebufferLayout {
+        width,
+        height,
+        stride: width,
+        bytes_per_pixel: 3,
+        order: PixelOrder::Rgb,
+    };
+    let mut bytes = vec![0; layout.required_bytes()];
+    present_rgb(
+        &picture.pixels,
+        (picture.width, picture.height),
+        &layout,
+        &mut bytes,
+    );
+    let pixels = bytes.as_chunks::<3>().0.to_vec();
+    RgbImage::new(width, height, pixels)
 }
 
 /// QEMU's 640x480 picture of Mode X must be the model's 320x240, doubled.
