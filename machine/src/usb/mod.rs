@@ -17,6 +17,11 @@ pub mod report;
 pub mod ring;
 pub mod xhci;
 
+#[cfg(test)]
+mod model;
+#[cfg(test)]
+mod tests;
+
 
 /// DMA memory, by physical address, a 32-bit word at a time.
 pub trait Memory {
