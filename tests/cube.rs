@@ -4,8 +4,8 @@
 mod common;
 
 use common::{
-    after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT, CUBE_SEQUENCE,
-    PIXELS,
+    after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT,
+    CUBE_SEQUENCE, PIXELS,
 };
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};

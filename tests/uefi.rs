@@ -12,7 +12,7 @@ mod common;
 #[path = "uefi_parts/text_screens.rs"]
 mod text_screens;
 
-use boot::{BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions, RgbImage};
+use boot::{BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions};
 use common::{
     assert_pictures_equal, assert_same_picture, model_picture, pattern_picture, presented,
     soft_vga_in_mode_x, BOOT_TIMEOUT,

@@ -39,8 +39,20 @@ const HID_QUEUE_SCANCODES: usize = 16;
 /// Scancodes an event of `key` takes in QEMU's usb-hid queue.
 fn queue_cost(key: &str) -> usize {
     const EXTENDED: &[&str] = &[
-        "left", "right", "up", "down", "home", "end", "pgup", "pgdn", "insert", "delete",
-        "ctrl_r", "alt_r", "kp_enter", "kp_divide",
+        "left",
+        "right",
+        "up",
+        "down",
+        "home",
+        "end",
+        "pgup",
+        "pgdn",
+        "insert",
+        "delete",
+        "ctrl_r",
+        "alt_r",
+        "kp_enter",
+        "kp_divide",
     ];
     if EXTENDED.contains(&key) {
         2
@@ -94,8 +106,8 @@ fn flood_key(index: usize, state: &mut u64) -> (Vec<(&'static str, bool)>, u64) 
     /// swallows the next key): digits, letters, E0 keys, the keypad with
     /// Num Lock on, function keys.
     const KEYS: &[&str] = &[
-        "4", "6", "8", "2", "a", "t", "left", "right", "up", "down", "home", "end", "pgup",
-        "pgdn", "f1", "f2", "kp_4", "kp_6", "kp_8", "kp_2", "spc", "l", "n", "m", "r",
+        "4", "6", "8", "2", "a", "t", "left", "right", "up", "down", "home", "end", "pgup", "pgdn",
+        "f1", "f2", "kp_4", "kp_6", "kp_8", "kp_2", "spc", "l", "n", "m", "r",
     ];
     *state ^= *state << 13;
     *state ^= *state >> 7;
@@ -108,11 +120,21 @@ fn flood_key(index: usize, state: &mut u64) -> (Vec<(&'static str, bool)>, u64) 
     match index % 50 {
         // A key with a modifier held around it.
         17 => (
-            vec![("shift", true), (letter, true), (letter, false), ("shift", false)],
+            vec![
+                ("shift", true),
+                (letter, true),
+                (letter, false),
+                ("shift", false),
+            ],
             1,
         ),
         33 => (
-            vec![("shift_r", true), (letter, true), (letter, false), ("shift_r", false)],
+            vec![
+                ("shift_r", true),
+                (letter, true),
+                (letter, false),
+                ("shift_r", false),
+            ],
             1,
         ),
         // A modifier alone is no command.
@@ -173,9 +195,7 @@ fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
     // line that says paused=true counts every repeat there was.
     qemu.key_events_on(DISPLAY_ID, &[("6", false), ("q", true), ("q", false)])
         .unwrap();
-    let console = qemu
-        .wait_for_serial("paused=true", BOOT_TIMEOUT)
-        .unwrap();
+    let console = qemu.wait_for_serial("paused=true", BOOT_TIMEOUT).unwrap();
     done = console
         .lines()
         .find(|l| l.contains("paused=true"))
@@ -189,7 +209,12 @@ fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
     let mut state = 0x2545_f491_4f6c_dd1du64;
     let mut burst: Vec<(&str, bool)> = Vec::new();
     let mut burst_commands = 0;
-    let cost = |events: &[(&str, bool)]| events.iter().map(|&(key, _)| queue_cost(key)).sum::<usize>();
+    let cost = |events: &[(&str, bool)]| {
+        events
+            .iter()
+            .map(|&(key, _)| queue_cost(key))
+            .sum::<usize>()
+    };
     for index in 0..FLOOD_KEYS {
         let (events, commands) = flood_key(index, &mut state);
         // The last burst's final releases may still be queued when its last
@@ -203,10 +228,7 @@ fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
         burst_commands += commands;
     }
     done = send_and_wait(&mut qemu, &burst, done, burst_commands);
-    println!(
-        "{FLOOD_KEYS} keys over USB in {:.1?}",
-        started.elapsed()
-    );
+    println!("{FLOOD_KEYS} keys over USB in {:.1?}", started.elapsed());
     let console = qemu.serial();
     assert_eq!(commands_done(&console), done, "a key acted twice");
     assert!(
@@ -253,7 +275,9 @@ fn on_a_bios_boot_usb_keys_act_once_and_ps2_keys_act_too() {
         usb_keyboard("bus=xhci.0"),
     ];
     let mut qemu = start(Firmware::Bios, Graphics::StdVga, Board::PC, devices);
-    let console = qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT).unwrap();
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+        .unwrap();
     assert!(
         console.contains("keyboard: USB boot keyboard on port "),
         "{console}"

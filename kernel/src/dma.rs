@@ -95,9 +95,8 @@ pub fn map_uncached(
         | PageTableFlags::NO_CACHE
         | PageTableFlags::WRITE_THROUGH;
     for frame in (first..=last).step_by(PAGE as usize) {
-        let page = Page::<Size4KiB>::containing_address(VirtAddr::new(
-            virtual_base + (frame - first),
-        ));
+        let page =
+            Page::<Size4KiB>::containing_address(VirtAddr::new(virtual_base + (frame - first)));
         // SAFETY: the frame is the device's register window (from its BAR),
         // mapped at a virtual address that nothing else uses (its level-4
         // slot was empty); the page tables come from our own DMA pages.

@@ -8,8 +8,8 @@
 mod bench;
 mod bios;
 mod clock;
-mod dma;
 mod diagnostics;
+mod dma;
 mod fault;
 mod firmware;
 mod framebuffer;

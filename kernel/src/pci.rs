@@ -107,7 +107,11 @@ pub fn xhci_controllers<const N: usize>() -> ([Option<Function>; N], usize) {
                 continue;
             }
             let header_type = (read(bus, device, 0, 0x0C) >> 16) as u8;
-            let functions = if header_type & MULTI_FUNCTION != 0 { 8 } else { 1 };
+            let functions = if header_type & MULTI_FUNCTION != 0 {
+                8
+            } else {
+                1
+            };
             for function in 0..functions {
                 let id = read(bus, device, function, 0x00);
                 if id as u16 == NO_DEVICE || read(bus, device, function, 0x08) >> 8 != CLASS_XHCI {
@@ -140,10 +144,20 @@ pub struct MemoryBar {
 /// decoding and bus mastering. `None` if BAR0 is not a memory BAR.
 pub fn enable_memory_and_bus_master(f: Function) -> Option<MemoryBar> {
     let command = read(f.bus, f.device, f.function, COMMAND);
-    write(f.bus, f.device, f.function, COMMAND, command & !COMMAND_MEMORY & 0xFFFF);
+    write(
+        f.bus,
+        f.device,
+        f.function,
+        COMMAND,
+        command & !COMMAND_MEMORY & 0xFFFF,
+    );
     let low = read(f.bus, f.device, f.function, BAR0);
     let is_64 = low & 0b110 == BAR_64_BIT;
-    let high = if is_64 { read(f.bus, f.device, f.function, BAR0 + 4) } else { 0 };
+    let high = if is_64 {
+        read(f.bus, f.device, f.function, BAR0 + 4)
+    } else {
+        0
+    };
     write(f.bus, f.device, f.function, BAR0, u32::MAX);
     let size_mask = read(f.bus, f.device, f.function, BAR0) & !0xF;
     write(f.bus, f.device, f.function, BAR0, low);

@@ -79,7 +79,11 @@ pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
         return;
     }
     if count > MAX_CONTROLLERS {
-        serial_println!("usb: {} xHCI controllers; the first {} are used", count, MAX_CONTROLLERS);
+        serial_println!(
+            "usb: {} xHCI controllers; the first {} are used",
+            count,
+            MAX_CONTROLLERS
+        );
     }
     let used = count.min(MAX_CONTROLLERS) as u64;
     let Some(mut memory) = dma::take(regions, used * (DMA_BYTES_PER_CONTROLLER + MAPPING_BYTES))
@@ -110,10 +114,15 @@ fn start(
         return None;
     };
     if bar.bytes < 0x1000 || bar.bytes > 1 << 24 {
-        serial_println!("usb: xHCI {}: BAR0 of {} bytes makes no sense", function, bar.bytes);
+        serial_println!(
+            "usb: xHCI {}: BAR0 of {} bytes makes no sense",
+            function,
+            bar.bytes
+        );
         return None;
     }
-    let registers = match dma::map_uncached(bar.address, bar.bytes, mapping, physical_memory_offset) {
+    let registers = match dma::map_uncached(bar.address, bar.bytes, mapping, physical_memory_offset)
+    {
         Ok(registers) => registers,
         Err(problem) => {
             serial_println!("usb: xHCI {}: {}", function, problem);
@@ -141,23 +150,34 @@ fn start(
         capabilities.scratchpads
     );
     match xhci.take_ownership() {
-        Handoff::Forced => serial_println!(
-            "usb: the firmware did not let go of the xHCI within 1 s; taken anyway"
-        ),
+        Handoff::Forced => {
+            serial_println!("usb: the firmware did not let go of the xHCI within 1 s; taken anyway")
+        }
         Handoff::Released(micros) => {
             serial_println!("usb: the firmware handed the xHCI over in {} us", micros)
         }
         Handoff::NoLegacyCapability | Handoff::NotOwned => {}
     }
     if let Some(routed) = pci::route_intel_ports_to_xhci(function) {
-        serial_println!("usb: Intel PCH ports switched to the xHCI (XUSB2PR {:#x})", routed);
+        serial_println!(
+            "usb: Intel PCH ports switched to the xHCI (XUSB2PR {:#x})",
+            routed
+        );
     }
     if let Err(problem) = xhci.reset_and_start() {
-        serial_println!("usb: xHCI {}: {}; USB keyboards not used", function, problem);
+        serial_println!(
+            "usb: xHCI {}: {}; USB keyboards not used",
+            function,
+            problem
+        );
         return None;
     }
     if let Err(problem) = xhci.no_op() {
-        serial_println!("usb: xHCI {}: command ring: {}; USB keyboards not used", function, problem);
+        serial_println!(
+            "usb: xHCI {}: command ring: {}; USB keyboards not used",
+            function,
+            problem
+        );
         return None;
     }
     if xhci.enumerate() == 0 {

@@ -8,8 +8,8 @@ use boot::BootOption;
 use boot::{Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};
-use modex::soft::SoftVga;
 use modex::present::{present_rgb, FramebufferLayout, PixelOrder};
+use modex::soft::SoftVga;
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
 

@@ -92,8 +92,16 @@ pub fn device(bytes: &[u8]) -> Result<DeviceDescriptor, DescriptorError> {
     Ok(DeviceDescriptor {
         class: bytes[4],
         max_packet_0: bytes[7],
-        vendor: if full { u16::from_le_bytes([bytes[8], bytes[9]]) } else { 0 },
-        product: if full { u16::from_le_bytes([bytes[10], bytes[11]]) } else { 0 },
+        vendor: if full {
+            u16::from_le_bytes([bytes[8], bytes[9]])
+        } else {
+            0
+        },
+        product: if full {
+            u16::from_le_bytes([bytes[10], bytes[11]])
+        } else {
+            0
+        },
         configurations: if full { bytes[17] } else { 0 },
     })
 }
@@ -292,12 +300,20 @@ mod tests {
 
     #[test]
     fn device_and_hub_descriptors_are_checked() {
-        let device_bytes = [18, 1, 0, 2, 0, 0, 0, 8, 0x27, 0x06, 0x01, 0x00, 0, 0, 1, 2, 3, 1];
+        let device_bytes = [
+            18, 1, 0, 2, 0, 0, 0, 8, 0x27, 0x06, 0x01, 0x00, 0, 0, 1, 2, 3, 1,
+        ];
         let parsed = device(&device_bytes).unwrap();
-        assert_eq!((parsed.max_packet_0, parsed.vendor, parsed.product), (8, 0x0627, 1));
+        assert_eq!(
+            (parsed.max_packet_0, parsed.vendor, parsed.product),
+            (8, 0x0627, 1)
+        );
         assert_eq!(device(&device_bytes[..8]).unwrap().vendor, 0);
         assert!(device(&device_bytes[..7]).is_err());
-        assert_eq!(device(&[18, 2, 0, 0, 0, 0, 0, 8]), Err(DescriptorError::WrongType(2)));
+        assert_eq!(
+            device(&[18, 2, 0, 0, 0, 0, 0, 8]),
+            Err(DescriptorError::WrongType(2))
+        );
         let hub_bytes = [9, 0x29, 8, 0x20, 0, 50, 0, 0, 0xFF];
         assert_eq!(
             hub(&hub_bytes).unwrap(),

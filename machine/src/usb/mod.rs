@@ -22,7 +22,6 @@ mod model;
 #[cfg(test)]
 mod tests;
 
-
 /// DMA memory, by physical address, a 32-bit word at a time.
 pub trait Memory {
     /// Reads the word at `address` (4-byte aligned).

@@ -27,8 +27,8 @@ pub const KEYBOARD_DEVICE: [u8; 18] = [
     18, 1, 0x00, 0x02, 0, 0, 0, 8, 0x27, 0x06, 0x01, 0x00, 0, 0, 1, 2, 3, 1,
 ];
 pub const KEYBOARD_CONFIGURATION: [u8; 34] = [
-    9, 2, 34, 0, 1, 1, 0, 0xA0, 50, 9, 4, 0, 0, 1, 3, 1, 1, 0, 9, 0x21, 0x11, 0x01, 0, 1, 0x22,
-    63, 0, 7, 5, 0x81, 3, 8, 0, 10,
+    9, 2, 34, 0, 1, 1, 0, 0xA0, 50, 9, 4, 0, 0, 1, 3, 1, 1, 0, 9, 0x21, 0x11, 0x01, 0, 1, 0x22, 63,
+    0, 7, 5, 0x81, 3, 8, 0, 10,
 ];
 
 /// A consumer's place on a producer ring.
@@ -199,7 +199,10 @@ impl Model {
         self.mem_write(address, trb.0[0]);
         self.mem_write(address + 4, trb.0[1]);
         self.mem_write(address + 8, trb.0[2]);
-        self.mem_write(address + 12, (trb.0[3] & !CYCLE) | u32::from(self.event_cycle));
+        self.mem_write(
+            address + 12,
+            (trb.0[3] & !CYCLE) | u32::from(self.event_cycle),
+        );
         self.event_enqueue = next;
         if next == 0 {
             self.event_cycle = !self.event_cycle;
@@ -383,10 +386,22 @@ impl Model {
         };
         self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
         let buffer = trb.parameter();
-        self.mem_write(buffer, u32::from_le_bytes([report[0], report[1], report[2], report[3]]));
-        self.mem_write(buffer + 4, u32::from_le_bytes([report[4], report[5], report[6], report[7]]));
+        self.mem_write(
+            buffer,
+            u32::from_le_bytes([report[0], report[1], report[2], report[3]]),
+        );
+        self.mem_write(
+            buffer + 4,
+            u32::from_le_bytes([report[4], report[5], report[6], report[7]]),
+        );
         let residual = trb.0[2].saturating_sub(8);
-        self.transfer_event(address, if residual > 0 { 13 } else { 1 }, residual, slot, dci);
+        self.transfer_event(
+            address,
+            if residual > 0 { 13 } else { 1 },
+            residual,
+            slot,
+            dci,
+        );
         true
     }
 
@@ -463,7 +478,10 @@ impl Hardware for Model {
     }
 
     fn mmio_write(&mut self, offset: u32, value: u32) {
-        assert!(offset + 4 <= BAR_BYTES, "write outside the BAR: {offset:#x}");
+        assert!(
+            offset + 4 <= BAR_BYTES,
+            "write outside the BAR: {offset:#x}"
+        );
         let set_low = |old: u64, v: u32| (old & !0xFFFF_FFFF) | u64::from(v);
         let set_high = |old: u64, v: u32| (old & 0xFFFF_FFFF) | u64::from(v) << 32;
         match offset {
@@ -502,7 +520,8 @@ impl Hardware for Model {
             o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * PORTS as u32).contains(&o) => {
                 let port = ((o - OPERATIONAL - 0x400) / 0x10) as usize;
                 if value & 0b10 != 0 {
-                    self.errors.push("PED written: the port was disabled".into());
+                    self.errors
+                        .push("PED written: the port was disabled".into());
                 }
                 let status = &mut self.portsc[port];
                 *status &= !(value & (0x7F << 17));
@@ -563,4 +582,3 @@ impl Hardware for Model {
         self.log.push(std::format!("{message}"));
     }
 }
-

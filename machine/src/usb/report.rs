@@ -45,78 +45,102 @@ const fn extended(code: u8) -> Option<Set1Key> {
 /// The modifier byte's bits, from bit 0: left Ctrl, Shift, Alt, GUI, then
 /// the right-hand ones.
 const MODIFIERS: [Set1Key; 8] = [
-    Set1Key { code: 0x1D, extended: false },
-    Set1Key { code: 0x2A, extended: false },
-    Set1Key { code: 0x38, extended: false },
-    Set1Key { code: 0x5B, extended: true },
-    Set1Key { code: 0x1D, extended: true },
-    Set1Key { code: 0x36, extended: false },
-    Set1Key { code: 0x38, extended: true },
-    Set1Key { code: 0x5C, extended: true },
+    Set1Key {
+        code: 0x1D,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x2A,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x38,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x5B,
+        extended: true,
+    },
+    Set1Key {
+        code: 0x1D,
+        extended: true,
+    },
+    Set1Key {
+        code: 0x36,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x38,
+        extended: true,
+    },
+    Set1Key {
+        code: 0x5C,
+        extended: true,
+    },
 ];
 
 /// The set-1 key for a HID keyboard usage (page 7), if PS/2 has one.
 pub fn set1_key(usage: u8) -> Option<Set1Key> {
     // Letters a-z in usage order.
     const LETTERS: [u8; 26] = [
-        0x1E, 0x30, 0x2E, 0x20, 0x12, 0x21, 0x22, 0x23, 0x17, 0x24, 0x25, 0x26, 0x32, 0x31,
-        0x18, 0x19, 0x10, 0x13, 0x1F, 0x14, 0x16, 0x2F, 0x11, 0x2D, 0x15, 0x2C,
+        0x1E, 0x30, 0x2E, 0x20, 0x12, 0x21, 0x22, 0x23, 0x17, 0x24, 0x25, 0x26, 0x32, 0x31, 0x18,
+        0x19, 0x10, 0x13, 0x1F, 0x14, 0x16, 0x2F, 0x11, 0x2D, 0x15, 0x2C,
     ];
     match usage {
         0x04..=0x1D => plain(LETTERS[usize::from(usage - 0x04)]),
         // 1-9 then 0, as on the keyboard's top row.
         0x1E..=0x27 => plain(usage - 0x1E + 0x02),
-        0x28 => plain(0x1C), // Enter
-        0x29 => plain(0x01), // Esc
-        0x2A => plain(0x0E), // Backspace
-        0x2B => plain(0x0F), // Tab
-        0x2C => plain(0x39), // Space
-        0x2D => plain(0x0C), // -
-        0x2E => plain(0x0D), // =
-        0x2F => plain(0x1A), // [
-        0x30 => plain(0x1B), // ]
-        0x31 | 0x32 => plain(0x2B), // \ and the non-US # (same key position)
-        0x33 => plain(0x27), // ;
-        0x34 => plain(0x28), // '
-        0x35 => plain(0x29), // `
-        0x36 => plain(0x33), // ,
-        0x37 => plain(0x34), // .
-        0x38 => plain(0x35), // /
-        0x39 => plain(0x3A), // Caps Lock
+        0x28 => plain(0x1C),                       // Enter
+        0x29 => plain(0x01),                       // Esc
+        0x2A => plain(0x0E),                       // Backspace
+        0x2B => plain(0x0F),                       // Tab
+        0x2C => plain(0x39),                       // Space
+        0x2D => plain(0x0C),                       // -
+        0x2E => plain(0x0D),                       // =
+        0x2F => plain(0x1A),                       // [
+        0x30 => plain(0x1B),                       // ]
+        0x31 | 0x32 => plain(0x2B),                // \ and the non-US # (same key position)
+        0x33 => plain(0x27),                       // ;
+        0x34 => plain(0x28),                       // '
+        0x35 => plain(0x29),                       // `
+        0x36 => plain(0x33),                       // ,
+        0x37 => plain(0x34),                       // .
+        0x38 => plain(0x35),                       // /
+        0x39 => plain(0x3A),                       // Caps Lock
         0x3A..=0x43 => plain(usage - 0x3A + 0x3B), // F1-F10
-        0x44 => plain(0x57), // F11
-        0x45 => plain(0x58), // F12
-        0x46 => extended(0x37), // Print Screen (its E0 2A prefix left out)
-        0x47 => plain(0x46), // Scroll Lock
-        0x49 => extended(0x52), // Insert
-        0x4A => extended(0x47), // Home
-        0x4B => extended(0x49), // Page Up
-        0x4C => extended(0x53), // Delete
-        0x4D => extended(0x4F), // End
-        0x4E => extended(0x51), // Page Down
-        0x4F => extended(0x4D), // Right
-        0x50 => extended(0x4B), // Left
-        0x51 => extended(0x50), // Down
-        0x52 => extended(0x48), // Up
-        0x53 => plain(0x45), // Num Lock
-        0x54 => extended(0x35), // keypad /
-        0x55 => plain(0x37), // keypad *
-        0x56 => plain(0x4A), // keypad -
-        0x57 => plain(0x4E), // keypad +
-        0x58 => extended(0x1C), // keypad Enter
-        0x59 => plain(0x4F), // keypad 1
-        0x5A => plain(0x50), // keypad 2
-        0x5B => plain(0x51), // keypad 3
-        0x5C => plain(0x4B), // keypad 4
-        0x5D => plain(0x4C), // keypad 5
-        0x5E => plain(0x4D), // keypad 6
-        0x5F => plain(0x47), // keypad 7
-        0x60 => plain(0x48), // keypad 8
-        0x61 => plain(0x49), // keypad 9
-        0x62 => plain(0x52), // keypad 0
-        0x63 => plain(0x53), // keypad .
-        0x64 => plain(0x56), // the non-US \ left of Z
-        0x65 => extended(0x5D), // Menu (Application)
+        0x44 => plain(0x57),                       // F11
+        0x45 => plain(0x58),                       // F12
+        0x46 => extended(0x37),                    // Print Screen (its E0 2A prefix left out)
+        0x47 => plain(0x46),                       // Scroll Lock
+        0x49 => extended(0x52),                    // Insert
+        0x4A => extended(0x47),                    // Home
+        0x4B => extended(0x49),                    // Page Up
+        0x4C => extended(0x53),                    // Delete
+        0x4D => extended(0x4F),                    // End
+        0x4E => extended(0x51),                    // Page Down
+        0x4F => extended(0x4D),                    // Right
+        0x50 => extended(0x4B),                    // Left
+        0x51 => extended(0x50),                    // Down
+        0x52 => extended(0x48),                    // Up
+        0x53 => plain(0x45),                       // Num Lock
+        0x54 => extended(0x35),                    // keypad /
+        0x55 => plain(0x37),                       // keypad *
+        0x56 => plain(0x4A),                       // keypad -
+        0x57 => plain(0x4E),                       // keypad +
+        0x58 => extended(0x1C),                    // keypad Enter
+        0x59 => plain(0x4F),                       // keypad 1
+        0x5A => plain(0x50),                       // keypad 2
+        0x5B => plain(0x51),                       // keypad 3
+        0x5C => plain(0x4B),                       // keypad 4
+        0x5D => plain(0x4C),                       // keypad 5
+        0x5E => plain(0x4D),                       // keypad 6
+        0x5F => plain(0x47),                       // keypad 7
+        0x60 => plain(0x48),                       // keypad 8
+        0x61 => plain(0x49),                       // keypad 9
+        0x62 => plain(0x52),                       // keypad 0
+        0x63 => plain(0x53),                       // keypad .
+        0x64 => plain(0x56),                       // the non-US \ left of Z
+        0x65 => extended(0x5D),                    // Menu (Application)
         _ => None,
     }
 }
@@ -158,7 +182,10 @@ impl BootKeyboard {
         let keys: [u8; 6] = [
             report[2], report[3], report[4], report[5], report[6], report[7],
         ];
-        if keys.iter().any(|&usage| usage != 0 && usage < FIRST_REAL_USAGE) {
+        if keys
+            .iter()
+            .any(|&usage| usage != 0 && usage < FIRST_REAL_USAGE)
+        {
             return;
         }
         let modifiers = report[0];
@@ -206,7 +233,10 @@ impl BootKeyboard {
 
     fn released(&mut self, key: Set1Key, out: &mut impl FnMut(u8)) {
         emit(key, true, out);
-        if self.repeating.is_some_and(|(repeating, _)| repeating == key) {
+        if self
+            .repeating
+            .is_some_and(|(repeating, _)| repeating == key)
+        {
             self.repeating = None;
         }
     }
@@ -266,15 +296,15 @@ mod tests {
     fn extended_keys_get_their_e0_prefix_both_ways() {
         let mut keyboard = BootKeyboard::new();
         // Left arrow, then keypad Enter added, then both released.
-        assert_eq!(feed(&mut keyboard, [0, 0, 0x50, 0, 0, 0, 0, 0], 0), [0xE0, 0x4B]);
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x50, 0, 0, 0, 0, 0], 0),
+            [0xE0, 0x4B]
+        );
         assert_eq!(
             feed(&mut keyboard, [0, 0, 0x50, 0x58, 0, 0, 0, 0], 1),
             [0xE0, 0x1C]
         );
-        assert_eq!(
-            feed(&mut keyboard, [0; 8], 2),
-            [0xE0, 0xCB, 0xE0, 0x9C]
-        );
+        assert_eq!(feed(&mut keyboard, [0; 8], 2), [0xE0, 0xCB, 0xE0, 0x9C]);
         // Keypad 4 has no prefix: the demo tells it from Left that way.
         assert_eq!(feed(&mut keyboard, [0, 0, 0x5C, 0, 0, 0, 0, 0], 3), [0x4B]);
     }
@@ -288,10 +318,7 @@ mod tests {
             feed(&mut keyboard, [0x12, 0, 0x04, 0, 0, 0, 0, 0], 1),
             [0xE0, 0x1D, 0x1E]
         );
-        assert_eq!(
-            feed(&mut keyboard, [0; 8], 2),
-            [0xAA, 0xE0, 0x9D, 0x9E]
-        );
+        assert_eq!(feed(&mut keyboard, [0; 8], 2), [0xAA, 0xE0, 0x9D, 0x9E]);
         // Right Alt and both GUI keys are E0 keys.
         assert_eq!(
             feed(&mut keyboard, [0xC8, 0, 0, 0, 0, 0, 0, 0], 3),
@@ -302,7 +329,10 @@ mod tests {
     #[test]
     fn a_rollover_error_report_changes_nothing() {
         let mut keyboard = BootKeyboard::new();
-        assert_eq!(feed(&mut keyboard, [0, 0, 0x04, 0x05, 0, 0, 0, 0], 0), [0x1E, 0x30]);
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x04, 0x05, 0, 0, 0, 0], 0),
+            [0x1E, 0x30]
+        );
         // Too many keys: every slot says ErrorRollOver; nothing is released.
         assert_eq!(feed(&mut keyboard, [0, 0, 1, 1, 1, 1, 1, 1], 1), []);
         // Back to two keys: no new makes either, as nothing changed.
@@ -313,7 +343,10 @@ mod tests {
     #[test]
     fn a_held_key_repeats_at_the_ps2_defaults_and_stops_on_release() {
         let mut keyboard = BootKeyboard::new();
-        assert_eq!(feed(&mut keyboard, [0, 0, 0x21, 0, 0, 0, 0, 0], 1_000), [0x05]); // 4
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x21, 0, 0, 0, 0, 0], 1_000),
+            [0x05]
+        ); // 4
         assert_eq!(tick(&mut keyboard, 1_000 + REPEAT_DELAY_MICROS - 1), []);
         assert_eq!(tick(&mut keyboard, 1_000 + REPEAT_DELAY_MICROS), [0x05]);
         assert_eq!(tick(&mut keyboard, 1_000 + REPEAT_DELAY_MICROS + 1), []);
@@ -338,7 +371,10 @@ mod tests {
         feed(&mut keyboard, [0, 0, 0x04, 0x50, 0, 0, 0, 0], 100_000);
         assert_eq!(tick(&mut keyboard, 600_000), [0xE0, 0x4B]);
         // Releasing A (not the repeating key) leaves Left repeating.
-        assert_eq!(feed(&mut keyboard, [0, 0, 0, 0x50, 0, 0, 0, 0], 650_000), [0x9E]);
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0, 0x50, 0, 0, 0, 0], 650_000),
+            [0x9E]
+        );
         assert_eq!(tick(&mut keyboard, 700_000), [0xE0, 0x4B]);
     }
 
@@ -353,7 +389,10 @@ mod tests {
     #[test]
     fn pause_sends_its_e1_sequence_once_and_short_reports_are_ignored() {
         let mut keyboard = BootKeyboard::new();
-        assert_eq!(feed(&mut keyboard, [0, 0, 0x48, 0, 0, 0, 0, 0], 0), PAUSE_BYTES);
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x48, 0, 0, 0, 0, 0], 0),
+            PAUSE_BYTES
+        );
         assert_eq!(feed(&mut keyboard, [0; 8], 1), []);
         let mut bytes = Vec::new();
         keyboard.report(&[0, 0, 0x04], 2, &mut |b| bytes.push(b));

@@ -294,7 +294,10 @@ mod tests {
         assert_eq!(ring.room_before_link(), 2);
         ring.reserve_contiguous(&mut memory, 3);
         assert_eq!(ring.enqueue_address(), 0, "No Ops filled the segment");
-        assert_eq!((memory.mem_read(5 * 16 + 12) >> 10) & 0x3F, trb_type::NO_OP_TRANSFER);
+        assert_eq!(
+            (memory.mem_read(5 * 16 + 12) >> 10) & 0x3F,
+            trb_type::NO_OP_TRANSFER
+        );
         ring.reserve_contiguous(&mut memory, 3);
         assert_eq!(ring.enqueue_address(), 0, "room enough: nothing written");
     }

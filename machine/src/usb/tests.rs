@@ -35,8 +35,15 @@ fn the_firmware_that_lets_go_is_waited_for_and_its_smis_turned_off() {
     };
     assert!((3_000..4_000).contains(&micros), "{micros}");
     let (legacy, control) = xhci.hardware().legacy_registers();
-    assert_eq!(legacy & (1 << 24 | 1 << 16), 1 << 24, "OS-owned, not BIOS-owned");
-    assert_eq!(control, 0, "SMI enables off and their status cleared: {control:#x}");
+    assert_eq!(
+        legacy & (1 << 24 | 1 << 16),
+        1 << 24,
+        "OS-owned, not BIOS-owned"
+    );
+    assert_eq!(
+        control, 0,
+        "SMI enables off and their status cleared: {control:#x}"
+    );
 }
 
 #[test]
@@ -69,7 +76,11 @@ fn controller_not_ready_stuck_fails_the_reset_in_bounded_time() {
     assert_eq!(xhci.reset_and_start(), Err(XhciError::NotReady));
     let waited = xhci.hardware().now - start;
     assert!(waited <= RESET_MICROS + 100_000, "{waited} us");
-    assert!(xhci.hardware().errors.is_empty(), "{:?}", xhci.hardware().errors);
+    assert!(
+        xhci.hardware().errors.is_empty(),
+        "{:?}",
+        xhci.hardware().errors
+    );
 }
 
 #[test]
@@ -82,11 +93,11 @@ fn scratchpads_asked_for_are_given_page_by_page() {
     xhci.reset_and_start().unwrap();
     let model = xhci.hardware();
     let array = model.scratchpad_array();
-    assert!(array != 0 && array % PAGE_BYTES == 0);
+    assert!(array != 0 && array.is_multiple_of(PAGE_BYTES));
     let mut pages: Vec<u64> = (0..37).map(|i| model.read_u64(array + 8 * i)).collect();
-    assert!(pages.iter().all(|&p| p % PAGE_BYTES == 0
-        && p >= DMA_BASE
-        && p + PAGE_BYTES <= DMA_BASE + DMA_BYTES));
+    assert!(pages
+        .iter()
+        .all(|&p| p.is_multiple_of(PAGE_BYTES) && p >= DMA_BASE && p + PAGE_BYTES <= DMA_BASE + DMA_BYTES));
     pages.sort_unstable();
     pages.dedup();
     assert_eq!(pages.len(), 37, "every scratchpad a page of its own");
@@ -107,7 +118,10 @@ fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
         let mut model = Model::new();
         model.csz = csz;
         let mut xhci = with_keyboard(model);
-        assert_eq!(xhci.capabilities().layout.context_bytes, if csz { 64 } else { 32 });
+        assert_eq!(
+            xhci.capabilities().layout.context_bytes,
+            if csz { 64 } else { 32 }
+        );
         let model = xhci.hardware();
         assert!(model.errors.is_empty(), "csz {csz}: {:?}", model.errors);
         assert_eq!(model.keyboard.configuration, Some(1));
@@ -149,7 +163,10 @@ fn normal_trbs_stay_queued_through_many_reports_and_the_rings_wrap() {
     // the 256-TRB event ring more than twice.
     for i in 0..300u32 {
         let usage = 0x04 + (i % 26) as u8;
-        assert!(xhci.hardware().send_report([0, 0, usage, 0, 0, 0, 0, 0]), "report {i}");
+        assert!(
+            xhci.hardware().send_report([0, 0, usage, 0, 0, 0, 0, 0]),
+            "report {i}"
+        );
         assert!(xhci.hardware().send_report([0; 8]), "release {i}");
         let bytes = poll(&mut xhci);
         assert_eq!(bytes.len(), 2, "key {i}: {bytes:x?}");
@@ -197,18 +214,30 @@ fn a_controller_that_never_answers_commands_costs_bounded_time() {
 #[test]
 fn nonsense_descriptors_are_refused_and_survived() {
     let cases: [(&str, Vec<u8>, Vec<u8>); 4] = [
-        ("device length 0", std::vec![0; 18], super::model::KEYBOARD_CONFIGURATION.to_vec()),
+        (
+            "device length 0",
+            std::vec![0; 18],
+            super::model::KEYBOARD_CONFIGURATION.to_vec(),
+        ),
         ("no descriptor at all", Vec::new(), Vec::new()),
-        ("configuration with a zero-length descriptor", super::model::KEYBOARD_DEVICE.to_vec(), {
-            let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
-            c[9] = 0;
-            c
-        }),
-        ("endpoint past the end", super::model::KEYBOARD_DEVICE.to_vec(), {
-            let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
-            c[27] = 200;
-            c
-        }),
+        (
+            "configuration with a zero-length descriptor",
+            super::model::KEYBOARD_DEVICE.to_vec(),
+            {
+                let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
+                c[9] = 0;
+                c
+            },
+        ),
+        (
+            "endpoint past the end",
+            super::model::KEYBOARD_DEVICE.to_vec(),
+            {
+                let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
+                c[27] = 200;
+                c
+            },
+        ),
     ];
     for (what, device, configuration) in cases {
         let mut model = Model::new();
@@ -219,7 +248,10 @@ fn nonsense_descriptors_are_refused_and_survived() {
         xhci.reset_and_start().unwrap();
         assert_eq!(xhci.enumerate(), 0, "{what}");
         assert!(
-            xhci.hardware().log.iter().any(|l| l.starts_with("usb: port 1: ")),
+            xhci.hardware()
+                .log
+                .iter()
+                .any(|l| l.starts_with("usb: port 1: ")),
             "{what}: {:?}",
             xhci.hardware().log
         );

@@ -23,7 +23,11 @@ const RING_TRBS: u16 = 256;
 const INTERRUPT_RING_TRBS: u16 = 64;
 const REPORT_BUFFER_BYTES: u64 = 64;
 /// Normal TRBs kept queued on a keyboard's interrupt endpoint.
-const QUEUED_REPORTS: u16 = 8;
+const QUEUED_REPORTS: u16 = 16;
+/// Keyboards are polled every 2^3 x 125 us = 1 ms, however slowly they
+/// ask to be: a host may poll an interrupt endpoint more often than its
+/// bInterval (USB 2.0 5.7.4), and keys then wait at most 1 ms, not 8-10.
+const KEYBOARD_INTERVAL: u8 = 3;
 /// Devices (slots) this driver keeps: a hub and keyboards.
 pub const MAX_DEVICES: usize = 8;
 /// Slots enabled in CONFIG (the DCBAA has this many entries plus one).
@@ -254,7 +258,9 @@ impl PortProtocols {
     fn major(&self, port: u8) -> Option<u8> {
         self.ranges[..self.count]
             .iter()
-            .find(|&&(_, first, count)| port >= first && u16::from(port) < u16::from(first) + u16::from(count))
+            .find(|&&(_, first, count)| {
+                port >= first && u16::from(port) < u16::from(first) + u16::from(count)
+            })
             .map(|&(major, _, _)| major)
     }
 }
@@ -337,7 +343,10 @@ impl<H: Hardware> Xhci<H> {
         // Every register the driver will touch must lie inside the BAR.
         let fits = |start: u32, bytes: u64| u64::from(start) + bytes <= u64::from(mmio_bytes);
         if caplength < 0x20
-            || !fits(operational, u64::from(PORTSC) + 0x10 * u64::from(capabilities.ports))
+            || !fits(
+                operational,
+                u64::from(PORTSC) + 0x10 * u64::from(capabilities.ports),
+            )
             || !fits(runtime, 0x40)
             || !fits(doorbells, 4 * (u64::from(MAX_SLOTS) + 1))
             || capabilities.slots == 0
@@ -377,7 +386,10 @@ impl<H: Hardware> Xhci<H> {
     }
 
     fn read(&mut self, offset: u32) -> u32 {
-        if offset.checked_add(4).is_some_and(|end| end <= self.mmio_bytes) {
+        if offset
+            .checked_add(4)
+            .is_some_and(|end| end <= self.mmio_bytes)
+        {
             self.hw.mmio_read(offset)
         } else {
             u32::MAX
@@ -385,7 +397,10 @@ impl<H: Hardware> Xhci<H> {
     }
 
     fn write(&mut self, offset: u32, value: u32) {
-        if offset.checked_add(4).is_some_and(|end| end <= self.mmio_bytes) {
+        if offset
+            .checked_add(4)
+            .is_some_and(|end| end <= self.mmio_bytes)
+        {
             self.hw.mmio_write(offset, value);
         }
     }
@@ -448,7 +463,11 @@ impl<H: Hardware> Xhci<H> {
     fn extended_capabilities(&mut self, mut each: impl FnMut(&mut Self, u32, u32)) {
         let mut offset = self.extended_capabilities;
         for _ in 0..64 {
-            if offset == 0 || offset.checked_add(16).is_none_or(|end| end > self.mmio_bytes) {
+            if offset == 0
+                || offset
+                    .checked_add(16)
+                    .is_none_or(|end| end > self.mmio_bytes)
+            {
                 return;
             }
             let header = self.read(offset);
@@ -490,7 +509,10 @@ impl<H: Hardware> Xhci<H> {
             }
         };
         let control = self.read(legacy + 4);
-        self.write(legacy + 4, (control & !LEGACY_SMI_ENABLES) | LEGACY_SMI_STATUS);
+        self.write(
+            legacy + 4,
+            (control & !LEGACY_SMI_ENABLES) | LEGACY_SMI_STATUS,
+        );
         handoff
     }
 
@@ -544,7 +566,8 @@ impl<H: Hardware> Xhci<H> {
             for index in 0..u64::from(scratchpads) {
                 let buffer = self.page()?;
                 self.hw.mem_write(array + index * 8, buffer as u32);
-                self.hw.mem_write(array + index * 8 + 4, (buffer >> 32) as u32);
+                self.hw
+                    .mem_write(array + index * 8 + 4, (buffer >> 32) as u32);
             }
             self.hw.mem_write(self.dcbaa, array as u32);
             self.hw.mem_write(self.dcbaa + 4, (array >> 32) as u32);
@@ -704,7 +727,11 @@ impl<H: Hardware> Xhci<H> {
             .as_ref()
             .map(|d| d.buffer)
             .ok_or(XhciError::TransferTimeout)?;
-        let request_type = if kind == descriptor::kind::HUB { 0xA0 } else { 0x80 };
+        let request_type = if kind == descriptor::kind::HUB {
+            0xA0
+        } else {
+            0x80
+        };
         self.control(
             index,
             Setup {
@@ -719,7 +746,14 @@ impl<H: Hardware> Xhci<H> {
         Ok(())
     }
 
-    fn request(&mut self, index: usize, request_type: u8, request: u8, value: u16, at: u16) -> Result<()> {
+    fn request(
+        &mut self,
+        index: usize,
+        request_type: u8,
+        request: u8,
+        value: u16,
+        at: u16,
+    ) -> Result<()> {
         self.control(
             index,
             Setup {
@@ -811,7 +845,8 @@ impl<H: Hardware> Xhci<H> {
         let (output, input, ep0_page, buffer) =
             (self.page()?, self.page()?, self.page()?, self.page()?);
         let layout = self.capabilities.layout;
-        self.hw.mem_write(self.dcbaa + 8 * u64::from(slot), output as u32);
+        self.hw
+            .mem_write(self.dcbaa + 8 * u64::from(slot), output as u32);
         self.hw
             .mem_write(self.dcbaa + 8 * u64::from(slot) + 4, (output >> 32) as u32);
         let ep0 = ProducerRing::new(ep0_page, RING_TRBS);
@@ -909,8 +944,8 @@ impl<H: Hardware> Xhci<H> {
         let device = descriptor::device(&device_bytes)?;
         let mut config_header = [0u8; 9];
         self.get_descriptor(index, descriptor::kind::CONFIGURATION, &mut config_header)?;
-        let total = descriptor::configuration_total_length(&config_header)?
-            .clamp(9, CONFIGURATION_BYTES);
+        let total =
+            descriptor::configuration_total_length(&config_header)?.clamp(9, CONFIGURATION_BYTES);
         let mut config_bytes = [0u8; CONFIGURATION_BYTES as usize];
         let config_bytes = &mut config_bytes[..usize::from(total)];
         self.get_descriptor(index, descriptor::kind::CONFIGURATION, config_bytes)?;
@@ -921,8 +956,9 @@ impl<H: Hardware> Xhci<H> {
                 endpoint,
             }) => {
                 self.set_up_keyboard(index, configuration.value, interface, endpoint)?;
-                self.hw
-                    .log(format_args!("keyboard: USB boot keyboard on port {location}"));
+                self.hw.log(format_args!(
+                    "keyboard: USB boot keyboard on port {location}"
+                ));
                 Ok(())
             }
             Some(Function::Hub) if location.hub_port == 0 => {
@@ -973,7 +1009,7 @@ impl<H: Hardware> Xhci<H> {
             &EndpointContext {
                 kind: endpoint_type::INTERRUPT_IN,
                 max_packet,
-                interval: interrupt_interval(speed_id, endpoint.interval),
+                interval: interrupt_interval(speed_id, endpoint.interval).min(KEYBOARD_INTERVAL),
                 dequeue: ring.dequeue_pointer(),
                 average_trb_length: max_packet,
             },
@@ -1123,7 +1159,13 @@ impl<H: Hardware> Xhci<H> {
             }
             self.pause(1_000);
         };
-        self.request(index, 0x23, CLEAR_FEATURE, HUB_C_PORT_RESET, u16::from(port))?;
+        self.request(
+            index,
+            0x23,
+            CLEAR_FEATURE,
+            HUB_C_PORT_RESET,
+            u16::from(port),
+        )?;
         if status & 0b10 == 0 {
             return Err(XhciError::PortReset);
         }
@@ -1185,8 +1227,8 @@ impl<H: Hardware> Xhci<H> {
             return;
         }
         let mut report = [0u8; REPORT_BUFFER_BYTES as usize];
-        let length = (keyboard.report_bytes.saturating_sub(event.residual()) as usize)
-            .min(report.len());
+        let length =
+            (keyboard.report_bytes.saturating_sub(event.residual()) as usize).min(report.len());
         let buffer = keyboard.reports + u64::from(trb_index) * REPORT_BUFFER_BYTES;
         for (word, chunk) in report[..length].chunks_mut(4).enumerate() {
             let value = self.hw.mem_read(buffer + word as u64 * 4).to_le_bytes();
@@ -1212,7 +1254,10 @@ impl<H: Hardware> Xhci<H> {
         let mut states = [0; MAX_DEVICES];
         for (state, device) in states.iter_mut().zip(self.devices.iter()) {
             if let Some(device) = device {
-                *state = self.capabilities.layout.slot_state(&mut self.hw, device.output);
+                *state = self
+                    .capabilities
+                    .layout
+                    .slot_state(&mut self.hw, device.output);
             }
         }
         states
