@@ -95,9 +95,9 @@ fn scratchpads_asked_for_are_given_page_by_page() {
     let array = model.scratchpad_array();
     assert!(array != 0 && array.is_multiple_of(PAGE_BYTES));
     let mut pages: Vec<u64> = (0..37).map(|i| model.read_u64(array + 8 * i)).collect();
-    assert!(pages
-        .iter()
-        .all(|&p| p.is_multiple_of(PAGE_BYTES) && p >= DMA_BASE && p + PAGE_BYTES <= DMA_BASE + DMA_BYTES));
+    assert!(pages.iter().all(|&p| p.is_multiple_of(PAGE_BYTES)
+        && p >= DMA_BASE
+        && p + PAGE_BYTES <= DMA_BASE + DMA_BYTES));
     pages.sort_unstable();
     pages.dedup();
     assert_eq!(pages.len(), 37, "every scratchpad a page of its own");
