@@ -11,7 +11,7 @@ use spin::Mutex;
 /// Controllers driven; more are named and left alone.
 const MAX_CONTROLLERS: usize = 4;
 /// DMA memory per controller: rings, contexts, report buffers, scratchpads.
-const DMA_BYTES_PER_CONTROLLER: u64 = 1 << 20;
+const DMA_BYTES_PER_CONTROLLER: u64 = 2 << 20;
 /// Page-table pages the register mapping may need (PDPT, PD, PT).
 const MAPPING_BYTES: u64 = 3 * dma::PAGE;
 

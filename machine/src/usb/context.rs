@@ -3,6 +3,7 @@
 //! same as in a 32-byte one), so every offset goes through the layout.
 
 use super::Memory;
+use xhci::context::{EndpointHandler, SlotHandler};
 
 /// The context size the controller asks for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -111,28 +112,28 @@ impl ContextLayout {
         memory.mem_write(input + 4, add_flags);
     }
 
-    /// Writes a slot context into an input context.
+    /// Writes a slot context into an input context. The fields are laid
+    /// out by the `xhci` crate's context types; only the first 32 bytes of a
+    /// 64-byte context mean anything, and `start_input` zeroed the rest.
     pub fn write_slot(&self, memory: &mut impl Memory, input: u64, slot: &SlotContext) {
-        let at = self.input_slot(input);
-        memory.mem_write(
-            at,
-            (slot.route_string & 0xF_FFFF)
-                | (slot.speed & 0xF) << 20
-                | u32::from(slot.hub) << 26
-                | (slot.context_entries & 0x1F) << 27,
-        );
-        memory.mem_write(
-            at + 4,
-            u32::from(slot.root_port) << 16 | u32::from(slot.hub_ports) << 24,
-        );
-        memory.mem_write(
-            at + 8,
-            u32::from(slot.tt_hub_slot) | u32::from(slot.tt_port) << 8,
-        );
-        memory.mem_write(at + 12, 0);
+        let mut context = xhci::context::Slot32Byte::new_32byte();
+        // Every value is masked to its field: the crate's setters panic on
+        // one that does not fit.
+        context.set_route_string(slot.route_string & 0xF_FFFF);
+        context.set_speed((slot.speed & 0xF) as u8);
+        if slot.hub {
+            context.set_hub();
+        }
+        context.set_context_entries((slot.context_entries & 0x1F) as u8);
+        context.set_root_hub_port_number(slot.root_port);
+        context.set_number_of_ports(slot.hub_ports);
+        context.set_parent_hub_slot_id(slot.tt_hub_slot);
+        context.set_parent_port_number(slot.tt_port);
+        write_words(memory, self.input_slot(input), context.as_ref());
     }
 
-    /// Writes endpoint `dci`'s context into an input context.
+    /// Writes endpoint `dci`'s context into an input context (laid out by
+    /// the `xhci` crate, as the slot).
     pub fn write_endpoint(
         &self,
         memory: &mut impl Memory,
@@ -140,25 +141,29 @@ impl ContextLayout {
         dci: u8,
         endpoint: &EndpointContext,
     ) {
+        use xhci::context::EndpointType;
         /// Three tries before an error stops the endpoint.
-        const ERROR_COUNT: u32 = 3;
-        let at = self.input_endpoint(input, dci);
-        memory.mem_write(at, u32::from(endpoint.interval) << 16);
-        memory.mem_write(
-            at + 4,
-            ERROR_COUNT << 1 | (endpoint.kind & 7) << 3 | u32::from(endpoint.max_packet) << 16,
-        );
-        memory.mem_write(at + 8, endpoint.dequeue as u32);
-        memory.mem_write(at + 12, (endpoint.dequeue >> 32) as u32);
-        let max_esit_payload = if endpoint.kind == endpoint_type::CONTROL {
-            0
-        } else {
-            u32::from(endpoint.max_packet)
-        };
-        memory.mem_write(
-            at + 16,
-            u32::from(endpoint.average_trb_length) | max_esit_payload << 16,
-        );
+        const ERROR_COUNT: u8 = 3;
+        let mut context = xhci::context::Endpoint32Byte::new_32byte();
+        context.set_endpoint_type(match endpoint.kind {
+            endpoint_type::CONTROL => EndpointType::Control,
+            endpoint_type::INTERRUPT_IN => EndpointType::InterruptIn,
+            _ => EndpointType::NotValid,
+        });
+        context.set_interval(endpoint.interval);
+        context.set_error_count(ERROR_COUNT);
+        context.set_max_packet_size(endpoint.max_packet);
+        // The crate wants the pointer 64-byte aligned (rings here are pages);
+        // a dequeue pointer of 0 is Evaluate Context's "not evaluated".
+        context.set_tr_dequeue_pointer(endpoint.dequeue & !0x3F);
+        if endpoint.dequeue & 1 != 0 {
+            context.set_dequeue_cycle_state();
+        }
+        context.set_average_trb_length(endpoint.average_trb_length);
+        if endpoint.kind != endpoint_type::CONTROL {
+            context.set_max_endpoint_service_time_interval_payload_low(endpoint.max_packet);
+        }
+        write_words(memory, self.input_endpoint(input, dci), context.as_ref());
     }
 
     /// The slot state (0 disabled, 1 default, 2 addressed, 3 configured) in
@@ -171,6 +176,12 @@ impl ContextLayout {
     /// the output device context.
     pub fn endpoint_state(&self, memory: &mut impl Memory, device: u64, dci: u8) -> u32 {
         memory.mem_read(self.output_context(device, dci)) & 7
+    }
+}
+
+fn write_words(memory: &mut impl Memory, at: u64, words: &[u32]) {
+    for (index, &word) in words.iter().enumerate() {
+        memory.mem_write(at + 4 * index as u64, word);
     }
 }
 

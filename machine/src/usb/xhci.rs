@@ -8,11 +8,11 @@ use super::context::{
 };
 use super::descriptor::{self, Function, InterruptIn};
 use super::report::BootKeyboard;
-use super::ring::{
-    trb_type, EventRing, ProducerRing, Trb, IMMEDIATE_DATA, INTERRUPT_ON_COMPLETION,
-    INTERRUPT_ON_SHORT,
-};
+use super::ring::{trb_type, EventRing, ProducerRing, Trb};
 use super::Hardware;
+// TRBs are built with the `xhci` crate's layouts; the rings here own the
+// cycle bit.
+use xhci::ring::trb::{command, transfer};
 
 /// Bytes in a page: DMA memory is handed out a page at a time.
 pub const PAGE_BYTES: u64 = 4096;
@@ -273,16 +273,6 @@ struct Setup {
     value: u16,
     index: u16,
     length: u16,
-}
-
-impl Setup {
-    fn parameter(&self) -> u64 {
-        u64::from(self.request_type)
-            | u64::from(self.request) << 8
-            | u64::from(self.value) << 16
-            | u64::from(self.index) << 32
-            | u64::from(self.length) << 48
-    }
 }
 
 const GET_STATUS: u8 = 0;
@@ -650,7 +640,7 @@ impl<H: Hardware> Xhci<H> {
 
     /// Sends a No Op command: proves the command and event rings work.
     pub fn no_op(&mut self) -> Result<()> {
-        self.command(Trb::new(trb_type::NO_OP_COMMAND, 0, 0, 0))
+        self.command(Trb(command::Noop::new().into_raw()))
             .map(|_| ())
     }
 
@@ -664,38 +654,37 @@ impl<H: Hardware> Xhci<H> {
         ring.reserve_contiguous(&mut self.hw, 3);
         let device_to_host = setup.request_type & 0x80 != 0;
         let has_data = setup.length > 0;
-        let transfer_type = match (has_data, device_to_host) {
-            (false, _) => 0,
-            (true, false) => 2,
-            (true, true) => 3,
-        };
-        ring.push(
-            &mut self.hw,
-            Trb::new(
-                trb_type::SETUP,
-                setup.parameter(),
-                8,
-                IMMEDIATE_DATA | transfer_type << 16,
-            ),
-        );
+        let mut setup_stage = transfer::SetupStage::new();
+        setup_stage
+            .set_request_type(setup.request_type)
+            .set_request(setup.request)
+            .set_value(setup.value)
+            .set_index(setup.index)
+            .set_length(setup.length)
+            .set_transfer_type(match (has_data, device_to_host) {
+                (false, _) => transfer::TransferType::No,
+                (true, false) => transfer::TransferType::Out,
+                (true, true) => transfer::TransferType::In,
+            });
+        ring.push(&mut self.hw, Trb(setup_stage.into_raw()));
         if has_data {
-            let direction = u32::from(device_to_host) << 16;
-            ring.push(
-                &mut self.hw,
-                Trb::new(trb_type::DATA, buffer, u32::from(setup.length), direction),
-            );
+            let mut data = transfer::DataStage::new();
+            data.set_data_buffer_pointer(buffer)
+                .set_trb_transfer_length(u32::from(setup.length))
+                .set_direction(if device_to_host {
+                    transfer::Direction::In
+                } else {
+                    transfer::Direction::Out
+                });
+            ring.push(&mut self.hw, Trb(data.into_raw()));
         }
         // The status stage goes the other way from the data (IN if none).
-        let status_in = !has_data || !device_to_host;
-        let status = ring.push(
-            &mut self.hw,
-            Trb::new(
-                trb_type::STATUS,
-                0,
-                0,
-                INTERRUPT_ON_COMPLETION | u32::from(status_in) << 16,
-            ),
-        );
+        let mut status_stage = transfer::StatusStage::new();
+        status_stage.set_interrupt_on_completion();
+        if !has_data || !device_to_host {
+            status_stage.set_direction();
+        }
+        let status = ring.push(&mut self.hw, Trb(status_stage.into_raw()));
         self.write(self.doorbells + 4 * u32::from(slot), 1);
         let event = self
             .wait_event(TRANSFER_MICROS, |e| {
@@ -837,7 +826,7 @@ impl<H: Hardware> Xhci<H> {
             .iter()
             .position(Option::is_none)
             .ok_or(XhciError::TooManyDevices)?;
-        let event = self.command(Trb::new(trb_type::ENABLE_SLOT, 0, 0, 0))?;
+        let event = self.command(Trb(command::EnableSlot::new().into_raw()))?;
         let slot = event.slot();
         if slot == 0 || slot > self.capabilities.slots.min(MAX_SLOTS) {
             return Err(XhciError::BadSlot(slot));
@@ -912,12 +901,9 @@ impl<H: Hardware> Xhci<H> {
             None => return Err(XhciError::TooManyDevices),
         };
         let layout = self.capabilities.layout;
-        self.command(Trb::new(
-            trb_type::ADDRESS_DEVICE,
-            input,
-            0,
-            u32::from(slot) << 24,
-        ))?;
+        let mut address = command::AddressDevice::new();
+        address.set_input_context_pointer(input).set_slot_id(slot);
+        self.command(Trb(address.into_raw()))?;
         let mut header = [0u8; 8];
         self.get_descriptor(index, descriptor::kind::DEVICE, &mut header)?;
         let first = descriptor::device(&header)?;
@@ -931,12 +917,9 @@ impl<H: Hardware> Xhci<H> {
             let dequeue = 0; // not evaluated by Evaluate Context
             layout.start_input(&mut self.hw, input, 0b10);
             layout.write_endpoint(&mut self.hw, input, 1, &ep0_context(dequeue, announced));
-            self.command(Trb::new(
-                trb_type::EVALUATE_CONTEXT,
-                input,
-                0,
-                u32::from(slot) << 24,
-            ))?;
+            let mut evaluate = command::EvaluateContext::new();
+            evaluate.set_input_context_pointer(input).set_slot_id(slot);
+            self.command(Trb(evaluate.into_raw()))?;
             *max_packet_0 = announced;
         }
         let mut device_bytes = [0u8; 18];
@@ -1014,12 +997,7 @@ impl<H: Hardware> Xhci<H> {
                 average_trb_length: max_packet,
             },
         );
-        self.command(Trb::new(
-            trb_type::CONFIGURE_ENDPOINT,
-            input,
-            0,
-            u32::from(slot) << 24,
-        ))?;
+        self.command(configure_endpoint(input, slot))?;
         self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
         // Boot protocol: the 8-byte report this driver reads.
         self.request(index, 0x21, HID_SET_PROTOCOL, 0, u16::from(interface))?;
@@ -1081,12 +1059,7 @@ impl<H: Hardware> Xhci<H> {
         slot_context.hub_ports = ports;
         layout.start_input(&mut self.hw, hub.input, 1);
         layout.write_slot(&mut self.hw, hub.input, &slot_context);
-        if let Err(e) = self.command(Trb::new(
-            trb_type::CONFIGURE_ENDPOINT,
-            hub.input,
-            0,
-            u32::from(hub.slot) << 24,
-        )) {
+        if let Err(e) = self.command(configure_endpoint(hub.input, hub.slot)) {
             self.hw.log(format_args!(
                 "usb: hub on port {}: not marked as a hub ({e})",
                 hub.location
@@ -1270,13 +1243,17 @@ fn queue_report(hw: &mut impl Hardware, keyboard: &mut Keyboard) {
     let enqueue = keyboard.ring.enqueue_address();
     let index = keyboard.ring.index_of(enqueue).unwrap_or(0);
     let buffer = keyboard.reports + u64::from(index) * REPORT_BUFFER_BYTES;
-    keyboard.ring.push(
-        hw,
-        Trb::new(
-            trb_type::NORMAL,
-            buffer,
-            keyboard.report_bytes,
-            INTERRUPT_ON_COMPLETION | INTERRUPT_ON_SHORT,
-        ),
-    );
+    let mut normal = transfer::Normal::new();
+    normal
+        .set_data_buffer_pointer(buffer)
+        .set_trb_transfer_length(keyboard.report_bytes)
+        .set_interrupt_on_completion()
+        .set_interrupt_on_short_packet();
+    keyboard.ring.push(hw, Trb(normal.into_raw()));
+}
+
+fn configure_endpoint(input: u64, slot: u8) -> Trb {
+    let mut configure = command::ConfigureEndpoint::new();
+    configure.set_input_context_pointer(input).set_slot_id(slot);
+    Trb(configure.into_raw())
 }
