@@ -951,7 +951,8 @@ impl<H: Hardware> Xhci<H> {
                 self.hw.log(format_args!(
                     "usb: hub on port {location}: deeper hubs are not supported"
                 ));
-                Err(XhciError::TooManyDevices)
+                // Left addressed and unused, as a device that is not ours.
+                Ok(())
             }
             None => {
                 self.hw.log(format_args!(
