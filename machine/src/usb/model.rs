@@ -26,6 +26,13 @@ const MICROS_PER_CLOCK_READ: u64 = 5;
 pub const KEYBOARD_DEVICE: [u8; 18] = [
     18, 1, 0x00, 0x02, 0, 0, 0, 8, 0x27, 0x06, 0x01, 0x00, 0, 0, 1, 2, 3, 1,
 ];
+pub const HUB_DEVICE: [u8; 18] = [
+    18, 1, 0x00, 0x02, 9, 0, 0, 8, 0x09, 0x04, 0x11, 0x11, 0, 0, 0, 0, 0, 1,
+];
+pub const HUB_CONFIGURATION: [u8; 25] = [
+    9, 2, 25, 0, 1, 1, 0, 0xE0, 0, 9, 4, 0, 0, 1, 9, 0, 0, 0, 7, 5, 0x81, 3, 1, 0, 12,
+];
+pub const HUB_DESCRIPTOR: [u8; 9] = [9, 0x29, 4, 0, 0, 50, 0, 0, 0xFF];
 pub const KEYBOARD_CONFIGURATION: [u8; 34] = [
     9, 2, 34, 0, 1, 1, 0, 0xA0, 50, 9, 4, 0, 0, 1, 3, 1, 1, 0, 9, 0x21, 0x11, 0x01, 0, 1, 0x22, 63,
     0, 7, 5, 0x81, 3, 8, 0, 10,
@@ -38,8 +45,16 @@ struct Cursor {
     cycle: bool,
 }
 
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Kind {
+    #[default]
+    Keyboard,
+    Hub,
+}
+
 #[derive(Clone, Debug, Default)]
 struct Slot {
+    kind: Kind,
     enabled: bool,
     output: u64,
     ep0: Cursor,
@@ -55,6 +70,17 @@ pub struct KeyboardState {
     pub slot: u8,
 }
 
+/// What the hub was told, and its port 2 (where the keyboard is).
+#[derive(Clone, Debug, Default)]
+pub struct HubState {
+    pub slot: u8,
+    pub configured: bool,
+    /// The controller was told it is a hub, with its 4 ports.
+    pub marked: bool,
+    pub powered: [bool; 4],
+    pub keyboard_port_status: u32,
+}
+
 #[derive(Debug)]
 pub struct Model {
     pub now: u64,
@@ -68,6 +94,8 @@ pub struct Model {
     pub commands_answered: bool,
     pub device_descriptor: Vec<u8>,
     pub configuration: Vec<u8>,
+    /// A full-speed hub on root port 1, the keyboard on its port 2.
+    pub hub: bool,
     // Registers.
     legacy: u32,
     legacy_control: u32,
@@ -89,6 +117,7 @@ pub struct Model {
     next_slot: u8,
     // What happened.
     pub keyboard: KeyboardState,
+    pub hub_state: HubState,
     pub events_dropped: u32,
     pub events_posted: u32,
     pub log: Vec<String>,
@@ -107,6 +136,7 @@ impl Model {
             commands_answered: true,
             device_descriptor: KEYBOARD_DEVICE.to_vec(),
             configuration: KEYBOARD_CONFIGURATION.to_vec(),
+            hub: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
             os_asked_at: None,
@@ -126,6 +156,7 @@ impl Model {
             slots: Default::default(),
             next_slot: 1,
             keyboard: KeyboardState::default(),
+            hub_state: HubState::default(),
             events_dropped: 0,
             events_posted: 0,
             log: Vec::new(),
@@ -254,7 +285,14 @@ impl Model {
                     let root_port = (self.mem_read(input + ctx + 4) >> 16) & 0xFF;
                     let ep0_dw1 = self.mem_read(input + 2 * ctx + 4);
                     let ep0_dequeue = self.read64(input + 2 * ctx + 8);
+                    let route = slot_dw0 & 0xF_FFFF;
+                    let kind = match (self.hub, route) {
+                        (false, 0) | (true, 2) => Some(Kind::Keyboard),
+                        (true, 0) => Some(Kind::Hub),
+                        _ => None,
+                    };
                     let valid = add == 0b11
+                        && kind.is_some()
                         && (slot_dw0 >> 20) & 0xF == 1
                         && slot_dw0 >> 27 == 1
                         && root_port == 1
@@ -272,12 +310,16 @@ impl Model {
                     let output = self.output_context(slot);
                     self.mem_write(output + 12, 2 << 27 | u32::from(slot));
                     let state = &mut self.slots[usize::from(slot)];
+                    state.kind = kind.unwrap_or_default();
                     state.output = output;
                     state.ep0 = Cursor {
                         dequeue: ep0_dequeue & !0xF,
                         cycle: ep0_dequeue & 1 != 0,
                     };
-                    self.keyboard.slot = slot;
+                    match kind {
+                        Some(Kind::Hub) => self.hub_state.slot = slot,
+                        _ => self.keyboard.slot = slot,
+                    }
                     self.complete_command(address, 1, slot);
                 }
                 trb_type::EVALUATE_CONTEXT => self.complete_command(address, 1, slot),
@@ -285,6 +327,11 @@ impl Model {
                     let input = trb.parameter();
                     let add = self.mem_read(input + 4);
                     let mut ok = add & 1 != 0 && add & 0b10 == 0;
+                    if self.slots[usize::from(slot)].kind == Kind::Hub {
+                        let slot_dw0 = self.mem_read(input + ctx);
+                        let ports = self.mem_read(input + ctx + 4) >> 24;
+                        self.hub_state.marked = add == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
+                    }
                     for dci in 2..32u8 {
                         if add & (1 << dci) == 0 {
                             continue;
@@ -332,9 +379,22 @@ impl Model {
                     let (request_type, request) = (setup as u8, (setup >> 8) as u8);
                     let value = (setup >> 16) as u16;
                     let length = (setup >> 48) as usize;
-                    let reply = match (request_type, request, value >> 8) {
-                        (0x80, 6, 1) => self.device_descriptor.clone(),
-                        (0x80, 6, 2) => self.configuration.clone(),
+                    let hub = self.slots[usize::from(slot)].kind == Kind::Hub;
+                    let reply = match (hub, request_type, request, value >> 8) {
+                        (false, 0x80, 6, 1) => self.device_descriptor.clone(),
+                        (false, 0x80, 6, 2) => self.configuration.clone(),
+                        (true, 0x80, 6, 1) => HUB_DEVICE.to_vec(),
+                        (true, 0x80, 6, 2) => HUB_CONFIGURATION.to_vec(),
+                        (true, 0xA0, 6, 0x29) => HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA3, 0, _) => {
+                            let port = (setup >> 32) as u16;
+                            let status = if port == 2 {
+                                self.hub_state.keyboard_port_status
+                            } else {
+                                0
+                            };
+                            status.to_le_bytes().to_vec()
+                        }
                         _ => Vec::new(),
                     };
                     let buffer = trb.parameter();
@@ -349,6 +409,11 @@ impl Model {
                 trb_type::STATUS => {
                     let (request_type, request) = (setup as u8, (setup >> 8) as u8);
                     let value = (setup >> 16) as u16;
+                    if self.slots[usize::from(slot)].kind == Kind::Hub {
+                        let known = self.hub_request(setup);
+                        self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
+                        continue;
+                    }
                     let known = match (request_type, request) {
                         (0x80, 6) => true,
                         (0x00, 9) => {
@@ -372,6 +437,44 @@ impl Model {
             }
         }
         self.slots[usize::from(slot)].ep0 = cursor;
+    }
+
+    /// A hub class (or standard) request's effect; whether the hub knows it.
+    fn hub_request(&mut self, setup: u64) -> bool {
+        const CONNECTED: u32 = 1;
+        const ENABLED: u32 = 1 << 1;
+        const POWERED: u32 = 1 << 8;
+        const RESET_CHANGE: u32 = 1 << 20;
+        let (request_type, request) = (setup as u8, (setup >> 8) as u8);
+        let value = (setup >> 16) as u16;
+        let port = (setup >> 32) as u16;
+        let port_index = usize::from(port).wrapping_sub(1);
+        match (request_type, request, value) {
+            (0x80 | 0xA0 | 0xA3, 6 | 0, _) => true,
+            (0x00, 9, _) => {
+                self.hub_state.configured = true;
+                true
+            }
+            (0x23, 3, 8) if port_index < 4 => {
+                self.hub_state.powered[port_index] = true;
+                if port == 2 {
+                    self.hub_state.keyboard_port_status = CONNECTED | POWERED;
+                }
+                true
+            }
+            (0x23, 3, 4) if port == 2 => {
+                self.hub_state.keyboard_port_status |= ENABLED | RESET_CHANGE;
+                true
+            }
+            (0x23, 1, 20) if port == 2 => {
+                self.hub_state.keyboard_port_status &= !RESET_CHANGE;
+                true
+            }
+            _ => {
+                self.errors.push(std::format!("hub request {setup:#018x}"));
+                false
+            }
+        }
     }
 
     /// The keyboard sends a report (if a Normal TRB waits for one); returns
@@ -409,6 +512,12 @@ impl Model {
     pub fn keyboard_slot_state(&mut self) -> u32 {
         let output = self.slots[usize::from(self.keyboard.slot)].output;
         self.mem_read(output + 12) >> 27
+    }
+
+    /// The hub's port 2 status bits that matter: connected and enabled, and
+    /// the reset change (bit 20) once cleared.
+    pub fn keyboard_port_status_after_reset(&self) -> u32 {
+        self.hub_state.keyboard_port_status & (0b11 | 1 << 20)
     }
 
     /// The DCBAA's entry 0: the scratchpad array.

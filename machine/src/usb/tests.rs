@@ -276,3 +276,32 @@ fn too_little_dma_memory_for_the_scratchpads_is_an_error() {
     xhci.take_ownership();
     assert_eq!(xhci.reset_and_start(), Err(XhciError::OutOfDmaMemory));
 }
+
+#[test]
+fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
+    let mut model = Model::new();
+    model.hub = true;
+    let mut xhci = with_keyboard(model);
+    assert_eq!(
+        xhci.keyboards().collect::<Vec<_>>(),
+        [Location {
+            root_port: 1,
+            hub_port: 2
+        }]
+    );
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert!(model.hub_state.configured && model.hub_state.marked);
+    assert_eq!(model.hub_state.powered, [true; 4]);
+    assert_eq!(
+        model.keyboard_port_status_after_reset(),
+        0b11,
+        "connected, enabled, change cleared"
+    );
+    assert!(model
+        .log
+        .iter()
+        .any(|l| l == "keyboard: USB boot keyboard on port 1.2"));
+    assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+    assert_eq!(poll(&mut xhci), [0x01]);
+}
