@@ -113,6 +113,10 @@ fn start(
         serial_println!("usb: xHCI {}: BAR0 is not a memory BAR", function);
         return None;
     };
+    if bar.address == 0 {
+        serial_println!("usb: xHCI {}: BAR0 was never assigned an address", function);
+        return None;
+    }
     if bar.bytes < 0x1000 || bar.bytes > 1 << 24 {
         serial_println!(
             "usb: xHCI {}: BAR0 of {} bytes makes no sense",
