@@ -529,6 +529,9 @@ impl<H: Hardware> Xhci<H> {
             return Err(XhciError::NotHalted);
         }
         self.op_write(USBCMD, CMD_RESET);
+        // Some Intel controllers hang if read too soon after HCRST (Linux
+        // waits 1 ms there too).
+        self.pause(1_000);
         let usbcmd = self.operational + USBCMD;
         let start = self.hw.now_micros();
         if !self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0) {
@@ -904,6 +907,8 @@ impl<H: Hardware> Xhci<H> {
         let mut address = command::AddressDevice::new();
         address.set_input_context_pointer(input).set_slot_id(slot);
         self.command(Trb(address.into_raw()))?;
+        // SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
+        self.pause(2_000);
         let mut header = [0u8; 8];
         self.get_descriptor(index, descriptor::kind::DEVICE, &mut header)?;
         let first = descriptor::device(&header)?;
