@@ -39,4 +39,4 @@ pub use qemu::{Board, Chipset, Display, Firmware, Graphics, Qemu, QemuError, Qem
 /// and it is reading keys.
 pub const READY_LINE: &str = machine::protocol::line::READY;
 
-pub use machine::protocol::{line, BootOption, BootRequest, Exit, Fault};
+pub use machine::protocol::{line, BootOption, BootRequest, ClockReference, Exit, Fault};

@@ -222,8 +222,12 @@ pub struct QemuOptions {
     /// Echo the serial console to this process's stdout as it arrives.
     pub echo_serial: bool,
     /// Fit `isa-debug-exit`, so the kernel can end QEMU. Without it the
-    /// kernel halts instead, and the last screen can still be looked at.
+    /// kernel powers the machine off through ACPI, as on a real PC.
     pub debug_exit: bool,
+    /// On a power-off by the guest, stop the machine but keep QEMU running
+    /// (`-no-shutdown`), so its last screen can still be looked at; see
+    /// [`Qemu::wait_powered_off`]. Otherwise QEMU exits.
+    pub keep_after_power_off: bool,
 }
 
 impl QemuOptions {
@@ -241,6 +245,7 @@ impl QemuOptions {
             boot: BootRequest::default(),
             echo_serial: false,
             debug_exit: true,
+            keep_after_power_off: false,
         }
     }
 }
@@ -354,6 +359,9 @@ impl Qemu {
         }
         if options.debug_exit {
             command.args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"]);
+        }
+        if options.keep_after_power_off {
+            command.arg("-no-shutdown");
         }
         if options.display == Display::Headless {
             command.args(["-display", "none"]);
@@ -482,8 +490,9 @@ impl Qemu {
     /// other: QMP's `input-send-event` routes by display, so a keyboard is
     /// named by binding it to one (`-device usb-kbd,display=video0`), and
     /// keys sent without a display (`sendkey`) go to the unbound keyboards,
-    /// such as the PS/2 one. QEMU's usb-hid queues 16 key events and drops
-    /// what does not fit, one event a report.
+    /// such as the PS/2 one. QEMU's usb-hid queues 16 PS/2 scancodes (an E0
+    /// key's event takes two), drops an event that does not fit, and sends
+    /// one queued key change a report.
     pub fn key_event_on(&mut self, display: &str, key: &str, down: bool) -> Result<()> {
         self.key_events_on(display, &[(key, down)])
     }
@@ -552,6 +561,26 @@ impl Qemu {
             }
             if Instant::now() >= deadline {
                 return Ok(None);
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    /// Waits until the guest has powered the machine off, with QEMU kept
+    /// running by [`QemuOptions::keep_after_power_off`]: QMP's `query-status`
+    /// then says `shutdown`.
+    pub fn wait_powered_off(&mut self, timeout: Duration) -> Result<()> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let status = self.execute(json!({ "execute": "query-status" }))?;
+            if status["status"] == "shutdown" {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                return Err(QemuError::Timeout(format!(
+                    "the machine was not powered off after {timeout:?} (QEMU says {status}); console:\n{}",
+                    self.serial()
+                )));
             }
             std::thread::sleep(Duration::from_millis(50));
         }

@@ -4,8 +4,7 @@
 mod common;
 
 use common::{
-    after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT,
-    CUBE_SEQUENCE, PIXELS,
+    after_each_key, assert_same_picture, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT, PIXELS,
 };
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};
@@ -57,11 +56,13 @@ fn step_guarded(app: &mut App, soft: &mut SoftVga) {
     soft.set_write_guard(None);
 }
 
+/// The QEMU key sequence of the issue, as the commands the keys stand for.
+
 #[test]
 fn frames_through_the_software_vga_equal_the_reference_rasterizer() {
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
-    let mut commands: Vec<Command> = CUBE_SEQUENCE.iter().map(|&(_, c)| c).collect();
+    let mut commands: Vec<Command> = common::CUBE_KEYS.iter().map(|&(_, c)| c).collect();
     // Then off the edges of the screen and back, turning as it goes.
     commands.extend([Command::Scene(SceneCommand::MoveLeft); 40]);
     commands.extend([common::turn(Axis::Y, Sense::Positive); 7]);
@@ -133,7 +134,7 @@ fn pause_waits_for_a_key_and_escape_quits() {
 
 #[test]
 fn qemu_shows_what_the_software_vga_shows_after_each_key() {
-    after_each_key(&CUBE_SEQUENCE, |qemu, model, _, what| {
+    after_each_key(&common::CUBE_KEYS, |qemu, model, _, what| {
         assert_same_picture(qemu, model, what)
     });
 }

@@ -31,13 +31,14 @@ const UEFI_FRAMEBUFFER: &str = "display: UEFI boot: drawing through the firmware
 
 fn boot(firmware: Firmware, graphics: Graphics, option: Option<BootOption>) -> Qemu {
     let request = BootRequest {
-        true_mode_x: false,
         option,
+        ..BootRequest::default()
     };
     boot_with(firmware, graphics, request, true)
 }
 
-/// As `boot`; without `debug_exit` the kernel halts where it would end QEMU.
+/// As `boot`; without `debug_exit` the kernel powers the machine off through
+/// ACPI where it would end QEMU, and QEMU keeps the last screen.
 fn boot_with(
     firmware: Firmware,
     graphics: Graphics,
@@ -54,6 +55,7 @@ fn boot_with(
     options.graphics = graphics;
     options.boot = request;
     options.debug_exit = debug_exit;
+    options.keep_after_power_off = !debug_exit;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -192,6 +194,7 @@ fn uefi_with_the_standard_vga_and_the_option_runs_true_mode_x() {
     let request = BootRequest {
         true_mode_x: true,
         option: Some(BootOption::TestPattern),
+        ..BootRequest::default()
     };
     let mut qemu = boot_with(Firmware::Uefi, Graphics::StdVga, request, true);
     let console = qemu

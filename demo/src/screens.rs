@@ -29,7 +29,7 @@ const WHITE_ON_BLACK: u8 = 0x0F;
 pub const REPORT_LINES: usize = 4;
 const WHITE_ON_RED: u8 = 0x4F;
 const PANEL_HEADING: &str = "modex-cube stopped. The report (also on serial):";
-const PANEL_FOOTER: &str = "The CPU is halted. Reset the machine to start again.";
+const PANEL_FOOTER: &str = "Stopped. Ctrl+Alt+Del (PS/2 keyboard) or the reset button restarts.";
 
 /// Switches to text mode and shows the goodbye line, then flushes (a
 /// framebuffer display presents it).

@@ -17,7 +17,7 @@ pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     serial_println!("pattern: page {} shown", shown.index());
     serial_println!("{}", machine::protocol::line::READY);
     loop {
-        x86_64::instructions::hlt();
+        crate::idle::idle();
         usb::poll();
         let mut pressed = false;
         while let Some(byte) = keyboard::SCANCODES.pop() {
@@ -69,8 +69,8 @@ pub fn flip_rate<B: VgaBus>(vga: &mut ModeX<B>) {
 const CLOCK_CHECK_SECONDS: u64 = 10;
 
 /// Prints the clock's reading once a second for ten seconds, so a test can
-/// compare the kernel's time with the host's wall clock. Sleeps in `hlt`
-/// between readings, as the demo does when idle.
+/// compare the kernel's time with the host's wall clock. Idles between
+/// readings, as the demo does.
 pub fn clock_check() {
     let start = clock::micros();
     serial_println!("clock-check: {} us", start);
@@ -82,7 +82,7 @@ pub fn clock_check() {
             if now - start >= second * 1_000_000 {
                 break now;
             }
-            x86_64::instructions::hlt();
+            crate::idle::idle();
         };
         serial_println!("clock-check: {} us", now);
     }

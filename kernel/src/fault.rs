@@ -132,11 +132,20 @@ fn show_on_screen(lines: &[Line]) {
     demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), &text);
 }
 
-/// Stops the CPU with interrupts off; only a reset or power-off leaves.
+/// Stops the demo with interrupts off. What is left is a loop that watches
+/// the 8042 for Ctrl+Alt+Del and resets the machine on it: no interrupt is
+/// trusted here, so the controller is polled. (A machine without an 8042
+/// reads 0xFF there, which is no key; a USB keyboard is not polled here.)
 pub fn halt_forever() -> ! {
     crate::serial_println!("{}", machine::protocol::line::HALTED);
     x86_64::instructions::interrupts::disable();
+    let mut reset_chord = machine::reset_keys::ResetChord::new();
     loop {
-        x86_64::instructions::hlt();
+        if let Some(byte) = crate::keyboard::poll_byte() {
+            if reset_chord.feed(byte) {
+                crate::power::reset();
+            }
+        }
+        core::hint::spin_loop();
     }
 }

@@ -193,10 +193,7 @@ impl Display {
             Some(due) if due > now => due,
             _ => now,
         };
-        while clock::micros() < due {
-            // The PIT interrupts every millisecond.
-            x86_64::instructions::hlt();
-        }
+        crate::idle::until(due);
         self.next_frame_micros = Some(due + FRAME_MICROS);
     }
 }

@@ -1,9 +1,13 @@
 //! Leaving the demo: the VGA goes back to 80x25 text with a goodbye line (by
-//! the video BIOS's mode 3 where it can be called), then
-//! QEMU is powered off through isa-debug-exit; on a real PC (or a QEMU without
-//! that device) the CPU halts with the line on screen.
+//! the video BIOS's mode 3 where it can be called), then QEMU ends through
+//! isa-debug-exit if it is fitted (for the tests' exit status), and otherwise
+//! the machine powers off through ACPI S5, on a real PC as in QEMU. Where
+//! neither works the CPU halts with the line on screen.
 
-use crate::{fault, qemu, serial_println};
+use crate::{clock, fault, idle, power, qemu, serial_println};
+
+/// How long the goodbye line stays up before the machine switches off.
+const GOODBYE_SHOWN_MICROS: u64 = 2_000_000;
 use modex::{ModeX, VgaBus};
 
 pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
@@ -22,5 +26,7 @@ pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
         crate::serial::dropped()
     );
     qemu::exit(qemu::ExitCode::Success);
+    idle::until(clock::micros() + GOODBYE_SHOWN_MICROS);
+    power::off();
     fault::halt_forever()
 }

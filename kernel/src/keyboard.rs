@@ -56,6 +56,19 @@ pub fn on_interrupt() {
     }
 }
 
+/// Takes a keyboard byte if the controller holds one, with no interrupt: for
+/// the fault handler's loop, where IRQs are off.
+pub fn poll_byte() -> Option<u8> {
+    const STATUS_FROM_MOUSE: u8 = 0x20;
+    let status = status();
+    if status & STATUS_OUTPUT_FULL == 0 || status == 0xFF {
+        return None;
+    }
+    // SAFETY: the output buffer is full; reading port 0x60 takes that byte.
+    let byte = unsafe { Port::<u8>::new(DATA_PORT).read() };
+    (status & STATUS_FROM_MOUSE == 0).then_some(byte)
+}
+
 fn status() -> u8 {
     // SAFETY: reading the 8042 status register has no side effects.
     unsafe { Port::<u8>::new(STATUS_PORT).read() }

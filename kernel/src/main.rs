@@ -5,6 +5,7 @@
 #![no_main]
 #![feature(abi_x86_interrupt)]
 
+mod acpi;
 mod bench;
 mod bios;
 mod clock;
@@ -15,12 +16,16 @@ mod firmware;
 mod framebuffer;
 mod gdt;
 mod goodbye;
+mod hpet;
+mod idle;
 mod interrupts;
 mod keyboard;
 mod legacy_vga;
 mod pat;
 mod pci;
 mod pit;
+mod pm_timer;
+mod power;
 mod qemu;
 mod run;
 mod selftest;
@@ -30,6 +35,7 @@ mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
+use machine::acpi::Presence;
 use machine::firmware::Firmware;
 use machine::protocol::{BootOption, BootRequest};
 
@@ -50,25 +56,22 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     gdt::init();
     interrupts::init();
     pit::init();
-    if let Err(problem) = keyboard::init() {
+    let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
+        panic!("the bootloader did not map physical memory, so VGA memory is out of reach");
+    };
+    let acpi = acpi::init(
+        boot_info.rsdp_addr.into_option(),
+        physical_memory_offset,
+        mapped_physical_memory_end(&boot_info.memory_regions),
+    );
+    if acpi.legacy.i8042 == Presence::Absent {
+        serial_println!(
+            "keyboard: the ACPI tables say there is no PS/2 controller (8042); not set up"
+        );
+    } else if let Err(problem) = keyboard::init() {
         serial_println!("keyboard: {}", problem);
     }
     x86_64::instructions::interrupts::enable();
-    match clock::init() {
-        Ok(calibration) => serial_println!(
-            "clock: TSC {} kHz, measured over {} PIT ticks, error under {} ppm",
-            calibration.tsc_hz / 1000,
-            calibration.pit_ticks,
-            calibration.error_ppm
-        ),
-        Err(problem) => {
-            serial_println!(
-                "clock: TSC not calibrated ({:?}); counting PIT ticks",
-                problem
-            )
-        }
-    }
-    serial_println!("kernel: initialised");
 
     let mut option_buffer = [0u8; 64];
     let request = match qemu::boot_option(&mut option_buffer).map(BootRequest::parse) {
@@ -83,14 +86,13 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         }
     };
     let (force_true_mode_x, option) = (request.true_mode_x, request.option);
+    clock::init(acpi, physical_memory_offset, request.clock);
+    usb::init(&boot_info.memory_regions, physical_memory_offset);
+    serial_println!("kernel: initialised");
 
     let booted_by = firmware::firmware(&boot_info.memory_regions);
     serial_println!("firmware: {:?} (told by the memory map)", booted_by);
 
-    let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
-        panic!("the bootloader did not map physical memory, so VGA memory is out of reach");
-    };
-    usb::init(&boot_info.memory_regions, physical_memory_offset);
     // SAFETY: the bootloader maps all physical memory at this offset (asked for
     // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
     let mut bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
@@ -98,7 +100,10 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     // the card may scan out the firmware's framebuffer whatever the VGA
     // registers say (Intel iGPUs answer them with the VGA plane disabled), so
     // true Mode X would be a black screen.
-    let true_mode_x = if booted_by == Firmware::Uefi && !force_true_mode_x {
+    let true_mode_x = if acpi.legacy.vga == Presence::Absent && !force_true_mode_x {
+        serial_println!("display: the ACPI tables say there is no VGA; not probing it");
+        false
+    } else if booted_by == Firmware::Uefi && !force_true_mode_x {
         serial_println!(
             "display: UEFI boot: drawing through the firmware framebuffer \
              (true Mode X needs a BIOS or CSM boot)"
@@ -139,6 +144,17 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     vga.set_mode();
     serial_println!("vga: Mode X 320x240 set on the software VGA");
     run_screen(&mut vga, option)
+}
+
+/// The end of the bootloader's map of physical memory: every region it was
+/// told of, and at least the first 4 GiB (bootloader 0.11's
+/// `max_phys_addr`).
+fn mapped_physical_memory_end(regions: &bootloader_api::info::MemoryRegions) -> u64 {
+    const FOUR_GIB: u64 = 1 << 32;
+    regions
+        .iter()
+        .map(|region| region.end)
+        .fold(FOUR_GIB, u64::max)
 }
 
 /// What the screen shows: the cube, or a diagnostic asked for by a boot option.

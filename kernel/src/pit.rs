@@ -1,9 +1,11 @@
-//! The 8253/8254 Programmable Interval Timer. Channel 0 raises IRQ 0 about
-//! once a millisecond to wake the CPU from `hlt`; channel 2, gated on with
-//! the speaker off, is the reference the TSC is calibrated against.
+//! The 8253/8254 Programmable Interval Timer, where the machine has one
+//! (recent Intel platforms gate its clock). Channel 0 raises IRQ 0 about once
+//! a millisecond to wake the CPU from `hlt`, which the kernel uses only while
+//! it sees those ticks arrive; channel 2, gated on with the speaker off, is
+//! the last of the references the TSC may be calibrated against.
 
 use core::sync::atomic::{AtomicU64, Ordering};
-use machine::calibration::{Sample, PIT_HZ};
+use machine::calibration::Sample;
 use x86_64::instructions::port::Port;
 
 const CHANNEL_0_DATA: u16 = 0x40;
@@ -22,9 +24,12 @@ const CHANNEL_2_COUNTDOWN: u8 = 0b1011_0000;
 const CHANNEL_2_LATCH: u8 = 0b1000_0000;
 /// 1193 input clocks: one tick every 999.847 µs.
 const DIVISOR: u16 = 1193;
-pub const TICK_NANOS: u64 = DIVISOR as u64 * 1_000_000_000 / PIT_HZ;
+/// Ticks are "arriving" while the last one is at most this old: ten periods.
+const TICKING_WITHIN_MICROS: u64 = 10_000;
 
 static TICKS: AtomicU64 = AtomicU64::new(0);
+/// The kernel clock's reading at the last tick.
+static LAST_TICK_MICROS: AtomicU64 = AtomicU64::new(0);
 
 pub fn init() {
     let [low, high] = DIVISOR.to_le_bytes();
@@ -37,15 +42,19 @@ pub fn init() {
     }
 }
 
-/// Counts a tick; called from the IRQ 0 handler.
+/// Counts a tick and notes when it came; called from the IRQ 0 handler.
 pub fn tick() {
-    TICKS.fetch_add(1, Ordering::Relaxed);
+    LAST_TICK_MICROS.store(crate::clock::micros(), Ordering::Relaxed);
+    TICKS.fetch_add(1, Ordering::Release);
 }
 
-/// IRQ 0 ticks since `init` (they can be lost under emulation: the clock
-/// reads the TSC instead).
-pub fn ticks() -> u64 {
-    TICKS.load(Ordering::Relaxed)
+/// Whether IRQ 0 has been seen to arrive lately: only then may the CPU `hlt`
+/// and count on it to wake. (Ticks can also be lost under emulation, which is
+/// why the clock reads the TSC and never counts them.)
+pub fn ticking() -> bool {
+    TICKS.load(Ordering::Acquire) > 0
+        && crate::clock::micros().saturating_sub(LAST_TICK_MICROS.load(Ordering::Relaxed))
+            <= TICKING_WITHIN_MICROS
 }
 
 /// Opens channel 2's gate, speaker off, and starts it counting down from
@@ -87,7 +96,7 @@ pub fn poll_channel_2() -> Sample {
         u16::from_le_bytes([low, high])
     };
     Sample {
-        count,
+        count: u64::from(count),
         tsc_before,
         tsc_after: crate::clock::rdtsc(),
     }

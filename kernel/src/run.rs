@@ -1,12 +1,13 @@
 //! The demo's main loop on the machine: drain the scancode queue into the
-//! portable `App`, draw when something moved, and sleep (`hlt`) until the next
-//! interrupt when nothing did, so an idle cube costs no bus traffic at all.
-//! While the cube spins it also keeps count of missed retraces.
+//! portable `App`, draw when something moved, and idle when nothing did, so
+//! an idle cube costs no bus traffic at all. While the cube spins it also
+//! keeps count of missed retraces. Ctrl+Alt+Del resets the machine.
 
-use crate::{clock, goodbye, keyboard, serial_println, usb};
+use crate::{clock, goodbye, idle, keyboard, power, serial_println, usb};
 use demo::app::App;
 use machine::pacing::Pacing;
 use machine::protocol::line;
+use machine::reset_keys::ResetChord;
 use modex::{ModeX, VgaBus};
 
 /// A pacing report every this many flips (about ten seconds).
@@ -35,9 +36,13 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     serial_println!("{}", line::READY);
     let mut reported_commands = 0;
     let mut pacing = Pacing::default();
+    let mut reset_chord = ResetChord::new();
     loop {
         usb::poll();
         while let Some(byte) = keyboard::SCANCODES.pop() {
+            if reset_chord.feed(byte) {
+                power::reset();
+            }
             app.feed_scancode(byte);
         }
         if app.quit_requested() {
@@ -59,7 +64,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
             Some(_) => pacing.idle(),
             None => {
                 pacing.idle();
-                x86_64::instructions::hlt();
+                idle::idle();
             }
         }
     }

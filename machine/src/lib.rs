@@ -1,5 +1,6 @@
 //! The kernel's logic that needs no hardware, so that the host can test it:
-//! the arithmetic that calibrates the time-stamp counter against the PIT, the
+//! which clock source to trust and the arithmetic that calibrates the
+//! time-stamp counter against it, the ACPI values for power-off and reset, the
 //! bookkeeping that counts missed vertical retraces, telling from the
 //! memory map which firmware booted the machine, and finding the boot option
 //! in QEMU's fw_cfg file directory.
@@ -29,9 +30,12 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod acpi;
 pub mod calibration;
+pub mod clock;
 pub mod firmware;
 pub mod fw_cfg;
 pub mod pacing;
 pub mod protocol;
+pub mod reset_keys;
 pub mod usb;

@@ -143,16 +143,41 @@ impl fmt::Display for BootOption {
     }
 }
 
+/// A clock reference a boot option can insist on, so that the tests drive
+/// each one on a machine that has them all (the kernel otherwise takes the
+/// first that works: `machine::clock`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ClockReference {
+    /// The ACPI PM timer.
+    PmTimer,
+    /// The HPET.
+    Hpet,
+    /// PIT channel 2.
+    Pit,
+}
+
+const CLOCK_REFERENCES: [(ClockReference, &str); 3] = [
+    (ClockReference::PmTimer, "pm-timer"),
+    (ClockReference::Hpet, "hpet"),
+    (ClockReference::Pit, "pit"),
+];
+
+/// The prefix of the word that names a clock reference: `clock=hpet`.
+const CLOCK_PREFIX: &str = "clock=";
+
 /// The word that forces true Mode X on a UEFI boot (QEMU only), so OVMF with
 /// QEMU's standard VGA still tests the real registers.
 pub const TRUE_MODE_X: &str = "modex=true-mode-x";
 
-/// Everything one fw_cfg string asks for: true Mode X on UEFI or not, and at
-/// most one boot option, separated by a space ("modex=true-mode-x bench").
+/// Everything one fw_cfg string asks for: true Mode X on UEFI or not, a
+/// clock reference or not, and at most one boot option, separated by spaces
+/// ("modex=true-mode-x clock=hpet bench").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BootRequest {
     /// Drive the real VGA registers even on a UEFI boot.
     pub true_mode_x: bool,
+    /// Measure the TSC against this reference only.
+    pub clock: Option<ClockReference>,
     /// The boot option, if any.
     pub option: Option<BootOption>,
 }
@@ -162,8 +187,16 @@ impl BootRequest {
     pub fn parse(text: &str) -> Result<BootRequest, UnknownOption> {
         let mut request = BootRequest::default();
         for word in text.split_whitespace() {
+            let clock = word
+                .strip_prefix(CLOCK_PREFIX)
+                .map(|name| named(&CLOCK_REFERENCES, name));
             if word == TRUE_MODE_X && !request.true_mode_x {
                 request.true_mode_x = true;
+            } else if let Some(clock) = clock {
+                match (clock, request.clock) {
+                    (Some(reference), None) => request.clock = Some(reference),
+                    _ => return Err(UnknownOption),
+                }
             } else if request.option.is_none() {
                 request.option = Some(BootOption::parse(word)?);
             } else {
@@ -181,12 +214,23 @@ impl BootRequest {
 
 impl fmt::Display for BootRequest {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match (self.true_mode_x, self.option) {
-            (true, Some(option)) => write!(f, "{TRUE_MODE_X} {option}"),
-            (true, None) => f.write_str(TRUE_MODE_X),
-            (false, Some(option)) => write!(f, "{option}"),
-            (false, None) => Ok(()),
+        let mut separator = "";
+        if self.true_mode_x {
+            f.write_str(TRUE_MODE_X)?;
+            separator = " ";
         }
+        if let Some(reference) = self.clock {
+            write!(
+                f,
+                "{separator}{CLOCK_PREFIX}{}",
+                name(&CLOCK_REFERENCES, reference)
+            )?;
+            separator = " ";
+        }
+        if let Some(option) = self.option {
+            write!(f, "{separator}{option}")?;
+        }
+        Ok(())
     }
 }
 
@@ -263,6 +307,7 @@ mod tests {
             for option in BootOption::all().map(Some).chain([None]) {
                 let request = BootRequest {
                     true_mode_x,
+                    clock: None,
                     option,
                 };
                 assert_eq!(BootRequest::parse(&request.to_string()), Ok(request));
@@ -272,9 +317,19 @@ mod tests {
             BootRequest::parse(" modex=true-mode-x  bench "),
             Ok(BootRequest {
                 true_mode_x: true,
+                clock: None,
                 option: Some(BootOption::Bench)
             })
         );
+        let clocked = BootRequest::parse("clock=hpet clock-check").unwrap();
+        assert_eq!(clocked.clock, Some(ClockReference::Hpet));
+        assert_eq!(clocked.option, Some(BootOption::ClockCheck));
+        assert_eq!(clocked.to_string(), "clock=hpet clock-check");
+        assert_eq!(
+            BootRequest::parse("clock=hpet clock=pit"),
+            Err(UnknownOption)
+        );
+        assert_eq!(BootRequest::parse("clock=sundial"), Err(UnknownOption));
         assert_eq!(BootRequest::parse("bench flip-rate"), Err(UnknownOption));
         assert_eq!(
             BootRequest::parse("modex=true-mode-x nope"),

@@ -30,20 +30,6 @@ pub const TURNED: [(&str, Command); 7] = [
     ("8", turn(Axis::X, Sense::Negative)),
 ];
 
-/// The QEMU key sequence of the issue, as the commands the keys stand for.
-pub const CUBE_SEQUENCE: [(&str, Command); 10] = [
-    ("r", Command::Scene(SceneCommand::Reset)),
-    ("4", turn(Axis::Y, Sense::Negative)),
-    ("4", turn(Axis::Y, Sense::Negative)),
-    ("4", turn(Axis::Y, Sense::Negative)),
-    ("8", turn(Axis::X, Sense::Negative)),
-    ("8", turn(Axis::X, Sense::Negative)),
-    ("a", Command::Scene(SceneCommand::Away)),
-    ("a", Command::Scene(SceneCommand::Away)),
-    ("f1", turn(Axis::Z, Sense::Positive)),
-    ("left", Command::Scene(SceneCommand::MoveLeft)),
-];
-
 /// Proptest's settings: `default_cases` cases, or as many as the
 /// `PROPTEST_CASES` environment variable asks for, from a fixed seed so that
 /// every run tries the same cases (a longer hunt with more cases still finds
@@ -59,6 +45,21 @@ pub fn proptest_config(default_cases: u32) -> proptest::prelude::ProptestConfig 
         ..proptest::prelude::ProptestConfig::default()
     }
 }
+
+/// The cube test's keys: from the starting scene, turns about Y and X, away,
+/// a turn about Z, a move left.
+pub const CUBE_KEYS: [(&str, Command); 10] = [
+    ("r", Command::Scene(SceneCommand::Reset)),
+    ("4", turn(Axis::Y, Sense::Negative)),
+    ("4", turn(Axis::Y, Sense::Negative)),
+    ("4", turn(Axis::Y, Sense::Negative)),
+    ("8", turn(Axis::X, Sense::Negative)),
+    ("8", turn(Axis::X, Sense::Negative)),
+    ("a", Command::Scene(SceneCommand::Away)),
+    ("a", Command::Scene(SceneCommand::Away)),
+    ("f1", turn(Axis::Z, Sense::Positive)),
+    ("left", Command::Scene(SceneCommand::MoveLeft)),
+];
 
 pub const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
 pub const PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
@@ -96,25 +97,16 @@ pub fn model_picture(soft: &SoftVga) -> RgbImage {
     RgbImage::new(width, height, rgb)
 }
 
-/// A picture (320x240 Mode X, or 720x400 text) presented as the kernel
-/// presents the software VGA onto a `width` x `height` screen, read back as RGB.
-pub fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
-    let layout = FramebufferLayout {
-        width,
-        height,
-        stride: width,
-        bytes_per_pixel: 3,
-        order: PixelOrder::Rgb,
-    };
-    let mut bytes = vec![0; layout.required_bytes()];
-    present_rgb(
-        &picture.pixels,
-        (picture.width, picture.height),
-        &layout,
-        &mut bytes,
+/// The model's text picture, as RGB.
+pub fn text_picture(soft: &SoftVga) -> RgbImage {
+    let mut rgb = vec![[0u8; 3]; 720 * 400];
+    let (width, height) = soft.scanout_rgb(&mut rgb);
+    assert_eq!(
+        (width, height),
+        (720, 400),
+        "the model is not in 80x25 text"
     );
-    let pixels = bytes.as_chunks::<3>().0.to_vec();
-    RgbImage::new(width, height, pixels)
+    RgbImage::new(width, height, rgb)
 }
 
 /// QEMU's 640x480 picture of Mode X must be the model's 320x240, doubled.
@@ -148,6 +140,27 @@ pub fn assert_pictures_equal(qemu_picture: &RgbImage, model: &RgbImage, what: &s
             dir.display()
         );
     }
+}
+
+/// A picture (320x240 Mode X, or 720x400 text) presented as the kernel
+/// presents the software VGA onto a `width` x `height` screen, read back as RGB.
+pub fn presented(picture: &RgbImage, width: usize, height: usize) -> RgbImage {
+    let layout = FramebufferLayout {
+        width,
+        height,
+        stride: width,
+        bytes_per_pixel: 3,
+        order: PixelOrder::Rgb,
+    };
+    let mut bytes = vec![0; layout.required_bytes()];
+    present_rgb(
+        &picture.pixels,
+        (picture.width, picture.height),
+        &layout,
+        &mut bytes,
+    );
+    let pixels = bytes.as_chunks::<3>().0.to_vec();
+    RgbImage::new(width, height, pixels)
 }
 
 /// The software VGA's picture after the kernel's test-pattern sequence: both

@@ -9,23 +9,13 @@
 //! must equal the model's scan-out dot for dot.
 
 use super::{boot, boot_with, presented, UEFI_BOOT_TIMEOUT, UEFI_FRAMEBUFFER};
-use crate::common::{assert_pictures_equal, boot_bios, soft_vga_in_mode_x, BOOT_TIMEOUT};
+use crate::common::{
+    assert_pictures_equal, boot_bios, soft_vga_in_mode_x, text_picture, BOOT_TIMEOUT,
+};
 use boot::{line, BootOption, BootRequest, Fault, Firmware, Graphics, RgbImage};
 use demo::screens::REPORT_LINES;
 use modex::ModeX;
 use std::time::Duration;
-
-/// The model's text picture, as RGB.
-fn text_picture(soft: &modex::soft::SoftVga) -> RgbImage {
-    let mut rgb = vec![[0u8; 3]; 720 * 400];
-    let (width, height) = soft.scanout_rgb(&mut rgb);
-    assert_eq!(
-        (width, height),
-        (720, 400),
-        "the model is not in 80x25 text"
-    );
-    RgbImage::new(width, height, rgb)
-}
 
 /// The panel's lines as the kernel printed them on serial, each in its row
 /// (serial leaves out empty lines; their prefixes say where each belongs).
@@ -108,8 +98,8 @@ fn a_panic_shows_the_panel_on_the_framebuffer() {
 }
 
 /// Esc: the goodbye line on the framebuffer. Without isa-debug-exit the
-/// kernel halts after saying goodbye instead of ending QEMU, so the screen
-/// can be looked at.
+/// kernel says goodbye, then powers the machine off through ACPI; QEMU keeps
+/// the last screen (`-no-shutdown`), so it can be looked at.
 #[test]
 fn escape_shows_the_goodbye_line_on_the_framebuffer() {
     let mut qemu = boot_with(
@@ -121,7 +111,7 @@ fn escape_shows_the_goodbye_line_on_the_framebuffer() {
     qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
         .unwrap();
     qemu.send_key("esc").unwrap();
-    qemu.wait_for_serial(line::HALTED, BOOT_TIMEOUT).unwrap();
+    qemu.wait_powered_off(BOOT_TIMEOUT).unwrap();
     let screen = qemu.screendump().unwrap();
     let mut soft = soft_vga_in_mode_x();
     demo::screens::goodbye(&mut ModeX::new(&mut *soft));
