@@ -59,7 +59,6 @@ pub fn on_interrupt() {
 /// Takes a keyboard byte if the controller holds one, with no interrupt: for
 /// the fault handler's loop, where IRQs are off.
 pub fn poll_byte() -> Option<u8> {
-    const STATUS_FROM_MOUSE: u8 = 0x20;
     let status = status();
     if status & STATUS_OUTPUT_FULL == 0 || status == 0xFF {
         return None;
