@@ -30,6 +30,11 @@ pub const EXIT_FAILURE: i32 = (0x11 << 1) | 1;
 /// OVMF from Debian's `ovmf` package.
 pub const OVMF_CODE: &str = "/usr/share/OVMF/OVMF_CODE.fd";
 
+/// The id of the display device (`bochs-display`), to which a keyboard can
+/// be bound (`-device usb-kbd,display=video0`) so that
+/// [`Qemu::press_key_on`] reaches it alone.
+pub const DISPLAY_ID: &str = "video0";
+
 /// How long `send_key` holds a key down, as QEMU's own default.
 const DEFAULT_HOLD_MILLIS: u32 = 100;
 
@@ -109,7 +114,7 @@ impl Graphics {
         match self {
             Graphics::StdVga if precise_retrace => &["-vga", "std,retrace=precise"],
             Graphics::StdVga => &["-vga", "std"],
-            Graphics::BochsDisplay => &["-vga", "none", "-device", "bochs-display"],
+            Graphics::BochsDisplay => &["-vga", "none", "-device", "bochs-display,id=video0"],
             Graphics::Cirrus => &["-vga", "none", "-device", "cirrus-vga"],
             // The board (`isapc`) and its CPU come from `Board::qemu_machine`.
             Graphics::IsaCirrus => &["-vga", "none", "-device", "isa-cirrus-vga"],
@@ -478,6 +483,52 @@ impl Qemu {
             Some("") => Ok(()),
             _ => Err(QemuError::Monitor(format!("sendkey {key}: {reply}"))),
         }
+    }
+
+    /// Presses or releases `key` (a QEMU key name, as for [`Qemu::send_key`])
+    /// on the input devices bound to the display device `display` and on no
+    /// other: QMP's `input-send-event` routes by display, so a keyboard is
+    /// named by binding it to one (`-device usb-kbd,display=video0`), and
+    /// keys sent without a display (`sendkey`) go to the unbound keyboards,
+    /// such as the PS/2 one. QEMU's usb-hid queues 16 PS/2 scancodes (an E0
+    /// key's event takes two), drops an event that does not fit, and sends
+    /// one queued key change a report.
+    pub fn key_event_on(&mut self, display: &str, key: &str, down: bool) -> Result<()> {
+        self.key_events_on(display, &[(key, down)])
+    }
+
+    /// Presses and releases `key` on the keyboards bound to `display`, back
+    /// to back in one QMP command (see [`Qemu::key_event_on`]).
+    pub fn press_key_on(&mut self, display: &str, key: &str) -> Result<()> {
+        self.key_events_on(display, &[(key, true), (key, false)])
+    }
+
+    /// Sends key presses and releases, in order, in one QMP command to the
+    /// keyboards bound to `display` (see [`Qemu::key_event_on`]).
+    pub fn key_events_on(&mut self, display: &str, keys: &[(&str, bool)]) -> Result<()> {
+        let is_name = |c: char| c.is_ascii_alphanumeric() || c == '_';
+        if let Some((key, _)) = keys
+            .iter()
+            .find(|(key, _)| key.is_empty() || !key.chars().all(is_name))
+        {
+            return Err(QemuError::Monitor(format!(
+                "{key:?} is not a QEMU key name"
+            )));
+        }
+        let events: Vec<Value> = keys
+            .iter()
+            .map(|(key, down)| {
+                json!({
+                    "type": "key",
+                    "data": { "down": down, "key": { "type": "qcode", "data": key } },
+                })
+            })
+            .collect();
+        self.execute(json!({
+            "execute": "input-send-event",
+            "arguments": { "device": display, "events": events },
+        }))?;
+        Ok(())
     }
 
     /// QEMU's own rendering of the display, from its VGA emulation, brought up

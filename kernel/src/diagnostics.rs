@@ -3,7 +3,7 @@
 //! measurement of how many page flips a second vertical retrace allows, and
 //! a check of the kernel's clock against the host's.
 
-use crate::{clock, keyboard, serial_println};
+use crate::{clock, keyboard, serial_println, usb};
 use machine::pacing::Pacing;
 use modex::{ModeX, Page, VgaBus};
 
@@ -18,6 +18,7 @@ pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     serial_println!("{}", machine::protocol::line::READY);
     loop {
         crate::idle::idle();
+        usb::poll();
         let mut pressed = false;
         while let Some(byte) = keyboard::SCANCODES.pop() {
             // Only make codes: a release must not flip again.

@@ -10,6 +10,7 @@ mod bench;
 mod bios;
 mod clock;
 mod diagnostics;
+mod dma;
 mod fault;
 mod firmware;
 mod framebuffer;
@@ -29,6 +30,7 @@ mod qemu;
 mod run;
 mod selftest;
 mod serial;
+mod usb;
 mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
@@ -85,6 +87,7 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     };
     let (force_true_mode_x, option) = (request.true_mode_x, request.option);
     clock::init(acpi, physical_memory_offset, request.clock);
+    usb::init(&boot_info.memory_regions, physical_memory_offset);
     serial_println!("kernel: initialised");
 
     let booted_by = firmware::firmware(&boot_info.memory_regions);

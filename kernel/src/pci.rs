@@ -1,5 +1,6 @@
-//! PCI configuration space through the legacy ports (mechanism #1), read
-//! only: enough to find the display controller and name its maker.
+//! PCI configuration space through the legacy ports (mechanism #1): finding
+//! the display controller to name its maker, and finding and enabling xHCI
+//! USB controllers.
 
 use x86_64::instructions::port::Port;
 
@@ -12,12 +13,16 @@ const NO_DEVICE: u16 = 0xFFFF;
 /// Header type bit 7: the device has functions 1-7 too.
 const MULTI_FUNCTION: u8 = 0x80;
 
-fn read(bus: u8, device: u8, function: u8, offset: u8) -> u32 {
-    let address = ENABLE
+fn address(bus: u8, device: u8, function: u8, offset: u8) -> u32 {
+    ENABLE
         | (u32::from(bus) << 16)
         | (u32::from(device) << 11)
         | (u32::from(function) << 8)
-        | u32::from(offset & 0xFC);
+        | u32::from(offset & 0xFC)
+}
+
+fn read(bus: u8, device: u8, function: u8, offset: u8) -> u32 {
+    let address = address(bus, device, function, offset);
     // SAFETY: CONFIG_ADDRESS/CONFIG_DATA are the chipset's configuration
     // ports; reading configuration space changes no device state.
     unsafe {
@@ -51,4 +56,145 @@ pub fn display_controller() -> Option<(u16, u16)> {
         }
     }
     None
+}
+
+fn write(bus: u8, device: u8, function: u8, offset: u8, value: u32) {
+    let address = address(bus, device, function, offset);
+    // SAFETY: as in `read`; callers write only registers of a function they
+    // found by its class (the xHCI's command, BAR and port-routing registers).
+    unsafe {
+        Port::<u32>::new(CONFIG_ADDRESS).write(address);
+        Port::<u32>::new(CONFIG_DATA).write(value);
+    }
+}
+
+/// Class 0C (serial bus), subclass 03 (USB), programming interface 30 (xHCI).
+const CLASS_XHCI: u32 = 0x0C_03_30;
+const COMMAND: u8 = 0x04;
+const COMMAND_MEMORY: u32 = 1 << 1;
+const COMMAND_BUS_MASTER: u32 = 1 << 2;
+const BAR0: u8 = 0x10;
+const BAR_64_BIT: u32 = 0b100;
+const BAR_IO: u32 = 1;
+
+/// A PCI function, by its address.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Function {
+    pub bus: u8,
+    pub device: u8,
+    pub function: u8,
+    pub vendor: u16,
+    pub id: u16,
+}
+
+impl core::fmt::Display for Function {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "{:04x}:{:04x} at {:02x}:{:02x}.{}",
+            self.vendor, self.id, self.bus, self.device, self.function
+        )
+    }
+}
+
+/// Every xHCI controller (up to `N`), in bus order.
+pub fn xhci_controllers<const N: usize>() -> ([Option<Function>; N], usize) {
+    let mut found = [None; N];
+    let mut count = 0;
+    for bus in 0..=255u8 {
+        for device in 0..32u8 {
+            if read(bus, device, 0, 0x00) as u16 == NO_DEVICE {
+                continue;
+            }
+            let header_type = (read(bus, device, 0, 0x0C) >> 16) as u8;
+            let functions = if header_type & MULTI_FUNCTION != 0 {
+                8
+            } else {
+                1
+            };
+            for function in 0..functions {
+                let id = read(bus, device, function, 0x00);
+                if id as u16 == NO_DEVICE || read(bus, device, function, 0x08) >> 8 != CLASS_XHCI {
+                    continue;
+                }
+                if count < N {
+                    found[count] = Some(Function {
+                        bus,
+                        device,
+                        function,
+                        vendor: id as u16,
+                        id: (id >> 16) as u16,
+                    });
+                }
+                count += 1;
+            }
+        }
+    }
+    (found, count)
+}
+
+/// BAR0 of an xHCI: its physical address and size.
+#[derive(Clone, Copy, Debug)]
+pub struct MemoryBar {
+    pub address: u64,
+    pub bytes: u64,
+}
+
+/// Sizes BAR0 (with memory decoding off meanwhile), then turns on memory
+/// decoding and bus mastering. `None` if BAR0 is not a memory BAR.
+pub fn enable_memory_and_bus_master(f: Function) -> Option<MemoryBar> {
+    let command = read(f.bus, f.device, f.function, COMMAND);
+    write(
+        f.bus,
+        f.device,
+        f.function,
+        COMMAND,
+        command & !COMMAND_MEMORY & 0xFFFF,
+    );
+    let low = read(f.bus, f.device, f.function, BAR0);
+    let is_64 = low & 0b110 == BAR_64_BIT;
+    let high = if is_64 {
+        read(f.bus, f.device, f.function, BAR0 + 4)
+    } else {
+        0
+    };
+    write(f.bus, f.device, f.function, BAR0, u32::MAX);
+    let size_mask = read(f.bus, f.device, f.function, BAR0) & !0xF;
+    write(f.bus, f.device, f.function, BAR0, low);
+    write(
+        f.bus,
+        f.device,
+        f.function,
+        COMMAND,
+        (command | COMMAND_MEMORY | COMMAND_BUS_MASTER) & 0xFFFF,
+    );
+    if low & BAR_IO != 0 || size_mask == 0 {
+        return None;
+    }
+    Some(MemoryBar {
+        address: (u64::from(high) << 32) | u64::from(low & !0xF),
+        bytes: u64::from((!size_mask).wrapping_add(1)),
+    })
+}
+
+/// Intel PCHs whose USB 2 and 3 ports start routed to the EHCI (Panther
+/// Point, Lynx Point, Wildcat Point), as Linux's `usb_is_intel_switchable_xhci`.
+const INTEL_SWITCHABLE_XHCI: [u16; 5] = [0x1E31, 0x8C31, 0x9C31, 0x8CB1, 0x9CB1];
+const USB3_PSSEN: u8 = 0xD8;
+const USB3PRM: u8 = 0xDC;
+const XUSB2PR: u8 = 0xD0;
+const XUSB2PRM: u8 = 0xD4;
+
+/// On those PCHs, switches every switchable port to the xHCI (SuperSpeed
+/// enabled, USB 2 routed), as the masks the firmware left allow. Returns the
+/// ports routed, or `None` for other controllers.
+pub fn route_intel_ports_to_xhci(f: Function) -> Option<u32> {
+    if f.vendor != 0x8086 || !INTEL_SWITCHABLE_XHCI.contains(&f.id) {
+        return None;
+    }
+    let superspeed = read(f.bus, f.device, f.function, USB3PRM);
+    write(f.bus, f.device, f.function, USB3_PSSEN, superspeed);
+    let usb2 = read(f.bus, f.device, f.function, XUSB2PRM);
+    write(f.bus, f.device, f.function, XUSB2PR, usb2);
+    Some(read(f.bus, f.device, f.function, XUSB2PR))
 }

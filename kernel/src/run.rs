@@ -3,7 +3,7 @@
 //! an idle cube costs no bus traffic at all. While the cube spins it also
 //! keeps count of missed retraces. Ctrl+Alt+Del resets the machine.
 
-use crate::{clock, goodbye, idle, keyboard, power, serial_println};
+use crate::{clock, goodbye, idle, keyboard, power, serial_println, usb};
 use demo::app::App;
 use machine::pacing::Pacing;
 use machine::protocol::line;
@@ -38,6 +38,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut pacing = Pacing::default();
     let mut reset_chord = ResetChord::new();
     loop {
+        usb::poll();
         while let Some(byte) = keyboard::SCANCODES.pop() {
             if reset_chord.feed(byte) {
                 power::reset();

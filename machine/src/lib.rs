@@ -2,11 +2,13 @@
 //! which clock source to trust and the arithmetic that calibrates the
 //! time-stamp counter against it, the ACPI values for power-off and reset, the
 //! bookkeeping that counts missed vertical retraces, telling from the
-//! memory map which firmware booted the machine, and finding the boot option
-//! in QEMU's fw_cfg file directory.
+//! memory map which firmware booted the machine, finding the boot option
+//! in QEMU's fw_cfg file directory, and the USB keyboard driver ([`usb`]:
+//! an xHCI controller driven through a trait over its registers and DMA
+//! memory, which the host tests implement with a model of the controller).
 //!
-//! The kernel supplies the readings (port reads, `rdtsc`); everything that
-//! decides what those readings mean lives here.
+//! The kernel supplies the readings (port reads, `rdtsc`, MMIO); everything
+//! that decides what those readings mean lives here.
 //!
 //! # Example
 //!
@@ -38,3 +40,4 @@ pub mod fw_cfg;
 pub mod pacing;
 pub mod protocol;
 pub mod reset_keys;
+pub mod usb;

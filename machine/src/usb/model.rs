@@ -1,0 +1,693 @@
+//! A register model of an xHCI controller with one full-speed boot keyboard
+//! on root port 1, for the host tests: enough of the specification to run
+//! the driver end to end (ownership hand-off, reset and Controller Not Ready,
+//! scratchpads, 32- or 64-byte contexts, the command, transfer and event
+//! rings with their cycle bits), and knobs to make it misbehave. It checks
+//! what the driver gives it (context layouts, ring ownership, memory
+//! bounds) and fails commands that get it wrong, as hardware would.
+
+use super::ring::{trb_type, Trb, CYCLE, TOGGLE_CYCLE};
+use super::{Hardware, Memory};
+use std::string::String;
+use std::vec;
+use std::vec::Vec;
+
+pub const DMA_BASE: u64 = 0x10_0000;
+pub const DMA_BYTES: u64 = 1 << 20;
+pub const BAR_BYTES: u32 = 0x2000;
+const OPERATIONAL: u32 = 0x20;
+const RUNTIME: u32 = 0x600;
+const DOORBELLS: u32 = 0x800;
+const EXTENDED: u32 = 0x1000;
+const PORTS: usize = 2;
+const MICROS_PER_CLOCK_READ: u64 = 5;
+
+/// QEMU's usb-kbd descriptors.
+pub const KEYBOARD_DEVICE: [u8; 18] = [
+    18, 1, 0x00, 0x02, 0, 0, 0, 8, 0x27, 0x06, 0x01, 0x00, 0, 0, 1, 2, 3, 1,
+];
+pub const HUB_DEVICE: [u8; 18] = [
+    18, 1, 0x00, 0x02, 9, 0, 0, 8, 0x09, 0x04, 0x11, 0x11, 0, 0, 0, 0, 0, 1,
+];
+pub const HUB_CONFIGURATION: [u8; 25] = [
+    9, 2, 25, 0, 1, 1, 0, 0xE0, 0, 9, 4, 0, 0, 1, 9, 0, 0, 0, 7, 5, 0x81, 3, 1, 0, 12,
+];
+pub const HUB_DESCRIPTOR: [u8; 9] = [9, 0x29, 4, 0, 0, 50, 0, 0, 0xFF];
+pub const KEYBOARD_CONFIGURATION: [u8; 34] = [
+    9, 2, 34, 0, 1, 1, 0, 0xA0, 50, 9, 4, 0, 0, 1, 3, 1, 1, 0, 9, 0x21, 0x11, 0x01, 0, 1, 0x22, 63,
+    0, 7, 5, 0x81, 3, 8, 0, 10,
+];
+
+/// A consumer's place on a producer ring.
+#[derive(Clone, Copy, Debug, Default)]
+struct Cursor {
+    dequeue: u64,
+    cycle: bool,
+}
+
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Kind {
+    #[default]
+    Keyboard,
+    Hub,
+}
+
+#[derive(Clone, Debug, Default)]
+struct Slot {
+    kind: Kind,
+    enabled: bool,
+    output: u64,
+    ep0: Cursor,
+    interrupt: Option<(u8, Cursor)>,
+}
+
+/// What the keyboard was told.
+#[derive(Clone, Debug, Default)]
+pub struct KeyboardState {
+    pub configuration: Option<u8>,
+    pub boot_protocol: bool,
+    pub idle_set: bool,
+    pub slot: u8,
+}
+
+/// What the hub was told, and its port 2 (where the keyboard is).
+#[derive(Clone, Debug, Default)]
+pub struct HubState {
+    pub slot: u8,
+    pub configured: bool,
+    /// The controller was told it is a hub, with its 4 ports.
+    pub marked: bool,
+    pub powered: [bool; 4],
+    pub keyboard_port_status: u32,
+}
+
+#[derive(Debug)]
+pub struct Model {
+    pub now: u64,
+    memory: Vec<u32>,
+    // Knobs.
+    pub csz: bool,
+    pub scratchpads: u32,
+    /// When the firmware clears BIOS-owned after the OS asks (None: never).
+    pub firmware_releases_after: Option<u64>,
+    pub cnr_stuck: bool,
+    pub commands_answered: bool,
+    pub device_descriptor: Vec<u8>,
+    pub configuration: Vec<u8>,
+    /// A full-speed hub on root port 1, the keyboard on its port 2.
+    pub hub: bool,
+    // Registers.
+    legacy: u32,
+    legacy_control: u32,
+    os_asked_at: Option<u64>,
+    usbcmd: u32,
+    usbsts: u32,
+    config: u32,
+    dcbaap: u64,
+    crcr: Cursor,
+    portsc: [u32; PORTS],
+    erstsz: u32,
+    erstba: u64,
+    erdp: u64,
+    event_base: u64,
+    event_size: u64,
+    event_enqueue: u64,
+    event_cycle: bool,
+    slots: [Slot; 9],
+    next_slot: u8,
+    // What happened.
+    pub keyboard: KeyboardState,
+    pub hub_state: HubState,
+    pub events_dropped: u32,
+    pub events_posted: u32,
+    pub log: Vec<String>,
+    pub errors: Vec<String>,
+}
+
+impl Model {
+    pub fn new() -> Model {
+        Model {
+            now: 0,
+            memory: vec![0; (DMA_BYTES / 4) as usize],
+            csz: false,
+            scratchpads: 0,
+            firmware_releases_after: Some(2_000),
+            cnr_stuck: false,
+            commands_answered: true,
+            device_descriptor: KEYBOARD_DEVICE.to_vec(),
+            configuration: KEYBOARD_CONFIGURATION.to_vec(),
+            hub: false,
+            legacy: 1 << 16,
+            legacy_control: 0xE000_E011,
+            os_asked_at: None,
+            usbcmd: 0,
+            usbsts: 1,
+            config: 0,
+            dcbaap: 0,
+            crcr: Cursor::default(),
+            portsc: [0; PORTS],
+            erstsz: 0,
+            erstba: 0,
+            erdp: 0,
+            event_base: 0,
+            event_size: 0,
+            event_enqueue: 0,
+            event_cycle: true,
+            slots: Default::default(),
+            next_slot: 1,
+            keyboard: KeyboardState::default(),
+            hub_state: HubState::default(),
+            events_dropped: 0,
+            events_posted: 0,
+            log: Vec::new(),
+            errors: Vec::new(),
+        }
+    }
+
+    fn context_bytes(&self) -> u64 {
+        if self.csz {
+            64
+        } else {
+            32
+        }
+    }
+
+    fn word(&self, address: u64) -> usize {
+        assert!(
+            address >= DMA_BASE && address + 4 <= DMA_BASE + DMA_BYTES && address % 4 == 0,
+            "the driver touched {address:#x}, outside its DMA memory"
+        );
+        ((address - DMA_BASE) / 4) as usize
+    }
+
+    fn read64(&mut self, address: u64) -> u64 {
+        u64::from(self.mem_read(address)) | u64::from(self.mem_read(address + 4)) << 32
+    }
+
+    fn read_trb(&mut self, address: u64) -> Trb {
+        Trb([
+            self.mem_read(address),
+            self.mem_read(address + 4),
+            self.mem_read(address + 8),
+            self.mem_read(address + 12),
+        ])
+    }
+
+    /// The next TRB the producer has handed over, following Link TRBs.
+    fn next_trb(&mut self, cursor: &mut Cursor) -> Option<(u64, Trb)> {
+        for _ in 0..4 {
+            let trb = self.read_trb(cursor.dequeue);
+            if (trb.0[3] & CYCLE != 0) != cursor.cycle {
+                return None;
+            }
+            if trb.kind() == trb_type::LINK {
+                if trb.0[3] & TOGGLE_CYCLE != 0 {
+                    cursor.cycle = !cursor.cycle;
+                }
+                cursor.dequeue = trb.parameter() & !0xF;
+                continue;
+            }
+            let address = cursor.dequeue;
+            cursor.dequeue += 16;
+            return Some((address, trb));
+        }
+        self.errors.push("a loop of Link TRBs".into());
+        None
+    }
+
+    fn post_event(&mut self, trb: Trb) {
+        if self.event_size == 0 {
+            self.errors.push("an event with no event ring".into());
+            return;
+        }
+        let next = (self.event_enqueue + 1) % self.event_size;
+        let dequeue_index = (self.erdp - self.event_base) / 16;
+        if next == dequeue_index {
+            self.events_dropped += 1;
+            return;
+        }
+        let address = self.event_base + self.event_enqueue * 16;
+        self.mem_write(address, trb.0[0]);
+        self.mem_write(address + 4, trb.0[1]);
+        self.mem_write(address + 8, trb.0[2]);
+        self.mem_write(
+            address + 12,
+            (trb.0[3] & !CYCLE) | u32::from(self.event_cycle),
+        );
+        self.event_enqueue = next;
+        if next == 0 {
+            self.event_cycle = !self.event_cycle;
+        }
+        self.events_posted += 1;
+    }
+
+    fn complete_command(&mut self, address: u64, code: u8, slot: u8) {
+        if self.commands_answered {
+            self.post_event(Trb([
+                address as u32,
+                (address >> 32) as u32,
+                u32::from(code) << 24,
+                trb_type::COMMAND_COMPLETION << 10 | u32::from(slot) << 24,
+            ]));
+        }
+    }
+
+    fn transfer_event(&mut self, address: u64, code: u8, residual: u32, slot: u8, dci: u8) {
+        self.post_event(Trb([
+            address as u32,
+            (address >> 32) as u32,
+            u32::from(code) << 24 | residual,
+            trb_type::TRANSFER_EVENT << 10 | u32::from(slot) << 24 | u32::from(dci) << 16,
+        ]));
+    }
+
+    fn output_context(&mut self, slot: u8) -> u64 {
+        self.read64(self.dcbaap + 8 * u64::from(slot))
+    }
+
+    fn run_commands(&mut self) {
+        let mut cursor = self.crcr;
+        while let Some((address, trb)) = self.next_trb(&mut cursor) {
+            let slot = trb.slot();
+            let ctx = self.context_bytes();
+            match trb.kind() {
+                trb_type::NO_OP_COMMAND => self.complete_command(address, 1, 0),
+                trb_type::ENABLE_SLOT => {
+                    let slot = self.next_slot;
+                    self.next_slot += 1;
+                    self.slots[usize::from(slot)].enabled = true;
+                    self.complete_command(address, 1, slot);
+                }
+                trb_type::ADDRESS_DEVICE => {
+                    let input = trb.parameter();
+                    let add = self.mem_read(input + 4);
+                    let slot_dw0 = self.mem_read(input + ctx);
+                    let root_port = (self.mem_read(input + ctx + 4) >> 16) & 0xFF;
+                    let ep0_dw1 = self.mem_read(input + 2 * ctx + 4);
+                    let ep0_dequeue = self.read64(input + 2 * ctx + 8);
+                    let route = slot_dw0 & 0xF_FFFF;
+                    let kind = match (self.hub, route) {
+                        (false, 0) | (true, 2) => Some(Kind::Keyboard),
+                        (true, 0) => Some(Kind::Hub),
+                        _ => None,
+                    };
+                    let valid = add == 0b11
+                        && kind.is_some()
+                        && (slot_dw0 >> 20) & 0xF == 1
+                        && slot_dw0 >> 27 == 1
+                        && root_port == 1
+                        && (ep0_dw1 >> 3) & 7 == 4
+                        && ep0_dw1 >> 16 == 8
+                        && ep0_dequeue != 0
+                        && self.slots[usize::from(slot)].enabled;
+                    if !valid {
+                        self.errors.push(std::format!(
+                            "Address Device: input context wrong (add {add:#x}, slot {slot_dw0:#x}, port {root_port}, ep0 {ep0_dw1:#x})"
+                        ));
+                        self.complete_command(address, 17, slot);
+                        continue;
+                    }
+                    let output = self.output_context(slot);
+                    self.mem_write(output + 12, 2 << 27 | u32::from(slot));
+                    let state = &mut self.slots[usize::from(slot)];
+                    state.kind = kind.unwrap_or_default();
+                    state.output = output;
+                    state.ep0 = Cursor {
+                        dequeue: ep0_dequeue & !0xF,
+                        cycle: ep0_dequeue & 1 != 0,
+                    };
+                    match kind {
+                        Some(Kind::Hub) => self.hub_state.slot = slot,
+                        _ => self.keyboard.slot = slot,
+                    }
+                    self.complete_command(address, 1, slot);
+                }
+                trb_type::EVALUATE_CONTEXT => self.complete_command(address, 1, slot),
+                trb_type::CONFIGURE_ENDPOINT => {
+                    let input = trb.parameter();
+                    let add = self.mem_read(input + 4);
+                    let mut ok = add & 1 != 0 && add & 0b10 == 0;
+                    if self.slots[usize::from(slot)].kind == Kind::Hub {
+                        let slot_dw0 = self.mem_read(input + ctx);
+                        let ports = self.mem_read(input + ctx + 4) >> 24;
+                        self.hub_state.marked = add == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
+                    }
+                    for dci in 2..32u8 {
+                        if add & (1 << dci) == 0 {
+                            continue;
+                        }
+                        let dw1 = self.mem_read(input + (1 + u64::from(dci)) * ctx + 4);
+                        let dequeue = self.read64(input + (1 + u64::from(dci)) * ctx + 8);
+                        if (dw1 >> 3) & 7 != 7 || dequeue == 0 || dw1 >> 16 == 0 {
+                            ok = false;
+                            continue;
+                        }
+                        self.slots[usize::from(slot)].interrupt = Some((
+                            dci,
+                            Cursor {
+                                dequeue: dequeue & !0xF,
+                                cycle: dequeue & 1 != 0,
+                            },
+                        ));
+                    }
+                    if !ok {
+                        self.errors
+                            .push(std::format!("Configure Endpoint: add flags {add:#x} wrong"));
+                        self.complete_command(address, 17, slot);
+                        continue;
+                    }
+                    let output = self.slots[usize::from(slot)].output;
+                    self.mem_write(output + 12, 3 << 27 | u32::from(slot));
+                    self.complete_command(address, 1, slot);
+                }
+                other => {
+                    self.errors.push(std::format!("unknown command {other}"));
+                    self.complete_command(address, 5, slot);
+                }
+            }
+        }
+        self.crcr = cursor;
+    }
+
+    fn run_control(&mut self, slot: u8) {
+        let mut cursor = self.slots[usize::from(slot)].ep0;
+        let mut setup = 0u64;
+        while let Some((address, trb)) = self.next_trb(&mut cursor) {
+            match trb.kind() {
+                trb_type::SETUP => setup = trb.parameter(),
+                trb_type::DATA => {
+                    let (request_type, request) = (setup as u8, (setup >> 8) as u8);
+                    let value = (setup >> 16) as u16;
+                    let length = (setup >> 48) as usize;
+                    let hub = self.slots[usize::from(slot)].kind == Kind::Hub;
+                    let reply = match (hub, request_type, request, value >> 8) {
+                        (false, 0x80, 6, 1) => self.device_descriptor.clone(),
+                        (false, 0x80, 6, 2) => self.configuration.clone(),
+                        (true, 0x80, 6, 1) => HUB_DEVICE.to_vec(),
+                        (true, 0x80, 6, 2) => HUB_CONFIGURATION.to_vec(),
+                        (true, 0xA0, 6, 0x29) => HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA3, 0, _) => {
+                            let port = (setup >> 32) as u16;
+                            let status = if port == 2 {
+                                self.hub_state.keyboard_port_status
+                            } else {
+                                0
+                            };
+                            status.to_le_bytes().to_vec()
+                        }
+                        _ => Vec::new(),
+                    };
+                    let buffer = trb.parameter();
+                    let mut bytes = reply;
+                    bytes.truncate(length.min(trb.0[2] as usize));
+                    bytes.resize(bytes.len().div_ceil(4) * 4, 0);
+                    for (i, chunk) in bytes.chunks(4).enumerate() {
+                        let word = u32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
+                        self.mem_write(buffer + 4 * i as u64, word);
+                    }
+                }
+                trb_type::STATUS => {
+                    let (request_type, request) = (setup as u8, (setup >> 8) as u8);
+                    let value = (setup >> 16) as u16;
+                    if self.slots[usize::from(slot)].kind == Kind::Hub {
+                        let known = self.hub_request(setup);
+                        self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
+                        continue;
+                    }
+                    let known = match (request_type, request) {
+                        (0x80, 6) => true,
+                        (0x00, 9) => {
+                            self.keyboard.configuration = Some(value as u8);
+                            true
+                        }
+                        (0x21, 0x0B) => {
+                            self.keyboard.boot_protocol = value == 0;
+                            true
+                        }
+                        (0x21, 0x0A) => {
+                            self.keyboard.idle_set = true;
+                            true
+                        }
+                        _ => false,
+                    };
+                    self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
+                }
+                trb_type::NO_OP_TRANSFER => {}
+                other => self.errors.push(std::format!("TRB type {other} on EP0")),
+            }
+        }
+        self.slots[usize::from(slot)].ep0 = cursor;
+    }
+
+    /// A hub class (or standard) request's effect; whether the hub knows it.
+    fn hub_request(&mut self, setup: u64) -> bool {
+        const CONNECTED: u32 = 1;
+        const ENABLED: u32 = 1 << 1;
+        const POWERED: u32 = 1 << 8;
+        const RESET_CHANGE: u32 = 1 << 20;
+        let (request_type, request) = (setup as u8, (setup >> 8) as u8);
+        let value = (setup >> 16) as u16;
+        let port = (setup >> 32) as u16;
+        let port_index = usize::from(port).wrapping_sub(1);
+        match (request_type, request, value) {
+            (0x80 | 0xA0 | 0xA3, 6 | 0, _) => true,
+            (0x00, 9, _) => {
+                self.hub_state.configured = true;
+                true
+            }
+            (0x23, 3, 8) if port_index < 4 => {
+                self.hub_state.powered[port_index] = true;
+                if port == 2 {
+                    self.hub_state.keyboard_port_status = CONNECTED | POWERED;
+                }
+                true
+            }
+            (0x23, 3, 4) if port == 2 => {
+                self.hub_state.keyboard_port_status |= ENABLED | RESET_CHANGE;
+                true
+            }
+            (0x23, 1, 20) if port == 2 => {
+                self.hub_state.keyboard_port_status &= !RESET_CHANGE;
+                true
+            }
+            _ => {
+                self.errors.push(std::format!("hub request {setup:#018x}"));
+                false
+            }
+        }
+    }
+
+    /// The keyboard sends a report (if a Normal TRB waits for one); returns
+    /// whether it could.
+    pub fn send_report(&mut self, report: [u8; 8]) -> bool {
+        let slot = self.keyboard.slot;
+        let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
+            return false;
+        };
+        let Some((address, trb)) = self.next_trb(&mut cursor) else {
+            return false;
+        };
+        self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
+        let buffer = trb.parameter();
+        self.mem_write(
+            buffer,
+            u32::from_le_bytes([report[0], report[1], report[2], report[3]]),
+        );
+        self.mem_write(
+            buffer + 4,
+            u32::from_le_bytes([report[4], report[5], report[6], report[7]]),
+        );
+        let residual = trb.0[2].saturating_sub(8);
+        self.transfer_event(
+            address,
+            if residual > 0 { 13 } else { 1 },
+            residual,
+            slot,
+            dci,
+        );
+        true
+    }
+
+    /// The slot context state the driver's output context holds for the keyboard.
+    pub fn keyboard_slot_state(&mut self) -> u32 {
+        let output = self.slots[usize::from(self.keyboard.slot)].output;
+        self.mem_read(output + 12) >> 27
+    }
+
+    /// The hub's port 2 status bits that matter: connected and enabled, and
+    /// the reset change (bit 20) once cleared.
+    pub fn keyboard_port_status_after_reset(&self) -> u32 {
+        self.hub_state.keyboard_port_status & (0b11 | 1 << 20)
+    }
+
+    /// The DCBAA's entry 0: the scratchpad array.
+    pub fn scratchpad_array(&mut self) -> u64 {
+        self.read64(self.dcbaap)
+    }
+
+    pub fn read_u64(&mut self, address: u64) -> u64 {
+        self.read64(address)
+    }
+
+    pub fn legacy_registers(&self) -> (u32, u32) {
+        (self.legacy, self.legacy_control)
+    }
+}
+
+impl Memory for Model {
+    fn mem_read(&mut self, address: u64) -> u32 {
+        let word = self.word(address);
+        self.memory[word]
+    }
+
+    fn mem_write(&mut self, address: u64, value: u32) {
+        let word = self.word(address);
+        self.memory[word] = value;
+    }
+}
+
+impl Hardware for Model {
+    fn mmio_read(&mut self, offset: u32) -> u32 {
+        assert!(offset + 4 <= BAR_BYTES, "read outside the BAR: {offset:#x}");
+        match offset {
+            0x00 => 0x0100_0000 | OPERATIONAL,
+            0x04 => (PORTS as u32) << 24 | 1 << 8 | 8,
+            0x08 => ((self.scratchpads >> 5) & 0x1F) << 21 | (self.scratchpads & 0x1F) << 27,
+            0x10 => (EXTENDED / 4) << 16 | u32::from(self.csz) << 2 | 1,
+            0x14 => DOORBELLS,
+            0x18 => RUNTIME,
+            o if o == OPERATIONAL => self.usbcmd,
+            o if o == OPERATIONAL + 0x04 => self.usbsts,
+            o if o == OPERATIONAL + 0x08 => 1,
+            o if o == OPERATIONAL + 0x38 => self.config,
+            o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * PORTS as u32).contains(&o) => {
+                let port = ((o - OPERATIONAL - 0x400) / 0x10) as usize;
+                if (o - OPERATIONAL - 0x400) % 0x10 == 0 {
+                    self.portsc[port]
+                } else {
+                    0
+                }
+            }
+            o if o == RUNTIME + 0x28 => self.erstsz,
+            o if o == EXTENDED => {
+                if let (Some(asked), Some(after)) = (self.os_asked_at, self.firmware_releases_after)
+                {
+                    if self.now >= asked + after {
+                        self.legacy &= !(1 << 16);
+                    }
+                }
+                self.legacy | 4 << 8 | 1
+            }
+            o if o == EXTENDED + 4 => self.legacy_control,
+            o if o == EXTENDED + 0x10 => 0x0200_0000 | 2,
+            o if o == EXTENDED + 0x14 => 0x2042_5355,
+            o if o == EXTENDED + 0x18 => (PORTS as u32) << 8 | 1,
+            _ => 0,
+        }
+    }
+
+    fn mmio_write(&mut self, offset: u32, value: u32) {
+        assert!(
+            offset + 4 <= BAR_BYTES,
+            "write outside the BAR: {offset:#x}"
+        );
+        let set_low = |old: u64, v: u32| (old & !0xFFFF_FFFF) | u64::from(v);
+        let set_high = |old: u64, v: u32| (old & 0xFFFF_FFFF) | u64::from(v) << 32;
+        match offset {
+            o if o == OPERATIONAL => {
+                if value & 2 != 0 {
+                    if self.usbsts & 1 == 0 {
+                        self.errors.push("reset while running".into());
+                    }
+                    self.usbcmd = 0;
+                    self.usbsts = 1 | if self.cnr_stuck { 1 << 11 } else { 0 };
+                    self.portsc = [0; PORTS];
+                    self.portsc[0] = 1 | 1 << 9 | 1 << 10; // connected, powered, full speed
+                    self.portsc[1] = 1 << 9;
+                } else {
+                    self.usbcmd = value;
+                    if value & 1 != 0 {
+                        if self.erstsz == 0 || self.dcbaap == 0 {
+                            self.errors.push("run without rings".into());
+                        }
+                        self.usbsts &= !1;
+                    } else {
+                        self.usbsts |= 1;
+                    }
+                }
+            }
+            o if o == OPERATIONAL + 0x18 => {
+                self.crcr = Cursor {
+                    dequeue: u64::from(value & !0x3F),
+                    cycle: value & 1 != 0,
+                }
+            }
+            o if o == OPERATIONAL + 0x1C => self.crcr.dequeue = set_high(self.crcr.dequeue, value),
+            o if o == OPERATIONAL + 0x30 => self.dcbaap = set_low(self.dcbaap, value),
+            o if o == OPERATIONAL + 0x34 => self.dcbaap = set_high(self.dcbaap, value),
+            o if o == OPERATIONAL + 0x38 => self.config = value,
+            o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * PORTS as u32).contains(&o) => {
+                let port = ((o - OPERATIONAL - 0x400) / 0x10) as usize;
+                if value & 0b10 != 0 {
+                    self.errors
+                        .push("PED written: the port was disabled".into());
+                }
+                let status = &mut self.portsc[port];
+                *status &= !(value & (0x7F << 17));
+                if value & (1 << 4) != 0 && *status & 1 != 0 {
+                    *status |= 1 << 21 | 0b10;
+                }
+            }
+            o if o == RUNTIME + 0x28 => self.erstsz = value,
+            o if o == RUNTIME + 0x30 => self.erstba = set_low(self.erstba, value),
+            o if o == RUNTIME + 0x34 => {
+                self.erstba = set_high(self.erstba, value);
+                self.event_base = self.read64(self.erstba);
+                self.event_size = u64::from(self.mem_read(self.erstba + 8) & 0xFFFF);
+                self.event_enqueue = 0;
+                self.event_cycle = true;
+            }
+            o if o == RUNTIME + 0x38 => self.erdp = set_low(self.erdp, value & !0xF),
+            o if o == RUNTIME + 0x3C => self.erdp = set_high(self.erdp, value),
+            o if o == DOORBELLS => {
+                if self.usbsts & 1 != 0 {
+                    self.errors.push("command doorbell while halted".into());
+                } else {
+                    self.run_commands();
+                }
+            }
+            o if (DOORBELLS + 4..DOORBELLS + 4 * 9).contains(&o) => {
+                let slot = ((o - DOORBELLS) / 4) as u8;
+                if value == 1 {
+                    self.run_control(slot);
+                }
+                // Interrupt endpoints are served when the keyboard has a report.
+            }
+            o if o == EXTENDED => {
+                if value & (1 << 24) != 0 && self.os_asked_at.is_none() {
+                    self.os_asked_at = Some(self.now);
+                }
+                self.legacy = (self.legacy & (1 << 16)) | (value & (1 << 24));
+                if value & (1 << 16) == 0 && self.legacy & (1 << 16) != 0 {
+                    // The OS clears BIOS-owned itself (forcing).
+                    self.legacy &= !(1 << 16);
+                }
+            }
+            o if o == EXTENDED + 4 => {
+                // SMI enables are read-write, the SMI status bits write-1-to-clear.
+                self.legacy_control =
+                    (value & 0xE011) | (self.legacy_control & 0xE000_0000 & !value);
+            }
+            _ => {}
+        }
+    }
+
+    fn now_micros(&mut self) -> u64 {
+        self.now += MICROS_PER_CLOCK_READ;
+        self.now
+    }
+
+    fn log(&mut self, message: core::fmt::Arguments<'_>) {
+        self.log.push(std::format!("{message}"));
+    }
+}

@@ -1,0 +1,307 @@
+//! The driver against the register model: ownership, reset, scratchpads,
+//! context sizes, ring wrap, a keyboard end to end, and misbehaviour.
+
+use super::model::{Model, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use super::xhci::{Handoff, Location, Xhci, XhciError, HANDOFF_MICROS, PAGE_BYTES, RESET_MICROS};
+use std::vec::Vec;
+
+fn controller(model: Model) -> Xhci<Model> {
+    Xhci::new(model, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap()
+}
+
+/// A controller taken, reset and started, its keyboard set up.
+fn with_keyboard(model: Model) -> Xhci<Model> {
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 1, "{:?}", xhci.hardware().log);
+    xhci
+}
+
+fn poll(xhci: &mut Xhci<Model>) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    xhci.poll(&mut |b| bytes.push(b));
+    bytes
+}
+
+#[test]
+fn the_firmware_that_lets_go_is_waited_for_and_its_smis_turned_off() {
+    let mut model = Model::new();
+    model.firmware_releases_after = Some(3_000);
+    let mut xhci = controller(model);
+    let handoff = xhci.take_ownership();
+    let Handoff::Released(micros) = handoff else {
+        panic!("{handoff:?}");
+    };
+    assert!((3_000..4_000).contains(&micros), "{micros}");
+    let (legacy, control) = xhci.hardware().legacy_registers();
+    assert_eq!(
+        legacy & (1 << 24 | 1 << 16),
+        1 << 24,
+        "OS-owned, not BIOS-owned"
+    );
+    assert_eq!(
+        control, 0,
+        "SMI enables off and their status cleared: {control:#x}"
+    );
+}
+
+#[test]
+fn a_firmware_that_never_lets_go_is_overruled_after_a_second() {
+    let mut model = Model::new();
+    model.firmware_releases_after = None;
+    let mut xhci = controller(model);
+    let start = xhci.hardware().now;
+    assert_eq!(xhci.take_ownership(), Handoff::Forced);
+    let waited = xhci.hardware().now - start;
+    assert!(
+        (HANDOFF_MICROS..HANDOFF_MICROS + 10_000).contains(&waited),
+        "{waited} us"
+    );
+    let (legacy, control) = xhci.hardware().legacy_registers();
+    assert_eq!(legacy & (1 << 24 | 1 << 16), 1 << 24);
+    assert_eq!(control & 0xE011, 0);
+    // And the rest goes on as usual.
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 1);
+}
+
+#[test]
+fn controller_not_ready_stuck_fails_the_reset_in_bounded_time() {
+    let mut model = Model::new();
+    model.cnr_stuck = true;
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    let start = xhci.hardware().now;
+    assert_eq!(xhci.reset_and_start(), Err(XhciError::NotReady));
+    let waited = xhci.hardware().now - start;
+    assert!(waited <= RESET_MICROS + 100_000, "{waited} us");
+    assert!(
+        xhci.hardware().errors.is_empty(),
+        "{:?}",
+        xhci.hardware().errors
+    );
+}
+
+#[test]
+fn scratchpads_asked_for_are_given_page_by_page() {
+    let mut model = Model::new();
+    model.scratchpads = 37; // the high and low fields of HCSPARAMS2 both used
+    let mut xhci = controller(model);
+    assert_eq!(xhci.capabilities().scratchpads, 37);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    let model = xhci.hardware();
+    let array = model.scratchpad_array();
+    assert!(array != 0 && array.is_multiple_of(PAGE_BYTES));
+    let mut pages: Vec<u64> = (0..37).map(|i| model.read_u64(array + 8 * i)).collect();
+    assert!(pages.iter().all(|&p| p.is_multiple_of(PAGE_BYTES)
+        && p >= DMA_BASE
+        && p + PAGE_BYTES <= DMA_BASE + DMA_BYTES));
+    pages.sort_unstable();
+    pages.dedup();
+    assert_eq!(pages.len(), 37, "every scratchpad a page of its own");
+    assert_eq!(model.read_u64(array + 8 * 37), 0);
+}
+
+#[test]
+fn without_scratchpads_the_dcbaa_has_no_array() {
+    let mut xhci = controller(Model::new());
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.hardware().scratchpad_array(), 0);
+}
+
+#[test]
+fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
+    for csz in [false, true] {
+        let mut model = Model::new();
+        model.csz = csz;
+        let mut xhci = with_keyboard(model);
+        assert_eq!(
+            xhci.capabilities().layout.context_bytes,
+            if csz { 64 } else { 32 }
+        );
+        let model = xhci.hardware();
+        assert!(model.errors.is_empty(), "csz {csz}: {:?}", model.errors);
+        assert_eq!(model.keyboard.configuration, Some(1));
+        assert!(model.keyboard.boot_protocol && model.keyboard.idle_set);
+        assert_eq!(model.keyboard_slot_state(), 3, "configured");
+        assert!(model
+            .log
+            .iter()
+            .any(|l| l == "keyboard: USB boot keyboard on port 1"));
+        assert_eq!(
+            xhci.keyboards().collect::<Vec<_>>(),
+            [Location {
+                root_port: 1,
+                hub_port: 0
+            }]
+        );
+    }
+}
+
+#[test]
+fn reports_become_scancodes_and_a_held_key_repeats() {
+    let mut xhci = with_keyboard(Model::new());
+    assert_eq!(poll(&mut xhci), []);
+    assert!(xhci.hardware().send_report([0, 0, 0x50, 0, 0, 0, 0, 0])); // Left
+    assert_eq!(poll(&mut xhci), [0xE0, 0x4B]);
+    // Held: repeats after 500 ms by the controller's clock.
+    xhci.hardware().now += 550_000;
+    assert_eq!(poll(&mut xhci), [0xE0, 0x4B]);
+    assert!(xhci.hardware().send_report([0; 8]));
+    assert_eq!(poll(&mut xhci), [0xE0, 0xCB]);
+    xhci.hardware().now += 600_000;
+    assert_eq!(poll(&mut xhci), []);
+}
+
+#[test]
+fn normal_trbs_stay_queued_through_many_reports_and_the_rings_wrap() {
+    let mut xhci = with_keyboard(Model::new());
+    // 300 presses and releases: the 64-TRB interrupt ring wraps many times,
+    // the 256-TRB event ring more than twice.
+    for i in 0..300u32 {
+        let usage = 0x04 + (i % 26) as u8;
+        assert!(
+            xhci.hardware().send_report([0, 0, usage, 0, 0, 0, 0, 0]),
+            "report {i}"
+        );
+        assert!(xhci.hardware().send_report([0; 8]), "release {i}");
+        let bytes = poll(&mut xhci);
+        assert_eq!(bytes.len(), 2, "key {i}: {bytes:x?}");
+        assert_eq!(bytes[0] | 0x80, bytes[1]);
+    }
+    let model = xhci.hardware();
+    assert_eq!(model.events_dropped, 0);
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+}
+
+#[test]
+fn the_event_ring_wraps_with_its_cycle_bit_over_many_commands() {
+    let mut xhci = controller(Model::new());
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    // 700 No Ops: both the command ring (255 usable TRBs) and the event
+    // ring (256) go round more than twice; each completion must be found.
+    for i in 0..700 {
+        xhci.no_op().unwrap_or_else(|e| panic!("no-op {i}: {e}"));
+    }
+    let model = xhci.hardware();
+    assert_eq!(model.events_posted, 700);
+    assert_eq!(model.events_dropped, 0);
+}
+
+#[test]
+fn a_controller_that_never_answers_commands_costs_bounded_time() {
+    let mut model = Model::new();
+    model.commands_answered = false;
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    let start = xhci.hardware().now;
+    assert!(matches!(xhci.no_op(), Err(XhciError::CommandTimeout(_))));
+    assert_eq!(xhci.enumerate(), 0);
+    let waited = xhci.hardware().now - start;
+    assert!(waited < 2_000_000, "{waited} us");
+    assert!(xhci
+        .hardware()
+        .log
+        .iter()
+        .any(|l| l.starts_with("usb: port 1: command")));
+}
+
+#[test]
+fn nonsense_descriptors_are_refused_and_survived() {
+    let cases: [(&str, Vec<u8>, Vec<u8>); 4] = [
+        (
+            "device length 0",
+            std::vec![0; 18],
+            super::model::KEYBOARD_CONFIGURATION.to_vec(),
+        ),
+        ("no descriptor at all", Vec::new(), Vec::new()),
+        (
+            "configuration with a zero-length descriptor",
+            super::model::KEYBOARD_DEVICE.to_vec(),
+            {
+                let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
+                c[9] = 0;
+                c
+            },
+        ),
+        (
+            "endpoint past the end",
+            super::model::KEYBOARD_DEVICE.to_vec(),
+            {
+                let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
+                c[27] = 200;
+                c
+            },
+        ),
+    ];
+    for (what, device, configuration) in cases {
+        let mut model = Model::new();
+        model.device_descriptor = device;
+        model.configuration = configuration;
+        let mut xhci = controller(model);
+        xhci.take_ownership();
+        xhci.reset_and_start().unwrap();
+        assert_eq!(xhci.enumerate(), 0, "{what}");
+        assert!(
+            xhci.hardware()
+                .log
+                .iter()
+                .any(|l| l.starts_with("usb: port 1: ")),
+            "{what}: {:?}",
+            xhci.hardware().log
+        );
+        // Polling afterwards is harmless.
+        assert_eq!(poll(&mut xhci), []);
+    }
+}
+
+#[test]
+fn registers_outside_the_bar_are_refused() {
+    assert_eq!(
+        Xhci::new(Model::new(), 0x100, DMA_BASE, DMA_BYTES).err(),
+        Some(XhciError::RegistersOutsideBar)
+    );
+}
+
+#[test]
+fn too_little_dma_memory_for_the_scratchpads_is_an_error() {
+    let mut model = Model::new();
+    model.scratchpads = 200;
+    let mut xhci = Xhci::new(model, BAR_BYTES, DMA_BASE, 64 * PAGE_BYTES).unwrap();
+    xhci.take_ownership();
+    assert_eq!(xhci.reset_and_start(), Err(XhciError::OutOfDmaMemory));
+}
+
+#[test]
+fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
+    let mut model = Model::new();
+    model.hub = true;
+    let mut xhci = with_keyboard(model);
+    assert_eq!(
+        xhci.keyboards().collect::<Vec<_>>(),
+        [Location {
+            root_port: 1,
+            hub_port: 2
+        }]
+    );
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert!(model.hub_state.configured && model.hub_state.marked);
+    assert_eq!(model.hub_state.powered, [true; 4]);
+    assert_eq!(
+        model.keyboard_port_status_after_reset(),
+        0b11,
+        "connected, enabled, change cleared"
+    );
+    assert!(model
+        .log
+        .iter()
+        .any(|l| l == "keyboard: USB boot keyboard on port 1.2"));
+    assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+    assert_eq!(poll(&mut xhci), [0x01]);
+}

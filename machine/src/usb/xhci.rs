@@ -1,0 +1,1265 @@
+//! The xHCI controller, polled: no interrupts, MSI or IOAPIC routing. The
+//! kernel calls [`Xhci::poll`] from its loops; every wait in here is bounded
+//! by the clock, every index the controller or a device gives is checked,
+//! and every failure is an [`XhciError`] the caller logs and survives.
+
+use super::context::{
+    endpoint_type, interrupt_interval, speed, ContextLayout, EndpointContext, SlotContext,
+};
+use super::descriptor::{self, Function, InterruptIn};
+use super::report::BootKeyboard;
+use super::ring::{trb_type, EventRing, ProducerRing, Trb};
+use super::Hardware;
+// TRBs are built with the `xhci` crate's layouts; the rings here own the
+// cycle bit.
+use xhci::ring::trb::{command, transfer};
+
+/// Bytes in a page: DMA memory is handed out a page at a time.
+pub const PAGE_BYTES: u64 = 4096;
+/// TRBs in the command and event rings (one page each).
+const RING_TRBS: u16 = 256;
+/// TRBs in a keyboard's interrupt ring, each with a 64-byte report buffer
+/// (together one page).
+const INTERRUPT_RING_TRBS: u16 = 64;
+const REPORT_BUFFER_BYTES: u64 = 64;
+/// Normal TRBs kept queued on a keyboard's interrupt endpoint.
+const QUEUED_REPORTS: u16 = 16;
+/// Keyboards are polled every 2^3 x 125 us = 1 ms, however slowly they
+/// ask to be: a host may poll an interrupt endpoint more often than its
+/// bInterval (USB 2.0 5.7.4), and keys then wait at most 1 ms, not 8-10.
+const KEYBOARD_INTERVAL: u8 = 3;
+/// Devices (slots) this driver keeps: a hub and keyboards.
+pub const MAX_DEVICES: usize = 8;
+/// Slots enabled in CONFIG (the DCBAA has this many entries plus one).
+const MAX_SLOTS: u8 = 16;
+/// Events handled in one poll, so a controller that floods cannot stall the loop.
+const EVENTS_PER_POLL: u32 = 64;
+/// The largest configuration descriptor read.
+const CONFIGURATION_BYTES: u16 = 1024;
+
+/// How long the firmware gets to let go of the controller.
+pub const HANDOFF_MICROS: u64 = 1_000_000;
+const HALT_MICROS: u64 = 50_000;
+/// How long Controller Not Ready and the reset may take.
+pub const RESET_MICROS: u64 = 500_000;
+const COMMAND_MICROS: u64 = 300_000;
+const TRANSFER_MICROS: u64 = 500_000;
+const PORT_RESET_MICROS: u64 = 300_000;
+/// Ports are looked at this long after the controller starts (devices need
+/// time to connect after the reset).
+const CONNECT_MICROS: u64 = 200_000;
+/// After a port reset, the device gets this long before it must answer (USB 2.0 7.1.7.3).
+const RESET_RECOVERY_MICROS: u64 = 10_000;
+
+// Capability registers.
+const CAPLENGTH: u32 = 0x00;
+const HCSPARAMS1: u32 = 0x04;
+const HCSPARAMS2: u32 = 0x08;
+const HCCPARAMS1: u32 = 0x10;
+const DBOFF: u32 = 0x14;
+const RTSOFF: u32 = 0x18;
+// Operational registers, from the operational base.
+const USBCMD: u32 = 0x00;
+const USBSTS: u32 = 0x04;
+const PAGESIZE: u32 = 0x08;
+const CRCR: u32 = 0x18;
+const DCBAAP: u32 = 0x30;
+const CONFIG: u32 = 0x38;
+const PORTSC: u32 = 0x400;
+// Interrupter 0, from the runtime base.
+const ERSTSZ: u32 = 0x28;
+const ERSTBA: u32 = 0x30;
+const ERDP: u32 = 0x38;
+
+const CMD_RUN: u32 = 1 << 0;
+const CMD_RESET: u32 = 1 << 1;
+const STS_HALTED: u32 = 1 << 0;
+const STS_NOT_READY: u32 = 1 << 11;
+const ERDP_BUSY: u32 = 1 << 3;
+
+const PORT_CONNECTED: u32 = 1 << 0;
+const PORT_ENABLED: u32 = 1 << 1;
+const PORT_RESET: u32 = 1 << 4;
+const PORT_POWER: u32 = 1 << 9;
+const PORT_RESET_CHANGE: u32 = 1 << 21;
+/// The write-1-to-clear change bits (CSC, PEC, WRC, OCC, PRC, PLC, CEC).
+const PORT_CHANGES: u32 = 0x7F << 17;
+
+/// The USB Legacy Support extended capability.
+const CAP_LEGACY: u32 = 1;
+/// The Supported Protocol extended capability.
+const CAP_PROTOCOL: u32 = 2;
+const LEGACY_BIOS_OWNED: u32 = 1 << 16;
+const LEGACY_OS_OWNED: u32 = 1 << 24;
+/// USBLEGCTLSTS: the SMI enables (USB, host system error, OS ownership
+/// change, PCI command, BAR) and the write-1-to-clear SMI status bits.
+const LEGACY_SMI_ENABLES: u32 = (1 << 0) | (1 << 4) | (1 << 13) | (1 << 14) | (1 << 15);
+const LEGACY_SMI_STATUS: u32 = (1 << 29) | (1 << 30) | (1 << 31);
+
+const COMPLETION_SUCCESS: u8 = 1;
+const COMPLETION_SHORT_PACKET: u8 = 13;
+
+/// Why a step failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum XhciError {
+    /// A register offset the capabilities give lies outside BAR0.
+    RegistersOutsideBar,
+    /// The controller does not do 4 KiB pages.
+    PageSize(u32),
+    /// The DMA region is used up (scratchpads, or too many devices).
+    OutOfDmaMemory,
+    /// The controller did not halt.
+    NotHalted,
+    /// HCRST or Controller Not Ready never cleared.
+    NotReady,
+    /// The controller did not start running.
+    NotRunning,
+    /// A command got no completion in time.
+    CommandTimeout(u32),
+    /// A command completed with an error code.
+    CommandFailed(u32, u8),
+    /// A control transfer got no completion in time.
+    TransferTimeout,
+    /// A transfer completed with an error code (6 is a stall).
+    TransferFailed(u8),
+    /// A descriptor that makes no sense.
+    Descriptor(descriptor::DescriptorError),
+    /// The controller gave a slot ID outside what was enabled.
+    BadSlot(u8),
+    /// More devices than this driver keeps.
+    TooManyDevices,
+    /// A port reset did not finish, or left the port disabled.
+    PortReset,
+}
+
+impl core::fmt::Display for XhciError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            XhciError::RegistersOutsideBar => write!(f, "registers lie outside BAR0"),
+            XhciError::PageSize(p) => write!(f, "no 4 KiB pages (PAGESIZE {p:#x})"),
+            XhciError::OutOfDmaMemory => write!(f, "out of DMA memory"),
+            XhciError::NotHalted => write!(f, "the controller did not halt"),
+            XhciError::NotReady => {
+                write!(f, "the controller stayed not ready (CNR) after its reset")
+            }
+            XhciError::NotRunning => write!(f, "the controller did not start"),
+            XhciError::CommandTimeout(t) => write!(f, "command (TRB type {t}) not completed"),
+            XhciError::CommandFailed(t, c) => {
+                write!(f, "command (TRB type {t}) failed with completion code {c}")
+            }
+            XhciError::TransferTimeout => write!(f, "control transfer not completed"),
+            XhciError::TransferFailed(c) => {
+                write!(f, "transfer failed with completion code {c}")
+            }
+            XhciError::Descriptor(e) => write!(f, "{e}"),
+            XhciError::BadSlot(s) => write!(f, "the controller gave slot {s}"),
+            XhciError::TooManyDevices => write!(f, "too many devices"),
+            XhciError::PortReset => write!(f, "port reset failed"),
+        }
+    }
+}
+
+impl From<descriptor::DescriptorError> for XhciError {
+    fn from(e: descriptor::DescriptorError) -> Self {
+        XhciError::Descriptor(e)
+    }
+}
+
+type Result<T> = core::result::Result<T, XhciError>;
+
+/// How the firmware let go of the controller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Handoff {
+    /// No USB Legacy Support capability: the firmware never had it.
+    NoLegacyCapability,
+    /// BIOS-owned was already clear.
+    NotOwned,
+    /// The firmware cleared BIOS-owned after this many microseconds.
+    Released(u64),
+    /// The firmware never let go within [`HANDOFF_MICROS`]: BIOS-owned was
+    /// cleared by the driver.
+    Forced,
+}
+
+/// Where a device hangs: a root port, and a hub port below it (0: none).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Location {
+    /// The root hub port, 1-based.
+    pub root_port: u8,
+    /// The port of the hub on `root_port`, or 0 for the root port itself.
+    pub hub_port: u8,
+}
+
+impl core::fmt::Display for Location {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        if self.hub_port == 0 {
+            write!(f, "{}", self.root_port)
+        } else {
+            write!(f, "{}.{}", self.root_port, self.hub_port)
+        }
+    }
+}
+
+/// A device with a slot.
+#[derive(Clone, Debug)]
+struct Device {
+    slot: u8,
+    location: Location,
+    speed: u32,
+    output: u64,
+    input: u64,
+    buffer: u64,
+    ep0: ProducerRing,
+    slot_context: SlotContext,
+    keyboard: Option<Keyboard>,
+}
+
+/// A configured boot keyboard's interrupt endpoint.
+#[derive(Clone, Debug)]
+struct Keyboard {
+    dci: u8,
+    ring: ProducerRing,
+    reports: u64,
+    report_bytes: u32,
+    state: BootKeyboard,
+    failed: bool,
+}
+
+/// A bump allocator of zeroed pages in the DMA region.
+#[derive(Clone, Copy, Debug)]
+struct Pages {
+    next: u64,
+    end: u64,
+}
+
+/// What the capability registers say.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Capabilities {
+    /// Root hub ports.
+    pub ports: u8,
+    /// Device slots.
+    pub slots: u8,
+    /// Scratchpad pages the controller wants.
+    pub scratchpads: u32,
+    /// 64-bit addressing (AC64).
+    pub addressing_64: bool,
+    /// The context layout (CSZ).
+    pub layout: ContextLayout,
+}
+
+/// Ranges of root ports by USB major revision (Supported Protocol capabilities).
+#[derive(Clone, Copy, Debug, Default)]
+struct PortProtocols {
+    ranges: [(u8, u8, u8); 4],
+    count: usize,
+}
+
+impl PortProtocols {
+    fn major(&self, port: u8) -> Option<u8> {
+        self.ranges[..self.count]
+            .iter()
+            .find(|&&(_, first, count)| {
+                port >= first && u16::from(port) < u16::from(first) + u16::from(count)
+            })
+            .map(|&(major, _, _)| major)
+    }
+}
+
+/// A USB control request's setup packet.
+#[derive(Clone, Copy, Debug)]
+struct Setup {
+    request_type: u8,
+    request: u8,
+    value: u16,
+    index: u16,
+    length: u16,
+}
+
+const GET_STATUS: u8 = 0;
+const CLEAR_FEATURE: u8 = 1;
+const SET_FEATURE: u8 = 3;
+const GET_DESCRIPTOR: u8 = 6;
+const SET_CONFIGURATION: u8 = 9;
+const HID_SET_IDLE: u8 = 0x0A;
+const HID_SET_PROTOCOL: u8 = 0x0B;
+const HUB_PORT_RESET: u16 = 4;
+const HUB_PORT_POWER: u16 = 8;
+const HUB_C_PORT_RESET: u16 = 20;
+
+/// The controller and what hangs on it.
+#[derive(Debug)]
+pub struct Xhci<H: Hardware> {
+    hw: H,
+    mmio_bytes: u32,
+    operational: u32,
+    runtime: u32,
+    doorbells: u32,
+    capabilities: Capabilities,
+    extended_capabilities: u32,
+    pages: Pages,
+    dcbaa: u64,
+    commands: Option<ProducerRing>,
+    events: Option<EventRing>,
+    protocols: PortProtocols,
+    devices: [Option<Device>; MAX_DEVICES],
+}
+
+impl<H: Hardware> Xhci<H> {
+    /// Reads the capability registers of a controller whose BAR0 is
+    /// `mmio_bytes` long; DMA memory is `dma_bytes` at physical `dma_base`
+    /// (page-aligned, below 4 GiB unless the controller has AC64).
+    pub fn new(mut hw: H, mmio_bytes: u32, dma_base: u64, dma_bytes: u64) -> Result<Self> {
+        let read = |hw: &mut H, offset: u32| {
+            if offset.checked_add(4).is_some_and(|end| end <= mmio_bytes) {
+                hw.mmio_read(offset)
+            } else {
+                u32::MAX
+            }
+        };
+        let caplength = read(&mut hw, CAPLENGTH) & 0xFF;
+        let hcsparams1 = read(&mut hw, HCSPARAMS1);
+        let hcsparams2 = read(&mut hw, HCSPARAMS2);
+        let hccparams1 = read(&mut hw, HCCPARAMS1);
+        let doorbells = read(&mut hw, DBOFF) & !0x3;
+        let runtime = read(&mut hw, RTSOFF) & !0x1F;
+        let capabilities = Capabilities {
+            slots: hcsparams1 as u8,
+            ports: (hcsparams1 >> 24) as u8,
+            scratchpads: ((hcsparams2 >> 21) & 0x1F) << 5 | (hcsparams2 >> 27),
+            addressing_64: hccparams1 & 1 != 0,
+            layout: ContextLayout::new(hccparams1 & (1 << 2) != 0),
+        };
+        let operational = caplength;
+        // Every register the driver will touch must lie inside the BAR.
+        let fits = |start: u32, bytes: u64| u64::from(start) + bytes <= u64::from(mmio_bytes);
+        if caplength < 0x20
+            || !fits(
+                operational,
+                u64::from(PORTSC) + 0x10 * u64::from(capabilities.ports),
+            )
+            || !fits(runtime, 0x40)
+            || !fits(doorbells, 4 * (u64::from(MAX_SLOTS) + 1))
+            || capabilities.slots == 0
+            || capabilities.ports == 0
+        {
+            return Err(XhciError::RegistersOutsideBar);
+        }
+        let first = dma_base.div_ceil(PAGE_BYTES) * PAGE_BYTES;
+        Ok(Xhci {
+            hw,
+            mmio_bytes,
+            operational,
+            runtime,
+            doorbells,
+            capabilities,
+            extended_capabilities: (hccparams1 >> 16) << 2,
+            pages: Pages {
+                next: first,
+                end: dma_base + dma_bytes,
+            },
+            dcbaa: 0,
+            commands: None,
+            events: None,
+            protocols: PortProtocols::default(),
+            devices: Default::default(),
+        })
+    }
+
+    /// What the capability registers said.
+    pub fn capabilities(&self) -> Capabilities {
+        self.capabilities
+    }
+
+    /// The hardware, for the caller's checks (the host tests' model).
+    pub fn hardware(&mut self) -> &mut H {
+        &mut self.hw
+    }
+
+    fn read(&mut self, offset: u32) -> u32 {
+        if offset
+            .checked_add(4)
+            .is_some_and(|end| end <= self.mmio_bytes)
+        {
+            self.hw.mmio_read(offset)
+        } else {
+            u32::MAX
+        }
+    }
+
+    fn write(&mut self, offset: u32, value: u32) {
+        if offset
+            .checked_add(4)
+            .is_some_and(|end| end <= self.mmio_bytes)
+        {
+            self.hw.mmio_write(offset, value);
+        }
+    }
+
+    fn write64(&mut self, offset: u32, value: u64) {
+        self.write(offset, value as u32);
+        self.write(offset + 4, (value >> 32) as u32);
+    }
+
+    fn op_read(&mut self, register: u32) -> u32 {
+        self.read(self.operational + register)
+    }
+
+    fn op_write(&mut self, register: u32, value: u32) {
+        self.write(self.operational + register, value);
+    }
+
+    fn portsc(&self, port: u8) -> u32 {
+        self.operational + PORTSC + 0x10 * (u32::from(port) - 1)
+    }
+
+    /// Waits until `done` holds for USBSTS-style reads of `register` or
+    /// `micros` pass; returns whether it held.
+    fn wait_for(&mut self, register: u32, micros: u64, done: impl Fn(u32) -> bool) -> bool {
+        let start = self.hw.now_micros();
+        loop {
+            if done(self.read(register)) {
+                return true;
+            }
+            if self.hw.now_micros().saturating_sub(start) >= micros {
+                return false;
+            }
+        }
+    }
+
+    fn pause(&mut self, micros: u64) {
+        let start = self.hw.now_micros();
+        while self.hw.now_micros().saturating_sub(start) < micros {}
+    }
+
+    fn page(&mut self) -> Result<u64> {
+        let page = self.pages.next;
+        let limit = if self.capabilities.addressing_64 {
+            u64::MAX
+        } else {
+            1 << 32
+        };
+        if page + PAGE_BYTES > self.pages.end || page + PAGE_BYTES > limit {
+            return Err(XhciError::OutOfDmaMemory);
+        }
+        self.pages.next += PAGE_BYTES;
+        for offset in (0..PAGE_BYTES).step_by(4) {
+            self.hw.mem_write(page + offset, 0);
+        }
+        Ok(page)
+    }
+
+    /// Walks the extended capabilities (a bounded walk: each link must go
+    /// forward and stay inside the BAR), giving each one's offset and ID.
+    fn extended_capabilities(&mut self, mut each: impl FnMut(&mut Self, u32, u32)) {
+        let mut offset = self.extended_capabilities;
+        for _ in 0..64 {
+            if offset == 0
+                || offset
+                    .checked_add(16)
+                    .is_none_or(|end| end > self.mmio_bytes)
+            {
+                return;
+            }
+            let header = self.read(offset);
+            each(self, offset, header & 0xFF);
+            let next = ((header >> 8) & 0xFF) << 2;
+            if next == 0 {
+                return;
+            }
+            offset += next;
+        }
+    }
+
+    /// Takes the controller from the firmware (USB Legacy Support): asks for
+    /// it, waits up to [`HANDOFF_MICROS`], takes it if the firmware never
+    /// lets go, and turns the firmware's SMIs off.
+    pub fn take_ownership(&mut self) -> Handoff {
+        let mut legacy = None;
+        self.extended_capabilities(|_, offset, id| {
+            if id == CAP_LEGACY && legacy.is_none() {
+                legacy = Some(offset);
+            }
+        });
+        let Some(legacy) = legacy else {
+            return Handoff::NoLegacyCapability;
+        };
+        let before = self.read(legacy);
+        let handoff = if before & LEGACY_BIOS_OWNED == 0 {
+            self.write(legacy, before | LEGACY_OS_OWNED);
+            Handoff::NotOwned
+        } else {
+            self.write(legacy, before | LEGACY_OS_OWNED);
+            let start = self.hw.now_micros();
+            if self.wait_for(legacy, HANDOFF_MICROS, |v| v & LEGACY_BIOS_OWNED == 0) {
+                Handoff::Released(self.hw.now_micros().saturating_sub(start))
+            } else {
+                let now = self.read(legacy);
+                self.write(legacy, (now & !LEGACY_BIOS_OWNED) | LEGACY_OS_OWNED);
+                Handoff::Forced
+            }
+        };
+        let control = self.read(legacy + 4);
+        self.write(
+            legacy + 4,
+            (control & !LEGACY_SMI_ENABLES) | LEGACY_SMI_STATUS,
+        );
+        handoff
+    }
+
+    fn read_port_protocols(&mut self) {
+        let mut protocols = PortProtocols::default();
+        self.extended_capabilities(|xhci, offset, id| {
+            if id == CAP_PROTOCOL && protocols.count < protocols.ranges.len() {
+                let major = (xhci.read(offset) >> 24) as u8;
+                let ports = xhci.read(offset + 8);
+                protocols.ranges[protocols.count] = (major, ports as u8, (ports >> 8) as u8);
+                protocols.count += 1;
+            }
+        });
+        self.protocols = protocols;
+    }
+
+    /// Halts and resets the controller, builds the DCBAA (with scratchpads
+    /// if it asks), the command ring and the event ring, and starts it.
+    pub fn reset_and_start(&mut self) -> Result<()> {
+        let command = self.op_read(USBCMD);
+        self.op_write(USBCMD, command & !CMD_RUN);
+        let usbsts = self.operational + USBSTS;
+        if !self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED != 0) {
+            return Err(XhciError::NotHalted);
+        }
+        self.op_write(USBCMD, CMD_RESET);
+        // Some Intel controllers hang if read too soon after HCRST (Linux
+        // waits 1 ms there too).
+        self.pause(1_000);
+        let usbcmd = self.operational + USBCMD;
+        let start = self.hw.now_micros();
+        if !self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0) {
+            return Err(XhciError::NotReady);
+        }
+        let left = RESET_MICROS.saturating_sub(self.hw.now_micros().saturating_sub(start));
+        if !self.wait_for(usbsts, left, |s| s & STS_NOT_READY == 0) {
+            return Err(XhciError::NotReady);
+        }
+        let page_size = self.op_read(PAGESIZE);
+        if page_size & 1 == 0 {
+            return Err(XhciError::PageSize(page_size));
+        }
+        self.read_port_protocols();
+
+        let slots = self.capabilities.slots.min(MAX_SLOTS);
+        self.op_write(CONFIG, u32::from(slots));
+        self.dcbaa = self.page()?;
+        let scratchpads = self.capabilities.scratchpads;
+        if scratchpads > 0 {
+            if u64::from(scratchpads) > PAGE_BYTES / 8 {
+                return Err(XhciError::OutOfDmaMemory);
+            }
+            let array = self.page()?;
+            for index in 0..u64::from(scratchpads) {
+                let buffer = self.page()?;
+                self.hw.mem_write(array + index * 8, buffer as u32);
+                self.hw
+                    .mem_write(array + index * 8 + 4, (buffer >> 32) as u32);
+            }
+            self.hw.mem_write(self.dcbaa, array as u32);
+            self.hw.mem_write(self.dcbaa + 4, (array >> 32) as u32);
+        }
+        self.write64(self.operational + DCBAAP, self.dcbaa);
+
+        let commands = ProducerRing::new(self.page()?, RING_TRBS);
+        self.write64(self.operational + CRCR, commands.dequeue_pointer());
+        self.commands = Some(commands);
+
+        let events = EventRing::new(self.page()?, RING_TRBS);
+        let table = self.page()?;
+        self.hw.mem_write(table, events.base() as u32);
+        self.hw.mem_write(table + 4, (events.base() >> 32) as u32);
+        self.hw.mem_write(table + 8, u32::from(events.size()));
+        self.write(self.runtime + ERSTSZ, 1);
+        self.write64(self.runtime + ERDP, events.base());
+        // ERSTBA last: writing it makes the controller read the table.
+        self.write64(self.runtime + ERSTBA, table);
+        self.events = Some(events);
+
+        self.op_write(USBCMD, CMD_RUN);
+        if !self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED == 0) {
+            return Err(XhciError::NotRunning);
+        }
+        // Ports without power (port power control) get it now.
+        for port in 1..=self.capabilities.ports {
+            let register = self.portsc(port);
+            let status = self.read(register);
+            if status & PORT_POWER == 0 {
+                self.write(register, PORT_POWER);
+            }
+        }
+        Ok(())
+    }
+
+    /// The next event, moving the dequeue pointer on.
+    fn next_event(&mut self) -> Option<Trb> {
+        let events = self.events.as_mut()?;
+        let event = events.pop(&mut self.hw)?;
+        let dequeue = events.dequeue_address();
+        self.write64(self.runtime + ERDP, dequeue | u64::from(ERDP_BUSY));
+        Some(event)
+    }
+
+    /// Waits for the event `wanted` picks, handling the others as `poll`
+    /// would (keys pressed meanwhile are dropped: nobody listens yet).
+    fn wait_event(&mut self, micros: u64, wanted: impl Fn(&Trb) -> bool) -> Option<Trb> {
+        let start = self.hw.now_micros();
+        loop {
+            while let Some(event) = self.next_event() {
+                if wanted(&event) {
+                    return Some(event);
+                }
+                self.other_event(&event, &mut |_| {});
+            }
+            if self.hw.now_micros().saturating_sub(start) >= micros {
+                return None;
+            }
+        }
+    }
+
+    fn command(&mut self, trb: Trb) -> Result<Trb> {
+        let kind = trb.kind();
+        let Some(commands) = self.commands.as_mut() else {
+            return Err(XhciError::NotRunning);
+        };
+        let address = commands.push(&mut self.hw, trb);
+        self.write(self.doorbells, 0);
+        let event = self
+            .wait_event(COMMAND_MICROS, |e| {
+                e.kind() == trb_type::COMMAND_COMPLETION && e.parameter() == address
+            })
+            .ok_or(XhciError::CommandTimeout(kind))?;
+        if event.completion_code() != COMPLETION_SUCCESS {
+            return Err(XhciError::CommandFailed(kind, event.completion_code()));
+        }
+        Ok(event)
+    }
+
+    /// Sends a No Op command: proves the command and event rings work.
+    pub fn no_op(&mut self) -> Result<()> {
+        self.command(Trb(command::Noop::new().into_raw()))
+            .map(|_| ())
+    }
+
+    fn control(&mut self, index: usize, setup: Setup) -> Result<()> {
+        let Some(device) = self.devices[index].as_mut() else {
+            return Err(XhciError::TransferTimeout);
+        };
+        let slot = device.slot;
+        let buffer = device.buffer;
+        let ring = &mut device.ep0;
+        ring.reserve_contiguous(&mut self.hw, 3);
+        let device_to_host = setup.request_type & 0x80 != 0;
+        let has_data = setup.length > 0;
+        let mut setup_stage = transfer::SetupStage::new();
+        setup_stage
+            .set_request_type(setup.request_type)
+            .set_request(setup.request)
+            .set_value(setup.value)
+            .set_index(setup.index)
+            .set_length(setup.length)
+            .set_transfer_type(match (has_data, device_to_host) {
+                (false, _) => transfer::TransferType::No,
+                (true, false) => transfer::TransferType::Out,
+                (true, true) => transfer::TransferType::In,
+            });
+        ring.push(&mut self.hw, Trb(setup_stage.into_raw()));
+        if has_data {
+            let mut data = transfer::DataStage::new();
+            data.set_data_buffer_pointer(buffer)
+                .set_trb_transfer_length(u32::from(setup.length))
+                .set_direction(if device_to_host {
+                    transfer::Direction::In
+                } else {
+                    transfer::Direction::Out
+                });
+            ring.push(&mut self.hw, Trb(data.into_raw()));
+        }
+        // The status stage goes the other way from the data (IN if none).
+        let mut status_stage = transfer::StatusStage::new();
+        status_stage.set_interrupt_on_completion();
+        if !has_data || !device_to_host {
+            status_stage.set_direction();
+        }
+        let status = ring.push(&mut self.hw, Trb(status_stage.into_raw()));
+        self.write(self.doorbells + 4 * u32::from(slot), 1);
+        let event = self
+            .wait_event(TRANSFER_MICROS, |e| {
+                e.kind() == trb_type::TRANSFER_EVENT && e.slot() == slot && e.endpoint() == 1
+            })
+            .ok_or(XhciError::TransferTimeout)?;
+        let code = event.completion_code();
+        if event.parameter() != status
+            || (code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET)
+        {
+            return Err(XhciError::TransferFailed(code));
+        }
+        Ok(())
+    }
+
+    /// Reads `length` bytes (at most a page) of the control buffer of device `index`.
+    fn read_buffer(&mut self, index: usize, out: &mut [u8]) {
+        let Some(buffer) = self.devices[index].as_ref().map(|d| d.buffer) else {
+            return;
+        };
+        for (word, chunk) in out.chunks_mut(4).enumerate() {
+            let value = self.hw.mem_read(buffer + word as u64 * 4).to_le_bytes();
+            chunk.copy_from_slice(&value[..chunk.len()]);
+        }
+    }
+
+    fn get_descriptor(&mut self, index: usize, kind: u8, out: &mut [u8]) -> Result<()> {
+        self.devices[index]
+            .as_ref()
+            .map(|d| d.buffer)
+            .ok_or(XhciError::TransferTimeout)?;
+        let request_type = if kind == descriptor::kind::HUB {
+            0xA0
+        } else {
+            0x80
+        };
+        self.control(
+            index,
+            Setup {
+                request_type,
+                request: GET_DESCRIPTOR,
+                value: u16::from(kind) << 8,
+                index: 0,
+                length: out.len() as u16,
+            },
+        )?;
+        self.read_buffer(index, out);
+        Ok(())
+    }
+
+    fn request(
+        &mut self,
+        index: usize,
+        request_type: u8,
+        request: u8,
+        value: u16,
+        at: u16,
+    ) -> Result<()> {
+        self.control(
+            index,
+            Setup {
+                request_type,
+                request,
+                value,
+                index: at,
+                length: 0,
+            },
+        )
+    }
+
+    /// Starts the controller's ports: resets each connected one and sets up
+    /// what hangs there. Returns the number of keyboards found.
+    pub fn enumerate(&mut self) -> usize {
+        self.pause(CONNECT_MICROS);
+        for port in 1..=self.capabilities.ports {
+            let register = self.portsc(port);
+            let status = self.read(register);
+            if status == u32::MAX || status & PORT_CONNECTED == 0 {
+                continue;
+            }
+            let location = Location {
+                root_port: port,
+                hub_port: 0,
+            };
+            if let Err(e) = self.reset_root_port(port) {
+                self.hw
+                    .log(format_args!("usb: port {location}: {e}; left alone"));
+                continue;
+            }
+            let speed_id = (self.read(register) >> 10) & 0xF;
+            if let Err(e) = self.attach(location, 0, speed_id, None) {
+                self.hw
+                    .log(format_args!("usb: port {location}: {e}; left alone"));
+            }
+        }
+        self.devices
+            .iter()
+            .flatten()
+            .filter(|d| d.keyboard.is_some())
+            .count()
+    }
+
+    fn reset_root_port(&mut self, port: u8) -> Result<()> {
+        let register = self.portsc(port);
+        let status = self.read(register);
+        let usb3 = self.protocols.major(port) == Some(3);
+        if usb3 && status & PORT_ENABLED != 0 {
+            // USB 3 ports train and enable by themselves.
+            return Ok(());
+        }
+        // PED is write-1-to-disable, and the change bits write-1-to-clear:
+        // write neither by accident.
+        self.write(register, PORT_POWER | PORT_RESET);
+        if !self.wait_for(register, PORT_RESET_MICROS, |s| {
+            s & PORT_RESET_CHANGE != 0 && s & PORT_RESET == 0
+        }) {
+            return Err(XhciError::PortReset);
+        }
+        let status = self.read(register);
+        self.write(register, PORT_POWER | (status & PORT_CHANGES));
+        if status & PORT_ENABLED == 0 {
+            return Err(XhciError::PortReset);
+        }
+        self.pause(RESET_RECOVERY_MICROS);
+        Ok(())
+    }
+
+    /// Enables a slot for the device at `location`, addresses it, reads its
+    /// descriptors and sets up a boot keyboard (or, on a root port, a hub).
+    fn attach(
+        &mut self,
+        location: Location,
+        route_string: u32,
+        speed_id: u32,
+        translator: Option<(u8, u8)>,
+    ) -> Result<()> {
+        let index = self
+            .devices
+            .iter()
+            .position(Option::is_none)
+            .ok_or(XhciError::TooManyDevices)?;
+        let event = self.command(Trb(command::EnableSlot::new().into_raw()))?;
+        let slot = event.slot();
+        if slot == 0 || slot > self.capabilities.slots.min(MAX_SLOTS) {
+            return Err(XhciError::BadSlot(slot));
+        }
+        let (output, input, ep0_page, buffer) =
+            (self.page()?, self.page()?, self.page()?, self.page()?);
+        let layout = self.capabilities.layout;
+        self.hw
+            .mem_write(self.dcbaa + 8 * u64::from(slot), output as u32);
+        self.hw
+            .mem_write(self.dcbaa + 8 * u64::from(slot) + 4, (output >> 32) as u32);
+        let ep0 = ProducerRing::new(ep0_page, RING_TRBS);
+        let (tt_hub_slot, tt_port) = translator.unwrap_or((0, 0));
+        let slot_context = SlotContext {
+            route_string,
+            speed: speed_id,
+            hub: false,
+            context_entries: 1,
+            root_port: location.root_port,
+            hub_ports: 0,
+            tt_hub_slot,
+            tt_port,
+        };
+        let mut max_packet_0 = match speed_id {
+            speed::LOW | speed::FULL => 8,
+            speed::HIGH => 64,
+            _ => 512,
+        };
+        let ep0_context = |dequeue: u64, max_packet: u16| EndpointContext {
+            kind: endpoint_type::CONTROL,
+            max_packet,
+            interval: 0,
+            dequeue,
+            average_trb_length: 8,
+        };
+        layout.start_input(&mut self.hw, input, 0b11);
+        layout.write_slot(&mut self.hw, input, &slot_context);
+        layout.write_endpoint(
+            &mut self.hw,
+            input,
+            1,
+            &ep0_context(ep0.dequeue_pointer(), max_packet_0),
+        );
+        self.devices[index] = Some(Device {
+            slot,
+            location,
+            speed: speed_id,
+            output,
+            input,
+            buffer,
+            ep0,
+            slot_context,
+            keyboard: None,
+        });
+        let result = self.set_up(index, &mut max_packet_0, ep0_context);
+        if result.is_err() {
+            // The slot stays enabled (disabling it could fail too), but
+            // nothing of ours points at it any more.
+            self.devices[index] = None;
+        }
+        result
+    }
+
+    fn set_up(
+        &mut self,
+        index: usize,
+        max_packet_0: &mut u16,
+        ep0_context: impl Fn(u64, u16) -> EndpointContext,
+    ) -> Result<()> {
+        let (slot, input, location, speed_id) = match self.devices[index].as_ref() {
+            Some(d) => (d.slot, d.input, d.location, d.speed),
+            None => return Err(XhciError::TooManyDevices),
+        };
+        let layout = self.capabilities.layout;
+        let mut address = command::AddressDevice::new();
+        address.set_input_context_pointer(input).set_slot_id(slot);
+        self.command(Trb(address.into_raw()))?;
+        // SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
+        self.pause(2_000);
+        let mut header = [0u8; 8];
+        self.get_descriptor(index, descriptor::kind::DEVICE, &mut header)?;
+        let first = descriptor::device(&header)?;
+        let announced = if speed_id == speed::SUPER {
+            1u16 << first.max_packet_0.min(9)
+        } else {
+            u16::from(first.max_packet_0)
+        };
+        if announced != *max_packet_0 && matches!(announced, 8 | 16 | 32 | 64 | 512) {
+            // Evaluate Context: endpoint 0's new packet size only.
+            let dequeue = 0; // not evaluated by Evaluate Context
+            layout.start_input(&mut self.hw, input, 0b10);
+            layout.write_endpoint(&mut self.hw, input, 1, &ep0_context(dequeue, announced));
+            let mut evaluate = command::EvaluateContext::new();
+            evaluate.set_input_context_pointer(input).set_slot_id(slot);
+            self.command(Trb(evaluate.into_raw()))?;
+            *max_packet_0 = announced;
+        }
+        let mut device_bytes = [0u8; 18];
+        self.get_descriptor(index, descriptor::kind::DEVICE, &mut device_bytes)?;
+        let device = descriptor::device(&device_bytes)?;
+        let mut config_header = [0u8; 9];
+        self.get_descriptor(index, descriptor::kind::CONFIGURATION, &mut config_header)?;
+        let total =
+            descriptor::configuration_total_length(&config_header)?.clamp(9, CONFIGURATION_BYTES);
+        let mut config_bytes = [0u8; CONFIGURATION_BYTES as usize];
+        let config_bytes = &mut config_bytes[..usize::from(total)];
+        self.get_descriptor(index, descriptor::kind::CONFIGURATION, config_bytes)?;
+        let configuration = descriptor::configuration(config_bytes)?;
+        match configuration.function {
+            Some(Function::BootKeyboard {
+                interface,
+                endpoint,
+            }) => {
+                self.set_up_keyboard(index, configuration.value, interface, endpoint)?;
+                self.hw.log(format_args!(
+                    "keyboard: USB boot keyboard on port {location}"
+                ));
+                Ok(())
+            }
+            Some(Function::Hub) if location.hub_port == 0 => {
+                self.set_up_hub(index, configuration.value)
+            }
+            Some(Function::Hub) => {
+                self.hw.log(format_args!(
+                    "usb: hub on port {location}: deeper hubs are not supported"
+                ));
+                // Left addressed and unused, as a device that is not ours.
+                Ok(())
+            }
+            None => {
+                self.hw.log(format_args!(
+                    "usb: port {location}: device {:04x}:{:04x} is not a boot keyboard or a hub",
+                    device.vendor, device.product
+                ));
+                // Not an error: the device is simply not ours. Its slot
+                // stays addressed and unused.
+                Ok(())
+            }
+        }
+    }
+
+    fn set_up_keyboard(
+        &mut self,
+        index: usize,
+        configuration: u8,
+        interface: u8,
+        endpoint: InterruptIn,
+    ) -> Result<()> {
+        let (ring_page, reports) = (self.page()?, self.page()?);
+        let layout = self.capabilities.layout;
+        let Some(device) = self.devices[index].as_mut() else {
+            return Err(XhciError::TooManyDevices);
+        };
+        let dci = 2 * endpoint.number + 1;
+        let ring = ProducerRing::new(ring_page, INTERRUPT_RING_TRBS);
+        device.slot_context.context_entries = u32::from(dci);
+        let (slot, input, speed_id, slot_context) =
+            (device.slot, device.input, device.speed, device.slot_context);
+        let max_packet = endpoint.max_packet.clamp(1, REPORT_BUFFER_BYTES as u16);
+        layout.start_input(&mut self.hw, input, 1 | 1 << dci);
+        layout.write_slot(&mut self.hw, input, &slot_context);
+        layout.write_endpoint(
+            &mut self.hw,
+            input,
+            dci,
+            &EndpointContext {
+                kind: endpoint_type::INTERRUPT_IN,
+                max_packet,
+                interval: interrupt_interval(speed_id, endpoint.interval).min(KEYBOARD_INTERVAL),
+                dequeue: ring.dequeue_pointer(),
+                average_trb_length: max_packet,
+            },
+        );
+        self.command(configure_endpoint(input, slot))?;
+        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
+        // Boot protocol: the 8-byte report this driver reads.
+        self.request(index, 0x21, HID_SET_PROTOCOL, 0, u16::from(interface))?;
+        // Reports only when something changes; repeat is ours. Some
+        // keyboards refuse SET_IDLE; that costs nothing but reports.
+        if let Err(e) = self.request(index, 0x21, HID_SET_IDLE, 0, u16::from(interface)) {
+            let location = self.devices[index].as_ref().map(|d| d.location);
+            if let Some(location) = location {
+                self.hw.log(format_args!(
+                    "usb: keyboard on port {location}: SET_IDLE refused ({e})"
+                ));
+            }
+        }
+        let mut keyboard = Keyboard {
+            dci,
+            ring,
+            reports,
+            report_bytes: u32::from(max_packet),
+            state: BootKeyboard::new(),
+            failed: false,
+        };
+        for _ in 0..QUEUED_REPORTS {
+            queue_report(&mut self.hw, &mut keyboard);
+        }
+        if let Some(device) = self.devices[index].as_mut() {
+            device.keyboard = Some(keyboard);
+        }
+        self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
+        Ok(())
+    }
+
+    fn set_up_hub(&mut self, index: usize, configuration: u8) -> Result<()> {
+        let Some(hub) = self.devices[index].clone() else {
+            return Err(XhciError::TooManyDevices);
+        };
+        if hub.speed == speed::SUPER {
+            self.hw.log(format_args!(
+                "usb: hub on port {}: USB 3 hubs are not supported",
+                hub.location
+            ));
+            return Ok(());
+        }
+        let mut bytes = [0u8; 9];
+        self.get_descriptor(index, descriptor::kind::HUB, &mut bytes)?;
+        let described = descriptor::hub(&bytes)?;
+        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
+        // A route string has four bits a tier: ports past 15 cannot be reached.
+        let ports = described.ports.min(15);
+        if described.ports > 15 {
+            self.hw.log(format_args!(
+                "usb: hub on port {}: ports past 15 are not supported",
+                hub.location
+            ));
+        }
+        // Tell the controller it is a hub (for its transaction translator).
+        let layout = self.capabilities.layout;
+        let mut slot_context = hub.slot_context;
+        slot_context.hub = true;
+        slot_context.hub_ports = ports;
+        layout.start_input(&mut self.hw, hub.input, 1);
+        layout.write_slot(&mut self.hw, hub.input, &slot_context);
+        if let Err(e) = self.command(configure_endpoint(hub.input, hub.slot)) {
+            self.hw.log(format_args!(
+                "usb: hub on port {}: not marked as a hub ({e})",
+                hub.location
+            ));
+        }
+        for port in 1..=ports {
+            self.request(index, 0x23, SET_FEATURE, HUB_PORT_POWER, u16::from(port))?;
+        }
+        let power_good = (u64::from(described.power_on_to_good_2ms) * 2_000).clamp(20_000, 500_000);
+        self.pause(power_good);
+        // Devices need up to 100 ms to connect after power (USB 2.0 7.1.7.3).
+        self.pause(100_000);
+        for port in 1..=ports {
+            let location = Location {
+                root_port: hub.location.root_port,
+                hub_port: port,
+            };
+            let status = self.hub_port_status(index, port)?;
+            if status & 1 == 0 {
+                continue;
+            }
+            let result = self.reset_hub_port(index, port).and_then(|status| {
+                let speed_id = if status & (1 << 9) != 0 {
+                    speed::LOW
+                } else if status & (1 << 10) != 0 {
+                    speed::HIGH
+                } else {
+                    speed::FULL
+                };
+                let translator = (hub.speed == speed::HIGH && speed_id != speed::HIGH)
+                    .then_some((hub.slot, port));
+                self.attach(location, u32::from(port), speed_id, translator)
+            });
+            if let Err(e) = result {
+                self.hw
+                    .log(format_args!("usb: port {location}: {e}; left alone"));
+            }
+        }
+        Ok(())
+    }
+
+    fn hub_port_status(&mut self, index: usize, port: u8) -> Result<u32> {
+        self.control(
+            index,
+            Setup {
+                request_type: 0xA3,
+                request: GET_STATUS,
+                value: 0,
+                index: u16::from(port),
+                length: 4,
+            },
+        )?;
+        let mut bytes = [0u8; 4];
+        self.read_buffer(index, &mut bytes);
+        Ok(u32::from_le_bytes(bytes))
+    }
+
+    /// Resets a hub's port; gives its status once enabled.
+    fn reset_hub_port(&mut self, index: usize, port: u8) -> Result<u32> {
+        self.request(index, 0x23, SET_FEATURE, HUB_PORT_RESET, u16::from(port))?;
+        let start = self.hw.now_micros();
+        let status = loop {
+            let status = self.hub_port_status(index, port)?;
+            // wPortChange's C_PORT_RESET is bit 4 of the high half.
+            if status & (1 << 20) != 0 {
+                break status;
+            }
+            if self.hw.now_micros().saturating_sub(start) >= PORT_RESET_MICROS {
+                return Err(XhciError::PortReset);
+            }
+            self.pause(1_000);
+        };
+        self.request(
+            index,
+            0x23,
+            CLEAR_FEATURE,
+            HUB_C_PORT_RESET,
+            u16::from(port),
+        )?;
+        if status & 0b10 == 0 {
+            return Err(XhciError::PortReset);
+        }
+        self.pause(RESET_RECOVERY_MICROS);
+        Ok(status)
+    }
+
+    /// Handles the controller's events (at most a bounded number) and the
+    /// keyboards' repeat: `out` gets PS/2 set-1 scancode bytes.
+    pub fn poll(&mut self, out: &mut impl FnMut(u8)) {
+        for _ in 0..EVENTS_PER_POLL {
+            let Some(event) = self.next_event() else {
+                break;
+            };
+            self.other_event(&event, out);
+        }
+        let now = self.hw.now_micros();
+        for device in self.devices.iter_mut().flatten() {
+            if let Some(keyboard) = device.keyboard.as_mut() {
+                keyboard.state.tick(now, out);
+            }
+        }
+    }
+
+    fn other_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
+        if event.kind() != trb_type::TRANSFER_EVENT {
+            return;
+        }
+        let now = self.hw.now_micros();
+        let Some(device) = self
+            .devices
+            .iter_mut()
+            .flatten()
+            .find(|d| d.slot == event.slot())
+        else {
+            return;
+        };
+        let location = device.location;
+        let slot = device.slot;
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        if event.endpoint() != keyboard.dci || keyboard.failed {
+            return;
+        }
+        let code = event.completion_code();
+        let Some(trb_index) = keyboard.ring.index_of(event.parameter()) else {
+            self.hw.log(format_args!(
+                "usb: keyboard on port {location}: event for a TRB not on its ring ignored"
+            ));
+            return;
+        };
+        if code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET {
+            keyboard.failed = true;
+            keyboard.state.release_all(out);
+            self.hw.log(format_args!(
+                "usb: keyboard on port {location}: report failed (completion code {code}); keyboard given up"
+            ));
+            return;
+        }
+        let mut report = [0u8; REPORT_BUFFER_BYTES as usize];
+        let length =
+            (keyboard.report_bytes.saturating_sub(event.residual()) as usize).min(report.len());
+        let buffer = keyboard.reports + u64::from(trb_index) * REPORT_BUFFER_BYTES;
+        for (word, chunk) in report[..length].chunks_mut(4).enumerate() {
+            let value = self.hw.mem_read(buffer + word as u64 * 4).to_le_bytes();
+            chunk.copy_from_slice(&value[..chunk.len()]);
+        }
+        keyboard.state.report(&report[..length], now, out);
+        queue_report(&mut self.hw, keyboard);
+        let dci = keyboard.dci;
+        self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
+    }
+
+    /// The keyboards set up, by where they hang.
+    pub fn keyboards(&self) -> impl Iterator<Item = Location> + '_ {
+        self.devices
+            .iter()
+            .flatten()
+            .filter(|d| d.keyboard.as_ref().is_some_and(|k| !k.failed))
+            .map(|d| d.location)
+    }
+
+    /// The slot state of every device with a slot (for the host tests).
+    pub fn slot_states(&mut self) -> [u32; MAX_DEVICES] {
+        let mut states = [0; MAX_DEVICES];
+        for (state, device) in states.iter_mut().zip(self.devices.iter()) {
+            if let Some(device) = device {
+                *state = self
+                    .capabilities
+                    .layout
+                    .slot_state(&mut self.hw, device.output);
+            }
+        }
+        states
+    }
+}
+
+/// Queues one Normal TRB for a report into the buffer that belongs to the
+/// ring index it lands on.
+fn queue_report(hw: &mut impl Hardware, keyboard: &mut Keyboard) {
+    let enqueue = keyboard.ring.enqueue_address();
+    let index = keyboard.ring.index_of(enqueue).unwrap_or(0);
+    let buffer = keyboard.reports + u64::from(index) * REPORT_BUFFER_BYTES;
+    let mut normal = transfer::Normal::new();
+    normal
+        .set_data_buffer_pointer(buffer)
+        .set_trb_transfer_length(keyboard.report_bytes)
+        .set_interrupt_on_completion()
+        .set_interrupt_on_short_packet();
+    keyboard.ring.push(hw, Trb(normal.into_raw()));
+}
+
+fn configure_endpoint(input: u64, slot: u8) -> Trb {
+    let mut configure = command::ConfigureEndpoint::new();
+    configure.set_input_context_pointer(input).set_slot_id(slot);
+    Trb(configure.into_raw())
+}
