@@ -17,6 +17,7 @@ mod goodbye;
 mod interrupts;
 mod keyboard;
 mod legacy_vga;
+mod log;
 mod pat;
 mod pci;
 mod pit;

@@ -32,5 +32,6 @@ extern crate std;
 pub mod calibration;
 pub mod firmware;
 pub mod fw_cfg;
+pub mod log;
 pub mod pacing;
 pub mod protocol;

@@ -78,6 +78,24 @@ impl<B: VgaBus> ModeX<B> {
         written
     }
 
+    /// Writes the whole of `image` into `page`, whatever it held: one pass
+    /// per plane, every address written. For a picture with no shadow to
+    /// compare with (the report screen on the spare page); 76,800 writes.
+    pub fn write_page(&mut self, page: Page, image: &PageImage) {
+        let width = SCREEN_WIDTH as usize;
+        for plane in 0..4u8 {
+            self.set_map_mask(1 << plane);
+            for y in 0..SCREEN_HEIGHT as usize {
+                let line = &image[y * width..][..width];
+                let line_base = page.base() + y as u16 * BYTES_PER_LINE;
+                for i in 0..usize::from(BYTES_PER_LINE) {
+                    self.bus
+                        .write_vram8(line_base + i as u16, line[4 * i + usize::from(plane)]);
+                }
+            }
+        }
+    }
+
     /// The writes of one line that use `mask` (already set).
     fn write_line_mask(
         &mut self,
