@@ -102,6 +102,27 @@ pub struct Report<'a> {
     pub position: LogPosition,
 }
 
+/// A display adapter's name by its PCI IDs, as far as known: the emulators'
+/// adapters by device, others by maker; "unknown" otherwise.
+pub fn pci_name(vendor: u16, device: u16) -> &'static str {
+    match (vendor, device) {
+        (0x1234, 0x1111) => "QEMU/Bochs VGA",
+        (0x1b36, 0x0100) => "QEMU QXL",
+        (0x15ad, 0x0405) => "VMware SVGA II",
+        (0x1af4, 0x1050) => "virtio GPU",
+        (0x1013, 0x00b8) => "Cirrus Logic GD5446",
+        (0x80ee, 0xbeef) => "VirtualBox VGA",
+        (0x8086, _) => "Intel",
+        (0x10de, _) => "NVIDIA",
+        (0x1002, _) => "AMD/ATI",
+        (0x1013, _) => "Cirrus Logic",
+        (0x102b, _) => "Matrox",
+        (0x5333, _) => "S3",
+        (0x1a03, _) => "ASPEED",
+        _ => "unknown",
+    }
+}
+
 /// The prefix of `text` that fits in `columns` characters.
 pub fn fit(text: &str, columns: usize) -> &str {
     match text.char_indices().nth(columns) {
@@ -150,7 +171,9 @@ pub fn hint_line(position: LogPosition, out: &mut impl core::fmt::Write) {
     let _ = core::write!(
         out,
         "log lines {}-{} of {}; arrows, PgUp/PgDn scroll; I leaves",
-        position.first, position.last, position.total
+        position.first,
+        position.last,
+        position.total
     );
 }
 
@@ -166,7 +189,7 @@ pub fn qr_text(report: &Report, out: &mut [u8]) -> usize {
     // The most recent log lines that fit after the facts.
     let mut room = limit.saturating_sub(facts_bytes);
     let mut first_log = log.len();
-    while first_log > 0 && log[first_log - 1].len() + 1 <= room {
+    while first_log > 0 && log[first_log - 1].len() < room {
         room -= log[first_log - 1].len() + 1;
         first_log -= 1;
     }
@@ -263,13 +286,8 @@ pub fn draw(image: &mut PageImage, report: &Report) {
     if drawn.is_none() {
         // Cannot happen (the text is cut to what version 25 holds), but the
         // screen says so rather than leaving a hole.
-        let _ = Text::with_baseline(
-            "no QR code",
-            QR_AREA.top_left,
-            log_style,
-            Baseline::Top,
-        )
-        .draw(&mut qr);
+        let _ = Text::with_baseline("no QR code", QR_AREA.top_left, log_style, Baseline::Top)
+            .draw(&mut qr);
     }
 }
 
@@ -331,10 +349,7 @@ mod tests {
             for y in -QR_QUIET_MODULES..code.size() + QR_QUIET_MODULES {
                 for x in -QR_QUIET_MODULES..code.size() + QR_QUIET_MODULES {
                     let dark = code.get_module(x, y);
-                    pixels.push((
-                        origin + Point::new(x, y),
-                        if dark { BLACK } else { WHITE },
-                    ));
+                    pixels.push((origin + Point::new(x, y), if dark { BLACK } else { WHITE }));
                 }
             }
             pixels
@@ -381,14 +396,12 @@ mod tests {
         soft.set_write_guard(Some(start..start + PAGE_BYTES));
         let mut image = Box::new([0u8; PAGE_PIXELS]);
         show(&mut ModeX::new(&mut *soft), &mut image, &report);
-        assert_eq!(
-            soft.guard_violations(),
-            0,
-            "{:?}",
-            soft.first_violation()
-        );
+        assert_eq!(soft.guard_violations(), 0, "{:?}", soft.first_violation());
         let shown = screen(&soft);
-        assert!(shown == image[..], "page 2 is on screen and holds the image");
+        assert!(
+            shown == image[..],
+            "page 2 is on screen and holds the image"
+        );
         // The code is exactly the QR code of the report's text: no text
         // pixel landed on it.
         let mut text = [0u8; QR_TEXT_BYTES];

@@ -39,9 +39,7 @@ pub fn lost() -> u64 {
 /// Runs `read` on the ring with interrupts off (so no handler's print finds
 /// it busy meanwhile); `None` if the ring is busy.
 pub fn read<T>(read: impl FnOnce(&KernelLog) -> T) -> Option<T> {
-    x86_64::instructions::interrupts::without_interrupts(|| {
-        LOG.try_lock().map(|ring| read(&ring))
-    })
+    x86_64::instructions::interrupts::without_interrupts(|| LOG.try_lock().map(|ring| read(&ring)))
 }
 
 /// The ring for a fault handler: the lock is freed first if the interrupted

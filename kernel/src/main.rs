@@ -22,6 +22,7 @@ mod pat;
 mod pci;
 mod pit;
 mod qemu;
+mod report;
 mod run;
 mod selftest;
 mod serial;
@@ -45,7 +46,11 @@ entry_point!(kernel_main, config = &BOOTLOADER_CONFIG);
 
 fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     serial::init();
-    serial_println!("modex-cube kernel v{}", env!("CARGO_PKG_VERSION"));
+    serial_println!(
+        "{}{}",
+        machine::protocol::line::KERNEL_BANNER,
+        env!("CARGO_PKG_VERSION")
+    );
     gdt::init();
     interrupts::init();
     pit::init();

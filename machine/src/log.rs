@@ -104,6 +104,21 @@ pub fn text_of_field(bytes: &[u8]) -> &str {
         .trim()
 }
 
+/// Where a [`LogRing::window`] is: lines `first..=last` (from 1, oldest
+/// first; `first` is 0 for an empty window) of `total`, scrolled back
+/// `scroll` lines from the newest.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Window {
+    /// Lines back from the newest, as clamped.
+    pub scroll: usize,
+    /// The first line in the window, from 1.
+    pub first: usize,
+    /// The last line in the window.
+    pub last: usize,
+    /// Lines not skipped.
+    pub total: usize,
+}
+
 /// A fixed ring of the last `LINES` complete lines, plus the one being written.
 #[derive(Clone)]
 pub struct LogRing<const LINES: usize, const BYTES: usize> {
@@ -185,7 +200,9 @@ impl<const LINES: usize, const BYTES: usize> LogRing<LINES, BYTES> {
 
     /// The lines, oldest first.
     pub fn oldest_first(&self) -> impl Iterator<Item = &str> {
-        (0..self.len()).rev().filter_map(move |back| self.newest(back))
+        (0..self.len())
+            .rev()
+            .filter_map(move |back| self.newest(back))
     }
 
     /// The `nth` newest line (0 is the newest) that starts with `prefix`.
@@ -193,6 +210,37 @@ impl<const LINES: usize, const BYTES: usize> LogRing<LINES, BYTES> {
         self.newest_first()
             .filter(|line| line.starts_with(prefix))
             .nth(nth)
+    }
+
+    /// A window of `rows` lines, scrolled back `scroll` lines from the newest
+    /// (clamped so the window stays full where the log allows), leaving out
+    /// the lines `skip` picks: `each` gets its lines, oldest first.
+    pub fn window<'a>(
+        &'a self,
+        skip: impl Fn(&str) -> bool,
+        scroll: usize,
+        rows: usize,
+        mut each: impl FnMut(&'a str),
+    ) -> Window {
+        let total = self.oldest_first().filter(|line| !skip(line)).count();
+        let scroll = scroll.min(total.saturating_sub(rows));
+        let shown = rows.min(total - scroll);
+        // Counted from the oldest, the window is [total - scroll - shown, total - scroll).
+        let start = total - scroll - shown;
+        for line in self
+            .oldest_first()
+            .filter(|line| !skip(line))
+            .skip(start)
+            .take(shown)
+        {
+            each(line);
+        }
+        Window {
+            scroll,
+            first: if shown == 0 { 0 } else { start + 1 },
+            last: start + shown,
+            total,
+        }
     }
 
     /// Adds one byte of text; `\n` completes the line, `\r` is ignored.
@@ -321,6 +369,41 @@ mod tests {
         assert_eq!(ring.latest_with_prefix("vga:", 1), Some("vga: a"));
         assert_eq!(ring.latest_with_prefix("vga:", 2), None);
         assert_eq!(ring.latest_with_prefix("usb:", 0), None);
+    }
+
+    #[test]
+    fn the_window_scrolls_within_the_log_and_skips_what_it_is_told() {
+        let mut ring = LogRing::<8, 32>::new();
+        for n in 1..=10 {
+            writeln!(ring, "line {n}").unwrap();
+            writeln!(ring, "echo {n}").unwrap();
+        }
+        // Held: line 7, echo 7, ... line 10, echo 10; echoes skipped.
+        let echo = |line: &str| line.starts_with("echo");
+        let mut seen = Vec::new();
+        let window = ring.window(echo, 0, 3, |line| seen.push(String::from(line)));
+        assert_eq!(seen, ["line 8", "line 9", "line 10"]);
+        assert_eq!(
+            window,
+            Window {
+                scroll: 0,
+                first: 2,
+                last: 4,
+                total: 4
+            }
+        );
+        seen.clear();
+        let window = ring.window(echo, 99, 3, |line| seen.push(String::from(line)));
+        assert_eq!(seen, ["line 7", "line 8", "line 9"]);
+        assert_eq!((window.scroll, window.first, window.last), (1, 1, 3));
+        // A window taller than the log shows it all.
+        seen.clear();
+        let window = ring.window(echo, 5, 30, |line| seen.push(String::from(line)));
+        assert_eq!(seen.len(), 4);
+        assert_eq!((window.scroll, window.first, window.last), (0, 1, 4));
+        let empty = LogRing::<8, 32>::new();
+        let window = empty.window(echo, 3, 3, |_| panic!("nothing to show"));
+        assert_eq!(window, Window::default());
     }
 
     #[test]
