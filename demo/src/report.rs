@@ -12,7 +12,8 @@
 //! shown, and the picture from before returns exactly.
 //!
 //! Layout at 320x240: the facts across the top in the 6x10 font, one per row;
-//! below them the log window in the 5x8 font on the left, and the QR code in
+//! below them, in the 5x8 font on the left, a row saying where the log
+//! window is and which keys work, then the log window, and the QR code in
 //! the bottom right corner, one pixel per module, inside a four-module white
 //! quiet zone. Every text is cut to its area's columns and drawn through a
 //! target clipped to that area, so no value, however long, reaches another
@@ -36,11 +37,11 @@ const BLACK_RGB: Rgb6 = [0, 0, 0];
 const WHITE_RGB: Rgb6 = [63, 63, 63];
 
 /// Fact rows at most; further facts are left out.
-pub const FACT_ROWS: usize = 10;
+pub const FACT_ROWS: usize = 11;
 /// Characters of a fact row (6x10 font, 1-pixel margins).
 pub const FACT_COLUMNS: usize = ((SCREEN_WIDTH - 2) / 6) as usize;
 /// Rows of the log window (5x8 font).
-pub const LOG_ROWS: usize = 16;
+pub const LOG_ROWS: usize = 14;
 /// The largest QR code: version 25, 117 modules, about 1,270 bytes of text.
 pub const QR_MAX_VERSION: u8 = 25;
 /// Modules of white around the code.
@@ -51,8 +52,9 @@ pub const QR_AREA_SIDE: i32 = 17 + 4 * QR_MAX_VERSION as i32 + 2 * QR_QUIET_MODU
 const FACT_FONT: &MonoFont = &FONT_6X10;
 const LOG_FONT: &MonoFont = &FONT_5X8;
 const FACTS_TOP: i32 = 1;
-const HINT_TOP: i32 = FACTS_TOP + FACT_ROWS as i32 * 10;
-const LOG_TOP: i32 = HINT_TOP + 10;
+/// The log area: the hint row, then the log window.
+const LOG_AREA_TOP: i32 = FACTS_TOP + FACT_ROWS as i32 * 10 + 1;
+const LOG_TOP: i32 = LOG_AREA_TOP + 8;
 const LOG_LEFT: i32 = 1;
 /// The QR area, bottom right.
 pub const QR_AREA: Rectangle = Rectangle::new(
@@ -63,13 +65,13 @@ pub const QR_AREA: Rectangle = Rectangle::new(
 pub const LOG_COLUMNS: usize = ((SCREEN_WIDTH - QR_AREA_SIDE - 2 * LOG_LEFT) / 5) as usize;
 const FACTS_AREA: Rectangle = Rectangle::new(
     Point::new(0, 0),
-    Size::new(SCREEN_WIDTH as u32, (LOG_TOP - 1) as u32),
+    Size::new(SCREEN_WIDTH as u32, LOG_AREA_TOP as u32),
 );
 const LOG_AREA: Rectangle = Rectangle::new(
-    Point::new(0, LOG_TOP),
+    Point::new(0, LOG_AREA_TOP),
     Size::new(
         (SCREEN_WIDTH - QR_AREA_SIDE - 1) as u32,
-        (SCREEN_HEIGHT - LOG_TOP) as u32,
+        (SCREEN_HEIGHT - LOG_AREA_TOP) as u32,
     ),
 );
 
@@ -166,11 +168,11 @@ impl<const N: usize> core::fmt::Write for TextBuffer<N> {
     }
 }
 
-/// The row between the facts and the log: where the window is and the keys.
+/// The row above the log window: where the window is, and the keys.
 pub fn hint_line(position: LogPosition, out: &mut impl core::fmt::Write) {
     let _ = core::write!(
         out,
-        "log lines {}-{} of {}; arrows, PgUp/PgDn scroll; I leaves",
+        "log {}-{} of {}: arrows scroll, I leaves",
         position.first,
         position.last,
         position.total
@@ -259,19 +261,19 @@ pub fn draw(image: &mut PageImage, report: &Report) {
             let _ = Text::with_baseline(fit(fact, FACT_COLUMNS), at, fact_style, Baseline::Top)
                 .draw(&mut facts);
         }
-        let mut hint = TextBuffer::<96>::new();
-        hint_line(report.position, &mut hint);
-        let at = Point::new(1, HINT_TOP);
-        let _ = Text::with_baseline(
-            fit(hint.as_str(), FACT_COLUMNS),
-            at,
-            fact_style,
-            Baseline::Top,
-        )
-        .draw(&mut facts);
     }
     {
         let mut log = canvas.clipped(&LOG_AREA);
+        let mut hint = TextBuffer::<96>::new();
+        hint_line(report.position, &mut hint);
+        let at = Point::new(LOG_LEFT, LOG_AREA_TOP);
+        let _ = Text::with_baseline(
+            fit(hint.as_str(), LOG_COLUMNS),
+            at,
+            log_style,
+            Baseline::Top,
+        )
+        .draw(&mut log);
         let shown = &report.log[report.log.len().saturating_sub(LOG_ROWS)..];
         for (row, line) in shown.iter().enumerate() {
             let at = Point::new(LOG_LEFT, LOG_TOP + row as i32 * 8);

@@ -68,54 +68,57 @@ pub fn show_if_asked<B: VgaBus>(vga: &mut ModeX<B>, app: &mut App, pacing: &Paci
         };
     });
 
+    add_fact(&|fact| {
+        let _ = write!(
+            fact,
+            "counters: {} missed retraces, {} dropped scancodes",
+            pacing.missed,
+            keyboard::SCANCODES.dropped(),
+        );
+    });
+    let frames = app.frames_drawn();
     let mut window_lines = 0;
-    let gathered = crate::log::read(|ring| {
+    let position = crate::log::read(|ring| {
+        let dropped = ring.dropped() + crate::log::lost();
+        add_fact(&|fact| {
+            let _ = write!(
+                fact,
+                "counters: {frames} frames drawn, {dropped} log lines dropped"
+            );
+        });
         // The latest lines of each subsystem, older first where two are shown.
-        let from_log: [(&str, usize); 7] = [
-            ("firmware:", 0),
-            ("display:", 0),
-            ("vga:", 1),
-            ("vga:", 0),
-            ("keyboard:", 0),
-            ("usb:", 0),
-            ("clock:", 0),
+        let from_log: [(&[&str], usize); 6] = [
+            (&["firmware:"], 0),
+            (&["display:"], 0),
+            (&["vga:"], 1),
+            (&["vga:"], 0),
+            (&["keyboard:", "usb:"], 0),
+            (&["clock:"], 0),
         ];
-        let mut keyboard_said = false;
-        for (prefix, nth) in from_log {
-            if let Some(text) = ring.latest_with_prefix(prefix, nth) {
-                keyboard_said |= prefix == "keyboard:" || prefix == "usb:";
+        for (prefixes, nth) in from_log {
+            let found = ring.latest_with_any_prefix(prefixes, nth);
+            if found.is_none() && prefixes[0] == "keyboard:" {
+                add_fact(&|fact| {
+                    let _ = fact.write_str("keyboard: PS/2 (no problem logged)");
+                });
+            }
+            if let Some(text) = found {
                 add_fact(&|fact| {
                     let _ = fact.write_str(text);
                 });
             }
         }
-        if !keyboard_said {
-            add_fact(&|fact| {
-                let _ = fact.write_str("keyboard: PS/2 (no problem logged)");
-            });
-        }
-        let position = ring.window(line::is_report_line, scroll, LOG_ROWS, |text| {
+        ring.window(line::is_report_line, scroll, LOG_ROWS, |text| {
             if let Some(copy) = window.get_mut(window_lines) {
                 let _ = copy.write_str(text);
                 window_lines += 1;
             }
-        });
-        (ring.dropped(), position)
+        })
     });
-    let Some((dropped, position)) = gathered else {
+    let Some(position) = position else {
         serial_println!("report: the log is busy; not shown");
         return;
     };
-    add_fact(&|fact| {
-        let _ = write!(
-            fact,
-            "counters: {} missed retraces, {} scancodes dropped, {} frames, {} log lines dropped",
-            pacing.missed,
-            keyboard::SCANCODES.dropped(),
-            app.frames_drawn(),
-            dropped + crate::log::lost()
-        );
-    });
 
     let mut fact_texts = [""; FACT_ROWS];
     for (text, fact) in fact_texts.iter_mut().zip(&facts[..fact_count]) {

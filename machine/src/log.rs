@@ -207,8 +207,13 @@ impl<const LINES: usize, const BYTES: usize> LogRing<LINES, BYTES> {
 
     /// The `nth` newest line (0 is the newest) that starts with `prefix`.
     pub fn latest_with_prefix(&self, prefix: &str, nth: usize) -> Option<&str> {
+        self.latest_with_any_prefix(&[prefix], nth)
+    }
+
+    /// The `nth` newest line that starts with one of `prefixes`.
+    pub fn latest_with_any_prefix(&self, prefixes: &[&str], nth: usize) -> Option<&str> {
         self.newest_first()
-            .filter(|line| line.starts_with(prefix))
+            .filter(|line| prefixes.iter().any(|prefix| line.starts_with(prefix)))
             .nth(nth)
     }
 
@@ -369,6 +374,10 @@ mod tests {
         assert_eq!(ring.latest_with_prefix("vga:", 1), Some("vga: a"));
         assert_eq!(ring.latest_with_prefix("vga:", 2), None);
         assert_eq!(ring.latest_with_prefix("usb:", 0), None);
+        assert_eq!(
+            ring.latest_with_any_prefix(&["usb:", "clock:"], 0),
+            Some("clock: fast")
+        );
     }
 
     #[test]
