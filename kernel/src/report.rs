@@ -86,27 +86,26 @@ pub fn show_if_asked<B: VgaBus>(vga: &mut ModeX<B>, app: &mut App, pacing: &Paci
                 "counters: {frames} frames drawn, {dropped} log lines dropped"
             );
         });
-        // The latest lines of each subsystem, older first where two are shown.
-        let from_log: [(&[&str], usize); 6] = [
-            (&["firmware:"], 0),
-            (&["display:"], 0),
-            (&["vga:"], 1),
-            (&["vga:"], 0),
-            (&["keyboard:", "usb:"], 0),
-            (&["clock:"], 0),
+        // What each subsystem said. The display code says first which path
+        // it takes and then which adapter or framebuffer mode (its two
+        // earliest lines); the VGA code last says how the mode was set and
+        // whether it read back (its two latest).
+        let earliest = |prefixes: &[&str], nth| ring.earliest_with_any_prefix(prefixes, nth);
+        let latest = |prefixes: &[&str], nth| ring.latest_with_any_prefix(prefixes, nth);
+        let keyboard = latest(&["keyboard:", "usb:"], 0);
+        let said = [
+            latest(&["firmware:"], 0),
+            earliest(&["display:"], 0),
+            earliest(&["display:"], 1),
+            latest(&["vga:"], 1),
+            latest(&["vga:"], 0),
+            Some(keyboard.unwrap_or("keyboard: PS/2 (no problem logged)")),
+            latest(&["clock:"], 0),
         ];
-        for (prefixes, nth) in from_log {
-            let found = ring.latest_with_any_prefix(prefixes, nth);
-            if found.is_none() && prefixes[0] == "keyboard:" {
-                add_fact(&|fact| {
-                    let _ = fact.write_str("keyboard: PS/2 (no problem logged)");
-                });
-            }
-            if let Some(text) = found {
-                add_fact(&|fact| {
-                    let _ = fact.write_str(text);
-                });
-            }
+        for text in said.into_iter().flatten() {
+            add_fact(&|fact| {
+                let _ = fact.write_str(text);
+            });
         }
         ring.window(line::is_report_line, scroll, LOG_ROWS, |text| {
             if let Some(copy) = window.get_mut(window_lines) {

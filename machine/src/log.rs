@@ -248,6 +248,13 @@ impl<const LINES: usize, const BYTES: usize> LogRing<LINES, BYTES> {
         }
     }
 
+    /// The `nth` oldest line that starts with one of `prefixes`.
+    pub fn earliest_with_any_prefix(&self, prefixes: &[&str], nth: usize) -> Option<&str> {
+        self.oldest_first()
+            .filter(|line| prefixes.iter().any(|prefix| line.starts_with(prefix)))
+            .nth(nth)
+    }
+
     /// Adds one byte of text; `\n` completes the line, `\r` is ignored.
     pub fn push_byte(&mut self, byte: u8) {
         match byte {
@@ -377,6 +384,10 @@ mod tests {
         assert_eq!(
             ring.latest_with_any_prefix(&["usb:", "clock:"], 0),
             Some("clock: fast")
+        );
+        assert_eq!(
+            ring.earliest_with_any_prefix(&["vga:", "clock:"], 1),
+            Some("vga: a")
         );
     }
 

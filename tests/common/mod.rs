@@ -282,7 +282,6 @@ pub fn report_round_trip(
     let console = qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
     let screen = qemu.screendump().unwrap();
     let shown = ShownReport::parse(&console[printed_before.len()..]);
-    let _ = screen.write_png(std::path::Path::new("/tmp/report-screen.png"));
 
     let expected = on_screen(&shown.picture(), &screen);
     assert_pictures_equal(&screen, &expected, "the report screen");
