@@ -152,8 +152,13 @@ impl App {
             return;
         }
         if let Some(view) = self.report {
-            self.report_key(command, view.scroll);
-            return;
+            if command != Command::Scene(SceneCommand::Reset) {
+                self.report_key(command, view.scroll);
+                return;
+            }
+            // R leaves the report too: back to the starting scene, drawn
+            // afresh below.
+            self.report = None;
         }
         match command {
             // Neither changes the picture: nothing to redraw.
@@ -184,8 +189,8 @@ impl App {
         self.dirty = true;
     }
 
-    /// A key while the report is up: scroll, leave, or quit; the scene
-    /// never sees it.
+    /// A key while the report is up (other than R): scroll, leave, or quit;
+    /// the scene never sees it.
     fn report_key(&mut self, command: Command, scroll: usize) {
         let page = crate::report::LOG_ROWS;
         let scroll = match command {

@@ -20,7 +20,8 @@ pub enum Command {
     /// Leave the demo.
     Quit,
     /// Show or leave the report screen (`crate::report`): while it is up,
-    /// the arrows and Page Up/Down scroll its log, and other keys do nothing.
+    /// the arrows and Page Up/Down scroll its log, R leaves it for the
+    /// starting scene, Esc quits, and other keys do nothing.
     ToggleReport,
 }
 

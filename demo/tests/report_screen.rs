@@ -101,7 +101,6 @@ fn the_report_key_shows_the_report_and_brings_the_picture_back() {
     for other in [
         Command::Scene(SceneCommand::MoveLeft),
         Command::Scene(SceneCommand::Away),
-        Command::Scene(SceneCommand::Reset),
         Command::ToggleHelp,
         Command::Pause,
     ] {
@@ -126,6 +125,25 @@ fn the_report_key_shows_the_report_and_brings_the_picture_back() {
     plain.apply(Command::Scene(SceneCommand::Reset));
     plain.step(&mut ModeX::new(&mut *fresh), &|| 0u64);
     plain.apply(Command::Scene(SceneCommand::MoveLeft));
+    plain.step(&mut ModeX::new(&mut *fresh), &|| 0u64);
+    assert!(screen(&soft) == screen(&fresh));
+}
+
+#[test]
+fn r_leaves_the_report_for_the_starting_scene() {
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new(); // spinning
+    for _ in 0..5 {
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+    }
+    app.apply(Command::ToggleReport);
+    draw_if_asked(&mut app, &mut soft, 10).unwrap();
+    app.apply(Command::Scene(SceneCommand::Reset));
+    assert!(!app.report_shown());
+    assert!(app.step(&mut ModeX::new(&mut *soft), &|| 0u64).is_some());
+    let mut fresh = soft_vga_in_mode_x();
+    let mut plain = App::new();
+    plain.apply(Command::Scene(SceneCommand::Reset));
     plain.step(&mut ModeX::new(&mut *fresh), &|| 0u64);
     assert!(screen(&soft) == screen(&fresh));
 }
