@@ -47,12 +47,14 @@ pub fn show_if_asked<B: VgaBus>(vga: &mut ModeX<B>, app: &mut App, pacing: &Paci
     });
     let cpu = cpu_identity();
     add_fact(&|fact| {
-        let _ = write!(
-            fact,
-            "cpu: {}, {}",
-            text_of_field(&cpu.vendor),
-            text_of_field(&cpu.brand)
-        );
+        let _ = match text_of_field(&cpu.brand) {
+            "" => write!(
+                fact,
+                "cpu: {} (no brand string)",
+                text_of_field(&cpu.vendor)
+            ),
+            brand => write!(fact, "cpu: {}, {}", text_of_field(&cpu.vendor), brand),
+        };
     });
     let adapter = pci::display_controller();
     add_fact(&|fact| {
@@ -115,6 +117,8 @@ pub fn show_if_asked<B: VgaBus>(vga: &mut ModeX<B>, app: &mut App, pacing: &Paci
         })
     });
     let Some(position) = position else {
+        // Not asked again until the next key: no line on every loop.
+        app.report_drawn(scroll);
         serial_println!("report: the log is busy; not shown");
         return;
     };
@@ -137,6 +141,7 @@ pub fn show_if_asked<B: VgaBus>(vga: &mut ModeX<B>, app: &mut App, pacing: &Paci
         },
     };
     let Some(mut image) = IMAGE.try_lock() else {
+        app.report_drawn(scroll);
         serial_println!("report: the picture buffer is busy; not shown");
         return;
     };
