@@ -267,8 +267,9 @@ pub fn git_commit() -> String {
 /// draws what the kernel said it shows (`on_screen` turns the model's
 /// 320x240 picture into the screen's), its QR code must decode to the
 /// report's text, its facts must name `firmware`, the commit and the CPU,
-/// its log lines must be lines the kernel printed; the key again must bring
-/// back the picture from before.
+/// its log lines must be lines the kernel printed; Up must scroll the log
+/// back a line; the key again must bring back the picture from before.
+/// Three commands.
 pub fn report_round_trip(
     qemu: &mut Qemu,
     commands_done: u64,
@@ -323,8 +324,31 @@ pub fn report_round_trip(
         "the window ends with the newest line"
     );
 
-    qemu.send_key("i").unwrap();
+    // Up scrolls the log back a line, if it is longer than the window: the
+    // window then ends one line before the newest (the command line printed
+    // after the report was drawn); a shorter log stays whole.
+    let printed_before = qemu.serial();
+    qemu.send_key("up").unwrap();
     let done = line::CommandDone(commands_done + 2).to_string();
+    let console = qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+    let scrolled = ShownReport::parse(&console[printed_before.len()..]);
+    let total = scrolled.position.total;
+    assert_eq!(total, shown.position.total + 1);
+    if total > demo::report::LOG_ROWS {
+        assert_eq!(scrolled.position.last, total - 1);
+        assert_eq!(scrolled.log.last(), shown.log.last());
+    } else {
+        assert_eq!(
+            (scrolled.position.first, scrolled.position.last),
+            (1, total)
+        );
+    }
+    let screen = qemu.screendump().unwrap();
+    let expected = on_screen(&scrolled.picture(), &screen);
+    assert_pictures_equal(&screen, &expected, "the report scrolled back a line");
+
+    qemu.send_key("i").unwrap();
+    let done = line::CommandDone(commands_done + 3).to_string();
     qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
     assert_pictures_equal(
         &qemu.screendump().unwrap(),
