@@ -140,10 +140,15 @@ fn qemu_shows_what_the_software_vga_shows_after_each_key() {
 }
 
 #[test]
-fn escape_says_goodbye_and_powers_qemu_off() {
+fn the_report_key_shows_the_report_and_escape_says_goodbye() {
     let mut qemu = boot_bios(None);
     qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
         .unwrap();
+    // First the report screen and back, on the still starting scene.
+    qemu.send_key("r").unwrap();
+    qemu.wait_for_serial(&boot::line::CommandDone(1).to_string(), BOOT_TIMEOUT)
+        .unwrap();
+    common::report_round_trip(&mut qemu, 1, "Bios", |model, _| common::doubled(model));
     qemu.send_key("esc").unwrap();
     let status = qemu
         .wait_exit(BOOT_TIMEOUT)

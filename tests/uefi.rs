@@ -162,6 +162,10 @@ fn without_legacy_vga_the_lit_solids_reach_the_framebuffer_too() {
     let screen = qemu.screendump().unwrap();
     let expected = presented(&model_picture(&soft), screen.width, screen.height);
     assert_pictures_equal(&screen, &expected, "lit solids on the framebuffer");
+    // The report screen and back, presented the same way.
+    common::report_round_trip(&mut qemu, keys.len() as u64, "Uefi", |model, screen| {
+        presented(model, screen.width, screen.height)
+    });
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! The demo as the kernel runs it: scancodes in, frames out. Everything here is
 //! portable, so the host tests drive exactly what the kernel drives.
 
-use crate::command::{Command, SceneCommand};
+use crate::command::{Command, LightTurn, SceneCommand};
 use crate::frame::Renderer;
 use crate::keymap::command_for;
 use crate::osd::{self, Overlay, Stats};
@@ -74,6 +74,21 @@ pub struct App {
     last_frame_micros: u32,
     last_faces: FaceCounts,
     palette_loaded: bool,
+    /// The report screen, while it is up.
+    report: Option<ReportView>,
+    /// The report was left: show the demo's page again on the next step.
+    restore_page: bool,
+    frames_drawn: u64,
+}
+
+/// The report screen's state in the app: how far its log is scrolled back,
+/// and whether the screen shows that yet.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReportView {
+    /// Log lines scrolled back from the newest (0: the newest line is at the
+    /// bottom of the window).
+    pub scroll: usize,
+    drawn: bool,
 }
 
 impl core::fmt::Debug for App {
@@ -111,6 +126,9 @@ impl App {
             last_frame_micros: 0,
             last_faces: FaceCounts::default(),
             palette_loaded: false,
+            report: None,
+            restore_page: false,
+            frames_drawn: 0,
         }
     }
 
@@ -133,6 +151,15 @@ impl App {
             self.paused = false;
             return;
         }
+        if let Some(view) = self.report {
+            if command != Command::Scene(SceneCommand::Reset) {
+                self.report_key(command, view.scroll);
+                return;
+            }
+            // R leaves the report too: back to the starting scene, drawn
+            // afresh below.
+            self.report = None;
+        }
         match command {
             // Neither changes the picture: nothing to redraw.
             Command::Quit => {
@@ -141,6 +168,10 @@ impl App {
             }
             Command::Pause => {
                 self.paused = true;
+                return;
+            }
+            Command::ToggleReport => {
+                self.report = Some(ReportView::default());
                 return;
             }
             Command::ToggleHelp => self.overlay.help = !self.overlay.help,
@@ -156,6 +187,62 @@ impl App {
             Command::Scene(command) => self.scene.apply(command),
         }
         self.dirty = true;
+    }
+
+    /// A key while the report is up (other than R): scroll, leave, or quit;
+    /// the scene never sees it.
+    fn report_key(&mut self, command: Command, scroll: usize) {
+        let page = crate::report::LOG_ROWS;
+        let scroll = match command {
+            Command::ToggleReport => {
+                self.report = None;
+                self.restore_page = true;
+                return;
+            }
+            Command::Quit => {
+                self.quit = true;
+                return;
+            }
+            Command::Scene(SceneCommand::MoveUp) => scroll.saturating_add(1),
+            Command::Scene(SceneCommand::MoveDown) => scroll.saturating_sub(1),
+            Command::Scene(SceneCommand::TurnLight(LightTurn::Up)) => scroll.saturating_add(page),
+            Command::Scene(SceneCommand::TurnLight(LightTurn::Down)) => scroll.saturating_sub(page),
+            _ => return,
+        };
+        self.report = Some(ReportView {
+            scroll,
+            drawn: false,
+        });
+    }
+
+    /// The report screen is up and must be drawn, scrolled back this many
+    /// lines: the caller gathers the facts, draws it
+    /// (`crate::report::show`) and calls [`App::report_drawn`].
+    pub fn report_to_draw(&self) -> Option<usize> {
+        self.report
+            .filter(|view| !view.drawn && !self.paused && !self.quit)
+            .map(|view| view.scroll)
+    }
+
+    /// The report is on screen, scrolled back `scroll` lines (the caller
+    /// clamps the scroll to the log it has).
+    pub fn report_drawn(&mut self, scroll: usize) {
+        if self.report.is_some() {
+            self.report = Some(ReportView {
+                scroll,
+                drawn: true,
+            });
+        }
+    }
+
+    /// Whether the report screen is up.
+    pub fn report_shown(&self) -> bool {
+        self.report.is_some()
+    }
+
+    /// Frames drawn since the start.
+    pub fn frames_drawn(&self) -> u64 {
+        self.frames_drawn
     }
 
     /// Esc was pressed: the caller should leave.
@@ -212,6 +299,15 @@ impl App {
         if self.paused || self.quit {
             return None;
         }
+        if self.restore_page {
+            // The report used the spare page only: the demo's page still
+            // holds what it showed, and the shadows are still true.
+            self.restore_page = false;
+            return Some(vga.show_page(self.renderer.shown_page()));
+        }
+        if self.report.is_some() {
+            return None;
+        }
         if !self.palette_loaded {
             // The shading ramps sit in DAC entries nothing else uses, so they
             // are loaded once and stay.
@@ -230,6 +326,7 @@ impl App {
             return None;
         }
         self.dirty = false;
+        self.frames_drawn += 1;
         self.frame_rate.frame_drawn(start);
         let (overlay, stats) = (self.overlay, self.stats());
         let (page, faces) =

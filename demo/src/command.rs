@@ -19,6 +19,10 @@ pub enum Command {
     Pause,
     /// Leave the demo.
     Quit,
+    /// Show or leave the report screen (`crate::report`): while it is up,
+    /// the arrows and Page Up/Down scroll its log, R leaves it for the
+    /// starting scene, Esc quits, and other keys do nothing.
+    ToggleReport,
 }
 
 impl From<SceneCommand> for Command {

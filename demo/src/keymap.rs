@@ -1,5 +1,5 @@
 //! From decoded keys to commands: Abrash's keys, plus Space, R and Esc, and
-//! the extras' keys (L, N, M, X, H, S; Home, End, Page Up, Page Down).
+//! the extras' keys (L, N, M, X, H, S, I; Home, End, Page Up, Page Down).
 //! The numeric keypad rotates with NumLock on (it then types digits, like the
 //! top row); with NumLock off its 4/6/8/2 are arrows and move the cube.
 
@@ -36,6 +36,7 @@ fn command_for_character(character: char) -> Command {
         'h' | 'H' => Command::ToggleHelp,
         's' | 'S' => Command::ToggleStats,
         'r' | 'R' => Command::Scene(SceneCommand::Reset),
+        'i' | 'I' => Command::ToggleReport,
         '\u{1b}' => Command::Quit,
         _ => Command::Pause,
     }
@@ -178,6 +179,8 @@ mod tests {
             (DecodedKey::Unicode('r'), Scene(Reset)),
             (DecodedKey::Unicode('\u{1b}'), Quit),
             (DecodedKey::Unicode('x'), Scene(ToggleCrowd)),
+            (DecodedKey::Unicode('i'), Command::ToggleReport),
+            (DecodedKey::Unicode('I'), Command::ToggleReport),
             (DecodedKey::Unicode('q'), Pause),
             (DecodedKey::Unicode('5'), Pause),
             (DecodedKey::RawKey(KeyCode::F3), Pause),

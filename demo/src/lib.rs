@@ -44,6 +44,7 @@ pub mod keys;
 pub mod osd;
 pub mod pattern;
 pub mod queue;
+pub mod report;
 pub mod scene;
 pub mod screens;
 pub mod shading;

@@ -22,7 +22,7 @@ const CHAR_WIDTH: i32 = 6;
 const LINE_HEIGHT: i32 = 10;
 
 /// Every key, as the help box lists it.
-pub const HELP_LINES: [&str; 18] = [
+pub const HELP_LINES: [&str; 19] = [
     "Arrows       move left/right/up/down",
     "A  T         move away / toward",
     "4 6  8 2     turn about Y / about X",
@@ -36,6 +36,7 @@ pub const HELP_LINES: [&str; 18] = [
     "X            many objects on/off",
     "S            statistics on/off",
     "H            this help on/off",
+    "I            report and QR code on/off",
     "R            back to the starting scene",
     "Esc          quit",
     "other keys   pause until next key",
@@ -387,6 +388,7 @@ mod tests {
             ("X ", Unicode('x'), Scene(ToggleCrowd)),
             ("S ", Unicode('s'), ToggleStats),
             ("H ", Unicode('h'), ToggleHelp),
+            ("I ", Unicode('i'), ToggleReport),
             ("R ", Unicode('r'), Scene(Reset)),
             ("Esc", RawKey(KeyCode::Escape), Quit),
             ("other keys", Unicode('q'), Pause),
@@ -417,6 +419,7 @@ mod tests {
                 | Scene(ToggleCrowd)
                 | ToggleHelp
                 | ToggleStats
+                | ToggleReport
                 | Scene(Reset)
                 | Pause
                 | Quit => {}

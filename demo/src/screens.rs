@@ -30,6 +30,10 @@ pub const REPORT_LINES: usize = 4;
 const WHITE_ON_RED: u8 = 0x4F;
 const PANEL_HEADING: &str = "modex-cube stopped. The report (also on serial):";
 const PANEL_FOOTER: &str = "Stopped. Ctrl+Alt+Del (PS/2 keyboard) or the reset button restarts.";
+/// Lines of the kernel's log the fault panel shows under the report.
+pub const PANEL_LOG_LINES: usize = 13;
+const PANEL_LOG_HEADING: &str = "The last lines of the log, before the fault:";
+const PANEL_LOG_ROW: u8 = 11;
 
 /// Switches to text mode and shows the goodbye line, then flushes (a
 /// framebuffer display presents it).
@@ -47,15 +51,23 @@ pub fn goodbye_line<B: VgaBus>(vga: &mut ModeX<B>) {
 }
 
 /// Switches to text mode and shows the fault panel: a heading, the report's
-/// lines (an empty line leaves its row blank) and how to go on, white on red,
-/// then flushes. It programs every register from scratch, so it works
-/// whatever state the interrupted code left the VGA in.
-pub fn fault_panel<B: VgaBus>(vga: &mut ModeX<B>, lines: &[&str; REPORT_LINES]) {
+/// lines (an empty line leaves its row blank), how to go on, and the last
+/// [`PANEL_LOG_LINES`] of `log` (oldest first; each cut at the screen's
+/// edge), white on red, then flushes. It programs every register from
+/// scratch, so it works whatever state the interrupted code left the VGA in.
+pub fn fault_panel<B: VgaBus>(vga: &mut ModeX<B>, lines: &[&str; REPORT_LINES], log: &[&str]) {
     vga.set_text_mode(&FONT);
     vga.write_text(1, 2, PANEL_HEADING, WHITE_ON_RED);
     for (row, line) in (3..).zip(lines) {
         vga.write_text(row, 2, line, WHITE_ON_RED);
     }
     vga.write_text(3 + REPORT_LINES as u8 + 1, 2, PANEL_FOOTER, WHITE_ON_RED);
+    if !log.is_empty() {
+        vga.write_text(PANEL_LOG_ROW - 1, 2, PANEL_LOG_HEADING, WHITE_ON_RED);
+    }
+    let tail = &log[log.len().saturating_sub(PANEL_LOG_LINES)..];
+    for (row, line) in (PANEL_LOG_ROW..).zip(tail) {
+        vga.write_text(row, 2, line, WHITE_ON_RED);
+    }
     vga.bus_mut().flush();
 }

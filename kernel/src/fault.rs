@@ -1,6 +1,7 @@
 //! The end of the line: every CPU exception that cannot be resumed, and every
 //! panic, is reported here on serial and on screen (80x25 text, white on red,
-//! on the VGA or on the framebuffer), and the CPU halts for good. Halting, rather than returning or rebooting,
+//! on the VGA or on the framebuffer, with the last lines of the kernel's log
+//! before it), and the CPU halts for good. Halting, rather than returning or rebooting,
 //! keeps the report readable and avoids a triple fault's reboot loop.
 
 use core::fmt::{self, Write};
@@ -24,6 +25,7 @@ pub fn report_on_screen(physical_memory_offset: u64, card: Card) {
 }
 
 const REPORT_LINES: usize = demo::screens::REPORT_LINES;
+const PANEL_LOG_LINES: usize = demo::screens::PANEL_LOG_LINES;
 const LINE_BYTES: usize = modex::TEXT_COLUMNS as usize;
 
 /// A screen line built without a heap; text past the line's end is cut.
@@ -102,10 +104,23 @@ fn report(lines: &[Line]) -> ! {
     // SAFETY: this path ends in `halt_forever` and never returns to the
     // code the fault or panic interrupted.
     unsafe { crate::serial::force_unlock() };
+    // The log as it was before the fault, for the panel. Held from here on,
+    // so the fault's own lines go to serial only (counted as lost from the
+    // ring), and the panel shows the lines that led up to it.
+    // SAFETY: as above: the interrupted code never resumes.
+    let ring = unsafe { crate::log::for_fault_handler() };
     for line in lines.iter().filter(|l| l.len > 0) {
         crate::serial_println!("{}", line.as_str());
     }
-    show_on_screen(lines);
+    let mut tail = [""; PANEL_LOG_LINES];
+    let mut shown = 0;
+    if let Some(ring) = ring.as_deref() {
+        shown = ring.len().min(PANEL_LOG_LINES);
+        for (slot, back) in tail[..shown].iter_mut().zip((0..shown).rev()) {
+            *slot = ring.newest(back).unwrap_or("");
+        }
+    }
+    show_on_screen(lines, &tail[..shown]);
     halt_forever()
 }
 
@@ -115,21 +130,21 @@ fn report(lines: &[Line]) -> ! {
 /// a fault while showing the panel goes to serial only. The interrupted code
 /// may have been half-way through a register write; the mode set starts from
 /// scratch, so that does not matter.
-fn show_on_screen(lines: &[Line]) {
+fn show_on_screen(lines: &[Line], log: &[&str]) {
     let mut text = [""; demo::screens::REPORT_LINES];
     for (text, line) in text.iter_mut().zip(lines) {
         *text = line.as_str();
     }
     let offset = SCREEN_PHYSICAL_OFFSET.swap(0, Ordering::Acquire);
     if offset == 0 {
-        crate::framebuffer::show_fault_panel(&text);
+        crate::framebuffer::show_fault_panel(&text, log);
         return;
     }
     // SAFETY: the offset was recorded by the kernel after it found legacy VGA
     // through this mapping; nothing else runs after a fault, so the bus is ours.
     let bus = unsafe { crate::vga_bus::PortBus::new(offset) };
     let card = SCREEN_CARD.get().copied().unwrap_or(Card::Standard);
-    demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), &text);
+    demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), &text, log);
 }
 
 /// Stops the demo with interrupts off. What is left is a loop that watches

@@ -21,12 +21,14 @@ mod idle;
 mod interrupts;
 mod keyboard;
 mod legacy_vga;
+mod log;
 mod pat;
 mod pci;
 mod pit;
 mod pm_timer;
 mod power;
 mod qemu;
+mod report;
 mod run;
 mod selftest;
 mod serial;
@@ -52,7 +54,11 @@ entry_point!(kernel_main, config = &BOOTLOADER_CONFIG);
 
 fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     serial::init();
-    serial_println!("modex-cube kernel v{}", env!("CARGO_PKG_VERSION"));
+    serial_println!(
+        "{}{}",
+        machine::protocol::line::KERNEL_BANNER,
+        env!("CARGO_PKG_VERSION")
+    );
     gdt::init();
     interrupts::init();
     pit::init();

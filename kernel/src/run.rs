@@ -49,6 +49,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
             goodbye::goodbye(vga);
         }
         let flip = app.step(vga, &clock::micros);
+        crate::report::show_if_asked(vga, &mut app, &pacing);
         if app.commands() != reported_commands {
             // Tests wait for this line before they look at the screen.
             reported_commands = app.commands();

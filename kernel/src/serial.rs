@@ -1,4 +1,5 @@
 //! COM1 serial console: the kernel's log, and the test harness's window into it.
+//! Every line printed is also kept in memory (`crate::log`).
 //!
 //! The UART itself is driven by `uart_16550`. Its `try_send_byte` never waits,
 //! so the one wait here is ours and bounded: if the transmitter never empties
@@ -75,6 +76,7 @@ pub fn _print(args: fmt::Arguments) {
     // Interrupt handlers print too: keep them out while the port is held, so a
     // handler can never spin on a lock its own CPU holds.
     x86_64::instructions::interrupts::without_interrupts(|| {
+        crate::log::record(args);
         let _ = COM1_PORT.lock().write_fmt(args);
     });
 }

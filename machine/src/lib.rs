@@ -37,6 +37,7 @@ pub mod calibration;
 pub mod clock;
 pub mod firmware;
 pub mod fw_cfg;
+pub mod log;
 pub mod pacing;
 pub mod protocol;
 pub mod reset_keys;

@@ -238,12 +238,70 @@ impl fmt::Display for BootRequest {
 pub mod line {
     use core::fmt;
 
+    /// The start of the kernel's first line, before its version: where its
+    /// log begins.
+    pub const KERNEL_BANNER: &str = "modex-cube kernel v";
     /// The first picture is on screen and keys are read.
     pub const READY: &str = "screen: ready";
     /// The start of the goodbye line after Esc.
     pub const GOODBYE: &str = "demo: goodbye";
     /// The last line before a fault or panic halts the CPU.
     pub const HALTED: &str = "HALTED";
+
+    /// Before each fact the report screen shows, when it is drawn.
+    pub const REPORT_FACT: &str = "report fact: ";
+    /// Before each log line the report screen shows, when it is drawn.
+    pub const REPORT_LOG: &str = "report log: ";
+
+    /// A line the kernel printed about its report screen (which the
+    /// report's own log window leaves out).
+    pub fn is_report_line(line: &str) -> bool {
+        line.starts_with(REPORT_FACT)
+            || line.starts_with(REPORT_LOG)
+            || line.starts_with(ReportShown::PREFIX)
+    }
+
+    /// "report: shown, log lines F-L of T": the report screen is drawn, its
+    /// log window showing lines F to L of the T in the log (after the facts
+    /// and log lines above, each on its own line).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct ReportShown {
+        /// The first log line shown, from 1 (0: none).
+        pub first: usize,
+        /// The last log line shown.
+        pub last: usize,
+        /// Log lines in all.
+        pub total: usize,
+    }
+
+    impl ReportShown {
+        const PREFIX: &'static str = "report: shown, log lines ";
+
+        /// The figures of a line that is this message.
+        pub fn parse(line: &str) -> Option<ReportShown> {
+            let rest = line.strip_prefix(Self::PREFIX)?;
+            let (range, total) = rest.split_once(" of ")?;
+            let (first, last) = range.split_once('-')?;
+            Some(ReportShown {
+                first: first.parse().ok()?,
+                last: last.parse().ok()?,
+                total: total.trim().parse().ok()?,
+            })
+        }
+    }
+
+    impl fmt::Display for ReportShown {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(
+                f,
+                "{}{}-{} of {}",
+                Self::PREFIX,
+                self.first,
+                self.last,
+                self.total
+            )
+        }
+    }
 
     /// "demo: command N done": the kernel has drawn the Nth command's frame.
     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -347,5 +405,21 @@ mod tests {
             Some(12)
         );
         assert_eq!(line::CommandDone::parse("demo: goodbye"), None);
+    }
+
+    #[test]
+    fn report_lines_format_and_parse() {
+        let shown = line::ReportShown {
+            first: 3,
+            last: 18,
+            total: 40,
+        };
+        let text = shown.to_string();
+        assert_eq!(text, "report: shown, log lines 3-18 of 40");
+        assert_eq!(line::ReportShown::parse(&text), Some(shown));
+        assert_eq!(line::ReportShown::parse("report: shown"), None);
+        assert!(line::is_report_line(&text));
+        assert!(line::is_report_line("report log: clock: TSC"));
+        assert!(!line::is_report_line("clock: TSC"));
     }
 }

@@ -59,6 +59,24 @@ impl<B: VgaBus> ModeX<B> {
         written
     }
 
+    /// Writes the whole of `image` into `page`, whatever it held: one pass
+    /// per plane, every address written. For a picture with no shadow to
+    /// compare with (the report screen on the spare page); 76,800 writes.
+    pub fn write_page(&mut self, page: Page, image: &PageImage) {
+        let width = SCREEN_WIDTH as usize;
+        for plane in 0..4u8 {
+            self.set_map_mask(1 << plane);
+            for y in 0..SCREEN_HEIGHT as usize {
+                let line = &image[y * width..][..width];
+                let line_base = page.base() + y as u16 * BYTES_PER_LINE;
+                for i in 0..usize::from(BYTES_PER_LINE) {
+                    self.bus
+                        .write_vram8(line_base + i as u16, line[4 * i + usize::from(plane)]);
+                }
+            }
+        }
+    }
+
     /// The Map Masks in the order they are set: the one already set first,
     /// which saves its OUT, then the rest in increasing order.
     fn mask_order(&self, frame_masks: u16) -> impl Iterator<Item = u8> {

@@ -141,6 +141,11 @@ impl Machine {
             .app
             .step(&mut self.vga, &move || micros.get())
             .is_some();
+        if self.app.report_to_draw().is_some() {
+            self.show_report();
+            // No log to scroll.
+            self.app.report_drawn(0);
+        }
         // A flip has waited for the retrace already; an idle frame waits here.
         self.idle_until_retrace(retraces_before);
         let soft = &self.vga.bus().soft;
@@ -160,6 +165,24 @@ impl Machine {
         self.frames += 1;
         self.last_cost = frame_cost(counts_before, soft.counts(), &old_page, &new_page);
         self.last_cost
+    }
+
+    /// The report screen (I): the simulator has no machine to report on and
+    /// no kernel log, so it says so; the layout is the kernel's.
+    fn show_report(&mut self) {
+        let facts = [
+            "modex-cube simulator: no machine to report on.",
+            "On the machine this screen shows the build, the",
+            "firmware, CPU, display adapter and path, keyboard,",
+            "clock, counters and the kernel's log, and a QR code.",
+        ];
+        let report = demo::report::Report {
+            facts: &facts,
+            log: &[],
+            position: demo::report::LogPosition::default(),
+        };
+        let mut image = Box::new([0u8; modex::PAGE_PIXELS]);
+        demo::report::show(&mut self.vga, &mut image, &report);
     }
 
     /// Lets the model's clock run, with no bus activity, until a vertical

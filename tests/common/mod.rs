@@ -215,3 +215,203 @@ pub fn after_each_key_on(
         );
     }
 }
+
+/// The report screen as the kernel said it drew it (the lines after `from`
+/// in `console`): its facts, its log window, where the window is.
+pub struct ShownReport {
+    pub facts: Vec<String>,
+    pub log: Vec<String>,
+    pub position: demo::report::LogPosition,
+}
+
+impl ShownReport {
+    pub fn parse(console: &str) -> ShownReport {
+        let mut facts = Vec::new();
+        let mut log = Vec::new();
+        let mut position = None;
+        for text in console.lines() {
+            if let Some(fact) = text.strip_prefix(line::REPORT_FACT) {
+                facts.push(fact.to_owned());
+            } else if let Some(text) = text.strip_prefix(line::REPORT_LOG) {
+                log.push(text.to_owned());
+            } else if let Some(shown) = line::ReportShown::parse(text) {
+                position = Some(demo::report::LogPosition {
+                    first: shown.first,
+                    last: shown.last,
+                    total: shown.total,
+                });
+            }
+        }
+        let position = position.unwrap_or_else(|| panic!("no report shown:\n{console}"));
+        ShownReport {
+            facts,
+            log,
+            position,
+        }
+    }
+
+    pub fn with_report<T>(&self, use_report: impl FnOnce(&demo::report::Report) -> T) -> T {
+        let facts: Vec<&str> = self.facts.iter().map(String::as_str).collect();
+        let log: Vec<&str> = self.log.iter().map(String::as_str).collect();
+        use_report(&demo::report::Report {
+            facts: &facts,
+            log: &log,
+            position: self.position,
+        })
+    }
+
+    /// The report drawn by `demo::report` on a software VGA in Mode X.
+    pub fn picture(&self) -> RgbImage {
+        let mut soft = soft_vga_in_mode_x();
+        let mut image = Box::new([0u8; modex::PAGE_PIXELS]);
+        self.with_report(|report| {
+            demo::report::show(&mut ModeX::new(&mut *soft), &mut image, report)
+        });
+        model_picture(&soft)
+    }
+
+    /// The text its QR code must hold.
+    pub fn qr_text(&self) -> String {
+        let mut text = [0u8; demo::report::QR_TEXT_BYTES];
+        let len = self.with_report(|report| demo::report::qr_text(report, &mut text));
+        String::from_utf8(text[..len].to_vec()).expect("the report is ASCII")
+    }
+}
+
+/// The texts of every QR code in `picture`, decoded by `rqrr` after scaling
+/// the picture up (nearest neighbour) until it is at least 1200 pixels wide,
+/// as a phone's camera sees a screen's pixels as large squares.
+pub fn decode_qr_codes(picture: &RgbImage) -> Vec<String> {
+    let scale = 1200usize.div_ceil(picture.width).max(1);
+    let (width, height) = (picture.width * scale, picture.height * scale);
+    let mut prepared = rqrr::PreparedImage::prepare_from_greyscale(width, height, |x, y| {
+        let [r, g, b] = picture.pixel(x / scale, y / scale);
+        ((u32::from(r) + u32::from(g) + u32::from(b)) / 3) as u8
+    });
+    prepared
+        .detect_grids()
+        .iter()
+        .map(|grid| match grid.decode() {
+            Ok((_, text)) => text,
+            Err(e) => panic!("a QR code that does not decode: {e:?}"),
+        })
+        .collect()
+}
+
+/// The git commit the tests (and so the kernel) were built from, as the
+/// kernel's build script names it.
+pub fn git_commit() -> String {
+    std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()
+        .filter(|output| output.status.success())
+        .map(|output| String::from_utf8_lossy(&output.stdout).trim().to_owned())
+        .filter(|commit| !commit.is_empty())
+        .unwrap_or_else(|| "unknown".to_owned())
+}
+
+/// The report key, on a kernel that has done `commands_done` commands with
+/// a still picture on screen: the report must appear as `demo::report`
+/// draws what the kernel said it shows (`on_screen` turns the model's
+/// 320x240 picture into the screen's), its QR code must decode to the
+/// report's text, its facts must name `firmware`, the commit and the CPU,
+/// its log lines must be lines the kernel printed; Up must scroll the log
+/// back a line; the key again must bring back the picture from before.
+/// Three commands.
+pub fn report_round_trip(
+    qemu: &mut Qemu,
+    commands_done: u64,
+    firmware: &str,
+    on_screen: impl Fn(&RgbImage, &RgbImage) -> RgbImage,
+) {
+    let before = qemu.screendump().unwrap();
+    let printed_before = qemu.serial();
+    qemu.send_key("i").unwrap();
+    let done = line::CommandDone(commands_done + 1).to_string();
+    let console = qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+    let screen = qemu.screendump().unwrap();
+    let shown = ShownReport::parse(&console[printed_before.len()..]);
+
+    let expected = on_screen(&shown.picture(), &screen);
+    assert_pictures_equal(&screen, &expected, "the report screen");
+
+    let codes = decode_qr_codes(&screen);
+    assert_eq!(codes, [shown.qr_text()], "the QR code holds the report");
+
+    let facts = shown.facts.join("\n");
+    assert!(
+        shown.facts[0].ends_with(&format!("commit {}", git_commit())),
+        "{facts}"
+    );
+    let cpu = shown
+        .facts
+        .iter()
+        .find(|fact| fact.starts_with("cpu: "))
+        .unwrap_or_else(|| panic!("no CPU: {facts}"));
+    assert!(
+        cpu.starts_with("cpu: AuthenticAMD, ") || cpu.starts_with("cpu: GenuineIntel, "),
+        "{cpu}"
+    );
+    assert!(facts.contains(&format!("firmware: {firmware}")), "{facts}");
+    assert!(facts.contains("adapter: PCI 1234:1111"), "{facts}");
+    assert!(facts.contains("clock: "), "{facts}");
+    assert!(facts.contains("counters: "), "{facts}");
+    assert!(!shown.log.is_empty());
+    let printed: Vec<&str> = printed_before.lines().collect();
+    for text in &shown.log {
+        assert!(
+            printed.iter().any(|p| p.starts_with(text.as_str())),
+            "{text:?} was never printed"
+        );
+    }
+    // At the bottom of the log: its newest lines, the last one printed.
+    assert_eq!(shown.position.last, shown.position.total);
+    assert_eq!(
+        shown.log.last().map(String::as_str),
+        printed.last().copied(),
+        "the window ends with the newest line"
+    );
+
+    // Up scrolls the log back a line, if it is longer than the window: the
+    // window then ends one line before the newest (the command line printed
+    // after the report was drawn); a shorter log stays whole.
+    let printed_before = qemu.serial();
+    qemu.send_key("up").unwrap();
+    let done = line::CommandDone(commands_done + 2).to_string();
+    let console = qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+    let scrolled = ShownReport::parse(&console[printed_before.len()..]);
+    let total = scrolled.position.total;
+    assert_eq!(total, shown.position.total + 1);
+    if total > demo::report::LOG_ROWS {
+        assert_eq!(scrolled.position.last, total - 1);
+        assert_eq!(scrolled.log.last(), shown.log.last());
+    } else {
+        assert_eq!(
+            (scrolled.position.first, scrolled.position.last),
+            (1, total)
+        );
+    }
+    let screen = qemu.screendump().unwrap();
+    let expected = on_screen(&scrolled.picture(), &screen);
+    assert_pictures_equal(&screen, &expected, "the report scrolled back a line");
+
+    qemu.send_key("i").unwrap();
+    let done = line::CommandDone(commands_done + 3).to_string();
+    qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+    assert_pictures_equal(
+        &qemu.screendump().unwrap(),
+        &before,
+        "the picture after the report",
+    );
+}
+
+/// `picture` doubled in both directions, as QEMU shows 320x240 Mode X.
+pub fn doubled(picture: &RgbImage) -> RgbImage {
+    let (width, height) = (picture.width * 2, picture.height * 2);
+    let pixels = (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .map(|(x, y)| picture.pixel(x / 2, y / 2))
+        .collect();
+    RgbImage::new(width, height, pixels)
+}

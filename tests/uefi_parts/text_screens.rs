@@ -4,6 +4,9 @@
 //! scan-out, presented. QEMU's screendump is compared with the same screen
 //! drawn by `demo::screens` on a host software VGA and presented the same way.
 //!
+//! The panel also shows the last lines of the kernel's log before the fault:
+//! the test takes them from serial, where every line of that log went.
+//!
 //! The text scan-out itself is checked against QEMU's own VGA: on a BIOS
 //! boot the panel is real VGA text mode, and QEMU's 720x400 picture of it
 //! must equal the model's scan-out dot for dot.
@@ -40,11 +43,33 @@ fn report_lines(console: &str) -> [String; REPORT_LINES] {
     lines
 }
 
-/// The fault panel for `lines`, drawn on a software VGA that was in Mode X.
-fn panel_picture(lines: &[String; REPORT_LINES]) -> RgbImage {
+/// The kernel's log before the fault, as the panel shows it: its serial
+/// lines from its first to the report's first, as the log ring keeps them
+/// (cut at 120 bytes).
+fn log_before_fault(console: &str) -> Vec<String> {
+    let first = console
+        .find(line::KERNEL_BANNER)
+        .unwrap_or_else(|| panic!("no kernel on serial:\n{console}"));
+    let fault = console
+        .find("EXCEPTION: ")
+        .or_else(|| console.find("PANIC: "))
+        .unwrap_or_else(|| panic!("no report on serial:\n{console}"));
+    console[first..fault]
+        .lines()
+        .map(|line| line.chars().take(120).collect())
+        .collect()
+}
+
+/// The fault panel for the kernel's serial output, drawn on a software VGA
+/// that was in Mode X.
+fn panel_picture(console: &str) -> RgbImage {
+    let lines = report_lines(console);
+    let log = log_before_fault(console);
+    assert!(log.len() >= 5, "{log:?}");
     let mut soft = soft_vga_in_mode_x();
     let text: [&str; REPORT_LINES] = std::array::from_fn(|i| lines[i].as_str());
-    demo::screens::fault_panel(&mut ModeX::new(&mut *soft), &text);
+    let log: Vec<&str> = log.iter().map(String::as_str).collect();
+    demo::screens::fault_panel(&mut ModeX::new(&mut *soft), &text, &log);
     text_picture(&soft)
 }
 
@@ -59,11 +84,7 @@ fn assert_panel_on_the_framebuffer(fault: Fault) {
     assert!(console.contains(UEFI_FRAMEBUFFER), "{console}");
     assert_eq!(qemu.wait_exit(Duration::from_secs(1)).unwrap(), None);
     let screen = qemu.screendump().unwrap();
-    let expected = presented(
-        &panel_picture(&report_lines(&console)),
-        screen.width,
-        screen.height,
-    );
+    let expected = presented(&panel_picture(&console), screen.width, screen.height);
     assert_pictures_equal(&screen, &expected, &format!("panel for {option}"));
 }
 
@@ -126,6 +147,6 @@ fn the_text_scan_out_matches_qemus_vga_dot_for_dot() {
     let mut qemu = boot_bios(Some(BootOption::Fault(Fault::Page)));
     let console = qemu.wait_for_serial(line::HALTED, BOOT_TIMEOUT).unwrap();
     let screen = qemu.screendump().unwrap();
-    let expected = panel_picture(&report_lines(&console));
+    let expected = panel_picture(&console);
     assert_pictures_equal(&screen, &expected, "panel on the VGA");
 }

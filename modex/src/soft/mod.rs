@@ -332,4 +332,12 @@ impl VgaBus for SoftVga {
             self.vram_write(address as u16, value);
         }
     }
+    /// A real VGA shows what was written within a frame; the model lets one
+    /// pass, so a start address written since the last retrace is latched.
+    /// Without it a screen drawn with no flip after it (the fault panel's
+    /// text mode, set while page 1 or the report's page 2 was shown) would
+    /// still scan out from the old page's address.
+    fn flush(&mut self) {
+        self.let_a_frame_pass();
+    }
 }
