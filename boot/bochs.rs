@@ -24,8 +24,9 @@ const SYSTEM_BIOS: &str = "/usr/share/bochs/BIOS-bochs-latest";
 const VBE_VGA_BIOS: &str = "/usr/share/vgabios/vgabios.bin";
 const CIRRUS_VGA_BIOS: &str = "/usr/share/vgabios/vgabios-cirrus.bin";
 
-/// Instructions per emulated second. With `clock: sync=none` Bochs runs as
-/// fast as it can and emulated time is instructions / ips, so this sets how
+/// Instructions per emulated second. With `clock: sync=slowdown` Bochs runs as
+/// fast as it can (but never ahead of the host's clock) and emulated time is
+/// instructions / ips, so this sets how
 /// much host work an emulated second costs, and the boot waits in emulated
 /// time (the BIOS's, the kernel's TSC calibration over 0.2 s). Measured to
 /// `screen: ready` on a 2-core machine shared with other builds: 2.3-7 s at
@@ -448,8 +449,10 @@ fn spawn_bochs(
         .arg(debugger_commands)
         .env("DISPLAY", display)
         .current_dir(dir)
-        // At the end of its commands the debugger reads stdin: EOF quits.
-        .stdin(Stdio::null())
+        // At the end of its commands the debugger reads stdin: EOF would quit,
+        // so it gets a pipe that stays open (in the `Child`) and says
+        // nothing: a stop at the magic breakpoint lasts until Bochs is killed.
+        .stdin(Stdio::piped())
         .stdout(output.try_clone().map_err(|e| io_error("bochs.out", e))?)
         .stderr(output)
         .spawn()
@@ -501,12 +504,20 @@ fn bochsrc_text(options: &BochsOptions, disk: &Path, cylinders: u64, dir: &Path)
          ata0-master: type=disk, path={disk}, mode=flat, cylinders={cylinders}, heads=16, spt=63\n\
          boot: disk\n\
          com1: enabled=1, mode=file, dev={serial}\n\
-         # Emulated time follows the instruction count, not the host's clock.\n\
-         clock: sync=none, time0=local\n\
+         # Emulated time follows the instruction count, but never runs ahead\n\
+         # of the host's clock (it may fall behind on a busy host).\n\
+         clock: sync=slowdown, time0=local\n\
          display_library: x\n\
          mouse: enabled=0\n\
          # No sound device to open (and complain about) on a test machine.\n\
          speaker: enabled=0\n\
+         # The kernel marks the moment before it switches the machine off\n\
+         # with Bochs's magic breakpoint (xchg bx, bx, a no-op elsewhere):\n\
+         # Bochs stops in its debugger there, with the goodbye screen in its\n\
+         # window for the test to read, instead of closing it. The kernel\n\
+         # shows the line for 2 s first, which `sync=slowdown` below makes at\n\
+         # least 2 s of host time: 20 window redraws.\n\
+         magic_break: enabled=1\n\
          # A log for error messages; panics and errors are logged, never\n\
          # asked about in a dialog and never fatal, so a run always ends with\n\
          # the test's verdict.\n\

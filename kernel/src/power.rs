@@ -51,6 +51,10 @@ pub fn off() {
             .pm1b_control
             .map(|port| (port, soft_off.sleep_types.b)),
     ];
+    // Bochs's magic breakpoint, a no-op on every other machine: an emulator
+    // whose tests want the last screen stops here (boot/bochs.rs).
+    // SAFETY: `xchg bx, bx` exchanges a register with itself: no effect.
+    unsafe { core::arch::asm!("xchg bx, bx", options(nomem, nostack, preserves_flags)) };
     // SLP_TYP first, then SLP_EN, as the ACPI specification orders it.
     for enable in [0, SLP_EN] {
         for (port, sleep_type) in controls.into_iter().flatten() {
