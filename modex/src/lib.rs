@@ -51,6 +51,7 @@ pub mod card;
 mod detect;
 mod draw;
 mod driver;
+mod io;
 mod mirror;
 pub mod mode;
 mod page;

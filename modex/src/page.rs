@@ -1,7 +1,7 @@
 //! Pages and page flipping: the CRTC start address selects the page shown,
 //! and the VGA latches it at the start of vertical retrace.
 
-use crate::regs::{crtc, status, INPUT_STATUS_1};
+use crate::regs::{status, Crtc};
 use crate::{ModeX, VgaBus, PAGE_BYTES};
 
 /// Pages that fit in the 64 KiB of each plane the CPU window reaches.
@@ -92,8 +92,8 @@ impl<B: VgaBus> ModeX<B> {
         let display_wait_timed_out = !self
             .poll_status(|bits| bits & (status::VERTICAL_RETRACE | status::DISPLAY_DISABLED) == 0);
         let [high, low] = page.base().to_be_bytes();
-        self.write_crtc(crtc::START_ADDRESS_HIGH, high);
-        self.write_crtc(crtc::START_ADDRESS_LOW, low);
+        self.io.write_crtc(Crtc::StartAddressHigh, high);
+        self.io.write_crtc(Crtc::StartAddressLow, low);
         let retrace_wait_timed_out = !self.poll_status(|bits| bits & status::VERTICAL_RETRACE != 0);
         FlipReport {
             display_wait_timed_out,
@@ -104,7 +104,7 @@ impl<B: VgaBus> ModeX<B> {
     /// Reads Input Status 1 until `done` holds or [`STATUS_POLL_LIMIT`] reads
     /// have been made; true if `done` held.
     fn poll_status(&mut self, done: impl Fn(u8) -> bool) -> bool {
-        (0..STATUS_POLL_LIMIT).any(|_| done(self.bus.read_port8(INPUT_STATUS_1)))
+        (0..STATUS_POLL_LIMIT).any(|_| done(self.io.read_status()))
     }
 }
 

@@ -12,7 +12,7 @@
 use crate::bus::VgaBus;
 use crate::driver::ModeX;
 use crate::page::Page;
-use crate::regs::ALL_PLANES;
+use crate::regs::PlaneMask;
 use crate::{BYTES_PER_LINE, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Pixels in a page: one byte each in a RAM image of it.
@@ -47,7 +47,7 @@ impl<B: VgaBus> ModeX<B> {
                 let (old, new) = (quad(old_line, i), quad(new_line, i));
                 if old != new {
                     for (planes, _) in address_writes(old, new) {
-                        *masks |= 1 << planes;
+                        *masks |= mask_bit(planes);
                     }
                 }
             }
@@ -55,16 +55,19 @@ impl<B: VgaBus> ModeX<B> {
         }
         // The mask already set first, which saves its OUT.
         let cached = self
-            .cached_map_mask()
-            .filter(|&m| frame_masks & 1 << m != 0);
-        let others = (1..=ALL_PLANES).filter(|&m| Some(m) != cached && frame_masks & 1 << m != 0);
+            .io
+            .map_mask()
+            .filter(|&m| frame_masks & mask_bit(m) != 0);
+        let others = (1..=PlaneMask::ALL.bits())
+            .map(PlaneMask::from_bits_truncate)
+            .filter(|&m| Some(m) != cached && frame_masks & mask_bit(m) != 0);
         let mut written = 0;
         for mask in cached.into_iter().chain(others) {
-            self.set_map_mask(mask);
+            self.io.set_map_mask(mask);
             for (y, _) in line_masks
                 .iter()
                 .enumerate()
-                .filter(|(_, &m)| m & 1 << mask != 0)
+                .filter(|(_, &m)| m & mask_bit(mask) != 0)
             {
                 let (old_line, new_line) =
                     (&shadow[y * width..][..width], &target[y * width..][..width]);
@@ -84,17 +87,17 @@ impl<B: VgaBus> ModeX<B> {
         line_base: u16,
         old_line: &[u8],
         new_line: &[u8],
-        mask: u8,
+        mask: PlaneMask,
     ) -> u32 {
         let mut written = 0;
         let mut i = 0;
         while i < usize::from(BYTES_PER_LINE) {
             // A run of addresses whose four pixels all become one colour
             // is a single fill with all planes enabled.
-            if mask == ALL_PLANES {
+            if mask == PlaneMask::ALL {
                 let run = solid_run(old_line, new_line, i);
                 if run > 0 {
-                    self.bus
+                    self.io
                         .fill_vram(line_base + i as u16, run as u16, new_line[4 * i]);
                     written += run as u32;
                     i += run;
@@ -108,7 +111,7 @@ impl<B: VgaBus> ModeX<B> {
             }
             for (planes, colour) in address_writes(old, new) {
                 if planes == mask {
-                    self.bus.write_vram8(line_base + i as u16, colour);
+                    self.io.write_vram8(line_base + i as u16, colour);
                     written += 1;
                 }
             }
@@ -120,7 +123,7 @@ impl<B: VgaBus> ModeX<B> {
 
 /// The writes that bring one address from `old` to `new`: one per distinct
 /// new colour among the changed pixels, as (planes, colour).
-fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (u8, u8)> {
+fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (PlaneMask, u8)> {
     let mut pending = (0..4)
         .filter(|&p| old[p] != new[p])
         .fold(0u8, |mask, p| mask | 1 << p);
@@ -133,8 +136,13 @@ fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (u8, u8)> 
             .filter(|&p| pending & 1 << p != 0 && new[p] == colour)
             .fold(0u8, |m, p| m | 1 << p);
         pending &= !planes;
-        Some((planes, colour))
+        Some((PlaneMask::from_bits_truncate(planes), colour))
     })
+}
+
+/// A set of Map Masks is a 16-bit word, bit m for the mask whose value is m.
+fn mask_bit(planes: PlaneMask) -> u16 {
+    1 << planes.bits()
 }
 
 fn quad(line: &[u8], address: usize) -> [u8; 4] {
