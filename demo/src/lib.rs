@@ -38,6 +38,7 @@ extern crate std;
 pub mod app;
 pub mod baseline;
 pub mod command;
+pub mod depth;
 pub mod frame;
 pub mod keymap;
 pub mod keys;
