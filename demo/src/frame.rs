@@ -73,6 +73,16 @@ impl Renderer {
         }
     }
 
+    /// Back to the state of [`Renderer::new`], in place (a renderer in
+    /// static memory is never built again on the stack): both pages and the
+    /// next frame blank, page 0 shown.
+    pub fn reset(&mut self) {
+        self.shown = Page::Zero;
+        for image in self.shadows.iter_mut().chain([&mut self.next]) {
+            image.fill(BACKGROUND);
+        }
+    }
+
     /// The page last drawn: the one on screen once the caller has flipped.
     pub fn shown_page(&self) -> Page {
         self.shown
@@ -103,5 +113,13 @@ impl Renderer {
 impl FrameDrawer for Renderer {
     fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page {
         self.draw_with_overlay(vga, scene, |_, _| {}).0
+    }
+}
+
+/// A borrowed renderer draws as the renderer does (the kernel lends its
+/// static one to the bench).
+impl FrameDrawer for &mut Renderer {
+    fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page {
+        (**self).draw(vga, scene)
     }
 }

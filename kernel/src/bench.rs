@@ -4,9 +4,10 @@
 //! renderer on the crowd of many solids (key X), all depth-tested.
 
 use crate::clock;
+use crate::run::RENDERER;
 use crate::serial_println;
 use demo::baseline::PerPixel;
-use demo::frame::{FrameDrawer, Renderer};
+use demo::frame::FrameDrawer;
 use demo::scene::{Scene, SceneCommand};
 use modex::{ModeX, VgaBus};
 
@@ -32,14 +33,16 @@ fn time_frames<B: VgaBus, D: FrameDrawer>(
     (clock::micros() - start) / FRAMES
 }
 
-// Never inlined: its renderers take ~280 KiB of stack, and inlined into the
-// boot-option dispatch that frame stayed allocated under the demo's own
-// ~350 KiB, overflowing the 1 MiB stack on the first R.
-#[inline(never)]
 pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
-    let ours = time_frames(vga, Renderer::new(), &[]);
+    // The static renderer (its images are too big for the stack), reset for
+    // each run as the blank pages of its mode set expect.
+    let mut renderer = RENDERER.lock();
+    renderer.reset();
+    let ours = time_frames(vga, &mut *renderer, &[]);
     let per_pixel = time_frames(vga, PerPixel::default(), &[]);
-    let crowd = time_frames(vga, Renderer::new(), &[SceneCommand::ToggleCrowd]);
+    renderer.reset();
+    let crowd = time_frames(vga, &mut *renderer, &[SceneCommand::ToggleCrowd]);
+    drop(renderer);
     vga.set_mode();
     serial_println!(
         "bench: {} frames each: ours {} us/frame, per-pixel {} us/frame, per-pixel/ours = {}.{:02}",

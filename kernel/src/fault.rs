@@ -105,6 +105,7 @@ fn report(lines: &[Line]) -> ! {
     for line in lines.iter().filter(|l| l.len > 0) {
         crate::serial_println!("{}", line.as_str());
     }
+    crate::stack::report();
     show_on_screen(lines);
     halt_forever()
 }

@@ -38,3 +38,4 @@ pub mod fw_cfg;
 pub mod pacing;
 pub mod protocol;
 pub mod reset_keys;
+pub mod stack;
