@@ -36,6 +36,8 @@ pub mod clock;
 pub mod firmware;
 pub mod fw_cfg;
 pub mod pacing;
+pub mod pat;
 pub mod protocol;
 pub mod reset_keys;
 pub mod stack;
+pub mod trampoline;
