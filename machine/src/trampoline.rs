@@ -173,6 +173,6 @@ mod tests {
         }
         let (last, size) = fields[fields.len() - 1];
         assert!(last + size <= CODE);
-        assert!(CODE < STACK_TOP && STACK_TOP < AREA);
+        const { assert!(CODE < STACK_TOP && STACK_TOP < AREA) };
     }
 }
