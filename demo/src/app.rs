@@ -65,6 +65,29 @@ impl FrameRate {
 /// (a host test boxes the app or keeps it where it likes); the kernel lends
 /// it one in static memory instead ([`App::with_renderer`]), so the images
 /// never sit on the kernel stack.
+///
+/// # Example
+///
+/// A renderer lent to the app, as the kernel lends its static one; the
+/// letter N puts the next solid in the cube's place:
+///
+/// ```
+/// use demo::app::App;
+/// use demo::frame::Renderer;
+/// use modex::soft::SoftVga;
+/// use modex::ModeX;
+///
+/// let mut soft = Box::new(SoftVga::new());
+/// let mut vga = ModeX::new(&mut *soft);
+/// vga.set_mode();
+/// let mut renderer = Box::new(Renderer::new());
+/// let mut app = App::with_renderer(&mut *renderer);
+/// assert!(app.step(&mut vga, &|| 0u64).is_some());
+/// app.feed_scancode(0x31); // N pressed
+/// app.feed_scancode(0xB1); // and released
+/// assert_eq!(app.commands(), 1);
+/// assert_ne!(app.scene().solid().name, "cube");
+/// ```
 pub struct App<R: BorrowMut<Renderer> = Renderer> {
     scene: Scene,
     renderer: R,

@@ -4,6 +4,8 @@
 #![no_std]
 #![no_main]
 #![feature(abi_x86_interrupt)]
+// Every `unsafe` block says why it is sound (DEVELOPERS.md); clippy checks it.
+#![deny(clippy::undocumented_unsafe_blocks)]
 
 mod acpi;
 mod bench;

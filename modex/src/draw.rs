@@ -71,6 +71,29 @@ fn line_offset(page: Page, y: i32) -> u16 {
 impl<B: VgaBus> ModeX<B> {
     /// Fills the half-open rectangle [x0, x1) x [y0, y1) of `page`, clipped to
     /// the screen; an empty or inverted rectangle draws nothing.
+    ///
+    /// # Example
+    ///
+    /// Four pixels a byte: a rectangle 5 to 11 wide writes its ragged edge
+    /// columns through a narrower Map Mask, and its middle whole.
+    ///
+    /// ```
+    /// use modex::soft::SoftVga;
+    /// use modex::{ModeX, Page};
+    ///
+    /// let mut soft = Box::new(SoftVga::new());
+    /// let mut vga = ModeX::new(&mut *soft);
+    /// vga.set_mode();
+    /// let before = vga.bus().counts();
+    /// vga.fill_rect(Page::Zero, 5, 0, 11, 1, 9); // columns 5..11 of line 0
+    /// let after = vga.bus().counts();
+    /// // Bytes 1 (planes 1-3) and 2 (planes 0-2): two Map Masks, two bytes.
+    /// assert_eq!(after.vram_writes - before.vram_writes, 2);
+    /// assert_eq!(after.port_writes - before.port_writes, 2);
+    /// let mut screen = vec![0u8; 320 * 240];
+    /// soft.scanout_indices(&mut screen);
+    /// assert_eq!(&screen[4..12], &[0, 9, 9, 9, 9, 9, 9, 0]);
+    /// ```
     pub fn fill_rect(&mut self, page: Page, x0: i32, y0: i32, x1: i32, y1: i32, color: u8) {
         let (Some((x0, x1)), Some((y0, y1))) =
             (clip(x0, x1, SCREEN_WIDTH), clip(y0, y1, SCREEN_HEIGHT))

@@ -88,6 +88,22 @@ impl<B: VgaBus> ModeX<B> {
     /// blanking lines away from it): the two bytes cannot be latched half old,
     /// half new. Then the flip waits for the start of vertical retrace, where
     /// the VGA latches the start address. Both waits are bounded.
+    ///
+    /// # Example
+    ///
+    /// A VGA whose retrace bit never rises: the flip gives up after
+    /// [`STATUS_POLL_LIMIT`] reads and says so, instead of hanging.
+    ///
+    /// ```
+    /// use modex::soft::SoftVga;
+    /// use modex::{ModeX, Page};
+    ///
+    /// let mut soft = Box::new(SoftVga::new());
+    /// ModeX::new(&mut *soft).set_mode();
+    /// soft.set_retrace_stuck(Some(false));
+    /// let report = ModeX::new(&mut *soft).show_page(Page::One);
+    /// assert!(report.retrace_wait_timed_out && !report.display_wait_timed_out);
+    /// ```
     pub fn show_page(&mut self, page: Page) -> FlipReport {
         let display_wait_timed_out = !self
             .poll_status(|bits| bits & (status::VERTICAL_RETRACE | status::DISPLAY_DISABLED) == 0);

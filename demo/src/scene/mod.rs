@@ -40,6 +40,19 @@ pub const SATELLITES: usize = 2;
 pub const MAX_OBJECTS: usize = 1 + SATELLITES + CROWD;
 
 /// What is drawn: the objects, the light, and the switches the keys flip.
+///
+/// # Example
+///
+/// ```
+/// use demo::scene::{Scene, SceneCommand};
+///
+/// let mut scene = Scene::initial(); // Abrash's cube, still
+/// let mut faces = 0;
+/// let counts = scene.visible_faces(|_polygon, _colour| faces += 1);
+/// assert_eq!((faces, counts.drawn), (1, 1)); // seen face on: one face
+/// scene.apply(SceneCommand::ToggleSeveral);
+/// assert_eq!(scene.objects().len(), 3); // with its two satellites
+/// ```
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// The object the keys move (index 0), the satellites, then the crowd:

@@ -53,6 +53,23 @@ pub use scanout::dac_6_to_8;
 pub use timing::{CrtTiming, PORT_ACCESS_NS, VRAM_ACCESS_NS};
 
 /// The software VGA.
+///
+/// # Example
+///
+/// Port writes reach its registers as on a VGA, and every bus operation is
+/// counted:
+///
+/// ```
+/// use modex::regs::{Port, Sequencer};
+/// use modex::soft::SoftVga;
+/// use modex::VgaBus;
+///
+/// let mut soft = Box::new(SoftVga::new()); // text mode 3, as the BIOS leaves it
+/// let map_mask = u16::from_le_bytes([Sequencer::MapMask.index(), 0x05]);
+/// soft.write_port16(Port::SEQUENCER_INDEX, map_mask);
+/// assert_eq!(soft.sequencer(Sequencer::MapMask), 0x05);
+/// assert_eq!(soft.counts().port_writes, 1);
+/// ```
 #[derive(Clone)]
 pub struct SoftVga {
     registers: Registers,
