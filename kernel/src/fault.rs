@@ -102,10 +102,12 @@ fn report(lines: &[Line]) -> ! {
     // SAFETY: this path ends in `halt_forever` and never returns to the
     // code the fault or panic interrupted.
     unsafe { crate::serial::force_unlock() };
+    // The stack's high-water mark first: the report's own lines, from its
+    // heading to the halt, are exactly the panel's.
+    crate::stack::report();
     for line in lines.iter().filter(|l| l.len > 0) {
         crate::serial_println!("{}", line.as_str());
     }
-    crate::stack::report();
     show_on_screen(lines);
     halt_forever()
 }
