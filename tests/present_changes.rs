@@ -7,7 +7,8 @@
 use modex::present::{
     present, FramebufferLayout, PackedFormat, PixelOrder, Presenter, MAX_PICTURE_PIXELS,
 };
-use modex::regs::{ATTRIBUTE_INDEX, DAC_PIXEL_MASK};
+use modex::regs::{Graphics, Port};
+
 use modex::soft::SoftVga;
 use modex::{ModeX, Page, VgaBus};
 use proptest::prelude::*;
@@ -61,7 +62,7 @@ fn step() -> impl Strategy<Value = Step> {
 fn apply(soft: &mut SoftVga, step: &Step) {
     let font: [[u8; 8]; 128] =
         core::array::from_fn(|g| core::array::from_fn(|r| (g * 7 + r * 31) as u8));
-    let text_mode = soft.graphics(modex::regs::gc::MISC) & 1 == 0;
+    let text_mode = soft.graphics(Graphics::Misc) & 1 == 0;
     let mut vga = ModeX::new(&mut *soft);
     match step.clone() {
         Step::Fill(page, x0, y0, x1, y1, colour) => vga.fill_rect(page, x0, y0, x1, y1, colour),
@@ -69,9 +70,9 @@ fn apply(soft: &mut SoftVga, step: &Step) {
             vga.show_page(page);
         }
         Step::Dac(index, colour) => vga.load_palette(index, &[colour]),
-        Step::PixelMask(mask) => vga.bus_mut().write_port8(DAC_PIXEL_MASK, mask),
+        Step::PixelMask(mask) => vga.bus_mut().write_port8(Port::DAC_PIXEL_MASK, mask),
         // Palette Address Source clear: the screen goes blank.
-        Step::Blank => vga.bus_mut().write_port8(ATTRIBUTE_INDEX, 0),
+        Step::Blank => vga.bus_mut().write_port8(Port::ATTRIBUTE_INDEX, 0),
         Step::Text(row, column, text, attribute) => {
             if !text_mode {
                 vga.set_text_mode(&font);

@@ -7,6 +7,7 @@ use crate::keymap::command_for;
 use crate::osd::{self, Overlay, Stats};
 use crate::scene::Scene;
 use crate::shading::{ramp_palette, RAMP_FIRST};
+use core::borrow::BorrowMut;
 use engine::FaceCounts;
 use modex::{FlipReport, ModeX, VgaBus};
 use pc_keyboard::{layouts::Us104Key, HandleControl, PS2Keyboard as Keyboard, ScancodeSet1};
@@ -59,9 +60,37 @@ impl FrameRate {
 
 /// The demo: keyboard decoding, the scene, the renderer and the overlay,
 /// stepped once per frame by the kernel or a test.
-pub struct App {
+///
+/// The renderer holds three 75 KiB frame images. `App` owns it by default
+/// (a host test boxes the app or keeps it where it likes); the kernel lends
+/// it one in static memory instead ([`App::with_renderer`]), so the images
+/// never sit on the kernel stack.
+///
+/// # Example
+///
+/// A renderer lent to the app, as the kernel lends its static one; the
+/// letter N puts the next solid in the cube's place:
+///
+/// ```
+/// use demo::app::App;
+/// use demo::frame::Renderer;
+/// use modex::soft::SoftVga;
+/// use modex::ModeX;
+///
+/// let mut soft = Box::new(SoftVga::new());
+/// let mut vga = ModeX::new(&mut *soft);
+/// vga.set_mode();
+/// let mut renderer = Box::new(Renderer::new());
+/// let mut app = App::with_renderer(&mut *renderer);
+/// assert!(app.step(&mut vga, &|| 0u64).is_some());
+/// app.feed_scancode(0x31); // N pressed
+/// app.feed_scancode(0xB1); // and released
+/// assert_eq!(app.commands(), 1);
+/// assert_ne!(app.scene().solid().name, "cube");
+/// ```
+pub struct App<R: BorrowMut<Renderer> = Renderer> {
     scene: Scene,
-    renderer: Renderer,
+    renderer: R,
     keyboard: Keyboard<Us104Key, ScancodeSet1>,
     /// Set by any key that is not a command; the next key only clears it.
     paused: bool,
@@ -91,11 +120,11 @@ pub struct ReportView {
     drawn: bool,
 }
 
-impl core::fmt::Debug for App {
+impl<R: BorrowMut<Renderer>> core::fmt::Debug for App<R> {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("App")
             .field("scene", &self.scene)
-            .field("renderer", &self.renderer)
+            .field("renderer", self.renderer.borrow())
             .field("paused", &self.paused)
             .field("quit", &self.quit)
             .field("commands", &self.commands)
@@ -113,9 +142,18 @@ impl Default for App {
 impl App {
     /// The demo at boot: the cube spinning, no overlay.
     pub fn new() -> Self {
+        App::with_renderer(Renderer::new())
+    }
+}
+
+impl<R: BorrowMut<Renderer>> App<R> {
+    /// The demo at boot, drawing with `renderer` (reset first: both pages
+    /// blank, page 0 shown, as `ModeX::set_mode` leaves them).
+    pub fn with_renderer(mut renderer: R) -> Self {
+        renderer.borrow_mut().reset();
         App {
             scene: Scene::new(),
-            renderer: Renderer::new(),
+            renderer,
             keyboard: Keyboard::new(ScancodeSet1::new(), Us104Key, HandleControl::Ignore),
             paused: false,
             quit: false,
@@ -284,7 +322,7 @@ impl App {
 
     /// The page on screen; the next frame is drawn into the other one.
     pub fn shown_page(&self) -> modex::Page {
-        self.renderer.shown_page()
+        self.renderer.borrow().shown_page()
     }
 
     /// Advances the spin and draws a frame if anything moved (or, with the
@@ -303,7 +341,7 @@ impl App {
             // The report used the spare page only: the demo's page still
             // holds what it showed, and the shadows are still true.
             self.restore_page = false;
-            return Some(vga.show_page(self.renderer.shown_page()));
+            return Some(vga.show_page(self.renderer.borrow().shown_page()));
         }
         if self.report.is_some() {
             return None;
@@ -331,6 +369,7 @@ impl App {
         let (overlay, stats) = (self.overlay, self.stats());
         let (page, faces) =
             self.renderer
+                .borrow_mut()
                 .draw_with_overlay(vga, &mut self.scene, |image, faces| {
                     osd::draw(image, overlay, &Stats { faces, ..stats })
                 });

@@ -9,8 +9,7 @@
 use crate::frame::{FrameDrawer, BACKGROUND, SCREEN_CLIP};
 use crate::scene::Scene;
 use engine::{fill_convex_polygon, Point};
-use modex::regs::{seq, SEQUENCER_INDEX};
-use modex::{ModeX, Page, VgaBus, BYTES_PER_LINE};
+use modex::{ModeX, Page, VgaBus};
 
 /// A half-open screen rectangle [x0, x1) x [y0, y1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -115,13 +114,7 @@ pub struct MapMaskPerPixel;
 impl MapMaskPerPixel {
     fn pixel<B: VgaBus>(vga: &mut ModeX<B>, page: Page, x: i32, y: i32, colour: u8) {
         // Map Mask index and value in one OUT, every pixel, then the byte.
-        // This bypasses the driver's register cache on purpose (it is the
-        // baseline); a ModeX used for it needs `set_mode` before other drawing.
-        let planes = 1u16 << (x & 3);
-        vga.bus_mut()
-            .write_port16(SEQUENCER_INDEX, u16::from(seq::MAP_MASK) | planes << 8);
-        let address = page.base() + y as u16 * BYTES_PER_LINE + (x >> 2) as u16;
-        vga.bus_mut().write_vram8(address, colour);
+        vga.put_pixel_uncached(page, x, y, colour);
     }
 }
 

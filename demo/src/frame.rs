@@ -5,13 +5,18 @@
 //! image per page, since the two pages hold different frames — and the page is
 //! shown in step with vertical retrace.
 //!
+//! Which surfaces hide which is decided in [`crate::depth`]; this module
+//! only turns the frame it renders into the fewest bus writes.
+//!
 //! Abrash's own method (erase the last extent, fill every visible face) is
 //! kept in `baseline` for comparison; it writes every visible pixel every frame.
 
+use crate::depth::render_with_depth;
 use crate::scene::Scene;
-use core::ops::Range;
-use engine::{fill_convex_polygon, ClipRect, DepthBand, FaceCounts, VisibleFace, BANDS, BAND_ROWS};
+use engine::{ClipRect, DepthBand, FaceCounts};
 use modex::{ModeX, Page, PageImage, VgaBus, PAGE_PIXELS, SCREEN_HEIGHT, SCREEN_WIDTH};
+
+pub use crate::depth::{render_faces_with_depth, render_painter, render_to_image};
 
 /// The colour index behind everything drawn.
 pub const BACKGROUND: u8 = 0;
@@ -29,118 +34,6 @@ pub trait FrameDrawer {
     /// Draws the scene into the page not shown, returns that page, and from
     /// then on counts it as shown (the caller flips to it, or not, as it likes).
     fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page;
-}
-
-/// The scene as colour indices in RAM, background first, each pixel showing
-/// the nearest face there (the depth test; see `render_with_depth`).
-pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
-    render_with_depth(scene, image, &mut DepthBand::new())
-}
-
-/// Hidden surfaces, exactly: backface removal first rejects the faces turned
-/// away, then every remaining face is scan-converted with a per-pixel depth
-/// test (−1/z from the face's plane, see `engine::depth`), so the nearest
-/// surface shows whatever the objects' order, shape or overlap. The depth
-/// buffer covers one band of rows at a time (`band`), so the faces are
-/// walked once per band.
-///
-/// The test is paid only where it can change a pixel. Within one convex
-/// solid the faces that survive backface removal never overlap, so only the
-/// bands holding rows where two objects' screen rectangles meet, or a
-/// non-convex solid, are drawn with the test (`Scene::rows_needing_depth_test`);
-/// the rows above and below them are filled without it, far to near — for the
-/// starting scene that is the whole frame, at the cost it had before the depth
-/// test. Each row is drawn once, one way or the other. Tests check this gives
-/// the picture of the depth test everywhere.
-pub fn render_with_depth(
-    scene: &mut Scene,
-    image: &mut PageImage,
-    band: &mut DepthBand,
-) -> FaceCounts {
-    let Some(rows) = scene.rows_needing_depth_test() else {
-        return render_painter(scene, image);
-    };
-    let first = rows.start.clamp(0, SCREEN_HEIGHT) / BAND_ROWS;
-    let last = (rows.end.clamp(0, SCREEN_HEIGHT) + BAND_ROWS - 1) / BAND_ROWS;
-    if first == last {
-        return render_painter(scene, image);
-    }
-    for untested in [0..first * BAND_ROWS, last * BAND_ROWS..SCREEN_HEIGHT] {
-        if !untested.is_empty() {
-            painter_rows(scene, image, untested);
-        }
-    }
-    depth_test_bands(image, band, first..last, |clip, draw| {
-        scene.each_visible_face_in_rows(clip.y0..clip.y1, |visible, colour| draw(visible, colour))
-    })
-}
-
-/// The depth-tested drawing of `render_with_depth` for any set of objects:
-/// `faces` is called once per band, with the band's rows, and must hand every
-/// face that survived backface removal — it may leave out those that miss
-/// the band's rows — with its colour, to the function it is given. The
-/// counts of the first band are returned.
-pub fn render_faces_with_depth(
-    image: &mut PageImage,
-    band: &mut DepthBand,
-    faces: impl FnMut(ClipRect, &mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
-) -> FaceCounts {
-    depth_test_bands(image, band, 0..BANDS, faces)
-}
-
-/// `render_faces_with_depth` for the bands in `bands` only: their rows are
-/// cleared to the background and drawn with the depth test; the rest of
-/// `image` is left as it is.
-fn depth_test_bands(
-    image: &mut PageImage,
-    band: &mut DepthBand,
-    bands: Range<i32>,
-    mut faces: impl FnMut(ClipRect, &mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
-) -> FaceCounts {
-    let mut counts = None;
-    for index in bands {
-        band.start(index);
-        let clip = band.clip();
-        let rows = (clip.y0 * SCREEN_WIDTH) as usize..(clip.y1 * SCREEN_WIDTH) as usize;
-        image[rows].fill(BACKGROUND);
-        let band_counts = faces(clip, &mut |visible, colour| {
-            let Some(plane) = visible.depth_plane() else {
-                return;
-            };
-            fill_convex_polygon(visible.polygon, clip, |y, x_start, x_end| {
-                let row = (y * SCREEN_WIDTH) as usize;
-                let pixels = &mut image[row + x_start as usize..row + x_end as usize];
-                band.test_span(&plane, y, x_start, pixels, colour);
-            });
-        });
-        counts.get_or_insert(band_counts);
-    }
-    counts.unwrap_or_default()
-}
-
-/// The painter's algorithm, kept for comparison: whole objects far to near by
-/// the distance of their centres, faces in model order, no depth test. Exact
-/// only for convex objects that do not interpenetrate.
-pub fn render_painter(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
-    painter_rows(scene, image, 0..SCREEN_HEIGHT)
-}
-
-/// `render_painter` for the rows in `rows` only; the rest of `image` is left
-/// as it is.
-fn painter_rows(scene: &mut Scene, image: &mut PageImage, rows: Range<i32>) -> FaceCounts {
-    image[(rows.start * SCREEN_WIDTH) as usize..(rows.end * SCREEN_WIDTH) as usize]
-        .fill(BACKGROUND);
-    let clip = ClipRect {
-        y0: rows.start,
-        y1: rows.end,
-        ..SCREEN_CLIP
-    };
-    scene.visible_faces(|polygon, colour| {
-        fill_convex_polygon(polygon, clip, |y, x_start, x_end| {
-            let row = (y * SCREEN_WIDTH) as usize;
-            image[row + x_start as usize..row + x_end as usize].fill(colour);
-        });
-    })
 }
 
 /// Double-buffered drawing that writes each frame's changes only.
@@ -180,6 +73,16 @@ impl Renderer {
         }
     }
 
+    /// Back to the state of [`Renderer::new`], in place (a renderer in
+    /// static memory is never built again on the stack): both pages and the
+    /// next frame blank, page 0 shown.
+    pub fn reset(&mut self) {
+        self.shown = Page::Zero;
+        for image in self.shadows.iter_mut().chain([&mut self.next]) {
+            image.fill(BACKGROUND);
+        }
+    }
+
     /// The page last drawn: the one on screen once the caller has flipped.
     pub fn shown_page(&self) -> Page {
         self.shown
@@ -213,62 +116,10 @@ impl FrameDrawer for Renderer {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::scene::SceneCommand;
-    use std::boxed::Box;
-
-    /// The starting scene (one convex cube, flat colours) looks exactly as
-    /// before the depth test, and so do the three solids while their orbits
-    /// keep them apart: there the painter's order was already exact. (One
-    /// convex solid alone is drawn without the depth test, as before it; for
-    /// solids with faces of five corners, rounding a nearly edge-on face's
-    /// corners to pixels can fold it over its neighbour by a pixel, and there
-    /// the two ways may pick different faces, within the edge band that
-    /// `demo/tests/hidden_surfaces.rs` allows.)
-    #[test]
-    fn the_depth_test_changes_nothing_where_the_painters_order_was_exact() {
-        let mut depth = Box::new([0u8; PAGE_PIXELS]);
-        let mut painter = Box::new([0u8; PAGE_PIXELS]);
-        let mut mixed = Box::new([0u8; PAGE_PIXELS]);
-        let mut band = Box::new(DepthBand::new());
-        for (shape, several, frames) in [(0, false, 360), (0, true, 360)] {
-            let mut scene = Scene::new();
-            for _ in 0..shape {
-                scene.apply(SceneCommand::NextSolid);
-            }
-            assert!(scene.solid().convex);
-            if several {
-                scene.apply(SceneCommand::ToggleSeveral);
-            }
-            if !several {
-                assert!(!scene.needs_depth_test());
-            }
-            let mut skipped = 0;
-            for frame in 0..frames {
-                scene.tick();
-                skipped += usize::from(!scene.needs_depth_test());
-                // The depth test itself, even where it would be skipped.
-                let a = render_faces_with_depth(&mut depth, &mut band, |clip, draw| {
-                    scene.each_visible_face_in_rows(clip.y0..clip.y1, |v, c| draw(v, c))
-                });
-                let b = render_painter(&mut scene, &mut painter);
-                assert_eq!(render_with_depth(&mut scene, &mut mixed, &mut band), a);
-                assert!(depth == mixed, "the bands drawn without the test differ");
-                assert_eq!(a, b);
-                assert!(
-                    depth == painter,
-                    "shape {shape}, frame {frame}, several: {several}"
-                );
-            }
-            // The orbits keep the three apart for some frames, not all.
-            if several {
-                assert!(
-                    skipped > 0 && skipped < frames,
-                    "{skipped} of {frames} skipped"
-                );
-            }
-        }
+/// A borrowed renderer draws as the renderer does (the kernel lends its
+/// static one to the bench).
+impl FrameDrawer for &mut Renderer {
+    fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page {
+        (**self).draw(vga, scene)
     }
 }

@@ -29,7 +29,7 @@
 
 #![no_std]
 #![forbid(unsafe_code)]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
 #![warn(missing_debug_implementations)]
 
 #[cfg(test)]
@@ -38,6 +38,7 @@ extern crate std;
 pub mod app;
 pub mod baseline;
 pub mod command;
+pub mod depth;
 pub mod frame;
 pub mod keymap;
 pub mod keys;

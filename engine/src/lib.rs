@@ -55,7 +55,8 @@
 
 #![no_std]
 #![forbid(unsafe_code)]
-#![warn(missing_docs, missing_debug_implementations)]
+#![deny(missing_docs)]
+#![warn(missing_debug_implementations)]
 
 #[cfg(test)]
 extern crate std;

@@ -5,11 +5,14 @@
 //! the cube and the crowd, where a frame's time goes, phase by phase.
 
 use crate::clock;
+use crate::run::RENDERER;
 use crate::serial_println;
 use demo::baseline::PerPixel;
-use demo::frame::{render_with_depth, FrameDrawer, Renderer, BACKGROUND};
+use demo::depth::{render_with_depth, rows_needing_depth_test};
+use demo::frame::{FrameDrawer, BACKGROUND};
 use demo::scene::{Scene, SceneCommand};
 use engine::DepthBand;
+use modex::regs::Port;
 use modex::{ModeX, Page, PageImage, VgaBus, PAGE_PIXELS};
 use spin::Mutex;
 
@@ -35,14 +38,16 @@ fn time_frames<B: VgaBus, D: FrameDrawer>(
     (clock::micros() - start) / FRAMES
 }
 
-// Never inlined: its renderers take ~280 KiB of stack, and inlined into the
-// boot-option dispatch that frame stayed allocated under the demo's own
-// ~350 KiB, overflowing the 1 MiB stack on the first R.
-#[inline(never)]
 pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
-    let ours = time_frames(vga, Renderer::new(), &[]);
+    // The static renderer (its images are too big for the stack), reset for
+    // each run as the blank pages of its mode set expect.
+    let mut renderer = RENDERER.lock();
+    renderer.reset();
+    let ours = time_frames(vga, &mut *renderer, &[]);
     let per_pixel = time_frames(vga, PerPixel::default(), &[]);
-    let crowd = time_frames(vga, Renderer::new(), &[SceneCommand::ToggleCrowd]);
+    renderer.reset();
+    let crowd = time_frames(vga, &mut *renderer, &[SceneCommand::ToggleCrowd]);
+    drop(renderer);
     vga.set_mode();
     serial_println!(
         "bench: {} frames each: ours {} us/frame, per-pixel {} us/frame, per-pixel/ours = {}.{:02}",
@@ -114,9 +119,9 @@ static IMAGES: Mutex<Images> = Mutex::new(Images {
 struct NoBus;
 
 impl VgaBus for NoBus {
-    fn write_port8(&mut self, _port: u16, _value: u8) {}
-    fn write_port16(&mut self, _port: u16, _value: u16) {}
-    fn read_port8(&mut self, _port: u16) -> u8 {
+    fn write_port8(&mut self, _port: Port, _value: u8) {}
+    fn write_port16(&mut self, _port: Port, _value: u16) {}
+    fn read_port8(&mut self, _port: Port) -> u8 {
         0
     }
     fn write_vram8(&mut self, _offset: u16, _value: u8) {}
@@ -147,7 +152,7 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
         let t0 = clock::rdtsc();
         scene.tick();
         let t1 = clock::rdtsc();
-        let _ = scene.rows_needing_depth_test();
+        let _ = rows_needing_depth_test(&mut scene);
         let t2 = clock::rdtsc();
         render_with_depth(&mut scene, &mut images.next, &mut images.band);
         let t3 = clock::rdtsc();

@@ -104,6 +104,9 @@ fn report(lines: &[Line]) -> ! {
     // SAFETY: this path ends in `halt_forever` and never returns to the
     // code the fault or panic interrupted.
     unsafe { crate::serial::force_unlock() };
+    // The stack's high-water mark first: the report's own lines, from its
+    // heading to the halt, are exactly the panel's.
+    crate::stack::report();
     // The log as it was before the fault, for the panel. Held from here on,
     // so the fault's own lines go to serial only (counted as lost from the
     // ring), and the panel shows the lines that led up to it.

@@ -12,53 +12,29 @@
 //! says what we started from.
 
 use crate::serial_println;
+use machine::pat::{
+    entry_encoding, entry_type_name, pat_index, select_pat_entry, table_index, walk_step,
+    with_entry, Level, MemoryType, Walk, CPUID_PAT, IA32_PAT, WC_ENTRY,
+};
 use x86_64::registers::control::Cr3;
 use x86_64::registers::model_specific::Msr;
-
-const IA32_PAT: u32 = 0x277;
-/// CPUID leaf 1, EDX bit 16: the PAT is there.
-const CPUID_PAT: u32 = 1 << 16;
-/// The PAT entry we make write-combining, and its memory type encoding.
-const WC_ENTRY: u64 = 4;
-const TYPE_WC: u64 = 0x01;
-
-const PRESENT: u64 = 1 << 0;
-const PWT: u64 = 1 << 3;
-const PCD: u64 = 1 << 4;
-/// Bit 7 is PAT in a 4 KiB PTE, "huge page" in a directory entry, whose PAT
-/// bit is then bit 12.
-const PAT_4K: u64 = 1 << 7;
-const HUGE: u64 = 1 << 7;
-const PAT_HUGE: u64 = 1 << 12;
-const ADDRESS: u64 = 0x000F_FFFF_FFFF_F000;
-
-fn type_name(encoding: u64) -> &'static str {
-    match encoding {
-        0x00 => "UC",
-        0x01 => "WC",
-        0x04 => "WT",
-        0x05 => "WP",
-        0x06 => "WB",
-        0x07 => "UC-",
-        _ => "reserved",
-    }
-}
 
 /// The page-table entry mapping `virt` and the size of its page.
 struct Leaf {
     entry: *mut u64,
     page_bytes: u64,
-    pat_bit: u64,
+    level: Level,
 }
 
 impl Leaf {
-    fn pat_index(&self) -> u64 {
+    fn read(&self) -> u64 {
         // SAFETY: `entry` points into a live page table, reached through the
         // physical-memory mapping (see `leaf`).
-        let entry = unsafe { self.entry.read_volatile() };
-        u64::from(entry & self.pat_bit != 0) << 2
-            | u64::from(entry & PCD != 0) << 1
-            | u64::from(entry & PWT != 0)
+        unsafe { self.entry.read_volatile() }
+    }
+
+    fn pat_index(&self) -> u8 {
+        pat_index(self.read(), self.level)
     }
 }
 
@@ -67,29 +43,22 @@ impl Leaf {
 fn leaf(virt: u64, offset: u64) -> Option<Leaf> {
     let mut table = Cr3::read().0.start_address().as_u64() + offset;
     for level in (1..=4u32).rev() {
-        let shift = 12 + 9 * (level - 1);
-        let index = (virt >> shift) & 0x1FF;
-        let entry = (table + index * 8) as *mut u64;
+        let entry = (table + table_index(virt, level) * 8) as *mut u64;
         // SAFETY: `table` is a page table's physical address (from CR3 or a
         // present entry above) plus the offset at which the bootloader maps
-        // all physical memory; an entry is 8 bytes and `index` < 512.
+        // all physical memory; an entry is 8 bytes and the index < 512.
         let value = unsafe { entry.read_volatile() };
-        if value & PRESENT == 0 {
-            return None;
+        match walk_step(value, level) {
+            Walk::NotPresent => return None,
+            Walk::Leaf { page_bytes, level } => {
+                return Some(Leaf {
+                    entry,
+                    page_bytes,
+                    level,
+                })
+            }
+            Walk::Table(physical) => table = physical + offset,
         }
-        if level == 1 || (level <= 3 && value & HUGE != 0) {
-            let (page_bytes, pat_bit) = if level == 1 {
-                (4096, PAT_4K)
-            } else {
-                (1 << shift, PAT_HUGE)
-            };
-            return Some(Leaf {
-                entry,
-                page_bytes,
-                pat_bit,
-            });
-        }
-        table = (value & ADDRESS) + offset;
     }
     None
 }
@@ -112,16 +81,15 @@ pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
     }
     // SAFETY: the CPU has the PAT (CPUID above), so the MSR exists.
     let pat = unsafe { Msr::new(IA32_PAT).read() };
-    let entry_type = |index: u64| (pat >> (index * 8)) & 0x07;
     let before = first.pat_index();
     serial_println!(
         "display: framebuffer mapped by the bootloader with {} KiB pages, PAT entry {} = {}",
         first.page_bytes / 1024,
         before,
-        type_name(entry_type(before))
+        entry_type_name(pat, before)
     );
 
-    let wc_pat = (pat & !(0xFF << (WC_ENTRY * 8))) | (TYPE_WC << (WC_ENTRY * 8));
+    let wc_pat = with_entry(pat, WC_ENTRY, MemoryType::WriteCombining);
     x86_64::instructions::interrupts::without_interrupts(|| {
         // SAFETY: entry 4 is selected only by PTEs with the PAT bit set,
         // which the bootloader does not use, so no existing mapping changes
@@ -143,7 +111,7 @@ pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
             unsafe {
                 let value = page.entry.read_volatile();
                 page.entry
-                    .write_volatile((value & !(PCD | PWT)) | page.pat_bit);
+                    .write_volatile(select_pat_entry(value, page.level, WC_ENTRY));
             }
             pages += 1;
             virt = (virt & !(page.page_bytes - 1)) + page.page_bytes;
@@ -155,7 +123,8 @@ pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
         // SAFETY: as the read above.
         let pat_now = unsafe { Msr::new(IA32_PAT).read() };
         let entry_now = leaf(start, physical_memory_offset).map(|page| page.pat_index());
-        if (pat_now >> (WC_ENTRY * 8)) & 0x07 == TYPE_WC && entry_now == Some(WC_ENTRY) {
+        let wc = MemoryType::WriteCombining as u8;
+        if entry_encoding(pat_now, WC_ENTRY) == wc && entry_now == Some(WC_ENTRY) {
             serial_println!(
                 "display: framebuffer now write-combining (PAT entry {} = WC, {} pages, read back)",
                 WC_ENTRY,

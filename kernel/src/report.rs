@@ -24,7 +24,11 @@ type Text = LogLine<120>;
 static IMAGE: Mutex<PageImage> = Mutex::new([0; PAGE_PIXELS]);
 
 /// Draws the report if the app asks for it (the report key, or a scroll).
-pub fn show_if_asked<B: VgaBus>(vga: &mut ModeX<B>, app: &mut App, pacing: &Pacing) {
+pub fn show_if_asked<B: VgaBus, R: core::borrow::BorrowMut<demo::frame::Renderer>>(
+    vga: &mut ModeX<B>,
+    app: &mut App<R>,
+    pacing: &Pacing,
+) {
     let Some(scroll) = app.report_to_draw() else {
         return;
     };

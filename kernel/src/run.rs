@@ -3,12 +3,18 @@
 //! an idle cube costs no bus traffic at all. While the cube spins it also
 //! keeps count of missed retraces. Ctrl+Alt+Del resets the machine.
 
-use crate::{clock, goodbye, idle, keyboard, power, serial_println, usb};
+use crate::{clock, goodbye, idle, keyboard, power, serial_println, stack, usb};
 use demo::app::App;
+use demo::frame::Renderer;
 use machine::pacing::Pacing;
 use machine::protocol::line;
 use machine::reset_keys::ResetChord;
 use modex::{ModeX, VgaBus};
+use spin::Mutex;
+
+/// The renderer's three 75 KiB frame images and its depth band, in static
+/// memory rather than on the stack; the demo and the bench take turns.
+pub static RENDERER: Mutex<Renderer> = Mutex::new(Renderer::new());
 
 /// A pacing report every this many flips (about ten seconds).
 const PACING_REPORT_FLIPS: u64 = 600;
@@ -27,11 +33,9 @@ fn count_flip(pacing: &mut Pacing, timed_out: bool) {
     }
 }
 
-// Never inlined, for the same reason as `bench::run`: the app (~350 KiB) must
-// not share a frame with the other boot options' state.
-#[inline(never)]
 pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
-    let mut app = App::new();
+    let mut renderer = RENDERER.lock();
+    let mut app = App::with_renderer(&mut *renderer);
     app.step(vga, &clock::micros);
     serial_println!("{}", line::READY);
     let mut reported_commands = 0;
@@ -46,6 +50,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
             app.feed_scancode(byte);
         }
         if app.quit_requested() {
+            stack::report();
             goodbye::goodbye(vga);
         }
         let flip = app.step(vga, &clock::micros);

@@ -27,7 +27,8 @@
 
 #![no_std]
 #![forbid(unsafe_code)]
-#![warn(missing_docs, missing_debug_implementations)]
+#![deny(missing_docs)]
+#![warn(missing_debug_implementations)]
 
 #[cfg(test)]
 extern crate std;
@@ -39,6 +40,9 @@ pub mod firmware;
 pub mod fw_cfg;
 pub mod log;
 pub mod pacing;
+pub mod pat;
 pub mod protocol;
 pub mod reset_keys;
+pub mod stack;
+pub mod trampoline;
 pub mod usb;

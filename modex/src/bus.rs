@@ -1,5 +1,11 @@
 //! The interface between the driver and a VGA: byte port I/O, one 16-bit OUT
 //! for an index/data pair, and the CPU's 64 KiB window at 0xA0000.
+//!
+//! Ports are [`Port`]s, not numbers: a bus can only be asked about the VGA's
+//! ports and Bochs VBE's, which is what lets the kernel's bus over `in`/`out`
+//! promise, by construction, that it touches nothing else.
+
+use crate::regs::Port;
 
 /// Size of the CPU window onto video memory at 0xA0000.
 pub const CPU_WINDOW_BYTES: u32 = 0x1_0000;
@@ -8,20 +14,60 @@ pub const CPU_WINDOW_BYTES: u32 = 0x1_0000;
 ///
 /// Every method is one bus operation (a fill is one per byte), so a software
 /// implementation can count and time them.
+///
+/// # Example
+///
+/// A bus that logs its port writes and has no memory, as a test might use:
+///
+/// ```
+/// use modex::regs::{Port, Sequencer};
+/// use modex::{legacy_vga_present, VgaBus};
+///
+/// #[derive(Default)]
+/// struct Log(Vec<(u16, u8)>);
+///
+/// impl VgaBus for Log {
+///     fn write_port8(&mut self, port: Port, value: u8) {
+///         self.0.push((port.number(), value));
+///     }
+///     fn write_port16(&mut self, port: Port, value: u16) {
+///         let [index, data] = value.to_le_bytes();
+///         self.0.push((port.number(), index));
+///         self.0.push((port.number() + 1, data));
+///     }
+///     fn read_port8(&mut self, _port: Port) -> u8 {
+///         0xFF // nothing drives the bus
+///     }
+///     fn write_vram8(&mut self, _offset: u16, _value: u8) {}
+///     fn read_vram8(&mut self, _offset: u16) -> u8 {
+///         0xFF
+///     }
+/// }
+///
+/// let mut bus = Log::default();
+/// bus.write_port16(Port::SEQUENCER_INDEX, u16::from_le_bytes([Sequencer::MapMask.index(), 0x0F]));
+/// assert_eq!(bus.0, [(0x3C4, 2), (0x3C5, 0x0F)]);
+/// // A bus on which nothing answers has no VGA, and the probe only read it.
+/// assert!(!legacy_vga_present(&mut bus));
+/// assert_eq!(bus.0.len(), 2);
+/// ```
 pub trait VgaBus {
     /// One 8-bit OUT.
-    fn write_port8(&mut self, port: u16, value: u8);
+    fn write_port8(&mut self, port: Port, value: u8);
     /// One 16-bit OUT: low byte to `port`, high byte to `port + 1` (index/data
     /// pairs in one bus op). Ports with 16-bit registers (Bochs VBE DISPI at
     /// 0x1CE/0x1CF) take the value whole.
-    fn write_port16(&mut self, port: u16, value: u16);
+    fn write_port16(&mut self, port: Port, value: u16);
     /// One 8-bit IN.
-    fn read_port8(&mut self, port: u16) -> u8;
+    fn read_port8(&mut self, port: Port) -> u8;
     /// One 16-bit IN, for 16-bit registers (Bochs VBE DISPI's data port,
     /// which answers only 16-bit reads). Default: two 8-bit reads, `port`
-    /// then `port + 1`, for buses with no 16-bit registers.
-    fn read_port16(&mut self, port: u16) -> u16 {
-        u16::from_le_bytes([self.read_port8(port), self.read_port8(port.wrapping_add(1))])
+    /// then the port after it (an unnamed one reads as a floating bus, 0xFF),
+    /// for buses with no 16-bit registers.
+    fn read_port16(&mut self, port: Port) -> u16 {
+        let low = self.read_port8(port);
+        let high = port.data().map_or(0xFF, |next| self.read_port8(next));
+        u16::from_le_bytes([low, high])
     }
     /// `offset` is within the 64 KiB CPU window at 0xA0000.
     fn write_vram8(&mut self, offset: u16, value: u8);
@@ -48,16 +94,16 @@ pub trait VgaBus {
 
 /// A borrowed bus is a bus, so a large software VGA can stay in its `Box`.
 impl<T: VgaBus + ?Sized> VgaBus for &mut T {
-    fn write_port8(&mut self, port: u16, value: u8) {
+    fn write_port8(&mut self, port: Port, value: u8) {
         (**self).write_port8(port, value);
     }
-    fn write_port16(&mut self, port: u16, value: u16) {
+    fn write_port16(&mut self, port: Port, value: u16) {
         (**self).write_port16(port, value);
     }
-    fn read_port8(&mut self, port: u16) -> u8 {
+    fn read_port8(&mut self, port: Port) -> u8 {
         (**self).read_port8(port)
     }
-    fn read_port16(&mut self, port: u16) -> u16 {
+    fn read_port16(&mut self, port: Port) -> u16 {
         (**self).read_port16(port)
     }
     fn write_vram8(&mut self, offset: u16, value: u8) {

@@ -7,7 +7,7 @@
 //! bus floats to, usually all ones (0xFF, pulled up), sometimes all zeros, and
 //! on an ISA bus possibly the last value driven onto it (bus capacitance).
 
-use crate::regs::{crtc, gc, misc, CRTC_INDEX, CRTC_INDEX_MONO, GRAPHICS_INDEX, MISC_OUTPUT_READ};
+use crate::regs::{misc, Crtc, Graphics, IndexedPair, Port};
 use crate::VgaBus;
 
 /// What an undriven data bus reads on a PC: the pull-ups' all ones.
@@ -34,28 +34,30 @@ const PROBE_PATTERNS: [u8; 2] = [0xA5, 0x5A];
 /// while the CPU writes video memory; the cursor location only in text mode),
 /// and both, and their index registers, are restored before returning.
 pub fn legacy_vga_present<B: VgaBus>(bus: &mut B) -> bool {
-    let misc_output = bus.read_port8(MISC_OUTPUT_READ);
+    let misc_output = bus.read_port8(Port::MISC_OUTPUT_READ);
     if misc_output == FLOATING_BUS {
         return false;
     }
-    let crtc_index_port = if misc_output & misc::COLOR_IO_ADDRESSING != 0 {
-        CRTC_INDEX
+    let crtc_ports = if misc_output & misc::COLOR_IO_ADDRESSING != 0 {
+        (Port::CRTC_INDEX, Port::CRTC_DATA)
     } else {
-        CRTC_INDEX_MONO
+        (Port::CRTC_INDEX_MONO, Port::CRTC_DATA_MONO)
     };
-    register_holds_patterns(bus, GRAPHICS_INDEX, gc::BIT_MASK)
-        && register_holds_patterns(bus, crtc_index_port, crtc::CURSOR_LOCATION_LOW)
+    let graphics = IndexedPair::Graphics;
+    let graphics_ports = (graphics.index_port(), graphics.data_port());
+    register_holds_patterns(bus, graphics_ports, Graphics::BitMask.index())
+        && register_holds_patterns(bus, crtc_ports, Crtc::CursorLocationLow.index())
 }
 
 /// Writes each probe pattern to register `index` of the index/data pair at
-/// `index_port`/`index_port + 1` and reads it back; restores the register and
+/// `(index_port, data_port)` and reads it back; restores the register and
 /// the index register.
 ///
 /// Between the write and the read the index is written again, so the data bus
 /// last carried the index, not the pattern: a floating ISA bus that echoes the
 /// last value driven onto it reads back the index and fails.
-fn register_holds_patterns<B: VgaBus>(bus: &mut B, index_port: u16, index: u8) -> bool {
-    let data_port = index_port + 1;
+fn register_holds_patterns<B: VgaBus>(bus: &mut B, ports: (Port, Port), index: u8) -> bool {
+    let (index_port, data_port) = ports;
     let saved_index = bus.read_port8(index_port);
     bus.write_port8(index_port, index);
     let saved_value = bus.read_port8(data_port);
@@ -73,7 +75,6 @@ fn register_holds_patterns<B: VgaBus>(bus: &mut B, index_port: u16, index: u8) -
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::regs::CRTC_DATA;
     use crate::soft::SoftVga;
     use crate::ModeX;
     use std::boxed::Box;
@@ -95,15 +96,15 @@ mod tests {
     }
 
     impl VgaBus for EmptyBus {
-        fn write_port8(&mut self, port: u16, value: u8) {
-            self.writes.push((port, value));
+        fn write_port8(&mut self, port: Port, value: u8) {
+            self.writes.push((port.number(), value));
         }
-        fn write_port16(&mut self, port: u16, value: u16) {
+        fn write_port16(&mut self, port: Port, value: u16) {
             let [low, high] = value.to_le_bytes();
-            self.writes.push((port, low));
-            self.writes.push((port + 1, high));
+            self.writes.push((port.number(), low));
+            self.writes.push((port.number() + 1, high));
         }
-        fn read_port8(&mut self, _port: u16) -> u8 {
+        fn read_port8(&mut self, _port: Port) -> u8 {
             self.reads_as
         }
         fn write_vram8(&mut self, _offset: u16, _value: u8) {}
@@ -118,13 +119,13 @@ mod tests {
     }
 
     impl VgaBus for EchoBus {
-        fn write_port8(&mut self, _port: u16, value: u8) {
+        fn write_port8(&mut self, _port: Port, value: u8) {
             self.last = value;
         }
-        fn write_port16(&mut self, _port: u16, value: u16) {
+        fn write_port16(&mut self, _port: Port, value: u16) {
             self.last = (value >> 8) as u8;
         }
-        fn read_port8(&mut self, _port: u16) -> u8 {
+        fn read_port8(&mut self, _port: Port) -> u8 {
             self.last
         }
         fn write_vram8(&mut self, _offset: u16, value: u8) {
@@ -153,7 +154,7 @@ mod tests {
         let mut soft = Box::new(SoftVga::new());
         let colour_misc = soft.misc_output();
         soft.write_port8(
-            crate::regs::MISC_OUTPUT_WRITE,
+            Port::MISC_OUTPUT_WRITE,
             colour_misc & !misc::COLOR_IO_ADDRESSING,
         );
         assert!(legacy_vga_present(&mut *soft));
@@ -165,25 +166,35 @@ mod tests {
         ModeX::new(&mut *soft).set_mode();
         // Distinctive values and indices, so a restore to anything else shows.
         soft.write_port16(
-            CRTC_INDEX,
-            u16::from_le_bytes([crtc::CURSOR_LOCATION_LOW, 0x37]),
+            Port::CRTC_INDEX,
+            u16::from_le_bytes([Crtc::CursorLocationLow.index(), 0x37]),
         );
-        soft.write_port8(CRTC_INDEX, crtc::OFFSET);
-        soft.write_port16(GRAPHICS_INDEX, u16::from_le_bytes([gc::BIT_MASK, 0xC3]));
-        soft.write_port8(GRAPHICS_INDEX, gc::MODE);
+        soft.write_port8(Port::CRTC_INDEX, Crtc::Offset.index());
+        soft.write_port16(
+            Port::GRAPHICS_INDEX,
+            u16::from_le_bytes([Graphics::BitMask.index(), 0xC3]),
+        );
+        soft.write_port8(Port::GRAPHICS_INDEX, Graphics::Mode.index());
         let before = soft.clone();
 
         assert!(legacy_vga_present(&mut *soft));
 
-        assert_eq!(soft.crtc(crtc::CURSOR_LOCATION_LOW), 0x37);
-        assert_eq!(soft.graphics(gc::BIT_MASK), 0xC3);
-        assert_eq!(soft.read_port8(CRTC_INDEX), crtc::OFFSET);
-        assert_eq!(soft.read_port8(GRAPHICS_INDEX), gc::MODE);
-        for index in 0..crtc::COUNT as u8 {
-            assert_eq!(soft.crtc(index), before.crtc(index), "CRTC {index:#x}");
+        assert_eq!(soft.crtc(Crtc::CursorLocationLow), 0x37);
+        assert_eq!(soft.graphics(Graphics::BitMask), 0xC3);
+        assert_eq!(soft.read_port8(Port::CRTC_INDEX), Crtc::Offset.index());
+        assert_eq!(
+            soft.read_port8(Port::GRAPHICS_INDEX),
+            Graphics::Mode.index()
+        );
+        for register in Crtc::ALL {
+            assert_eq!(soft.crtc(register), before.crtc(register), "{register:?}");
         }
-        for index in 0..gc::COUNT as u8 {
-            assert_eq!(soft.graphics(index), before.graphics(index), "GC {index}");
+        for register in Graphics::ALL {
+            assert_eq!(
+                soft.graphics(register),
+                before.graphics(register),
+                "{register:?}"
+            );
         }
         assert_eq!(soft.misc_output(), before.misc_output());
     }
@@ -216,16 +227,16 @@ mod tests {
     fn a_dead_crtc_fails_the_probe() {
         struct DeadCrtc(Box<SoftVga>);
         impl VgaBus for DeadCrtc {
-            fn write_port8(&mut self, port: u16, value: u8) {
-                if port != CRTC_DATA {
+            fn write_port8(&mut self, port: Port, value: u8) {
+                if port != Port::CRTC_DATA {
                     self.0.write_port8(port, value);
                 }
             }
-            fn write_port16(&mut self, port: u16, value: u16) {
+            fn write_port16(&mut self, port: Port, value: u16) {
                 self.0.write_port16(port, value);
             }
-            fn read_port8(&mut self, port: u16) -> u8 {
-                if port == CRTC_DATA {
+            fn read_port8(&mut self, port: Port) -> u8 {
+                if port == Port::CRTC_DATA {
                     FLOATING_BUS
                 } else {
                     self.0.read_port8(port)
@@ -243,8 +254,8 @@ mod tests {
         // And the Graphics Controller it did reach was put back.
         let power_on = Box::<SoftVga>::default();
         assert_eq!(
-            bus.0.graphics(gc::BIT_MASK),
-            power_on.graphics(gc::BIT_MASK)
+            bus.0.graphics(Graphics::BitMask),
+            power_on.graphics(Graphics::BitMask)
         );
     }
 }

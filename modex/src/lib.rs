@@ -40,7 +40,8 @@
 
 #![no_std]
 #![forbid(unsafe_code)]
-#![warn(missing_docs, missing_debug_implementations)]
+#![deny(missing_docs)]
+#![warn(missing_debug_implementations)]
 
 #[cfg(test)]
 extern crate std;
@@ -51,6 +52,7 @@ pub mod card;
 mod detect;
 mod draw;
 mod driver;
+mod io;
 mod mirror;
 pub mod mode;
 mod page;

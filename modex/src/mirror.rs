@@ -3,10 +3,7 @@
 //! firmware's framebuffer) each time the model latches a new start address,
 //! so the Mode X drawing code runs unchanged where no legacy VGA exists.
 
-use crate::regs::{
-    crtc, CRTC_DATA, CRTC_DATA_MONO, CRTC_INDEX, CRTC_INDEX_MONO, INPUT_STATUS_1,
-    INPUT_STATUS_1_MONO,
-};
+use crate::regs::{Crtc, Port};
 use crate::soft::SoftVga;
 use crate::VgaBus;
 
@@ -76,13 +73,13 @@ impl<'a, F: FnMut(&SoftVga)> MirroredVga<'a, F> {
         self.soft
     }
 
-    fn note_port_write(&mut self, port: u16, value: u8) {
+    fn note_port_write(&mut self, port: Port, value: u8) {
         match port {
-            CRTC_INDEX | CRTC_INDEX_MONO => self.crtc_index = value,
-            CRTC_DATA | CRTC_DATA_MONO
+            Port::CRTC_INDEX | Port::CRTC_INDEX_MONO => self.crtc_index = value,
+            Port::CRTC_DATA | Port::CRTC_DATA_MONO
                 if matches!(
-                    self.crtc_index,
-                    crtc::START_ADDRESS_HIGH | crtc::START_ADDRESS_LOW
+                    Crtc::from_index(self.crtc_index),
+                    Some(Crtc::StartAddressHigh | Crtc::StartAddressLow)
                 ) =>
             {
                 self.flip_written_in_frame = Some(self.soft.frame_count());
@@ -101,21 +98,23 @@ impl<'a, F: FnMut(&SoftVga)> MirroredVga<'a, F> {
 }
 
 impl<F: FnMut(&SoftVga)> VgaBus for MirroredVga<'_, F> {
-    fn write_port8(&mut self, port: u16, value: u8) {
+    fn write_port8(&mut self, port: Port, value: u8) {
         self.soft.write_port8(port, value);
         self.note_port_write(port, value);
     }
 
-    fn write_port16(&mut self, port: u16, value: u16) {
+    fn write_port16(&mut self, port: Port, value: u16) {
         self.soft.write_port16(port, value);
         let [low, high] = value.to_le_bytes();
         self.note_port_write(port, low);
-        self.note_port_write(port.wrapping_add(1), high);
+        if let Some(data_port) = port.data() {
+            self.note_port_write(data_port, high);
+        }
     }
 
-    fn read_port8(&mut self, port: u16) -> u8 {
+    fn read_port8(&mut self, port: Port) -> u8 {
         let value = self.soft.read_port8(port);
-        if port == INPUT_STATUS_1 || port == INPUT_STATUS_1_MONO {
+        if port == Port::INPUT_STATUS_1 || port == Port::INPUT_STATUS_1_MONO {
             self.after_status_read();
         }
         value
@@ -259,7 +258,7 @@ mod tests {
         let font = [[0xFF; 8]; 128];
         vga.set_text_mode(&font);
         vga.write_text(0, 0, "#", 0x0F);
-        vga.bus_mut().flush();
+        vga.flush();
         // The first cell's eight lit dots are white, its ninth is black.
         assert_eq!(&framebuffer[..4], &[255, 255, 255, 0]);
         assert_eq!(&framebuffer[8 * 4..9 * 4], &[0, 0, 0, 0]);

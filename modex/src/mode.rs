@@ -2,26 +2,128 @@
 //! programs them from whatever state the VGA was left in (a BIOS text mode, a
 //! VBE linear framebuffer from the bootloader, or a crashed driver).
 
-use crate::palette::{Rgb6, DEFAULT_PALETTE};
-use crate::regs::{
-    ac, crtc, gc, seq, ALL_PLANES, ATTRIBUTE_INDEX, DAC_DATA, DAC_PIXEL_MASK, DAC_WRITE_INDEX,
-    INPUT_STATUS_1, MISC_OUTPUT_WRITE,
-};
+use crate::palette::{Rgb6, DEFAULT_PALETTE, EGA_TEXT_ATTRIBUTES};
+use crate::regs::{crtc, gc, seq, Attribute, Crtc, Graphics, PlaneMask, Sequencer};
 use crate::{ModeX, Page, VgaBus, CPU_WINDOW_BYTES};
 
-/// Every register a mode set programs.
+/// Every register a mode set programs, each group as (register, value) pairs
+/// in index order (the order they are written in); the constants below are
+/// checked for that order when the crate compiles.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ModeRegisters {
     /// Miscellaneous Output.
     pub misc_output: u8,
-    /// Sequencer registers 0..=4; register 0 (Reset) is the running value.
-    pub sequencer: [u8; seq::COUNT],
-    /// CRTC registers 0x00..=0x18.
-    pub crtc: [u8; crtc::COUNT],
-    /// Graphics Controller registers 0..=8.
-    pub graphics: [u8; gc::COUNT],
-    /// Attribute Controller registers 0x00..=0x14.
-    pub attribute: [u8; ac::COUNT],
+    /// The Sequencer; Reset is the running value.
+    pub sequencer: [(Sequencer, u8); Sequencer::COUNT],
+    /// The CRT Controller.
+    pub crtc: [(Crtc, u8); Crtc::COUNT],
+    /// The Graphics Controller.
+    pub graphics: [(Graphics, u8); Graphics::COUNT],
+    /// The Attribute Controller.
+    pub attribute: [(Attribute, u8); Attribute::COUNT],
+}
+
+/// Defines, for one register group, the lookup of a register's value in a
+/// table and the table as a plain array indexed by register index.
+macro_rules! group_access {
+    ($group:ident, $field:ident, $value:ident, $values:ident, $ordered:ident) => {
+        /// The value the table gives this register.
+        pub const fn $value(&self, register: $group) -> u8 {
+            self.$field[register as usize].1
+        }
+
+        /// The group's values, indexed by register index.
+        pub const fn $values(&self) -> [u8; $group::COUNT] {
+            let mut values = [0; $group::COUNT];
+            let mut slot = 0;
+            while slot < $group::COUNT {
+                values[slot] = self.$field[slot].1;
+                slot += 1;
+            }
+            values
+        }
+
+        const fn $ordered(&self) -> bool {
+            let mut slot = 0;
+            while slot < $group::COUNT {
+                if self.$field[slot].0 as usize != slot {
+                    return false;
+                }
+                slot += 1;
+            }
+            true
+        }
+    };
+}
+
+impl ModeRegisters {
+    group_access!(
+        Sequencer,
+        sequencer,
+        sequencer_value,
+        sequencer_values,
+        sequencer_in_order
+    );
+    group_access!(Crtc, crtc, crtc_value, crtc_values, crtc_in_order);
+    group_access!(
+        Graphics,
+        graphics,
+        graphics_value,
+        graphics_values,
+        graphics_in_order
+    );
+    group_access!(
+        Attribute,
+        attribute,
+        attribute_value,
+        attribute_values,
+        attribute_in_order
+    );
+
+    /// Whether every group lists each of its registers once, in index order.
+    const fn in_index_order(&self) -> bool {
+        self.sequencer_in_order()
+            && self.crtc_in_order()
+            && self.graphics_in_order()
+            && self.attribute_in_order()
+    }
+}
+
+const _: () = assert!(MODE_X.in_index_order() && TEXT_80X25.in_index_order());
+
+/// The 16 palette registers mapping attribute n to colour `colours[n]`.
+const fn palette_registers(colours: [u8; 16]) -> [(Attribute, u8); 16] {
+    let mut pairs = [(Attribute::Palette0, 0); 16];
+    let mut n = 0;
+    while n < 16 {
+        pairs[n] = (Attribute::ALL[n], colours[n]);
+        n += 1;
+    }
+    pairs
+}
+
+/// The palette registers followed by the five control registers.
+const fn attribute_table(
+    palette: [u8; 16],
+    mode_control: u8,
+    overscan: u8,
+    plane_enable: PlaneMask,
+    panning: u8,
+    colour_select: u8,
+) -> [(Attribute, u8); Attribute::COUNT] {
+    let palette = palette_registers(palette);
+    let mut pairs = [(Attribute::Palette0, 0); Attribute::COUNT];
+    let mut n = 0;
+    while n < 16 {
+        pairs[n] = palette[n];
+        n += 1;
+    }
+    pairs[16] = (Attribute::ModeControl, mode_control);
+    pairs[17] = (Attribute::OverscanColor, overscan);
+    pairs[18] = (Attribute::ColorPlaneEnable, plane_enable.bits());
+    pairs[19] = (Attribute::HorizontalPixelPanning, panning);
+    pairs[20] = (Attribute::ColorSelect, colour_select);
+    pairs
 }
 
 /// 320x240, 256 colours, unchained: the 640x480 60 Hz timing with every line
@@ -29,28 +131,75 @@ pub struct ModeRegisters {
 pub const MODE_X: ModeRegisters = ModeRegisters {
     // Colour I/O, RAM enabled, 25.175 MHz dot clock, negative sync (480 lines).
     misc_output: 0xE3,
-    // 8-dot characters; all planes; chain-4 and odd/even off.
-    sequencer: [seq::RESET_RUNNING, 0x01, ALL_PLANES, 0x00, 0x06],
+    sequencer: [
+        (Sequencer::Reset, seq::RESET_RUNNING),
+        (Sequencer::ClockingMode, seq::CLOCKING_8_DOT),
+        (Sequencer::MapMask, PlaneMask::ALL.bits()),
+        (Sequencer::CharacterMapSelect, 0x00),
+        // Chain-4 and odd/even off.
+        (
+            Sequencer::MemoryMode,
+            seq::MEMORY_EXTENDED | seq::MEMORY_ODD_EVEN_DISABLE,
+        ),
+    ],
     crtc: [
-        0x5F, 0x4F, 0x50, 0x82, 0x54,
-        0x80, // horizontal: total, display end, blanking, retrace
-        0x0D, 0x3E, // vertical total, overflow
-        0x00, 0x41, // preset row scan; two scan lines per row (and line compare bit 9)
-        0x00, 0x00, 0x00, 0x00, 0x00, 0x00, // cursor shape, start address, cursor location
-        0xEA, 0xAC, 0xDF, // vertical retrace start/end (CRTC 0-7 protected), display end
-        0x28, // offset: 40 words = 80 bytes per line
-        0x00, // underline: doubleword addressing off
-        0xE7, 0x06, // vertical blanking
-        0xE3, // mode control: byte addressing
-        0xFF, // line compare: never
+        (Crtc::HorizontalTotal, 0x5F),
+        (Crtc::HorizontalDisplayEnd, 0x4F),
+        (Crtc::StartHorizontalBlanking, 0x50),
+        (Crtc::EndHorizontalBlanking, 0x82),
+        (Crtc::StartHorizontalRetrace, 0x54),
+        (Crtc::EndHorizontalRetrace, 0x80),
+        (Crtc::VerticalTotal, 0x0D),
+        (Crtc::Overflow, 0x3E),
+        (Crtc::PresetRowScan, 0x00),
+        // Two scan lines per row (and line compare bit 9).
+        (Crtc::MaximumScanLine, 0x41),
+        (Crtc::CursorStart, 0x00),
+        (Crtc::CursorEnd, 0x00),
+        (Crtc::StartAddressHigh, 0x00),
+        (Crtc::StartAddressLow, 0x00),
+        (Crtc::CursorLocationHigh, 0x00),
+        (Crtc::CursorLocationLow, 0x00),
+        (Crtc::VerticalRetraceStart, 0xEA),
+        // CRTC 0-7 protected again once written.
+        (Crtc::VerticalRetraceEnd, 0xAC),
+        (Crtc::VerticalDisplayEnd, 0xDF),
+        // 40 words = 80 bytes per line.
+        (Crtc::Offset, 0x28),
+        // Doubleword addressing off.
+        (Crtc::UnderlineLocation, 0x00),
+        (Crtc::StartVerticalBlanking, 0xE7),
+        (Crtc::EndVerticalBlanking, 0x06),
+        // Byte addressing.
+        (Crtc::ModeControl, 0xE3),
+        // Never.
+        (Crtc::LineCompare, 0xFF),
     ],
-    // Write mode 0, 256-colour shift, graphics at A0000 (64 KiB), all planes compared.
-    graphics: [0x00, 0x00, 0x00, 0x00, 0x00, 0x40, 0x05, 0x0F, 0xFF],
-    attribute: [
-        0x00, 0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x08, 0x09, 0x0A, 0x0B, 0x0C, 0x0D, 0x0E,
-        0x0F, 0x41, // graphics, 8-bit colour
-        0x00, ALL_PLANES, 0x00, 0x00,
+    graphics: [
+        (Graphics::SetReset, 0x00),
+        (Graphics::EnableSetReset, 0x00),
+        (Graphics::ColorCompare, 0x00),
+        (Graphics::DataRotate, 0x00),
+        (Graphics::ReadMapSelect, 0x00),
+        // Write mode 0, 256-colour shift.
+        (Graphics::Mode, gc::MODE_SHIFT_256),
+        // Graphics at A0000 (64 KiB).
+        (Graphics::Misc, 0x05),
+        // All planes compared.
+        (Graphics::ColorDontCare, PlaneMask::ALL.bits()),
+        (Graphics::BitMask, 0xFF),
     ],
+    attribute: attribute_table(
+        [
+            0x00, 0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x08, 0x09, 0x0A, 0x0B, 0x0C, 0x0D,
+            0x0E, 0x0F,
+        ],
+        0x41, // graphics, 8-bit colour
+        0x00,
+        PlaneMask::ALL,
+        0x00,
+        0x00,
+    ),
 };
 
 /// BIOS mode 3: 80x25 colour text, 9x16 cells, 720x400 at 70 Hz; text at
@@ -58,19 +207,65 @@ pub const MODE_X: ModeRegisters = ModeRegisters {
 pub const TEXT_80X25: ModeRegisters = ModeRegisters {
     // Colour I/O, RAM enabled, 28.322 MHz dot clock, 400-line sync.
     misc_output: 0x67,
-    // 9-dot characters; planes 0 and 1 (characters and attributes); odd/even on.
-    sequencer: [seq::RESET_RUNNING, 0x00, 0x03, 0x00, 0x02],
+    sequencer: [
+        (Sequencer::Reset, seq::RESET_RUNNING),
+        // 9-dot characters.
+        (Sequencer::ClockingMode, 0x00),
+        // Planes 0 and 1: characters and attributes.
+        (Sequencer::MapMask, 0x03),
+        (Sequencer::CharacterMapSelect, 0x00),
+        // Odd/even on.
+        (Sequencer::MemoryMode, seq::MEMORY_EXTENDED),
+    ],
     crtc: [
-        0x5F, 0x4F, 0x50, 0x82, 0x55, 0x81, 0xBF, 0x1F, 0x00, 0x4F, 0x0D, 0x0E, 0x00, 0x00, 0x00,
-        0x00, 0x9C, 0x8E, 0x8F, 0x28, 0x1F, 0x96, 0xB9, 0xA3, 0xFF,
+        (Crtc::HorizontalTotal, 0x5F),
+        (Crtc::HorizontalDisplayEnd, 0x4F),
+        (Crtc::StartHorizontalBlanking, 0x50),
+        (Crtc::EndHorizontalBlanking, 0x82),
+        (Crtc::StartHorizontalRetrace, 0x55),
+        (Crtc::EndHorizontalRetrace, 0x81),
+        (Crtc::VerticalTotal, 0xBF),
+        (Crtc::Overflow, 0x1F),
+        (Crtc::PresetRowScan, 0x00),
+        // 16 scan lines per row.
+        (Crtc::MaximumScanLine, 0x4F),
+        (Crtc::CursorStart, 0x0D),
+        (Crtc::CursorEnd, 0x0E),
+        (Crtc::StartAddressHigh, 0x00),
+        (Crtc::StartAddressLow, 0x00),
+        (Crtc::CursorLocationHigh, 0x00),
+        (Crtc::CursorLocationLow, 0x00),
+        (Crtc::VerticalRetraceStart, 0x9C),
+        (Crtc::VerticalRetraceEnd, 0x8E),
+        (Crtc::VerticalDisplayEnd, 0x8F),
+        (Crtc::Offset, 0x28),
+        (Crtc::UnderlineLocation, 0x1F),
+        (Crtc::StartVerticalBlanking, 0x96),
+        (Crtc::EndVerticalBlanking, 0xB9),
+        (Crtc::ModeControl, 0xA3),
+        (Crtc::LineCompare, 0xFF),
     ],
-    // Host odd/even, text at B8000 with odd maps chained to even.
-    graphics: [0x00, 0x00, 0x00, 0x00, 0x00, 0x10, 0x0E, 0x0F, 0xFF],
-    attribute: [
-        0x00, 0x01, 0x02, 0x03, 0x04, 0x05, 0x14, 0x07, 0x38, 0x39, 0x3A, 0x3B, 0x3C, 0x3D, 0x3E,
-        0x3F, 0x0C, // text, line graphics, blink
-        0x00, ALL_PLANES, 0x08, 0x00,
+    graphics: [
+        (Graphics::SetReset, 0x00),
+        (Graphics::EnableSetReset, 0x00),
+        (Graphics::ColorCompare, 0x00),
+        (Graphics::DataRotate, 0x00),
+        (Graphics::ReadMapSelect, 0x00),
+        // Host odd/even.
+        (Graphics::Mode, gc::MODE_HOST_ODD_EVEN),
+        // Text at B8000 with odd maps chained to even.
+        (Graphics::Misc, 0x0E),
+        (Graphics::ColorDontCare, PlaneMask::ALL.bits()),
+        (Graphics::BitMask, 0xFF),
     ],
+    attribute: attribute_table(
+        EGA_TEXT_ATTRIBUTES,
+        0x0C, // text, line graphics, blink
+        0x00,
+        PlaneMask::ALL,
+        0x08,
+        0x00,
+    ),
 };
 
 /// The CPU window is cleared in two fills because a fill's count is 16 bits.
@@ -90,47 +285,47 @@ impl<B: VgaBus> ModeX<B> {
 
     /// Programs every register of `mode`, from any prior state.
     pub(crate) fn program(&mut self, mode: &ModeRegisters) {
-        self.invalidate_caches();
+        let io = &mut self.io;
+        io.invalidate_caches();
 
         // An extended mode (a VBE linear framebuffer left by the bootloader)
         // would override the standard VGA registers.
-        self.reset_extensions();
+        io.reset_extensions();
 
         // The dot clock (Misc Output) and the character clock (Clocking Mode)
         // may only change while the sequencer is held in synchronous reset.
         // Misc Output also selects colour I/O addressing, which the CRTC
         // writes below rely on.
-        self.write_sequencer(seq::RESET, seq::RESET_SYNCHRONOUS);
-        self.write_sequencer(
-            seq::CLOCKING_MODE,
-            mode.sequencer[usize::from(seq::CLOCKING_MODE)],
+        io.write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
+        io.write_sequencer(
+            Sequencer::ClockingMode,
+            mode.sequencer_value(Sequencer::ClockingMode),
         );
-        self.bus.write_port8(MISC_OUTPUT_WRITE, mode.misc_output);
-        for index in seq::MAP_MASK..=seq::MEMORY_MODE {
-            self.write_sequencer(index, mode.sequencer[usize::from(index)]);
+        io.write_misc_output(mode.misc_output);
+        for (register, value) in mode.sequencer {
+            if !matches!(register, Sequencer::Reset | Sequencer::ClockingMode) {
+                io.write_sequencer(register, value);
+            }
         }
-        self.write_sequencer(seq::RESET, seq::RESET_RUNNING);
+        io.write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
 
         // CRTC 0-7 are write-protected until Vertical Retrace End bit 7 is
         // clear; the table's own value (written after them) may protect them again.
-        let retrace_end = mode.crtc[usize::from(crtc::VERTICAL_RETRACE_END)];
-        self.write_crtc(crtc::VERTICAL_RETRACE_END, retrace_end & !crtc::PROTECT_0_7);
-        for (index, &value) in (0..).zip(mode.crtc.iter()) {
-            self.write_crtc(index, value);
+        let retrace_end = mode.crtc_value(Crtc::VerticalRetraceEnd);
+        io.write_crtc(Crtc::VerticalRetraceEnd, retrace_end & !crtc::PROTECT_0_7);
+        for (register, value) in mode.crtc {
+            io.write_crtc(register, value);
         }
 
-        for (index, &value) in (0..).zip(mode.graphics.iter()) {
-            self.write_graphics(index, value);
+        for (register, value) in mode.graphics {
+            io.write_graphics(register, value);
         }
 
-        // Reading Input Status 1 puts the attribute flip-flop in its index state.
-        self.bus.read_port8(INPUT_STATUS_1);
-        for (index, &value) in (0..).zip(mode.attribute.iter()) {
-            self.write_attribute(index, value);
+        io.reset_attribute_flip_flop();
+        for (register, value) in mode.attribute {
+            io.write_attribute(register, value);
         }
-        // Palette Address Source back on: the screen shows video again.
-        self.bus
-            .write_port8(ATTRIBUTE_INDEX, ac::PALETTE_ADDRESS_SOURCE);
+        io.show_video();
     }
 
     /// Loads DAC entries `first`, `first + 1`, ... with `colours` and opens the
@@ -138,20 +333,14 @@ impl<B: VgaBus> ModeX<B> {
     /// DAC's index would wrap round and overwrite entry 0 onwards.
     pub fn load_palette(&mut self, first: u8, colours: &[Rgb6]) {
         let room = 256 - usize::from(first);
-        self.bus.write_port8(DAC_PIXEL_MASK, 0xFF);
-        // DAC Write Index once; it advances by itself after each entry's
-        // third component written to DAC Data.
-        self.bus.write_port8(DAC_WRITE_INDEX, first);
-        for component in colours.iter().take(room).flatten() {
-            self.bus.write_port8(DAC_DATA, *component);
-        }
+        self.io.load_dac(first, &colours[..colours.len().min(room)]);
     }
 
     /// Clears all four planes through the whole CPU window.
     fn clear_video_memory(&mut self) {
-        self.set_map_mask(ALL_PLANES);
+        self.io.set_map_mask(PlaneMask::ALL);
         for chunk in 0..(CPU_WINDOW_BYTES / u32::from(CLEAR_CHUNK_BYTES)) as u16 {
-            self.bus
+            self.io
                 .fill_vram(chunk * CLEAR_CHUNK_BYTES, CLEAR_CHUNK_BYTES, 0);
         }
     }

@@ -1,7 +1,7 @@
 //! Pages and page flipping: the CRTC start address selects the page shown,
 //! and the VGA latches it at the start of vertical retrace.
 
-use crate::regs::{crtc, status, INPUT_STATUS_1};
+use crate::regs::{status, Crtc};
 use crate::{ModeX, VgaBus, PAGE_BYTES};
 
 /// Pages that fit in the 64 KiB of each plane the CPU window reaches.
@@ -88,12 +88,28 @@ impl<B: VgaBus> ModeX<B> {
     /// blanking lines away from it): the two bytes cannot be latched half old,
     /// half new. Then the flip waits for the start of vertical retrace, where
     /// the VGA latches the start address. Both waits are bounded.
+    ///
+    /// # Example
+    ///
+    /// A VGA whose retrace bit never rises: the flip gives up after
+    /// [`STATUS_POLL_LIMIT`] reads and says so, instead of hanging.
+    ///
+    /// ```
+    /// use modex::soft::SoftVga;
+    /// use modex::{ModeX, Page};
+    ///
+    /// let mut soft = Box::new(SoftVga::new());
+    /// ModeX::new(&mut *soft).set_mode();
+    /// soft.set_retrace_stuck(Some(false));
+    /// let report = ModeX::new(&mut *soft).show_page(Page::One);
+    /// assert!(report.retrace_wait_timed_out && !report.display_wait_timed_out);
+    /// ```
     pub fn show_page(&mut self, page: Page) -> FlipReport {
         let display_wait_timed_out = !self
             .poll_status(|bits| bits & (status::VERTICAL_RETRACE | status::DISPLAY_DISABLED) == 0);
         let [high, low] = page.base().to_be_bytes();
-        self.write_crtc(crtc::START_ADDRESS_HIGH, high);
-        self.write_crtc(crtc::START_ADDRESS_LOW, low);
+        self.io.write_crtc(Crtc::StartAddressHigh, high);
+        self.io.write_crtc(Crtc::StartAddressLow, low);
         let retrace_wait_timed_out = !self.poll_status(|bits| bits & status::VERTICAL_RETRACE != 0);
         FlipReport {
             display_wait_timed_out,
@@ -104,7 +120,7 @@ impl<B: VgaBus> ModeX<B> {
     /// Reads Input Status 1 until `done` holds or [`STATUS_POLL_LIMIT`] reads
     /// have been made; true if `done` held.
     fn poll_status(&mut self, done: impl Fn(u8) -> bool) -> bool {
-        (0..STATUS_POLL_LIMIT).any(|_| done(self.bus.read_port8(INPUT_STATUS_1)))
+        (0..STATUS_POLL_LIMIT).any(|_| done(self.io.read_status()))
     }
 }
 

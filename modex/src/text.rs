@@ -3,7 +3,7 @@
 
 use crate::mode::TEXT_80X25;
 use crate::palette::EGA_PALETTE;
-use crate::regs::{crtc, gc, seq};
+use crate::regs::{seq, Crtc, Graphics, PlaneMask, Sequencer};
 use crate::{ModeX, VgaBus};
 
 /// Text columns.
@@ -28,10 +28,10 @@ const BLANK: u8 = b' ';
 const DEFAULT_ATTRIBUTE: u8 = 0x07;
 
 /// Planes 0 and 1: characters and attributes.
-const TEXT_PLANES: u8 = 0x03;
+const TEXT_PLANES: PlaneMask = PlaneMask::from_bits_truncate(0x03);
 /// Plane 2: the font.
-const FONT_PLANE: u8 = 0x04;
 const FONT_PLANE_INDEX: u8 = 2;
+const FONT_PLANE: PlaneMask = PlaneMask::plane(FONT_PLANE_INDEX);
 
 /// Memory Mode for the font load: sequential addressing, no odd/even, no chain-4.
 const MEMORY_MODE_SEQUENTIAL: u8 = seq::MEMORY_EXTENDED | seq::MEMORY_ODD_EVEN_DISABLE;
@@ -56,16 +56,16 @@ impl<B: VgaBus> ModeX<B> {
         // each plane alone relies on odd/even too, and Bochs, which does not
         // model it, would show the attribute plane's fill as characters.)
         self.with_text_window(|vga| {
-            vga.set_map_mask(TEXT_PLANES);
+            vga.io.set_map_mask(TEXT_PLANES);
             for cell in 0..CELLS {
-                vga.bus.write_vram8(cell * BYTES_PER_CELL, BLANK);
-                vga.bus
+                vga.io.write_vram8(cell * BYTES_PER_CELL, BLANK);
+                vga.io
                     .write_vram8(cell * BYTES_PER_CELL + 1, DEFAULT_ATTRIBUTE);
             }
         });
         let [high, low] = CELLS.to_be_bytes();
-        self.write_crtc(crtc::CURSOR_LOCATION_HIGH, high);
-        self.write_crtc(crtc::CURSOR_LOCATION_LOW, low);
+        self.io.write_crtc(Crtc::CursorLocationHigh, high);
+        self.io.write_crtc(Crtc::CursorLocationLow, low);
     }
 
     /// Writes `text` at (`row`, `col`) in text mode with `attribute`
@@ -78,7 +78,7 @@ impl<B: VgaBus> ModeX<B> {
         let start = (u16::from(row) * u16::from(TEXT_COLUMNS) + u16::from(col)) * BYTES_PER_CELL;
         let room = usize::from(TEXT_COLUMNS - col);
         self.with_text_window(|vga| {
-            vga.set_map_mask(TEXT_PLANES);
+            vga.io.set_map_mask(TEXT_PLANES);
             for (offset, character) in (start..)
                 .step_by(usize::from(BYTES_PER_CELL))
                 .zip(text.chars().take(room))
@@ -89,33 +89,37 @@ impl<B: VgaBus> ModeX<B> {
                     REPLACEMENT_CHARACTER
                 };
                 // Odd/even addressing: the even byte goes to plane 0, the odd to plane 1.
-                vga.bus.write_vram8(offset, glyph);
-                vga.bus.write_vram8(offset + 1, attribute);
+                vga.io.write_vram8(offset, glyph);
+                vga.io.write_vram8(offset + 1, attribute);
             }
         });
     }
 
     /// Runs `access` with text memory mapped at A0000.
     fn with_text_window(&mut self, access: impl FnOnce(&mut Self)) {
-        let misc = TEXT_80X25.graphics[usize::from(gc::MISC)];
-        self.set_graphics(gc::MISC, MISC_TEXT_AT_A0000);
+        let misc = TEXT_80X25.graphics_value(Graphics::Misc);
+        self.io.set_graphics(Graphics::Misc, MISC_TEXT_AT_A0000);
         access(self);
-        self.set_graphics(gc::MISC, misc);
+        self.io.set_graphics(Graphics::Misc, misc);
     }
 
     /// Loads the font into plane 2 (glyph n at n * 32), rows doubled and the
     /// unused slots blank, then restores text addressing.
     fn load_font(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
         // Plane 2 as plain sequential memory, the way the BIOS loads fonts.
-        self.write_sequencer(seq::RESET, seq::RESET_SYNCHRONOUS);
-        self.write_sequencer(seq::MAP_MASK, FONT_PLANE);
-        self.write_sequencer(seq::MEMORY_MODE, MEMORY_MODE_SEQUENTIAL);
-        self.write_sequencer(seq::RESET, seq::RESET_RUNNING);
-        self.write_graphics(gc::READ_MAP_SELECT, FONT_PLANE_INDEX);
-        self.write_graphics(gc::MODE, 0x00);
-        self.write_graphics(gc::MISC, MISC_FONT_AT_A0000);
+        self.io
+            .write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
+        self.io.write_map_mask(FONT_PLANE);
+        self.io
+            .write_sequencer(Sequencer::MemoryMode, MEMORY_MODE_SEQUENTIAL);
+        self.io
+            .write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
+        self.io
+            .write_graphics(Graphics::ReadMapSelect, FONT_PLANE_INDEX);
+        self.io.write_graphics(Graphics::Mode, 0x00);
+        self.io.write_graphics(Graphics::Misc, MISC_FONT_AT_A0000);
 
-        self.bus.fill_vram(0, GLYPH_SLOTS * GLYPH_SLOT_BYTES, 0);
+        self.io.fill_vram(0, GLYPH_SLOTS * GLYPH_SLOT_BYTES, 0);
         for (slot, glyph) in (0..)
             .step_by(usize::from(GLYPH_SLOT_BYTES))
             .zip(font.iter())
@@ -124,19 +128,23 @@ impl<B: VgaBus> ModeX<B> {
                 .step_by(usize::from(SCAN_LINES_PER_GLYPH_ROW))
                 .zip(glyph.iter())
             {
-                self.bus
+                self.io
                     .fill_vram(slot + row, SCAN_LINES_PER_GLYPH_ROW, bits);
             }
         }
 
         // Back to the text mode's odd/even addressing.
-        self.write_sequencer(seq::RESET, seq::RESET_SYNCHRONOUS);
-        for index in [seq::MAP_MASK, seq::MEMORY_MODE] {
-            self.write_sequencer(index, TEXT_80X25.sequencer[usize::from(index)]);
+        self.io
+            .write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
+        for register in [Sequencer::MapMask, Sequencer::MemoryMode] {
+            self.io
+                .write_sequencer(register, TEXT_80X25.sequencer_value(register));
         }
-        self.write_sequencer(seq::RESET, seq::RESET_RUNNING);
-        for index in [gc::READ_MAP_SELECT, gc::MODE, gc::MISC] {
-            self.write_graphics(index, TEXT_80X25.graphics[usize::from(index)]);
+        self.io
+            .write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
+        for register in [Graphics::ReadMapSelect, Graphics::Mode, Graphics::Misc] {
+            self.io
+                .write_graphics(register, TEXT_80X25.graphics_value(register));
         }
     }
 }

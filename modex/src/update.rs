@@ -12,7 +12,7 @@
 use crate::bus::VgaBus;
 use crate::driver::ModeX;
 use crate::page::Page;
-use crate::regs::ALL_PLANES;
+use crate::regs::PlaneMask;
 use crate::{BYTES_PER_LINE, SCREEN_HEIGHT, SCREEN_WIDTH};
 use core::ops::Range;
 
@@ -65,12 +65,12 @@ impl<B: VgaBus> ModeX<B> {
     pub fn write_page(&mut self, page: Page, image: &PageImage) {
         let width = SCREEN_WIDTH as usize;
         for plane in 0..4u8 {
-            self.set_map_mask(1 << plane);
+            self.io.set_map_mask(PlaneMask::plane(plane));
             for y in 0..SCREEN_HEIGHT as usize {
                 let line = &image[y * width..][..width];
                 let line_base = page.base() + y as u16 * BYTES_PER_LINE;
                 for i in 0..usize::from(BYTES_PER_LINE) {
-                    self.bus
+                    self.io
                         .write_vram8(line_base + i as u16, line[4 * i + usize::from(plane)]);
                 }
             }
@@ -79,12 +79,14 @@ impl<B: VgaBus> ModeX<B> {
 
     /// The Map Masks in the order they are set: the one already set first,
     /// which saves its OUT, then the rest in increasing order.
-    fn mask_order(&self, frame_masks: u16) -> impl Iterator<Item = u8> {
+    fn mask_order(&self, frame_masks: u16) -> impl Iterator<Item = PlaneMask> {
         let cached = self
-            .cached_map_mask()
-            .filter(|&m| frame_masks & 1 << m != 0);
-        let others =
-            (1..=ALL_PLANES).filter(move |&m| Some(m) != cached && frame_masks & 1 << m != 0);
+            .io
+            .map_mask()
+            .filter(|&m| frame_masks & mask_bit(m) != 0);
+        let others = (1..=PlaneMask::ALL.bits())
+            .map(PlaneMask::from_bits_truncate)
+            .filter(move |&m| Some(m) != cached && frame_masks & mask_bit(m) != 0);
         cached.into_iter().chain(others)
     }
 
@@ -92,13 +94,13 @@ impl<B: VgaBus> ModeX<B> {
     fn write_by_mask(&mut self, page: Page, writes: &Writes) -> u32 {
         let mut written = 0;
         for mask in self.mask_order(writes.masks) {
-            self.set_map_mask(mask);
+            self.io.set_map_mask(mask);
             for write in writes.list[..writes.len].iter().filter(|w| w.mask == mask) {
                 let address = page.base() + write.address;
                 if write.count == 1 {
-                    self.bus.write_vram8(address, write.colour);
+                    self.io.write_vram8(address, write.colour);
                 } else {
-                    self.bus.fill_vram(address, write.count, write.colour);
+                    self.io.fill_vram(address, write.count, write.colour);
                 }
                 written += u32::from(write.count);
             }
@@ -123,15 +125,18 @@ impl<B: VgaBus> ModeX<B> {
             let (old_line, new_line) =
                 (&shadow[y * width..][..width], &target[y * width..][..width]);
             each_write(old_line, new_line, quads(range), |write| {
-                line_masks[y] |= 1 << write.mask;
+                line_masks[y] |= mask_bit(write.mask);
             });
             frame_masks |= line_masks[y];
         }
         let mut written = 0;
         for mask in self.mask_order(frame_masks) {
-            self.set_map_mask(mask);
+            self.io.set_map_mask(mask);
             for (y, range) in changed.iter().enumerate() {
-                let Some(range) = range.as_ref().filter(|_| line_masks[y] & 1 << mask != 0) else {
+                let Some(range) = range
+                    .as_ref()
+                    .filter(|_| line_masks[y] & mask_bit(mask) != 0)
+                else {
                     continue;
                 };
                 let (old_line, new_line) =
@@ -142,10 +147,9 @@ impl<B: VgaBus> ModeX<B> {
                         return;
                     }
                     if write.count == 1 {
-                        self.bus
-                            .write_vram8(line_base + write.address, write.colour);
+                        self.io.write_vram8(line_base + write.address, write.colour);
                     } else {
-                        self.bus
+                        self.io
                             .fill_vram(line_base + write.address, write.count, write.colour);
                     }
                     written += u32::from(write.count);
@@ -165,7 +169,7 @@ struct Write {
     address: u16,
     count: u16,
     colour: u8,
-    mask: u8,
+    mask: PlaneMask,
 }
 
 /// Writes a frame's update can collect before it falls back to finding them
@@ -211,7 +215,7 @@ impl Writes {
                     ..write
                 };
                 writes.len += 1;
-                writes.masks |= 1 << write.mask;
+                writes.masks |= mask_bit(write.mask);
             });
             if overflow {
                 return None;
@@ -262,7 +266,7 @@ fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, mut write: 
                 address: i as u16,
                 count: run as u16,
                 colour: new_line[4 * i],
-                mask: ALL_PLANES,
+                mask: PlaneMask::ALL,
             });
             i += run;
             continue;
@@ -284,7 +288,7 @@ fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, mut write: 
 
 /// The writes that bring one address from `old` to `new`: one per distinct
 /// new colour among the changed pixels, as (planes, colour).
-fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (u8, u8)> {
+fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (PlaneMask, u8)> {
     let mut pending = (0..4)
         .filter(|&p| old[p] != new[p])
         .fold(0u8, |mask, p| mask | 1 << p);
@@ -297,8 +301,13 @@ fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (u8, u8)> 
             .filter(|&p| pending & 1 << p != 0 && new[p] == colour)
             .fold(0u8, |m, p| m | 1 << p);
         pending &= !planes;
-        Some((planes, colour))
+        Some((PlaneMask::from_bits_truncate(planes), colour))
     })
+}
+
+/// A mask's bit in a set of masks (one bit per mask value, 0 to 15).
+fn mask_bit(planes: PlaneMask) -> u16 {
+    1 << planes.bits()
 }
 
 fn quad(line: &[u8], address: usize) -> [u8; 4] {
@@ -325,6 +334,7 @@ fn solid_run(old_line: &[u8], new_line: &[u8], start: usize, end: usize) -> usiz
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::regs::Port;
     use crate::soft::SoftVga;
     use std::boxed::Box;
     use std::vec;
@@ -414,13 +424,13 @@ mod tests {
     struct Recorder(std::vec::Vec<(char, u16, u16)>);
 
     impl VgaBus for Recorder {
-        fn write_port8(&mut self, port: u16, value: u8) {
-            self.0.push(('o', port, u16::from(value)));
+        fn write_port8(&mut self, port: Port, value: u8) {
+            self.0.push(('o', port.number(), u16::from(value)));
         }
-        fn write_port16(&mut self, port: u16, value: u16) {
-            self.0.push(('w', port, value));
+        fn write_port16(&mut self, port: Port, value: u16) {
+            self.0.push(('w', port.number(), value));
         }
-        fn read_port8(&mut self, _port: u16) -> u8 {
+        fn read_port8(&mut self, _port: Port) -> u8 {
             0
         }
         fn write_vram8(&mut self, offset: u16, value: u8) {

@@ -11,7 +11,7 @@ use embedded_graphics::mono_font::{ascii::FONT_6X10, MonoTextStyle};
 use embedded_graphics::pixelcolor::Rgb888;
 use embedded_graphics::prelude::*;
 use embedded_graphics::text::{Baseline, Text};
-use modex::regs::{gc, seq};
+use modex::regs::{gc, Graphics, Sequencer};
 use modex::soft::{dac_6_to_8, BusCounts, SoftVga};
 use modex::{Page, BYTES_PER_LINE, PAGE_BYTES, PAGE_COUNT, PAGE_PIXELS, SCREEN_HEIGHT};
 
@@ -99,9 +99,9 @@ pub fn vga_state(vga: &SoftVga) -> VgaState {
     VgaState {
         start_address,
         shown_page,
-        map_mask: vga.sequencer(seq::MAP_MASK),
-        bit_mask: vga.graphics(gc::BIT_MASK),
-        write_mode: vga.graphics(gc::MODE) & gc::MODE_WRITE_MASK,
+        map_mask: vga.sequencer(Sequencer::MapMask),
+        bit_mask: vga.graphics(Graphics::BitMask),
+        write_mode: vga.graphics(Graphics::Mode) & gc::MODE_WRITE_MASK,
     }
 }
 

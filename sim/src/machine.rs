@@ -9,6 +9,7 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 use demo::app::App;
+use modex::regs::Port;
 use modex::soft::{SoftVga, PLANE_BYTES};
 use modex::{ModeX, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
 
@@ -38,15 +39,15 @@ impl ClockedVga {
 }
 
 impl VgaBus for ClockedVga {
-    fn write_port8(&mut self, port: u16, value: u8) {
+    fn write_port8(&mut self, port: Port, value: u8) {
         self.soft.write_port8(port, value);
         self.tick();
     }
-    fn write_port16(&mut self, port: u16, value: u16) {
+    fn write_port16(&mut self, port: Port, value: u16) {
         self.soft.write_port16(port, value);
         self.tick();
     }
-    fn read_port8(&mut self, port: u16) -> u8 {
+    fn read_port8(&mut self, port: Port) -> u8 {
         let value = self.soft.read_port8(port);
         self.tick();
         value

@@ -3,16 +3,13 @@
 //! keys, flat shading by a light, other solids in the cube's place, and two
 //! more solids circling on their own, drawn far to near.
 
-mod bounds;
 mod command;
 mod crowd;
 mod orbit;
 
 use crate::shading::{default_light, shaded_colour};
 use crate::solids::{Solid, SHAPES};
-use bounds::{hull, overlap_rows, ScreenBox};
 use core::f64::consts::PI;
-use core::ops::Range;
 use crowd::Member;
 pub use crowd::CROWD;
 use engine::{FaceCounts, Light, Object, Point, VisibleFace, Xform};
@@ -43,6 +40,19 @@ pub const SATELLITES: usize = 2;
 pub const MAX_OBJECTS: usize = 1 + SATELLITES + CROWD;
 
 /// What is drawn: the objects, the light, and the switches the keys flip.
+///
+/// # Example
+///
+/// ```
+/// use demo::scene::{Scene, SceneCommand};
+///
+/// let mut scene = Scene::initial(); // Abrash's cube, still
+/// let mut faces = 0;
+/// let counts = scene.visible_faces(|_polygon, _colour| faces += 1);
+/// assert_eq!((faces, counts.drawn), (1, 1)); // seen face on: one face
+/// scene.apply(SceneCommand::ToggleSeveral);
+/// assert_eq!(scene.objects().len(), 3); // with its two satellites
+/// ```
 #[derive(Clone, Debug)]
 pub struct Scene {
     /// The object the keys move (index 0), the satellites, then the crowd:
@@ -150,50 +160,16 @@ impl Scene {
         &mut self.objects[0]
     }
 
-    /// Whether hidden surfaces need the depth test. Within one convex solid,
-    /// backface removal leaves faces that never overlap; every object but a
-    /// non-convex solid in the cube's place is convex; so the test is needed
-    /// only for a non-convex solid, or where two objects' screen rectangles
-    /// meet. (Three solids on their orbits are usually apart.)
-    pub fn needs_depth_test(&mut self) -> bool {
-        self.rows_needing_depth_test().is_some()
-    }
-
-    /// The rows where the depth test can change a pixel, as one range: those
-    /// of a non-convex solid, and those where two objects' screen rectangles
-    /// meet. Outside them no pixel is covered by two objects, nor by two
-    /// faces of one, so drawing without the test gives the same picture.
-    ///
-    /// The crowd always takes the test on every row: its small solids, drawn
-    /// without it where their rectangles kept apart, differed from the ray
-    /// caster by a pixel or two away from any edge (`demo/tests/
-    /// hidden_surfaces.rs`), where corners rounded to pixels fold a tiny face
-    /// over its neighbour.
-    pub fn rows_needing_depth_test(&mut self) -> Option<Range<i32>> {
-        if self.crowd {
-            return Some(i32::MIN..i32::MAX);
-        }
-        let count = self.object_count();
-        let mut boxes = [ScreenBox::default(); MAX_OBJECTS];
-        let mut boxed = 0;
-        for object in &mut self.objects[..count] {
-            if let Some(bounds) = ScreenBox::around(object.screen_vertices()) {
-                boxes[boxed] = bounds;
-                boxed += 1;
-            }
-        }
-        let boxes = &boxes[..boxed];
-        let primary = match boxes.first() {
-            Some(bounds) if !self.solid().convex => Some(bounds.rows()),
-            _ => None,
-        };
-        hull(primary, overlap_rows(boxes))
-    }
-
     /// The objects in the scene: the primary alone, or with the satellites,
     /// or with the satellites and the crowd.
     pub fn objects(&self) -> &[Object] {
         &self.objects[..self.object_count()]
+    }
+
+    /// The objects in the scene, to change (their projections are cached).
+    pub fn objects_mut(&mut self) -> &mut [Object] {
+        let count = self.object_count();
+        &mut self.objects[..count]
     }
 
     fn object_count(&self) -> usize {

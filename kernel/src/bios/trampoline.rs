@@ -24,65 +24,9 @@
 
 use core::arch::global_asm;
 
-/// Offsets into the area. The data block comes first; the code after it.
-pub mod layout {
-    /// The trampoline's GDT: null, 64-bit code, 32-bit code, 32-bit data,
-    /// 16-bit code and 16-bit data (the last two based at the area).
-    pub const GDT: usize = 0x00;
-    pub const GDT_ENTRIES: usize = 6;
-    /// Its pseudo-descriptor: 2-byte limit, 8-byte base.
-    pub const GDTR: usize = 0x30;
-    /// The kernel's GDTR and IDTR, saved on the way out (10 bytes each).
-    pub const KERNEL_GDTR: usize = 0x40;
-    pub const KERNEL_IDTR: usize = 0x50;
-    /// Real mode's IDTR: the interrupt vector table at 0, 256 vectors.
-    pub const REAL_IDTR: usize = 0x60;
-    /// CR0, CR3, CR4, EFER and RSP as they were (8 bytes each).
-    pub const CR0: usize = 0x70;
-    pub const CR3: usize = 0x78;
-    pub const CR4: usize = 0x80;
-    pub const EFER: usize = 0x88;
-    pub const RSP: usize = 0x90;
-    /// The kernel's CS, SS, DS, ES, FS and GS selectors (2 bytes each).
-    pub const SELECTORS: usize = 0x98;
-    /// The area's real-mode segment (its physical address / 16).
-    pub const REAL_SEGMENT: usize = 0xA8;
-    /// The registers in and out: EAX, EBX, ECX, EDX, ESI, EDI, EBP (4 bytes
-    /// each), then DS, ES and FLAGS (2 bytes each).
-    pub const REGISTERS: usize = 0xB0;
-    pub const DS: usize = REGISTERS + 28;
-    pub const ES: usize = DS + 2;
-    pub const FLAGS: usize = ES + 2;
-    /// Where the code starts.
-    pub const CODE: usize = 0x100;
-    /// The real-mode stack grows down from here (the area is 16 KiB).
-    pub const STACK_TOP: usize = 0x3FF0;
-    /// The area's size.
-    pub const AREA: usize = 0x4000;
-}
-
-/// Selectors in the trampoline's GDT.
-pub mod selector {
-    pub const CODE_64: u16 = 0x08;
-    pub const CODE_32: u16 = 0x10;
-    pub const DATA_32: u16 = 0x18;
-    pub const CODE_16: u16 = 0x20;
-    pub const DATA_16: u16 = 0x28;
-}
-
-/// The trampoline's GDT for an area at `base` (below 1 MiB).
-pub fn descriptors(base: u32) -> [u64; layout::GDT_ENTRIES] {
-    // Flat 4 GiB segments: limit 0xFFFFF in pages.
-    const CODE_64: u64 = 0x00AF_9A00_0000_FFFF; // L=1
-    const CODE_32: u64 = 0x00CF_9A00_0000_FFFF; // D=1, G=1
-    const DATA_32: u64 = 0x00CF_9200_0000_FFFF; // B=1, G=1
-                                                // 64 KiB segments at `base`, byte granular, 16-bit: what real mode expects
-                                                // its segment registers' hidden limits to be.
-    let base_bits = (u64::from(base & 0x00FF_FFFF) << 16) | (u64::from(base >> 24) << 56);
-    let code_16 = 0x0000_9A00_0000_FFFF | base_bits;
-    let data_16 = 0x0000_9200_0000_FFFF | base_bits;
-    [0, CODE_64, CODE_32, DATA_32, code_16, data_16]
-}
+// The data block's layout, the GDT's selectors and its descriptors are
+// pure, so they live in `machine::trampoline` and are tested on the host.
+pub use machine::trampoline::{descriptors, layout, selector};
 
 extern "C" {
     static bios_trampoline_start: u8;

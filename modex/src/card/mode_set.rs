@@ -85,15 +85,15 @@ impl<B: VgaBus> ModeX<B> {
 mod tests {
     use super::*;
     use crate::card::{Card, ExtensionProbe, Register};
-    use crate::regs::{vbe, VBE_DISPI_DATA, VBE_DISPI_INDEX};
+    use crate::regs::{vbe, Port};
     use crate::soft::SoftVga;
     use std::boxed::Box;
 
     /// A software VGA left in a Bochs VBE linear mode, as the bootloader leaves it.
     fn in_vbe_mode() -> Box<SoftVga> {
         let mut soft = Box::new(SoftVga::new());
-        soft.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
-        soft.write_port16(VBE_DISPI_DATA, vbe::ENABLED);
+        soft.write_port16(Port::VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
+        soft.write_port16(Port::VBE_DISPI_DATA, vbe::ENABLED);
         soft
     }
 

@@ -8,7 +8,7 @@
 //! registers: the same ports mean other things on other cards (ATI's old
 //! extended registers sit at 0x1CE/0x1CF, where Bochs VBE's are).
 
-use crate::regs::{vbe, CRTC_INDEX, GRAPHICS_INDEX, SEQUENCER_INDEX};
+use crate::regs::{vbe, IndexedPair};
 
 /// The extension family of a VGA card, as told by its PCI vendor and device.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,10 +36,11 @@ pub enum ResetStep {
         /// Value to write.
         value: u16,
     },
-    /// An index/data register pair at `index_port` / `index_port + 1`.
+    /// A register of a standard index/data pair, at an index the standard
+    /// VGA does not use.
     Indexed {
-        /// The pair's index port (0x3C4, 0x3CE or 0x3D4).
-        index_port: u16,
+        /// The pair (Sequencer, Graphics Controller or CRTC).
+        pair: IndexedPair,
         /// Register index.
         index: u8,
         /// Value to write.
@@ -80,23 +81,19 @@ const BOCHS_DISPI_RESET: &[ResetStep] = &[ResetStep::Dispi {
     value: vbe::DISABLED,
 }];
 
-const fn indexed(index_port: u16, index: u8, value: u8) -> ResetStep {
-    ResetStep::Indexed {
-        index_port,
-        index,
-        value,
-    }
+const fn indexed(pair: IndexedPair, index: u8, value: u8) -> ResetStep {
+    ResetStep::Indexed { pair, index, value }
 }
 
 const CIRRUS_RESET: &[ResetStep] = &[
-    indexed(SEQUENCER_INDEX, cirrus::UNLOCK, cirrus::UNLOCK_KEY),
-    indexed(SEQUENCER_INDEX, cirrus::EXTENDED_SEQUENCER_MODE, 0),
-    indexed(GRAPHICS_INDEX, cirrus::OFFSET_0, 0),
-    indexed(GRAPHICS_INDEX, cirrus::OFFSET_1, 0),
-    indexed(GRAPHICS_INDEX, cirrus::GRAPHICS_EXTENSIONS, 0),
-    indexed(CRTC_INDEX, cirrus::MISC_CONTROL, 0),
-    indexed(CRTC_INDEX, cirrus::EXTENDED_DISPLAY, 0),
-    indexed(CRTC_INDEX, cirrus::OVERLAY_EXTENDED, 0),
+    indexed(IndexedPair::Sequencer, cirrus::UNLOCK, cirrus::UNLOCK_KEY),
+    indexed(IndexedPair::Sequencer, cirrus::EXTENDED_SEQUENCER_MODE, 0),
+    indexed(IndexedPair::Graphics, cirrus::OFFSET_0, 0),
+    indexed(IndexedPair::Graphics, cirrus::OFFSET_1, 0),
+    indexed(IndexedPair::Graphics, cirrus::GRAPHICS_EXTENSIONS, 0),
+    indexed(IndexedPair::Crtc, cirrus::MISC_CONTROL, 0),
+    indexed(IndexedPair::Crtc, cirrus::EXTENDED_DISPLAY, 0),
+    indexed(IndexedPair::Crtc, cirrus::OVERLAY_EXTENDED, 0),
     ResetStep::CirrusHiddenDac(0),
 ];
 
@@ -177,16 +174,16 @@ mod tests {
         let steps = Card::Cirrus.extension_reset();
         assert_eq!(
             steps[0],
-            indexed(SEQUENCER_INDEX, cirrus::UNLOCK, cirrus::UNLOCK_KEY)
+            indexed(IndexedPair::Sequencer, cirrus::UNLOCK, cirrus::UNLOCK_KEY)
         );
         assert!(steps.contains(&indexed(
-            SEQUENCER_INDEX,
+            IndexedPair::Sequencer,
             cirrus::EXTENDED_SEQUENCER_MODE,
             0
         )));
         // The start address and offset bits above the standard VGA's must go,
         // or the picture starts somewhere else in video memory.
-        assert!(steps.contains(&indexed(CRTC_INDEX, cirrus::EXTENDED_DISPLAY, 0)));
+        assert!(steps.contains(&indexed(IndexedPair::Crtc, cirrus::EXTENDED_DISPLAY, 0)));
         assert!(steps.contains(&ResetStep::CirrusHiddenDac(0)));
     }
 }

@@ -2,13 +2,9 @@
 //! of the registers that decide what the screen shows, so the kernel never
 //! reports a mode it has not seen in the hardware.
 
-use super::vendor::{cirrus, ExtensionProbe, ResetStep};
+use super::vendor::ExtensionProbe;
 use crate::mode::ModeRegisters;
-use crate::regs::{
-    ac, crtc, gc, seq, vbe, ATTRIBUTE_DATA_READ, ATTRIBUTE_INDEX, CRTC_DATA, CRTC_INDEX,
-    DAC_PIXEL_MASK, GRAPHICS_DATA, GRAPHICS_INDEX, INPUT_STATUS_1, MISC_OUTPUT_READ,
-    SEQUENCER_DATA, SEQUENCER_INDEX, VBE_DISPI_DATA, VBE_DISPI_INDEX,
-};
+use crate::regs::{Attribute, Crtc, Graphics, Sequencer};
 use crate::{ModeX, VgaBus};
 
 /// A register that did not read back what the mode set wrote.
@@ -17,13 +13,13 @@ pub enum Register {
     /// Miscellaneous Output (read at 0x3CC).
     MiscOutput,
     /// A Sequencer register.
-    Sequencer(u8),
+    Sequencer(Sequencer),
     /// A CRT Controller register.
-    Crtc(u8),
+    Crtc(Crtc),
     /// A Graphics Controller register.
-    Graphics(u8),
+    Graphics(Graphics),
     /// An Attribute Controller register.
-    Attribute(u8),
+    Attribute(Attribute),
     /// The card's extended-mode switch (Bochs VBE ENABLE, Cirrus SR7).
     Extension(ExtensionProbe),
 }
@@ -41,47 +37,22 @@ pub struct Mismatch {
 
 /// Sequencer registers compared: clocking, character map, memory mode (the
 /// Map Mask changes while drawing).
-const SEQUENCER_CHECKED: [u8; 3] = [
-    seq::CLOCKING_MODE,
-    seq::CHARACTER_MAP_SELECT,
-    seq::MEMORY_MODE,
+const SEQUENCER_CHECKED: [Sequencer; 3] = [
+    Sequencer::ClockingMode,
+    Sequencer::CharacterMapSelect,
+    Sequencer::MemoryMode,
 ];
 /// Graphics Controller registers compared: the mode and the memory map.
-const GRAPHICS_CHECKED: [u8; 2] = [gc::MODE, gc::MISC];
+const GRAPHICS_CHECKED: [Graphics; 2] = [Graphics::Mode, Graphics::Misc];
 /// Attribute registers compared: mode control and colour plane enable.
-const ATTRIBUTE_CHECKED: [u8; 2] = [ac::MODE_CONTROL, ac::COLOR_PLANE_ENABLE];
+const ATTRIBUTE_CHECKED: [Attribute; 2] = [Attribute::ModeControl, Attribute::ColorPlaneEnable];
 
 /// CRTC registers that flips and the cursor change, so not compared.
-fn crtc_changes_at_run_time(index: u8) -> bool {
-    (crtc::START_ADDRESS_HIGH..=crtc::CURSOR_LOCATION_LOW).contains(&index)
+fn crtc_changes_at_run_time(register: Crtc) -> bool {
+    (Crtc::StartAddressHigh.index()..=Crtc::CursorLocationLow.index()).contains(&register.index())
 }
 
 impl<B: VgaBus> ModeX<B> {
-    /// Writes the card's extension reset (nothing for a standard card).
-    pub(crate) fn reset_extensions(&mut self) {
-        for step in self.card().extension_reset() {
-            match *step {
-                ResetStep::Dispi { index, value } => {
-                    self.bus.write_port16(VBE_DISPI_INDEX, index);
-                    self.bus.write_port16(VBE_DISPI_DATA, value);
-                }
-                ResetStep::Indexed {
-                    index_port,
-                    index,
-                    value,
-                } => self
-                    .bus
-                    .write_port16(index_port, u16::from_le_bytes([index, value])),
-                ResetStep::CirrusHiddenDac(value) => {
-                    for _ in 0..4 {
-                        self.bus.read_port8(DAC_PIXEL_MASK);
-                    }
-                    self.bus.write_port8(DAC_PIXEL_MASK, value);
-                }
-            }
-        }
-    }
-
     /// Reads back the registers that decide the picture and compares them
     /// with `mode`; then checks that the card's extended mode is off.
     pub fn verify(&mut self, mode: &ModeRegisters) -> Result<(), Mismatch> {
@@ -96,84 +67,48 @@ impl<B: VgaBus> ModeX<B> {
                 })
             }
         };
+        let io = &mut self.io;
         check(
             Register::MiscOutput,
             mode.misc_output,
-            self.bus.read_port8(MISC_OUTPUT_READ),
+            io.read_misc_output(),
         )?;
-        for index in SEQUENCER_CHECKED {
-            let found = self.read_indexed(SEQUENCER_INDEX, SEQUENCER_DATA, index);
+        for register in SEQUENCER_CHECKED {
+            let found = io.read_sequencer(register);
             check(
-                Register::Sequencer(index),
-                mode.sequencer[usize::from(index)],
+                Register::Sequencer(register),
+                mode.sequencer_value(register),
                 found,
             )?;
         }
-        for index in (0..crtc::COUNT as u8).filter(|&i| !crtc_changes_at_run_time(i)) {
-            let found = self.read_indexed(CRTC_INDEX, CRTC_DATA, index);
-            check(Register::Crtc(index), mode.crtc[usize::from(index)], found)?;
+        for register in Crtc::ALL
+            .into_iter()
+            .filter(|&r| !crtc_changes_at_run_time(r))
+        {
+            let found = io.read_crtc(register);
+            check(Register::Crtc(register), mode.crtc_value(register), found)?;
         }
-        for index in GRAPHICS_CHECKED {
-            let found = self.read_indexed(GRAPHICS_INDEX, GRAPHICS_DATA, index);
+        for register in GRAPHICS_CHECKED {
+            let found = io.read_graphics(register);
             check(
-                Register::Graphics(index),
-                mode.graphics[usize::from(index)],
+                Register::Graphics(register),
+                mode.graphics_value(register),
                 found,
             )?;
         }
-        for index in ATTRIBUTE_CHECKED {
-            let found = self.read_attribute(index);
+        for register in ATTRIBUTE_CHECKED {
+            let found = io.read_attribute(register);
             check(
-                Register::Attribute(index),
-                mode.attribute[usize::from(index)],
+                Register::Attribute(register),
+                mode.attribute_value(register),
                 found,
             )?;
         }
-        if let Some(probe) = self.card().extension_probe() {
-            let (found, bit) = self.read_extension(probe);
+        if let Some(probe) = io.card().extension_probe() {
+            let (found, bit) = io.read_extension(probe);
             check(Register::Extension(probe), found & !bit, found)?;
         }
         Ok(())
-    }
-
-    fn read_indexed(&mut self, index_port: u16, data_port: u16, index: u8) -> u8 {
-        self.bus.write_port8(index_port, index);
-        self.bus.read_port8(data_port)
-    }
-
-    /// Reads an attribute register with the palette address source kept on
-    /// (so the screen stays lit), leaving the flip-flop in its index state.
-    fn read_attribute(&mut self, index: u8) -> u8 {
-        self.bus.read_port8(INPUT_STATUS_1);
-        self.bus
-            .write_port8(ATTRIBUTE_INDEX, index | ac::PALETTE_ADDRESS_SOURCE);
-        let value = self.bus.read_port8(ATTRIBUTE_DATA_READ);
-        self.bus.read_port8(INPUT_STATUS_1);
-        value
-    }
-
-    /// The extension register's value and the bit that must be clear.
-    fn read_extension(&mut self, probe: ExtensionProbe) -> (u8, u8) {
-        match probe {
-            ExtensionProbe::DispiEnable => {
-                self.bus.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
-                // Only the low byte holds flags; the port answers 16-bit reads.
-                let [enable, _] = self.bus.read_port16(VBE_DISPI_DATA).to_le_bytes();
-                (enable, vbe::ENABLED as u8)
-            }
-            ExtensionProbe::CirrusExtendedModes => {
-                self.bus.write_port16(
-                    SEQUENCER_INDEX,
-                    u16::from_le_bytes([cirrus::UNLOCK, cirrus::UNLOCK_KEY]),
-                );
-                let sr7 = self.read_indexed(
-                    SEQUENCER_INDEX,
-                    SEQUENCER_DATA,
-                    cirrus::EXTENDED_SEQUENCER_MODE,
-                );
-                (sr7, cirrus::EXTENDED_MODES)
-            }
-        }
     }
 }
 
@@ -182,6 +117,7 @@ mod tests {
     use super::*;
     use crate::card::Card;
     use crate::mode::{MODE_X, TEXT_80X25};
+    use crate::regs::{vbe, Port};
     use crate::soft::SoftVga;
     use std::boxed::Box;
 
@@ -204,12 +140,12 @@ mod tests {
     fn a_register_the_card_did_not_take_is_caught() {
         let mut soft = soft_in_mode_x(Card::Standard);
         // As if the card ignored the unchaining: chain-4 still on.
-        soft.write_port8(SEQUENCER_INDEX, seq::MEMORY_MODE);
-        soft.write_port8(SEQUENCER_DATA, 0x0E);
+        soft.write_port8(Port::SEQUENCER_INDEX, Sequencer::MemoryMode.index());
+        soft.write_port8(Port::SEQUENCER_DATA, 0x0E);
         assert_eq!(
             ModeX::new(&mut *soft).verify(&MODE_X),
             Err(Mismatch {
-                register: Register::Sequencer(seq::MEMORY_MODE),
+                register: Register::Sequencer(Sequencer::MemoryMode),
                 expected: 0x06,
                 found: 0x0E
             })
@@ -222,8 +158,8 @@ mod tests {
     #[test]
     fn an_extended_mode_left_on_is_caught() {
         let mut soft = soft_in_mode_x(Card::BochsDispi);
-        soft.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
-        soft.write_port16(VBE_DISPI_DATA, vbe::ENABLED);
+        soft.write_port16(Port::VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
+        soft.write_port16(Port::VBE_DISPI_DATA, vbe::ENABLED);
         let result = ModeX::for_card(&mut *soft, Card::BochsDispi).verify(&MODE_X);
         assert_eq!(
             result.map_err(|m| m.register),

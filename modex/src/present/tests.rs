@@ -1,6 +1,7 @@
 //! The full presenter: scaling, placement, pixel orders, the model's picture.
 
 use super::*;
+use crate::regs::Port;
 use std::vec;
 use std::vec::Vec;
 
@@ -281,9 +282,9 @@ fn presenting_the_model_matches_presenting_its_rgb_scan_out() {
         assert!(actual == expected, "{what}");
     };
     compare(&soft, "the default palette");
-    crate::VgaBus::write_port8(&mut *soft, crate::regs::DAC_PIXEL_MASK, 0x0F);
+    crate::VgaBus::write_port8(&mut *soft, Port::DAC_PIXEL_MASK, 0x0F);
     compare(&soft, "pixel mask 0x0F");
-    crate::VgaBus::write_port8(&mut *soft, crate::regs::ATTRIBUTE_INDEX, 0); // blanks the screen
+    crate::VgaBus::write_port8(&mut *soft, Port::ATTRIBUTE_INDEX, 0); // blanks the screen
     assert!(!soft.video_enabled());
     compare(&soft, "blanked");
 }

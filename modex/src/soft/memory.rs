@@ -12,7 +12,7 @@
 //!   `address >> 1`, the compact mapping QEMU uses for text mode.
 //! * otherwise planar (Mode X): every plane at `address`, through the latches.
 
-use crate::regs::{gc, seq, ALL_PLANES, PLANE_COUNT};
+use crate::regs::{gc, seq, Graphics, PlaneMask, Sequencer, PLANE_COUNT};
 
 use super::registers::Registers;
 
@@ -101,7 +101,7 @@ impl VideoMemory {
         let Some(address) = window_address(registers, offset) else {
             return 0xFF;
         };
-        let read_map = registers.graphics(gc::READ_MAP_SELECT);
+        let read_map = registers.graphics(Graphics::ReadMapSelect);
         let (offset, plane) = match read_addressing(registers) {
             Addressing::Chain4 => {
                 let plane = (address & CHAIN_4_PLANE_BITS) as usize;
@@ -116,7 +116,7 @@ impl VideoMemory {
         for (latch, plane) in self.latches.iter_mut().zip(&self.planes) {
             *latch = plane[offset];
         }
-        if registers.graphics(gc::MODE) & gc::MODE_READ_COMPARE != 0 {
+        if registers.graphics(Graphics::Mode) & gc::MODE_READ_COMPARE != 0 {
             self.color_compare(registers)
         } else {
             self.latches[usize::from(plane) % PLANE_COUNT]
@@ -126,8 +126,8 @@ impl VideoMemory {
     /// Read mode 1: a bit is set where every plane that Color Don't Care
     /// includes matches Color Compare.
     fn color_compare(&self, registers: &Registers) -> u8 {
-        let compare = registers.graphics(gc::COLOR_COMPARE);
-        let care = registers.graphics(gc::COLOR_DONT_CARE);
+        let compare = registers.graphics(Graphics::ColorCompare);
+        let care = registers.graphics(Graphics::ColorDontCare);
         let mut differences = 0;
         for (plane, &latch) in self.latches.iter().enumerate() {
             if care & (1 << plane) != 0 {
@@ -140,13 +140,13 @@ impl VideoMemory {
     /// The write modes, logical function and Bit Mask against the latches,
     /// into the planes of `planes`.
     fn write_latched(&mut self, registers: &Registers, offset: usize, value: u8, planes: u8) {
-        let mode = registers.graphics(gc::MODE) & gc::MODE_WRITE_MASK;
-        let rotate = registers.graphics(gc::DATA_ROTATE);
+        let mode = registers.graphics(Graphics::Mode) & gc::MODE_WRITE_MASK;
+        let rotate = registers.graphics(Graphics::DataRotate);
         let rotated = value.rotate_right(u32::from(rotate & gc::ROTATE_COUNT_MASK));
         let function = Function::from_data_rotate(rotate);
-        let set_reset = registers.graphics(gc::SET_RESET);
-        let enable_set_reset = registers.graphics(gc::ENABLE_SET_RESET);
-        let bit_mask = registers.graphics(gc::BIT_MASK);
+        let set_reset = registers.graphics(Graphics::SetReset);
+        let enable_set_reset = registers.graphics(Graphics::EnableSetReset);
+        let bit_mask = registers.graphics(Graphics::BitMask);
 
         for plane in 0..PLANE_COUNT {
             if planes & (1 << plane) == 0 {
@@ -215,8 +215,8 @@ fn plane_offset(address: u32) -> usize {
 /// The address within the memory map selected by Graphics Misc, if the map
 /// decodes this part of the window. Bochs VBE maps its memory from A0000.
 fn window_address(registers: &Registers, offset: u16) -> Option<u32> {
-    let map =
-        (registers.graphics(gc::MISC) & gc::MISC_MEMORY_MAP_MASK) >> gc::MISC_MEMORY_MAP_SHIFT;
+    let map = (registers.graphics(Graphics::Misc) & gc::MISC_MEMORY_MAP_MASK)
+        >> gc::MISC_MEMORY_MAP_SHIFT;
     let decoded =
         registers.vbe_enabled() || u32::from(offset) < MEMORY_MAP_WINDOW_BYTES[usize::from(map)];
     decoded.then_some(u32::from(offset))
@@ -225,21 +225,21 @@ fn window_address(registers: &Registers, offset: u16) -> Option<u32> {
 /// Bochs VBE enables every plane (as QEMU overrides the sequencer for it).
 fn map_mask(registers: &Registers) -> u8 {
     if registers.vbe_enabled() {
-        ALL_PLANES
+        PlaneMask::ALL.bits()
     } else {
-        registers.sequencer(seq::MAP_MASK)
+        registers.sequencer(Sequencer::MapMask)
     }
 }
 
 /// Bochs VBE forces chain-4 (its banked window is linear).
 fn chain_4(registers: &Registers) -> bool {
-    registers.vbe_enabled() || registers.sequencer(seq::MEMORY_MODE) & seq::MEMORY_CHAIN_4 != 0
+    registers.vbe_enabled() || registers.sequencer(Sequencer::MemoryMode) & seq::MEMORY_CHAIN_4 != 0
 }
 
 fn write_addressing(registers: &Registers) -> Addressing {
     if chain_4(registers) {
         Addressing::Chain4
-    } else if registers.sequencer(seq::MEMORY_MODE) & seq::MEMORY_ODD_EVEN_DISABLE == 0 {
+    } else if registers.sequencer(Sequencer::MemoryMode) & seq::MEMORY_ODD_EVEN_DISABLE == 0 {
         Addressing::OddEven
     } else {
         Addressing::Planar
@@ -249,7 +249,7 @@ fn write_addressing(registers: &Registers) -> Addressing {
 fn read_addressing(registers: &Registers) -> Addressing {
     if chain_4(registers) {
         Addressing::Chain4
-    } else if registers.graphics(gc::MODE) & gc::MODE_HOST_ODD_EVEN != 0 {
+    } else if registers.graphics(Graphics::Mode) & gc::MODE_HOST_ODD_EVEN != 0 {
         Addressing::OddEven
     } else {
         Addressing::Planar

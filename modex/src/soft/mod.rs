@@ -35,11 +35,12 @@ mod scanout;
 mod text_scanout;
 mod timing;
 
+use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
 use core::ops::Range;
 
 use crate::mode::TEXT_80X25;
 use crate::palette::{Rgb6, EGA_PALETTE};
-use crate::regs::{ac, crtc, gc, seq, status, PLANE_COUNT, VBE_DISPI_DATA, VBE_DISPI_INDEX};
+use crate::regs::{status, PLANE_COUNT};
 use crate::{VgaBus, CPU_WINDOW_BYTES};
 
 use memory::VideoMemory;
@@ -52,6 +53,23 @@ pub use scanout::dac_6_to_8;
 pub use timing::{CrtTiming, PORT_ACCESS_NS, VRAM_ACCESS_NS};
 
 /// The software VGA.
+///
+/// # Example
+///
+/// Port writes reach its registers as on a VGA, and every bus operation is
+/// counted:
+///
+/// ```
+/// use modex::regs::{Port, Sequencer};
+/// use modex::soft::SoftVga;
+/// use modex::VgaBus;
+///
+/// let mut soft = Box::new(SoftVga::new()); // text mode 3, as the BIOS leaves it
+/// let map_mask = u16::from_le_bytes([Sequencer::MapMask.index(), 0x05]);
+/// soft.write_port16(Port::SEQUENCER_INDEX, map_mask);
+/// assert_eq!(soft.sequencer(Sequencer::MapMask), 0x05);
+/// assert_eq!(soft.counts().port_writes, 1);
+/// ```
 #[derive(Clone)]
 pub struct SoftVga {
     registers: Registers,
@@ -121,24 +139,24 @@ impl SoftVga {
         self.registers.misc_output
     }
 
-    /// Sequencer register `index` (0..=4).
-    pub fn sequencer(&self, index: u8) -> u8 {
-        self.registers.sequencer[usize::from(index) % seq::COUNT]
+    /// A Sequencer register.
+    pub fn sequencer(&self, register: Sequencer) -> u8 {
+        self.registers.sequencer(register)
     }
 
-    /// CRTC register `index` (0..=0x18).
-    pub fn crtc(&self, index: u8) -> u8 {
-        self.registers.crtc[usize::from(index) % crtc::COUNT]
+    /// A CRTC register.
+    pub fn crtc(&self, register: Crtc) -> u8 {
+        self.registers.crtc(register)
     }
 
-    /// Graphics Controller register `index` (0..=8).
-    pub fn graphics(&self, index: u8) -> u8 {
-        self.registers.graphics[usize::from(index) % gc::COUNT]
+    /// A Graphics Controller register.
+    pub fn graphics(&self, register: Graphics) -> u8 {
+        self.registers.graphics(register)
     }
 
-    /// Attribute Controller register `index` (0..=0x14).
-    pub fn attribute(&self, index: u8) -> u8 {
-        self.registers.attribute[usize::from(index) % ac::COUNT]
+    /// An Attribute Controller register.
+    pub fn attribute(&self, register: Attribute) -> u8 {
+        self.registers.attribute[register.slot()]
     }
 
     /// DAC entry `index`, 6 bits per component.
@@ -249,7 +267,7 @@ impl SoftVga {
 
     // --- Bus internals.
 
-    fn port_write(&mut self, port: u16, value: u8) {
+    fn port_write(&mut self, port: Port, value: u8) {
         self.registers.write_port(port, value);
         // Misc Output, Clocking Mode and the CRTC set the timing.
         self.timing = CrtTiming::from_registers(&self.registers);
@@ -272,25 +290,27 @@ impl SoftVga {
 }
 
 impl VgaBus for SoftVga {
-    fn write_port8(&mut self, port: u16, value: u8) {
+    fn write_port8(&mut self, port: Port, value: u8) {
         self.counts.port_writes += 1;
         self.advance_ns(PORT_ACCESS_NS);
         self.port_write(port, value);
     }
 
-    fn write_port16(&mut self, port: u16, value: u16) {
+    fn write_port16(&mut self, port: Port, value: u16) {
         self.counts.port_writes += 1;
         self.advance_ns(PORT_ACCESS_NS);
-        if port == VBE_DISPI_INDEX || port == VBE_DISPI_DATA {
+        if port == Port::VBE_DISPI_INDEX || port == Port::VBE_DISPI_DATA {
             self.registers.write_dispi(port, value);
         } else {
             let [low, high] = value.to_le_bytes();
             self.port_write(port, low);
-            self.port_write(port.wrapping_add(1), high);
+            if let Some(data_port) = port.data() {
+                self.port_write(data_port, high);
+            }
         }
     }
 
-    fn read_port8(&mut self, port: u16) -> u8 {
+    fn read_port8(&mut self, port: Port) -> u8 {
         self.counts.port_reads += 1;
         self.advance_ns(PORT_ACCESS_NS);
         if port == self.registers.input_status_1_port() {
@@ -300,13 +320,15 @@ impl VgaBus for SoftVga {
         }
     }
 
-    fn read_port16(&mut self, port: u16) -> u16 {
-        if port == VBE_DISPI_INDEX || port == VBE_DISPI_DATA {
+    fn read_port16(&mut self, port: Port) -> u16 {
+        if port == Port::VBE_DISPI_INDEX || port == Port::VBE_DISPI_DATA {
             self.counts.port_reads += 1;
             self.advance_ns(PORT_ACCESS_NS);
             self.registers.read_dispi_port(port)
         } else {
-            u16::from_le_bytes([self.read_port8(port), self.read_port8(port.wrapping_add(1))])
+            let low = self.read_port8(port);
+            let high = port.data().map_or(0xFF, |next| self.read_port8(next));
+            u16::from_le_bytes([low, high])
         }
     }
 

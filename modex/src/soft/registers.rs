@@ -6,18 +6,13 @@
 
 use crate::mode::ModeRegisters;
 use crate::palette::Rgb6;
-use crate::regs::{
-    ac, crtc, gc, misc, seq, vbe, ATTRIBUTE_DATA_READ, ATTRIBUTE_INDEX, CRTC_DATA, CRTC_DATA_MONO,
-    CRTC_INDEX, CRTC_INDEX_MONO, DAC_DATA, DAC_PIXEL_MASK, DAC_READ_INDEX, DAC_WRITE_INDEX,
-    GRAPHICS_DATA, GRAPHICS_INDEX, INPUT_STATUS_0, INPUT_STATUS_1, INPUT_STATUS_1_MONO,
-    MISC_OUTPUT_READ, MISC_OUTPUT_WRITE, SEQUENCER_DATA, SEQUENCER_INDEX, VBE_DISPI_DATA,
-    VBE_DISPI_INDEX,
-};
+use crate::regs::{ac, crtc, misc, vbe};
+use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
 
 /// Implemented bits of each sequencer register.
-const SEQUENCER_BITS: [u8; seq::COUNT] = [0x03, 0x3D, 0x0F, 0x3F, 0x0E];
+const SEQUENCER_BITS: [u8; Sequencer::COUNT] = [0x03, 0x3D, 0x0F, 0x3F, 0x0E];
 /// Implemented bits of each graphics controller register.
-const GRAPHICS_BITS: [u8; gc::COUNT] = [0x0F, 0x0F, 0x0F, 0x1F, 0x03, 0x7B, 0x0F, 0x0F, 0xFF];
+const GRAPHICS_BITS: [u8; Graphics::COUNT] = [0x0F, 0x0F, 0x0F, 0x1F, 0x03, 0x7B, 0x0F, 0x0F, 0xFF];
 /// Implemented bits of the index registers.
 const SEQUENCER_INDEX_BITS: u8 = 0x07;
 const GRAPHICS_INDEX_BITS: u8 = 0x0F;
@@ -39,10 +34,10 @@ const ADDRESSING_RANGE_OFFSET_BITS: u16 = 0x0F;
 
 /// Implemented bits of an Attribute Controller register.
 fn attribute_bits(index: u8) -> u8 {
-    match index {
-        ac::MODE_CONTROL => 0xEF,
-        ac::OVERSCAN_COLOR => 0xFF,
-        ac::HORIZONTAL_PIXEL_PANNING | ac::COLOR_SELECT => 0x0F,
+    match Attribute::from_index(index) {
+        Some(Attribute::ModeControl) => 0xEF,
+        Some(Attribute::OverscanColor) => 0xFF,
+        Some(Attribute::HorizontalPixelPanning | Attribute::ColorSelect) => 0x0F,
         // The palette registers and Color Plane Enable have 6 bits.
         _ => 0x3F,
     }
@@ -74,16 +69,16 @@ pub(super) struct Registers {
     pub(super) misc_output: u8,
     feature_control: u8,
     sequencer_index: u8,
-    pub(super) sequencer: [u8; seq::COUNT],
+    pub(super) sequencer: [u8; Sequencer::COUNT],
     crtc_index: u8,
-    pub(super) crtc: [u8; crtc::COUNT],
+    pub(super) crtc: [u8; Crtc::COUNT],
     graphics_index: u8,
-    pub(super) graphics: [u8; gc::COUNT],
+    pub(super) graphics: [u8; Graphics::COUNT],
     /// The Attribute Controller index as last written, Palette Address Source included.
     pub(super) attribute_index: u8,
     /// The flip-flop: the next write to 0x3C0 is data (else index).
     attribute_expects_data: bool,
-    pub(super) attribute: [u8; ac::COUNT],
+    pub(super) attribute: [u8; Attribute::COUNT],
     pub(super) dac: Dac,
     pub(super) dispi: Dispi,
 }
@@ -101,14 +96,14 @@ impl Registers {
             misc_output: mode.misc_output,
             feature_control: 0,
             sequencer_index: 0,
-            sequencer: mode.sequencer,
+            sequencer: mode.sequencer_values(),
             crtc_index: 0,
-            crtc: mode.crtc,
+            crtc: mode.crtc_values(),
             graphics_index: 0,
-            graphics: mode.graphics,
+            graphics: mode.graphics_values(),
             attribute_index: ac::PALETTE_ADDRESS_SOURCE,
             attribute_expects_data: false,
-            attribute: mode.attribute,
+            attribute: mode.attribute_values(),
             dac: Dac {
                 palette: dac_palette,
                 pixel_mask: 0xFF,
@@ -126,11 +121,11 @@ impl Registers {
     }
 
     /// The port of Input Status 1 under the current I/O addressing.
-    pub(super) fn input_status_1_port(&self) -> u16 {
+    pub(super) fn input_status_1_port(&self) -> Port {
         if self.color_addressing() {
-            INPUT_STATUS_1
+            Port::INPUT_STATUS_1
         } else {
-            INPUT_STATUS_1_MONO
+            Port::INPUT_STATUS_1_MONO
         }
     }
 
@@ -145,8 +140,8 @@ impl Registers {
 
     /// Whether `port` answers: of the monochrome (0x3Bx) and colour (0x3Dx)
     /// ranges, only the one Misc Output selects does.
-    fn decodes(&self, port: u16) -> bool {
-        let range = port & !ADDRESSING_RANGE_OFFSET_BITS;
+    fn decodes(&self, port: Port) -> bool {
+        let range = port.number() & !ADDRESSING_RANGE_OFFSET_BITS;
         let ignored = if self.color_addressing() {
             MONO_PORT_RANGE
         } else {
@@ -156,15 +151,15 @@ impl Registers {
     }
 
     /// One byte written to `port` (Input Status 1 / Feature Control included).
-    pub(super) fn write_port(&mut self, port: u16, value: u8) {
+    pub(super) fn write_port(&mut self, port: Port, value: u8) {
         if !self.decodes(port) {
             return;
         }
         match port {
-            ATTRIBUTE_INDEX => self.write_attribute_port(value),
-            MISC_OUTPUT_WRITE => self.misc_output = value & MISC_OUTPUT_BITS,
-            SEQUENCER_INDEX => self.sequencer_index = value & SEQUENCER_INDEX_BITS,
-            SEQUENCER_DATA => {
+            Port::ATTRIBUTE_INDEX => self.write_attribute_port(value),
+            Port::MISC_OUTPUT_WRITE => self.misc_output = value & MISC_OUTPUT_BITS,
+            Port::SEQUENCER_INDEX => self.sequencer_index = value & SEQUENCER_INDEX_BITS,
+            Port::SEQUENCER_DATA => {
                 let index = usize::from(self.sequencer_index);
                 if let (Some(register), Some(bits)) =
                     (self.sequencer.get_mut(index), SEQUENCER_BITS.get(index))
@@ -172,12 +167,12 @@ impl Registers {
                     *register = value & bits;
                 }
             }
-            DAC_PIXEL_MASK => self.dac.pixel_mask = value,
-            DAC_READ_INDEX => self.dac.start(value, DAC_STATE_READING),
-            DAC_WRITE_INDEX => self.dac.start(value, DAC_STATE_WRITING),
-            DAC_DATA => self.dac.write(value),
-            GRAPHICS_INDEX => self.graphics_index = value & GRAPHICS_INDEX_BITS,
-            GRAPHICS_DATA => {
+            Port::DAC_PIXEL_MASK => self.dac.pixel_mask = value,
+            Port::DAC_READ_INDEX => self.dac.start(value, DAC_STATE_READING),
+            Port::DAC_WRITE_INDEX => self.dac.start(value, DAC_STATE_WRITING),
+            Port::DAC_DATA => self.dac.write(value),
+            Port::GRAPHICS_INDEX => self.graphics_index = value & GRAPHICS_INDEX_BITS,
+            Port::GRAPHICS_DATA => {
                 let index = usize::from(self.graphics_index);
                 if let (Some(register), Some(bits)) =
                     (self.graphics.get_mut(index), GRAPHICS_BITS.get(index))
@@ -185,70 +180,72 @@ impl Registers {
                     *register = value & bits;
                 }
             }
-            CRTC_INDEX | CRTC_INDEX_MONO => self.crtc_index = value,
-            CRTC_DATA | CRTC_DATA_MONO => self.write_crtc(value),
-            INPUT_STATUS_1 | INPUT_STATUS_1_MONO => {
+            Port::CRTC_INDEX | Port::CRTC_INDEX_MONO => self.crtc_index = value,
+            Port::CRTC_DATA | Port::CRTC_DATA_MONO => self.write_crtc(value),
+            Port::INPUT_STATUS_1 | Port::INPUT_STATUS_1_MONO => {
                 self.feature_control = value & FEATURE_CONTROL_BITS
             }
-            VBE_DISPI_INDEX | VBE_DISPI_DATA => self.write_dispi(port, value.into()),
+            Port::VBE_DISPI_INDEX | Port::VBE_DISPI_DATA => self.write_dispi(port, value.into()),
             _ => {}
         }
     }
 
     /// One byte read from `port`, except Input Status 1, which needs the clock.
-    pub(super) fn read_port(&mut self, port: u16) -> u8 {
+    pub(super) fn read_port(&mut self, port: Port) -> u8 {
         if !self.decodes(port) {
             return 0xFF;
         }
         match port {
-            ATTRIBUTE_INDEX if !self.attribute_expects_data => self.attribute_index,
-            ATTRIBUTE_DATA_READ => self
+            Port::ATTRIBUTE_INDEX if !self.attribute_expects_data => self.attribute_index,
+            Port::ATTRIBUTE_DATA_READ => self
                 .attribute
                 .get(usize::from(self.attribute_index & ac::INDEX_MASK))
                 .copied()
                 .unwrap_or(0),
-            INPUT_STATUS_0 => 0,
-            SEQUENCER_INDEX => self.sequencer_index,
-            SEQUENCER_DATA => self
+            Port::INPUT_STATUS_0 => 0,
+            Port::SEQUENCER_INDEX => self.sequencer_index,
+            Port::SEQUENCER_DATA => self
                 .sequencer
                 .get(usize::from(self.sequencer_index))
                 .copied()
                 .unwrap_or(0),
-            DAC_PIXEL_MASK => self.dac.pixel_mask,
-            DAC_READ_INDEX => self.dac.state,
-            DAC_WRITE_INDEX => self.dac.write_index,
-            DAC_DATA => self.dac.read(),
-            MISC_OUTPUT_READ => self.misc_output,
-            GRAPHICS_INDEX => self.graphics_index,
-            GRAPHICS_DATA => self
+            Port::DAC_PIXEL_MASK => self.dac.pixel_mask,
+            Port::DAC_READ_INDEX => self.dac.state,
+            Port::DAC_WRITE_INDEX => self.dac.write_index,
+            Port::DAC_DATA => self.dac.read(),
+            Port::MISC_OUTPUT_READ => self.misc_output,
+            Port::GRAPHICS_INDEX => self.graphics_index,
+            Port::GRAPHICS_DATA => self
                 .graphics
                 .get(usize::from(self.graphics_index))
                 .copied()
                 .unwrap_or(0),
-            CRTC_INDEX | CRTC_INDEX_MONO => self.crtc_index,
-            CRTC_DATA | CRTC_DATA_MONO => self
+            Port::CRTC_INDEX | Port::CRTC_INDEX_MONO => self.crtc_index,
+            Port::CRTC_DATA | Port::CRTC_DATA_MONO => self
                 .crtc
                 .get(usize::from(self.crtc_index))
                 .copied()
                 .unwrap_or(0),
-            VBE_DISPI_INDEX => self.dispi.index as u8,
-            VBE_DISPI_DATA => self.read_dispi() as u8,
+            Port::VBE_DISPI_INDEX => self.dispi.index as u8,
+            Port::VBE_DISPI_DATA => self.read_dispi() as u8,
             _ => 0,
         }
     }
 
     /// A 16-bit DISPI register access; VGA ports never get here.
-    pub(super) fn write_dispi(&mut self, port: u16, value: u16) {
+    pub(super) fn write_dispi(&mut self, port: Port, value: u16) {
         match port {
-            VBE_DISPI_INDEX => self.dispi.index = value,
-            VBE_DISPI_DATA if self.dispi.index == vbe::INDEX_ENABLE => self.dispi.enable = value,
+            Port::VBE_DISPI_INDEX => self.dispi.index = value,
+            Port::VBE_DISPI_DATA if self.dispi.index == vbe::INDEX_ENABLE => {
+                self.dispi.enable = value
+            }
             _ => {}
         }
     }
 
     /// A 16-bit read of a DISPI port: the index, or the indexed register.
-    pub(super) fn read_dispi_port(&self, port: u16) -> u16 {
-        if port == VBE_DISPI_INDEX {
+    pub(super) fn read_dispi_port(&self, port: Port) -> u16 {
+        if port == Port::VBE_DISPI_INDEX {
             self.dispi.index
         } else {
             self.read_dispi()
@@ -277,10 +274,10 @@ impl Registers {
 
     fn write_crtc(&mut self, value: u8) {
         let index = self.crtc_index;
-        let protected = self.crtc[usize::from(crtc::VERTICAL_RETRACE_END)] & crtc::PROTECT_0_7 != 0;
-        if protected && index <= crtc::OVERFLOW {
-            if index == crtc::OVERFLOW {
-                let overflow = &mut self.crtc[usize::from(crtc::OVERFLOW)];
+        let protected = self.crtc[Crtc::VerticalRetraceEnd.slot()] & crtc::PROTECT_0_7 != 0;
+        if protected && index <= Crtc::Overflow.index() {
+            if index == Crtc::Overflow.index() {
+                let overflow = &mut self.crtc[Crtc::Overflow.slot()];
                 *overflow = (*overflow & !crtc::OVERFLOW_LINE_COMPARE_8)
                     | (value & crtc::OVERFLOW_LINE_COMPARE_8);
             }
@@ -291,38 +288,38 @@ impl Registers {
         }
     }
 
-    pub(super) const fn sequencer(&self, index: u8) -> u8 {
-        self.sequencer[index as usize]
+    pub(super) const fn sequencer(&self, register: Sequencer) -> u8 {
+        self.sequencer[register.slot()]
     }
 
-    pub(super) fn graphics(&self, index: u8) -> u8 {
-        self.graphics[usize::from(index)]
+    pub(super) const fn graphics(&self, register: Graphics) -> u8 {
+        self.graphics[register.slot()]
     }
 
-    pub(super) const fn crtc(&self, index: u8) -> u8 {
-        self.crtc[index as usize]
+    pub(super) const fn crtc(&self, register: Crtc) -> u8 {
+        self.crtc[register.slot()]
     }
 
     /// The CRTC start address registers as they stand (not yet latched).
     pub(super) const fn start_address(&self) -> u16 {
         u16::from_be_bytes([
-            self.crtc(crtc::START_ADDRESS_HIGH),
-            self.crtc(crtc::START_ADDRESS_LOW),
+            self.crtc(Crtc::StartAddressHigh),
+            self.crtc(Crtc::StartAddressLow),
         ])
     }
 
     /// A 10-bit vertical count: the `low` register, with bit 8 from Overflow
     /// and bit 9 from another register (Overflow, or Maximum Scan Line for
     /// line compare).
-    const fn vertical_count(&self, low: u8, overflow_bit_8: u8, high: (u8, u8)) -> u16 {
+    const fn vertical_count(&self, low: Crtc, overflow_bit_8: u8, high: (Crtc, u8)) -> u16 {
         let (high_register, bit_9) = high;
         self.crtc(low) as u16
-            | self.bit_value(crtc::OVERFLOW, overflow_bit_8, 1 << 8)
+            | self.bit_value(Crtc::Overflow, overflow_bit_8, 1 << 8)
             | self.bit_value(high_register, bit_9, 1 << 9)
     }
 
     /// `value` if the bits `mask` of CRTC register `register` are set, else 0.
-    const fn bit_value(&self, register: u8, mask: u8, value: u16) -> u16 {
+    const fn bit_value(&self, register: Crtc, mask: u8, value: u16) -> u16 {
         if self.crtc(register) & mask != 0 {
             value
         } else {
@@ -333,36 +330,36 @@ impl Registers {
     /// Vertical Total: lines per frame - 2.
     pub(super) const fn vertical_total(&self) -> u16 {
         self.vertical_count(
-            crtc::VERTICAL_TOTAL,
+            Crtc::VerticalTotal,
             crtc::OVERFLOW_VERTICAL_TOTAL_8,
-            (crtc::OVERFLOW, crtc::OVERFLOW_VERTICAL_TOTAL_9),
+            (Crtc::Overflow, crtc::OVERFLOW_VERTICAL_TOTAL_9),
         )
     }
 
     /// Vertical Display End: displayed lines - 1.
     pub(super) const fn vertical_display_end(&self) -> u16 {
         self.vertical_count(
-            crtc::VERTICAL_DISPLAY_END,
+            Crtc::VerticalDisplayEnd,
             crtc::OVERFLOW_VERTICAL_DISPLAY_END_8,
-            (crtc::OVERFLOW, crtc::OVERFLOW_VERTICAL_DISPLAY_END_9),
+            (Crtc::Overflow, crtc::OVERFLOW_VERTICAL_DISPLAY_END_9),
         )
     }
 
     /// Vertical Retrace Start: the first line of vertical sync.
     pub(super) const fn vertical_retrace_start(&self) -> u16 {
         self.vertical_count(
-            crtc::VERTICAL_RETRACE_START,
+            Crtc::VerticalRetraceStart,
             crtc::OVERFLOW_VERTICAL_RETRACE_START_8,
-            (crtc::OVERFLOW, crtc::OVERFLOW_VERTICAL_RETRACE_START_9),
+            (Crtc::Overflow, crtc::OVERFLOW_VERTICAL_RETRACE_START_9),
         )
     }
 
     /// Line Compare: after this scan line the display address restarts at 0.
     pub(super) fn line_compare(&self) -> u16 {
         self.vertical_count(
-            crtc::LINE_COMPARE,
+            Crtc::LineCompare,
             crtc::OVERFLOW_LINE_COMPARE_8,
-            (crtc::MAXIMUM_SCAN_LINE, crtc::LINE_COMPARE_9),
+            (Crtc::MaximumScanLine, crtc::LINE_COMPARE_9),
         )
     }
 

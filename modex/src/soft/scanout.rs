@@ -12,7 +12,7 @@
 //! registers, which 256-colour modes bypass on QEMU (Mode X sets them to the
 //! identity anyway).
 
-use crate::regs::{ac, crtc, gc, seq, PLANE_COUNT};
+use crate::regs::{ac, crtc, gc, seq, Crtc, Graphics, Sequencer, PLANE_COUNT};
 
 use super::memory::PLANE_BYTES;
 use super::SoftVga;
@@ -102,17 +102,17 @@ impl SoftVga {
     /// Address Source is set and the sequencer's screen-off bit is clear.
     pub fn video_enabled(&self) -> bool {
         self.registers.attribute_index & ac::PALETTE_ADDRESS_SOURCE != 0
-            && self.registers.sequencer(seq::CLOCKING_MODE) & seq::CLOCKING_SCREEN_OFF == 0
+            && self.registers.sequencer(Sequencer::ClockingMode) & seq::CLOCKING_SCREEN_OFF == 0
     }
 
     fn raster(&self) -> Option<Raster> {
         let registers = &self.registers;
-        let graphics = registers.graphics(gc::MISC) & gc::MISC_GRAPHICS != 0;
-        let shift_256 = registers.graphics(gc::MODE) & gc::MODE_SHIFT_256 != 0;
+        let graphics = registers.graphics(Graphics::Misc) & gc::MISC_GRAPHICS != 0;
+        let shift_256 = registers.graphics(Graphics::Mode) & gc::MODE_SHIFT_256 != 0;
         if registers.vbe_enabled() || !graphics || !shift_256 {
             return None;
         }
-        let maximum_scan_line = registers.crtc(crtc::MAXIMUM_SCAN_LINE);
+        let maximum_scan_line = registers.crtc(Crtc::MaximumScanLine);
         let doubling = if maximum_scan_line & crtc::SCAN_DOUBLING != 0 {
             2
         } else {
@@ -122,12 +122,12 @@ impl SoftVga {
             (usize::from(maximum_scan_line & crtc::MAXIMUM_SCAN_LINE_MASK) + 1) * doubling;
         let scan_lines = usize::from(registers.vertical_display_end()) + 1;
         Some(Raster {
-            width: (usize::from(registers.crtc(crtc::HORIZONTAL_DISPLAY_END)) + 1)
+            width: (usize::from(registers.crtc(Crtc::HorizontalDisplayEnd)) + 1)
                 * PIXELS_PER_CHARACTER,
             height: scan_lines / scan_lines_per_row,
             scan_lines,
             scan_lines_per_row,
-            addresses_per_row: usize::from(registers.crtc(crtc::OFFSET))
+            addresses_per_row: usize::from(registers.crtc(Crtc::Offset))
                 * ADDRESSES_PER_OFFSET_UNIT,
             line_compare: usize::from(registers.line_compare()),
             start: usize::from(self.displayed_start),

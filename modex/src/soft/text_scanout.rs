@@ -19,7 +19,7 @@
 //! phase. Not modelled: the cursor (our text screens park it off screen),
 //! underline, the 16-dot double-width clock, panning and line compare.
 
-use crate::regs::{ac, crtc, gc, seq};
+use crate::regs::{crtc, gc, seq, Attribute, Crtc, Graphics, Sequencer};
 
 use super::memory::PLANE_BYTES;
 use super::SoftVga;
@@ -71,26 +71,27 @@ impl SoftVga {
     /// and Attribute Mode Control both say text) with Bochs VBE off.
     pub(super) fn text_raster(&self) -> Option<TextRaster> {
         let registers = &self.registers;
-        let text = registers.graphics(gc::MISC) & gc::MISC_GRAPHICS == 0
-            && registers.attribute[usize::from(ac::MODE_CONTROL)] & MODE_GRAPHICS == 0;
+        let text = registers.graphics(Graphics::Misc) & gc::MISC_GRAPHICS == 0
+            && registers.attribute[Attribute::ModeControl.slot()] & MODE_GRAPHICS == 0;
         if registers.vbe_enabled() || !text {
             return None;
         }
-        let cell_width = if registers.sequencer(seq::CLOCKING_MODE) & seq::CLOCKING_8_DOT != 0 {
+        let cell_width = if registers.sequencer(Sequencer::ClockingMode) & seq::CLOCKING_8_DOT != 0
+        {
             8
         } else {
             9
         };
         let cell_height =
-            usize::from(registers.crtc(crtc::MAXIMUM_SCAN_LINE) & crtc::MAXIMUM_SCAN_LINE_MASK) + 1;
+            usize::from(registers.crtc(Crtc::MaximumScanLine) & crtc::MAXIMUM_SCAN_LINE_MASK) + 1;
         let scan_lines = usize::from(registers.vertical_display_end()) + 1;
-        let select = registers.sequencer(seq::CHARACTER_MAP_SELECT);
+        let select = registers.sequencer(Sequencer::CharacterMapSelect);
         Some(TextRaster {
-            columns: usize::from(registers.crtc(crtc::HORIZONTAL_DISPLAY_END)) + 1,
+            columns: usize::from(registers.crtc(Crtc::HorizontalDisplayEnd)) + 1,
             rows: scan_lines / cell_height,
             cell_width,
             cell_height,
-            cells_per_row: usize::from(registers.crtc(crtc::OFFSET)) * CELLS_PER_OFFSET_UNIT,
+            cells_per_row: usize::from(registers.crtc(Crtc::Offset)) * CELLS_PER_OFFSET_UNIT,
             start: usize::from(self.displayed_start),
             // Attribute bit 3 clear picks map B (bits 4, 1-0), set picks map A (5, 3-2).
             font_bases: [font_base(select, 0, 4), font_base(select, 2, 5)],
@@ -102,8 +103,8 @@ impl SoftVga {
     fn text_colour(&self, nibble: u8) -> u8 {
         let attribute = &self.registers.attribute;
         let palette = attribute[usize::from(nibble & 0x0F)];
-        let select = attribute[usize::from(ac::COLOR_SELECT)];
-        if attribute[usize::from(ac::MODE_CONTROL)] & MODE_P54_SELECT != 0 {
+        let select = attribute[Attribute::ColorSelect.slot()];
+        if attribute[Attribute::ModeControl.slot()] & MODE_P54_SELECT != 0 {
             ((select & 0x0F) << 4) | (palette & 0x0F)
         } else {
             ((select & 0x0C) << 4) | (palette & 0x3F)
@@ -114,7 +115,7 @@ impl SoftVga {
     /// of the text picture.
     pub(super) fn scan_text(&self, raster: &TextRaster, mut put: impl FnMut(usize, &[u8])) {
         let planes = &self.memory.planes;
-        let mode = self.registers.attribute[usize::from(ac::MODE_CONTROL)];
+        let mode = self.registers.attribute[Attribute::ModeControl.slot()];
         let (width, _) = raster.size();
         for row in 0..raster.rows {
             for column in 0..raster.columns {

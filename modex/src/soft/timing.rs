@@ -5,7 +5,7 @@
 //! of timing registers re-times the whole history (as QEMU's precise retrace
 //! does), which may move the beam.
 
-use crate::regs::{crtc, misc, seq, status};
+use crate::regs::{crtc, misc, seq, status, Crtc, Sequencer};
 
 use super::registers::Registers;
 
@@ -51,10 +51,10 @@ impl CrtTiming {
     pub(super) const fn from_registers(registers: &Registers) -> Self {
         let clock_select =
             (registers.misc_output & misc::CLOCK_SELECT_MASK) >> misc::CLOCK_SELECT_SHIFT;
-        let eight_dot = registers.sequencer(seq::CLOCKING_MODE) & seq::CLOCKING_8_DOT != 0;
+        let eight_dot = registers.sequencer(Sequencer::ClockingMode) & seq::CLOCKING_8_DOT != 0;
         let retrace_start_line = registers.vertical_retrace_start() as u64;
         let retrace_end_bits =
-            (registers.crtc(crtc::VERTICAL_RETRACE_END) & crtc::VERTICAL_RETRACE_END_MASK) as u64;
+            (registers.crtc(Crtc::VerticalRetraceEnd) & crtc::VERTICAL_RETRACE_END_MASK) as u64;
         let retrace_lines =
             match retrace_end_bits.wrapping_sub(retrace_start_line) % RETRACE_END_COMPARE_LINES {
                 0 => RETRACE_END_COMPARE_LINES,
@@ -63,9 +63,9 @@ impl CrtTiming {
         Self {
             dot_clock_hz: DOT_CLOCK_HZ[clock_select as usize],
             dots_per_character: if eight_dot { 8 } else { 9 },
-            characters_per_line: registers.crtc(crtc::HORIZONTAL_TOTAL) as u64
+            characters_per_line: registers.crtc(Crtc::HorizontalTotal) as u64
                 + HORIZONTAL_TOTAL_BIAS,
-            display_characters: registers.crtc(crtc::HORIZONTAL_DISPLAY_END) as u64 + 1,
+            display_characters: registers.crtc(Crtc::HorizontalDisplayEnd) as u64 + 1,
             lines_per_frame: registers.vertical_total() as u64 + VERTICAL_TOTAL_BIAS,
             display_lines: registers.vertical_display_end() as u64 + 1,
             retrace_start_line,

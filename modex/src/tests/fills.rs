@@ -2,7 +2,7 @@
 //! and the bus traffic of the Map Mask strategy.
 
 use super::{assert_picture, mode_x, page_pixels, page_range, power_on, scanout, Picture};
-use crate::regs::ALL_PLANES;
+use crate::regs::{PlaneMask, Sequencer};
 use crate::{Page, PAGE_BYTES};
 
 const BACKGROUND: u8 = 3;
@@ -208,8 +208,8 @@ fn map_mask_is_not_rewritten_when_it_would_not_change() {
     expected.fill_rect(1, 10, 19, 200, 6);
     assert_picture(&expected, &scanout(vga.bus()), "the spans");
     assert_eq!(
-        vga.bus().sequencer(crate::regs::seq::MAP_MASK) & ALL_PLANES,
-        vga.cached_map_mask().unwrap()
+        vga.bus().sequencer(Sequencer::MapMask) & PlaneMask::ALL.bits(),
+        vga.io.map_mask().unwrap().bits()
     );
 }
 

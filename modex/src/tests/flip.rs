@@ -2,7 +2,8 @@
 //! retrace, drawing into the back page never shows, and the waits are bounded.
 
 use super::{assert_picture, mode_x, power_on, scanout, Picture};
-use crate::regs::{crtc, status, CRTC_INDEX, INPUT_STATUS_1};
+use crate::regs::status;
+use crate::regs::{Crtc, Port};
 use crate::soft::PORT_ACCESS_NS;
 use crate::{FlipReport, Page, VgaBus, PAGE_BYTES, STATUS_POLL_LIMIT};
 
@@ -37,7 +38,7 @@ fn show_page_returns_at_the_start_of_vertical_retrace() {
     assert_eq!(vga.bus().frame_count(), frames + 1, "one retrace per flip");
     // Straight after the latch: still in vertical retrace.
     assert_ne!(
-        vga.bus_mut().read_port8(INPUT_STATUS_1) & status::VERTICAL_RETRACE,
+        vga.bus_mut().read_port8(Port::INPUT_STATUS_1) & status::VERTICAL_RETRACE,
         0
     );
 
@@ -64,12 +65,12 @@ fn the_start_address_takes_effect_at_the_next_vertical_retrace() {
     vga.bus_mut().advance_ns(1_000_000);
     let [high, low] = PAGE_BYTES.to_be_bytes();
     vga.bus_mut().write_port16(
-        CRTC_INDEX,
-        u16::from_le_bytes([crtc::START_ADDRESS_HIGH, high]),
+        Port::CRTC_INDEX,
+        u16::from_le_bytes([Crtc::StartAddressHigh.index(), high]),
     );
     vga.bus_mut().write_port16(
-        CRTC_INDEX,
-        u16::from_le_bytes([crtc::START_ADDRESS_LOW, low]),
+        Port::CRTC_INDEX,
+        u16::from_le_bytes([Crtc::StartAddressLow.index(), low]),
     );
     assert_eq!(vga.bus().displayed_start(), 0, "latched before the retrace");
     let frame_ns = vga.bus().timing().frame_ns();

@@ -3,11 +3,8 @@
 use super::{mode_x, power_on, scanout, Picture, XorShift};
 use crate::mode::MODE_X;
 use crate::palette::DEFAULT_PALETTE;
-use crate::regs::{
-    ac, crtc, gc, seq, vbe, ATTRIBUTE_INDEX, CRTC_DATA_MONO, CRTC_INDEX_MONO, DAC_DATA,
-    DAC_PIXEL_MASK, DAC_WRITE_INDEX, GRAPHICS_DATA, GRAPHICS_INDEX, MISC_OUTPUT_WRITE,
-    SEQUENCER_DATA, SEQUENCER_INDEX, VBE_DISPI_DATA, VBE_DISPI_INDEX,
-};
+use crate::regs::{crtc, seq, vbe};
+use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
 use crate::soft::{dac_6_to_8, SoftVga};
 use crate::VgaBus;
 
@@ -16,9 +13,9 @@ use crate::VgaBus;
 fn assert_mode_x(soft: &SoftVga) {
     assert!(!soft.vbe_enabled(), "Bochs VBE still on");
     assert_eq!(soft.misc_output(), 0xE3);
-    let sequencer: [u8; seq::COUNT] = core::array::from_fn(|i| soft.sequencer(i as u8));
+    let sequencer: [u8; Sequencer::COUNT] = Sequencer::ALL.map(|register| soft.sequencer(register));
     assert_eq!(sequencer, [0x03, 0x01, 0x0F, 0x00, 0x06], "sequencer");
-    let crtc: [u8; crtc::COUNT] = core::array::from_fn(|i| soft.crtc(i as u8));
+    let crtc: [u8; Crtc::COUNT] = Crtc::ALL.map(|register| soft.crtc(register));
     assert_eq!(
         crtc,
         [
@@ -27,19 +24,19 @@ fn assert_mode_x(soft: &SoftVga) {
         ],
         "CRTC"
     );
-    let graphics: [u8; gc::COUNT] = core::array::from_fn(|i| soft.graphics(i as u8));
+    let graphics: [u8; Graphics::COUNT] = Graphics::ALL.map(|register| soft.graphics(register));
     assert_eq!(
         graphics,
         [0x00, 0x00, 0x00, 0x00, 0x00, 0x40, 0x05, 0x0F, 0xFF],
         "graphics controller"
     );
-    let attribute: [u8; ac::COUNT] = core::array::from_fn(|i| soft.attribute(i as u8));
-    let mut expected_attribute = [0; ac::COUNT];
+    let attribute: [u8; Attribute::COUNT] = Attribute::ALL.map(|register| soft.attribute(register));
+    let mut expected_attribute = [0; Attribute::COUNT];
     for (i, value) in expected_attribute.iter_mut().take(16).enumerate() {
         *value = i as u8;
     }
-    expected_attribute[usize::from(ac::MODE_CONTROL)] = 0x41;
-    expected_attribute[usize::from(ac::COLOR_PLANE_ENABLE)] = 0x0F;
+    expected_attribute[Attribute::ModeControl.slot()] = 0x41;
+    expected_attribute[Attribute::ColorPlaneEnable.slot()] = 0x0F;
     assert_eq!(attribute, expected_attribute, "attribute controller");
     assert!(
         soft.video_enabled(),
@@ -70,7 +67,7 @@ fn mode_set_from_power_on_gives_mode_x() {
     let mut soft = power_on();
     mode_x(&mut soft);
     assert_mode_x(&soft);
-    assert_eq!(MODE_X.crtc[usize::from(crtc::OFFSET)], 0x28);
+    assert_eq!(MODE_X.crtc_value(Crtc::Offset), 0x28);
 }
 
 /// The state a bootloader's VBE framebuffer, a BIOS mode 13h and a crashed
@@ -81,46 +78,55 @@ fn dirty(soft: &mut SoftVga) {
     let mut random = XorShift(0x1234_5678);
     // Garbage in every plane, written planar through all four.
     soft.write_port16(
-        SEQUENCER_INDEX,
-        u16::from_le_bytes([seq::MEMORY_MODE, 0x06]),
+        Port::SEQUENCER_INDEX,
+        u16::from_le_bytes([Sequencer::MemoryMode.index(), 0x06]),
     );
-    soft.write_port16(SEQUENCER_INDEX, u16::from_le_bytes([seq::MAP_MASK, 0x0F]));
-    soft.write_port16(GRAPHICS_INDEX, u16::from_le_bytes([gc::MISC, 0x05]));
-    soft.write_port16(GRAPHICS_INDEX, u16::from_le_bytes([gc::MODE, 0x00]));
+    soft.write_port16(
+        Port::SEQUENCER_INDEX,
+        u16::from_le_bytes([Sequencer::MapMask.index(), 0x0F]),
+    );
+    soft.write_port16(
+        Port::GRAPHICS_INDEX,
+        u16::from_le_bytes([Graphics::Misc.index(), 0x05]),
+    );
+    soft.write_port16(
+        Port::GRAPHICS_INDEX,
+        u16::from_le_bytes([Graphics::Mode.index(), 0x00]),
+    );
     for offset in 0..=u16::MAX {
         soft.write_vram8(offset, random.next_u8() | 1);
     }
-    soft.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
-    soft.write_port16(VBE_DISPI_DATA, vbe::ENABLED);
-    for index in 0..seq::COUNT as u8 {
+    soft.write_port16(Port::VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
+    soft.write_port16(Port::VBE_DISPI_DATA, vbe::ENABLED);
+    for index in 0..Sequencer::COUNT as u8 {
         soft.write_port16(
-            SEQUENCER_INDEX,
+            Port::SEQUENCER_INDEX,
             u16::from_le_bytes([index, random.next_u8()]),
         );
     }
-    soft.write_port8(SEQUENCER_INDEX, seq::MEMORY_MODE);
-    soft.write_port8(SEQUENCER_DATA, seq::MEMORY_CHAIN_4);
-    for index in 0..gc::COUNT as u8 {
-        soft.write_port8(GRAPHICS_INDEX, index);
-        soft.write_port8(GRAPHICS_DATA, random.next_u8());
+    soft.write_port8(Port::SEQUENCER_INDEX, Sequencer::MemoryMode.index());
+    soft.write_port8(Port::SEQUENCER_DATA, seq::MEMORY_CHAIN_4);
+    for index in 0..Graphics::COUNT as u8 {
+        soft.write_port8(Port::GRAPHICS_INDEX, index);
+        soft.write_port8(Port::GRAPHICS_DATA, random.next_u8());
     }
-    for index in 0..ac::COUNT as u8 {
-        soft.write_port8(ATTRIBUTE_INDEX, index);
-        soft.write_port8(ATTRIBUTE_INDEX, random.next_u8());
+    for index in 0..Attribute::COUNT as u8 {
+        soft.write_port8(Port::ATTRIBUTE_INDEX, index);
+        soft.write_port8(Port::ATTRIBUTE_INDEX, random.next_u8());
     }
-    soft.write_port8(ATTRIBUTE_INDEX, 0x05); // index only: the flip-flop now expects data
-    soft.write_port8(DAC_PIXEL_MASK, 0x00);
-    soft.write_port8(DAC_WRITE_INDEX, 9);
-    soft.write_port8(DAC_DATA, 0x3F); // one of three components
-    soft.write_port8(MISC_OUTPUT_WRITE, 0x66); // monochrome addressing: CRTC at 0x3B4
-    for index in 0..crtc::COUNT as u8 {
+    soft.write_port8(Port::ATTRIBUTE_INDEX, 0x05); // index only: the flip-flop now expects data
+    soft.write_port8(Port::DAC_PIXEL_MASK, 0x00);
+    soft.write_port8(Port::DAC_WRITE_INDEX, 9);
+    soft.write_port8(Port::DAC_DATA, 0x3F); // one of three components
+    soft.write_port8(Port::MISC_OUTPUT_WRITE, 0x66); // monochrome addressing: CRTC at 0x3B4
+    for index in 0..Crtc::COUNT as u8 {
         soft.write_port16(
-            CRTC_INDEX_MONO,
+            Port::CRTC_INDEX_MONO,
             u16::from_le_bytes([index, random.next_u8()]),
         );
     }
-    soft.write_port8(CRTC_INDEX_MONO, crtc::VERTICAL_RETRACE_END);
-    soft.write_port8(CRTC_DATA_MONO, crtc::PROTECT_0_7);
+    soft.write_port8(Port::CRTC_INDEX_MONO, Crtc::VerticalRetraceEnd.index());
+    soft.write_port8(Port::CRTC_DATA_MONO, crtc::PROTECT_0_7);
 }
 
 #[test]
@@ -137,8 +143,8 @@ fn mode_set_from_a_dirty_state_gives_mode_x() {
 #[test]
 fn a_standard_card_mode_set_leaves_the_vbe_ports_alone() {
     let mut soft = power_on();
-    soft.write_port16(VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
-    soft.write_port16(VBE_DISPI_DATA, vbe::ENABLED);
+    soft.write_port16(Port::VBE_DISPI_INDEX, vbe::INDEX_ENABLE);
+    soft.write_port16(Port::VBE_DISPI_DATA, vbe::ENABLED);
     crate::ModeX::new(&mut *soft).set_mode();
     assert!(soft.vbe_enabled());
 }
@@ -176,8 +182,8 @@ fn a_blanked_screen_scans_out_black() {
     let mut vga = mode_x(&mut soft);
     vga.clear_page(crate::Page::Zero, 15);
     // Writing an attribute index without Palette Address Source blanks video.
-    vga.bus_mut().read_port8(crate::regs::INPUT_STATUS_1);
-    vga.bus_mut().write_port8(ATTRIBUTE_INDEX, 0x00);
+    vga.bus_mut().read_port8(Port::INPUT_STATUS_1);
+    vga.bus_mut().write_port8(Port::ATTRIBUTE_INDEX, 0x00);
     let mut rgb = std::vec![[1u8; 3]; 320 * 240];
     vga.bus().scanout_rgb(&mut rgb);
     assert!(rgb.iter().all(|&pixel| pixel == [0; 3]));

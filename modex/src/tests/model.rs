@@ -2,27 +2,24 @@
 //! port decoding, the DAC protocol, timing and the probes.
 
 use super::power_on;
-use crate::regs::{
-    crtc, gc, seq, status, ATTRIBUTE_DATA_READ, ATTRIBUTE_INDEX, CRTC_DATA, CRTC_DATA_MONO,
-    CRTC_INDEX, CRTC_INDEX_MONO, DAC_DATA, DAC_READ_INDEX, DAC_WRITE_INDEX, GRAPHICS_INDEX,
-    INPUT_STATUS_1, MISC_OUTPUT_WRITE, SEQUENCER_INDEX,
-};
+use crate::regs::{crtc, gc, seq, status};
+use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
 use crate::soft::{SoftVga, PORT_ACCESS_NS, VRAM_ACCESS_NS};
 use crate::VgaBus;
 
 fn sequencer(soft: &mut SoftVga, index: u8, value: u8) {
-    soft.write_port16(SEQUENCER_INDEX, u16::from_le_bytes([index, value]));
+    soft.write_port16(Port::SEQUENCER_INDEX, u16::from_le_bytes([index, value]));
 }
 
 fn graphics(soft: &mut SoftVga, index: u8, value: u8) {
-    soft.write_port16(GRAPHICS_INDEX, u16::from_le_bytes([index, value]));
+    soft.write_port16(Port::GRAPHICS_INDEX, u16::from_le_bytes([index, value]));
 }
 
 /// Planar addressing at A0000, write mode 0, everything pass-through.
 fn planar() -> std::boxed::Box<SoftVga> {
     let mut soft = power_on();
-    sequencer(&mut soft, seq::MEMORY_MODE, 0x06);
-    sequencer(&mut soft, seq::MAP_MASK, 0x0F);
+    sequencer(&mut soft, Sequencer::MemoryMode.index(), 0x06);
+    sequencer(&mut soft, Sequencer::MapMask.index(), 0x0F);
     for (index, value) in [0x00, 0x00, 0x00, 0x00, 0x00, 0x40, 0x05, 0x0F, 0xFF]
         .into_iter()
         .enumerate()
@@ -35,10 +32,10 @@ fn planar() -> std::boxed::Box<SoftVga> {
 /// Writes `values[p]` into plane p at `offset`.
 fn write_planes(soft: &mut SoftVga, offset: u16, values: [u8; 4]) {
     for (plane, value) in values.into_iter().enumerate() {
-        sequencer(soft, seq::MAP_MASK, 1 << plane);
+        sequencer(soft, Sequencer::MapMask.index(), 1 << plane);
         soft.write_vram8(offset, value);
     }
-    sequencer(soft, seq::MAP_MASK, 0x0F);
+    sequencer(soft, Sequencer::MapMask.index(), 0x0F);
 }
 
 fn planes_at(soft: &SoftVga, offset: u16) -> [u8; 4] {
@@ -48,7 +45,7 @@ fn planes_at(soft: &SoftVga, offset: u16) -> [u8; 4] {
 #[test]
 fn map_mask_selects_the_planes_written() {
     let mut soft = planar();
-    sequencer(&mut soft, seq::MAP_MASK, 0b1010);
+    sequencer(&mut soft, Sequencer::MapMask.index(), 0b1010);
     soft.write_vram8(100, 0xAB);
     assert_eq!(planes_at(&soft, 100), [0, 0xAB, 0, 0xAB]);
 }
@@ -58,7 +55,7 @@ fn reads_load_all_latches_and_return_the_read_map() {
     let mut soft = planar();
     write_planes(&mut soft, 7, [0x11, 0x22, 0x33, 0x44]);
     for plane in 0..4u8 {
-        graphics(&mut soft, gc::READ_MAP_SELECT, plane);
+        graphics(&mut soft, Graphics::ReadMapSelect.index(), plane);
         assert_eq!(soft.read_vram8(7), 0x11 * (plane + 1));
         assert_eq!(soft.latches(), [0x11, 0x22, 0x33, 0x44]);
     }
@@ -69,10 +66,10 @@ fn write_mode_1_copies_the_latches() {
     let mut soft = planar();
     write_planes(&mut soft, 10, [1, 2, 3, 4]);
     soft.read_vram8(10);
-    graphics(&mut soft, gc::MODE, 0x41);
+    graphics(&mut soft, Graphics::Mode.index(), 0x41);
     soft.write_vram8(2000, 0xEE); // the CPU's byte is ignored
     assert_eq!(planes_at(&soft, 2000), [1, 2, 3, 4]);
-    sequencer(&mut soft, seq::MAP_MASK, 0b0101);
+    sequencer(&mut soft, Sequencer::MapMask.index(), 0b0101);
     soft.write_vram8(3000, 0xEE);
     assert_eq!(planes_at(&soft, 3000), [1, 0, 3, 0]);
 }
@@ -83,10 +80,14 @@ fn write_mode_0_applies_set_reset_function_rotate_and_bit_mask() {
     write_planes(&mut soft, 0, [0xF0, 0xF0, 0xF0, 0xF0]);
     soft.read_vram8(0);
     // Set/Reset on planes 0 and 1 (plane 0 set, plane 1 reset); XOR; bit mask 0x3C.
-    graphics(&mut soft, gc::SET_RESET, 0b0001);
-    graphics(&mut soft, gc::ENABLE_SET_RESET, 0b0011);
-    graphics(&mut soft, gc::DATA_ROTATE, 3 << gc::FUNCTION_SHIFT);
-    graphics(&mut soft, gc::BIT_MASK, 0x3C);
+    graphics(&mut soft, Graphics::SetReset.index(), 0b0001);
+    graphics(&mut soft, Graphics::EnableSetReset.index(), 0b0011);
+    graphics(
+        &mut soft,
+        Graphics::DataRotate.index(),
+        3 << gc::FUNCTION_SHIFT,
+    );
+    graphics(&mut soft, Graphics::BitMask.index(), 0x3C);
     soft.write_vram8(0, 0x0F);
     // plane 0: 0xFF ^ 0xF0 = 0x0F; plane 1: 0x00 ^ 0xF0 = 0xF0; planes 2, 3: 0x0F ^ 0xF0 = 0xFF;
     // then bits 2-5 from those, the rest from the latch 0xF0.
@@ -94,10 +95,14 @@ fn write_mode_0_applies_set_reset_function_rotate_and_bit_mask() {
 
     // Rotate right by 4, AND with the latch (0xCC in plane 0).
     soft.read_vram8(0);
-    graphics(&mut soft, gc::ENABLE_SET_RESET, 0);
-    graphics(&mut soft, gc::DATA_ROTATE, (1 << gc::FUNCTION_SHIFT) | 4);
-    graphics(&mut soft, gc::BIT_MASK, 0xFF);
-    sequencer(&mut soft, seq::MAP_MASK, 0b0001);
+    graphics(&mut soft, Graphics::EnableSetReset.index(), 0);
+    graphics(
+        &mut soft,
+        Graphics::DataRotate.index(),
+        (1 << gc::FUNCTION_SHIFT) | 4,
+    );
+    graphics(&mut soft, Graphics::BitMask.index(), 0xFF);
+    sequencer(&mut soft, Sequencer::MapMask.index(), 0b0001);
     soft.write_vram8(0, 0x3F);
     assert_eq!(soft.plane(0)[0], 0xF3 & 0xCC);
 }
@@ -105,12 +110,12 @@ fn write_mode_0_applies_set_reset_function_rotate_and_bit_mask() {
 #[test]
 fn write_modes_2_and_3_take_colours() {
     let mut soft = planar();
-    graphics(&mut soft, gc::MODE, 0x42);
+    graphics(&mut soft, Graphics::Mode.index(), 0x42);
     soft.read_vram8(50);
     soft.write_vram8(50, 0b0110);
     assert_eq!(planes_at(&soft, 50), [0x00, 0xFF, 0xFF, 0x00]);
-    graphics(&mut soft, gc::MODE, 0x43);
-    graphics(&mut soft, gc::SET_RESET, 0b1001);
+    graphics(&mut soft, Graphics::Mode.index(), 0x43);
+    graphics(&mut soft, Graphics::SetReset.index(), 0b1001);
     soft.read_vram8(50);
     soft.write_vram8(50, 0x0F); // bit mask 0xFF & 0x0F
     assert_eq!(planes_at(&soft, 50), [0x0F, 0xF0, 0xF0, 0x0F]);
@@ -120,11 +125,11 @@ fn write_modes_2_and_3_take_colours() {
 fn read_mode_1_compares_colours() {
     let mut soft = planar();
     write_planes(&mut soft, 0, [0b1010_1010, 0b1100_1100, 0, 0xFF]);
-    graphics(&mut soft, gc::MODE, 0x48);
-    graphics(&mut soft, gc::COLOR_COMPARE, 0b1011);
-    graphics(&mut soft, gc::COLOR_DONT_CARE, 0x0F);
+    graphics(&mut soft, Graphics::Mode.index(), 0x48);
+    graphics(&mut soft, Graphics::ColorCompare.index(), 0b1011);
+    graphics(&mut soft, Graphics::ColorDontCare.index(), 0x0F);
     assert_eq!(soft.read_vram8(0), 0b1000_1000);
-    graphics(&mut soft, gc::COLOR_DONT_CARE, 0b0001); // only plane 0 counts
+    graphics(&mut soft, Graphics::ColorDontCare.index(), 0b0001); // only plane 0 counts
     assert_eq!(soft.read_vram8(0), 0b1010_1010);
 }
 
@@ -133,7 +138,7 @@ fn chain_4_maps_addresses_as_qemu_does() {
     let mut soft = planar();
     sequencer(
         &mut soft,
-        seq::MEMORY_MODE,
+        Sequencer::MemoryMode.index(),
         seq::MEMORY_CHAIN_4 | seq::MEMORY_ODD_EVEN_DISABLE,
     );
     for address in 0..8u16 {
@@ -148,63 +153,73 @@ fn chain_4_maps_addresses_as_qemu_does() {
 fn crtc_0_to_7_are_protected_by_vertical_retrace_end_bit_7() {
     let mut soft = power_on();
     let write = |soft: &mut SoftVga, index: u8, value: u8| {
-        soft.write_port16(CRTC_INDEX, u16::from_le_bytes([index, value]));
+        soft.write_port16(Port::CRTC_INDEX, u16::from_le_bytes([index, value]));
     };
-    write(&mut soft, crtc::VERTICAL_RETRACE_END, crtc::PROTECT_0_7);
-    write(&mut soft, crtc::HORIZONTAL_TOTAL, 0x12);
-    write(&mut soft, crtc::OVERFLOW, 0xFF);
-    assert_eq!(soft.crtc(crtc::HORIZONTAL_TOTAL), 0x5F);
+    write(
+        &mut soft,
+        Crtc::VerticalRetraceEnd.index(),
+        crtc::PROTECT_0_7,
+    );
+    write(&mut soft, Crtc::HorizontalTotal.index(), 0x12);
+    write(&mut soft, Crtc::Overflow.index(), 0xFF);
+    assert_eq!(soft.crtc(Crtc::HorizontalTotal), 0x5F);
     assert_eq!(
-        soft.crtc(crtc::OVERFLOW),
+        soft.crtc(Crtc::Overflow),
         0x1F | crtc::OVERFLOW_LINE_COMPARE_8
     );
-    write(&mut soft, crtc::VERTICAL_RETRACE_END, 0);
-    write(&mut soft, crtc::HORIZONTAL_TOTAL, 0x12);
-    assert_eq!(soft.crtc(crtc::HORIZONTAL_TOTAL), 0x12);
+    write(&mut soft, Crtc::VerticalRetraceEnd.index(), 0);
+    write(&mut soft, Crtc::HorizontalTotal.index(), 0x12);
+    assert_eq!(soft.crtc(Crtc::HorizontalTotal), 0x12);
 }
 
 #[test]
 fn misc_output_selects_colour_or_monochrome_crtc_ports() {
     let mut soft = power_on();
-    soft.write_port8(MISC_OUTPUT_WRITE, 0x66);
-    soft.write_port16(CRTC_INDEX, u16::from_le_bytes([crtc::OFFSET, 0x11]));
+    soft.write_port8(Port::MISC_OUTPUT_WRITE, 0x66);
+    soft.write_port16(
+        Port::CRTC_INDEX,
+        u16::from_le_bytes([Crtc::Offset.index(), 0x11]),
+    );
     assert_eq!(
-        soft.crtc(crtc::OFFSET),
+        soft.crtc(Crtc::Offset),
         0x28,
         "colour port decoded in monochrome addressing"
     );
-    assert_eq!(soft.read_port8(CRTC_DATA), 0xFF);
-    soft.write_port16(CRTC_INDEX_MONO, u16::from_le_bytes([crtc::OFFSET, 0x11]));
-    assert_eq!(soft.read_port8(CRTC_DATA_MONO), 0x11);
+    assert_eq!(soft.read_port8(Port::CRTC_DATA), 0xFF);
+    soft.write_port16(
+        Port::CRTC_INDEX_MONO,
+        u16::from_le_bytes([Crtc::Offset.index(), 0x11]),
+    );
+    assert_eq!(soft.read_port8(Port::CRTC_DATA_MONO), 0x11);
 }
 
 #[test]
 fn the_attribute_flip_flop_alternates_and_input_status_1_resets_it() {
     let mut soft = power_on();
-    soft.read_port8(INPUT_STATUS_1);
-    soft.write_port8(ATTRIBUTE_INDEX, 0x01);
-    soft.write_port8(ATTRIBUTE_INDEX, 0x3A);
-    assert_eq!(soft.attribute(1), 0x3A);
-    soft.write_port8(ATTRIBUTE_INDEX, 0x02); // index; now expecting data
-    soft.read_port8(INPUT_STATUS_1);
-    soft.write_port8(ATTRIBUTE_INDEX, 0x23); // an index again, with video on
-    soft.write_port8(ATTRIBUTE_INDEX, 0x15);
-    assert_eq!(soft.attribute(3), 0x15);
-    assert_eq!(soft.read_port8(ATTRIBUTE_DATA_READ), 0x15);
+    soft.read_port8(Port::INPUT_STATUS_1);
+    soft.write_port8(Port::ATTRIBUTE_INDEX, 0x01);
+    soft.write_port8(Port::ATTRIBUTE_INDEX, 0x3A);
+    assert_eq!(soft.attribute(Attribute::Palette1), 0x3A);
+    soft.write_port8(Port::ATTRIBUTE_INDEX, 0x02); // index; now expecting data
+    soft.read_port8(Port::INPUT_STATUS_1);
+    soft.write_port8(Port::ATTRIBUTE_INDEX, 0x23); // an index again, with video on
+    soft.write_port8(Port::ATTRIBUTE_INDEX, 0x15);
+    assert_eq!(soft.attribute(Attribute::Palette3), 0x15);
+    assert_eq!(soft.read_port8(Port::ATTRIBUTE_DATA_READ), 0x15);
     assert!(soft.video_enabled());
 }
 
 #[test]
 fn the_dac_takes_and_gives_three_components_per_entry() {
     let mut soft = power_on();
-    soft.write_port8(DAC_WRITE_INDEX, 200);
+    soft.write_port8(Port::DAC_WRITE_INDEX, 200);
     for component in [1, 2, 3, 4, 5, 0xFF] {
-        soft.write_port8(DAC_DATA, component);
+        soft.write_port8(Port::DAC_DATA, component);
     }
     assert_eq!(soft.dac_entry(200), [1, 2, 3]);
     assert_eq!(soft.dac_entry(201), [4, 5, 0x3F], "components are 6 bits");
-    soft.write_port8(DAC_READ_INDEX, 200);
-    let read: [u8; 6] = core::array::from_fn(|_| soft.read_port8(DAC_DATA));
+    soft.write_port8(Port::DAC_READ_INDEX, 200);
+    let read: [u8; 6] = core::array::from_fn(|_| soft.read_port8(Port::DAC_DATA));
     assert_eq!(read, [1, 2, 3, 4, 5, 0x3F]);
 }
 
@@ -240,7 +255,7 @@ fn input_status_1_follows_the_beam() {
     let (mut retrace_samples, mut blank_samples) = (0, 0);
     for _ in 0..samples {
         soft.advance_ns(step_ns - PORT_ACCESS_NS);
-        let bits = soft.read_port8(INPUT_STATUS_1);
+        let bits = soft.read_port8(Port::INPUT_STATUS_1);
         retrace_samples += u64::from(bits & status::VERTICAL_RETRACE != 0);
         blank_samples += u64::from(bits & status::DISPLAY_DISABLED != 0);
     }
@@ -261,9 +276,9 @@ fn input_status_1_follows_the_beam() {
 fn counts_charge_one_operation_per_out_and_one_per_byte() {
     let mut soft = power_on();
     let start = soft.now_ns();
-    soft.write_port16(SEQUENCER_INDEX, 0x0F02);
-    soft.write_port8(SEQUENCER_INDEX, 2);
-    soft.read_port8(INPUT_STATUS_1);
+    soft.write_port16(Port::SEQUENCER_INDEX, 0x0F02);
+    soft.write_port8(Port::SEQUENCER_INDEX, 2);
+    soft.read_port8(Port::INPUT_STATUS_1);
     soft.fill_vram(0xFFF0, 100, 1); // 16 bytes fit before the window ends
     soft.write_vram8(5, 1);
     soft.read_vram8(5);
@@ -289,8 +304,8 @@ fn counts_charge_one_operation_per_out_and_one_per_byte() {
 fn a_graphics_mode_other_than_256_colours_scans_out_nothing() {
     let mut soft = power_on();
     // Graphics rather than text, but 16-colour planar shifting: not modelled.
-    crate::VgaBus::write_port16(&mut *soft, crate::regs::GRAPHICS_INDEX, 0x0506);
-    crate::VgaBus::write_port16(&mut *soft, crate::regs::GRAPHICS_INDEX, 0x0005);
+    crate::VgaBus::write_port16(&mut *soft, Port::GRAPHICS_INDEX, 0x0506);
+    crate::VgaBus::write_port16(&mut *soft, Port::GRAPHICS_INDEX, 0x0005);
     let mut pixels = std::vec![0; 720 * 400];
     assert_eq!(soft.picture_size(), (0, 0));
     assert_eq!(soft.scanout_indices(&mut pixels), (0, 0));

@@ -6,7 +6,7 @@
 
 use super::{mode_x, power_on};
 use crate::mode::TEXT_80X25;
-use crate::regs::{crtc, gc, seq};
+use crate::regs::{Attribute, Crtc, Graphics};
 use crate::soft::SoftVga;
 use crate::ModeX;
 
@@ -28,8 +28,8 @@ fn set_text_mode_programs_the_standard_80x25_registers() {
     let soft = vga.into_bus();
     assert!(!soft.vbe_enabled());
     assert_eq!(soft.misc_output(), 0x67);
-    for index in 0..crtc::COUNT as u8 {
-        if index == crtc::CURSOR_LOCATION_HIGH || index == crtc::CURSOR_LOCATION_LOW {
+    for register in Crtc::ALL {
+        if matches!(register, Crtc::CursorLocationHigh | Crtc::CursorLocationLow) {
             continue;
         }
         let standard = [
@@ -37,39 +37,31 @@ fn set_text_mode_programs_the_standard_80x25_registers() {
             0x00, 0x00, 0x9C, 0x8E, 0x8F, 0x28, 0x1F, 0x96, 0xB9, 0xA3, 0xFF,
         ];
         assert_eq!(
-            soft.crtc(index),
-            standard[usize::from(index)],
-            "CRTC {index:#04x}"
+            soft.crtc(register),
+            standard[register.slot()],
+            "{register:?}"
         );
     }
     // The cursor is parked past the last cell.
     assert_eq!(
         u16::from_be_bytes([
-            soft.crtc(crtc::CURSOR_LOCATION_HIGH),
-            soft.crtc(crtc::CURSOR_LOCATION_LOW)
+            soft.crtc(Crtc::CursorLocationHigh),
+            soft.crtc(Crtc::CursorLocationLow)
         ]),
         2000
     );
-    for index in 0..seq::COUNT as u8 {
-        assert_eq!(
-            soft.sequencer(index),
-            TEXT_80X25.sequencer[usize::from(index)],
-            "sequencer {index}"
-        );
+    for (register, value) in TEXT_80X25.sequencer {
+        assert_eq!(soft.sequencer(register), value, "{register:?}");
     }
-    for index in 0..gc::COUNT as u8 {
-        assert_eq!(
-            soft.graphics(index),
-            TEXT_80X25.graphics[usize::from(index)],
-            "graphics {index}"
-        );
+    for (register, value) in TEXT_80X25.graphics {
+        assert_eq!(soft.graphics(register), value, "{register:?}");
     }
     assert_eq!(
-        soft.graphics(gc::MISC),
+        soft.graphics(Graphics::Misc),
         0x0E,
         "text memory not back at B8000"
     );
-    assert_eq!(soft.attribute(6), 0x14);
+    assert_eq!(soft.attribute(Attribute::Palette6), 0x14);
     assert_eq!(soft.dac_entry(0x14), [0x2A, 0x15, 0x00]);
     assert!(soft.video_enabled());
     assert_eq!(soft.timing().dot_clock_hz, 28_322_000);
@@ -118,7 +110,7 @@ fn text_mode_clears_the_screen_and_writes_characters_and_attributes() {
     assert_eq!(cell(soft, 3, 11), (b'?', 0x07));
     assert_eq!(cell(soft, 3, 12), (b' ', 0x07));
     assert_eq!(cell(soft, 12, 40), (b' ', 0x07));
-    assert_eq!(soft.graphics(gc::MISC), 0x0E);
+    assert_eq!(soft.graphics(Graphics::Misc), 0x0E);
     assert_eq!(
         soft.plane(2)[usize::from(b'H') * 32],
         test_font()[usize::from(b'H')][0],

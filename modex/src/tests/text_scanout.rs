@@ -5,7 +5,7 @@
 
 use super::{mode_x, power_on};
 use crate::palette::EGA_PALETTE;
-use crate::regs::{crtc, seq, CRTC_INDEX, SEQUENCER_INDEX};
+use crate::regs::{Crtc, Port, Sequencer};
 use crate::soft::{dac_6_to_8, SoftVga};
 use crate::{ModeX, VgaBus};
 use std::vec;
@@ -103,8 +103,8 @@ fn eight_dot_cells_when_the_sequencer_says_so() {
     let mut soft = power_on();
     text_screen(&mut soft, &[(10, 40, "Hi", 0x2C)]);
     soft.write_port16(
-        SEQUENCER_INDEX,
-        u16::from_le_bytes([seq::CLOCKING_MODE, 0x01]),
+        Port::SEQUENCER_INDEX,
+        u16::from_le_bytes([Sequencer::ClockingMode.index(), 0x01]),
     );
     let (width, height, dots) = scan(&soft);
     assert_eq!((width, height), (640, 400));
@@ -120,8 +120,8 @@ fn rows_are_maximum_scan_line_plus_one_lines_high() {
     text_screen(&mut soft, &[(1, 0, "M", 0x0F)]);
     // 8 lines a row: 50 rows of the same 400 lines; cell 80 (row 1) is at y 8.
     soft.write_port16(
-        CRTC_INDEX,
-        u16::from_le_bytes([crtc::MAXIMUM_SCAN_LINE, 0x47]),
+        Port::CRTC_INDEX,
+        u16::from_le_bytes([Crtc::MaximumScanLine.index(), 0x47]),
     );
     let (width, height, dots) = scan(&soft);
     assert_eq!((width, height), (720, 400));

@@ -1,6 +1,7 @@
 use super::*;
 use crate::keys::scancode_for_name;
 use crate::machine::Machine;
+use modex::regs::{Graphics, Sequencer};
 
 fn tap(machine: &mut Machine, name: &str) {
     machine.tap(scancode_for_name(name).unwrap());
@@ -67,9 +68,9 @@ fn the_registers_are_the_soft_vgas() {
         let state = vga_state(vga);
         assert_eq!(state.start_address, vga.displayed_start());
         assert_eq!(state.shown_page, Some(machine.app().shown_page().index()));
-        assert_eq!(state.map_mask, vga.sequencer(seq::MAP_MASK));
-        assert_eq!(state.bit_mask, vga.graphics(gc::BIT_MASK));
-        assert_eq!(state.write_mode, vga.graphics(gc::MODE) & 3);
+        assert_eq!(state.map_mask, vga.sequencer(Sequencer::MapMask));
+        assert_eq!(state.bit_mask, vga.graphics(Graphics::BitMask));
+        assert_eq!(state.write_mode, vga.graphics(Graphics::Mode) & 3);
         let lines = text_lines(&state, &History::default());
         assert!(lines[0].contains(&format!("0x{:04X}", state.start_address)));
     }
