@@ -12,12 +12,13 @@ use std::time::Duration;
 /// Boot the modex-cube kernel in QEMU.
 ///
 /// Without a display (no $DISPLAY or $WAYLAND_DISPLAY) the kernel runs
-/// headless. The images are also written to target/images/bios.img and
-/// target/images/uefi.img.
+/// headless. The image that boots both ways is also written to
+/// target/images/modex-cube.img (with the single-firmware bios.img and
+/// uefi.img beside it).
 #[derive(Debug, Parser)]
 #[command(name = "cargo run --release --", version)]
 struct Args {
-    /// Boot target/images/uefi.img with OVMF instead of the BIOS image.
+    /// Boot the image with OVMF (UEFI) instead of SeaBIOS.
     #[arg(long)]
     uefi: bool,
     /// No window: the serial console streams to this terminal.
@@ -102,10 +103,8 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
         Firmware::Bios
     };
     let images = boot::images::publish()?;
-    let image = match firmware {
-        Firmware::Bios => images.bios,
-        Firmware::Uefi => images.uefi,
-    };
+    // The one image boots under both firmwares.
+    let image = images.hybrid;
     if let Some(device) = &args.write_usb {
         return write_usb(&image, device);
     }

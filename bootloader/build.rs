@@ -135,6 +135,9 @@ fn build_bios_boot_sector() -> PathBuf {
     if local_path.exists() {
         // local build
         cmd.arg("--path").arg(&local_path);
+        // Patched copy: build in OUT_DIR, not in a `target/` inside the
+        // watched source directory (which would rerun this script every build).
+        cmd.arg("--target-dir").arg(out_dir.join("boot_sector-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
@@ -202,11 +205,18 @@ fn build_bios_stage_2() -> PathBuf {
     if local_path.exists() {
         // local build
         cmd.arg("--path").arg(&local_path);
+        // Patched copy: build in OUT_DIR, not in a `target/` inside the
+        // watched source directory (which would rerun this script every build).
+        cmd.arg("--target-dir").arg(out_dir.join("stage-2-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
-        println!(
-            "cargo:rerun-if-changed={}",
-            local_path.with_file_name("common").display()
-        );
+        // Patched copy: only watch `bios/common` when the copy has one (a
+        // missing path would rerun this script on every build).
+        if local_path.with_file_name("common").exists() {
+            println!(
+                "cargo:rerun-if-changed={}",
+                local_path.with_file_name("common").display()
+            );
+        }
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
     }
@@ -271,6 +281,9 @@ fn build_bios_stage_3() -> PathBuf {
     if local_path.exists() {
         // local build
         cmd.arg("--path").arg(&local_path);
+        // Patched copy: build in OUT_DIR, not in a `target/` inside the
+        // watched source directory (which would rerun this script every build).
+        cmd.arg("--target-dir").arg(out_dir.join("stage-3-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
@@ -336,6 +349,9 @@ fn build_bios_stage_4() -> PathBuf {
     if local_path.exists() {
         // local build
         cmd.arg("--path").arg(&local_path);
+        // Patched copy: build in OUT_DIR, not in a `target/` inside the
+        // watched source directory (which would rerun this script every build).
+        cmd.arg("--target-dir").arg(out_dir.join("stage-4-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);

@@ -52,6 +52,20 @@ const BIOS_STAGE_3: &[u8] = include_bytes!(env!("BIOS_STAGE_3_PATH"));
 #[cfg(feature = "bios")]
 const BIOS_STAGE_4: &[u8] = include_bytes!(env!("BIOS_STAGE_4_PATH"));
 
+/// Patched: the BIOS boot sector (the MBR's 512 bytes, partition table empty),
+/// for a caller that lays out a disk of its own (e.g. one that boots both ways).
+#[cfg(feature = "bios")]
+pub fn bios_boot_sector() -> &'static [u8] {
+    BIOS_BOOT_SECTOR
+}
+
+/// Patched: the BIOS second stage, to be placed in the partition that the
+/// first MBR entry describes (type 0x20), the FAT partition in the next entry.
+#[cfg(feature = "bios")]
+pub fn bios_stage_2() -> &'static [u8] {
+    BIOS_STAGE_2
+}
+
 /// Allows creating disk images for a specified set of files.
 ///
 /// It can currently create `MBR` (BIOS), `GPT` (UEFI), and `TFTP` (UEFI) images.
@@ -162,6 +176,19 @@ impl DiskImageBuilder {
             .context("failed to create FAT partition")?;
 
         Ok(())
+    }
+
+    #[cfg(all(feature = "bios", feature = "uefi"))]
+    /// Patched: one FAT partition for both routes: the UEFI loader
+    /// (`efi/boot/bootx64.efi`), BIOS stages 3 and 4, and the files set here
+    /// (the kernel, the config), so that both loaders read the same kernel.
+    pub fn create_bios_uefi_fat_partition(&self, partition_path: &Path) -> anyhow::Result<()> {
+        let mut internal_files = BTreeMap::new();
+        internal_files.insert("efi/boot/bootx64.efi", FileDataSource::Bytes(UEFI_BOOTLOADER));
+        internal_files.insert("boot-stage-3", FileDataSource::Bytes(BIOS_STAGE_3));
+        internal_files.insert("boot-stage-4", FileDataSource::Bytes(BIOS_STAGE_4));
+        self.create_fat_filesystem_image(internal_files, partition_path)
+            .context("failed to create FAT partition")
     }
 
     #[cfg(feature = "uefi")]

@@ -132,19 +132,64 @@ fn start(disk_number: u16, partition_table_start: *const u8) -> ! {
     let max_width = 1280;
     let max_height = 720;
 
-    let mut vesa_info = vesa::VesaInfo::query(disk_buffer).unwrap();
-    let vesa_mode = vesa_info
-        .get_best_mode(max_width, max_height)
-        .unwrap()
-        .expect("no suitable VESA mode found");
-    writeln!(
-        screen::Writer,
-        "VESA MODE: {}x{}",
-        vesa_mode.width,
-        vesa_mode.height
-    )
-    .unwrap();
-    vesa_mode.enable().unwrap();
+    // Patched: without a suitable VBE linear mode (or without VBE at all), go
+    // on without a framebuffer (a zero-length region tells stages 3 and 4 so)
+    // instead of panicking: a plain VGA needs nothing from VBE.
+    let framebuffer = match vesa::VesaInfo::query(disk_buffer) {
+        Ok(mut vesa_info) => match vesa_info.get_best_mode(max_width, max_height) {
+            Ok(Some(vesa_mode)) => {
+                writeln!(
+                    screen::Writer,
+                    "VESA MODE: {}x{}",
+                    vesa_mode.width,
+                    vesa_mode.height
+                )
+                .unwrap();
+                match vesa_mode.enable() {
+                    Ok(()) => Some(BiosFramebufferInfo {
+                        region: Region {
+                            start: vesa_mode.framebuffer_start.into(),
+                            len: u64::from(vesa_mode.height)
+                                * u64::from(vesa_mode.bytes_per_scanline),
+                        },
+                        width: vesa_mode.width,
+                        height: vesa_mode.height,
+                        bytes_per_pixel: vesa_mode.bytes_per_pixel,
+                        stride: vesa_mode.bytes_per_scanline
+                            / u16::from(vesa_mode.bytes_per_pixel),
+                        pixel_format: vesa_mode.pixel_format,
+                    }),
+                    Err(status) => {
+                        writeln!(screen::Writer, "VESA mode set failed: {status:#x}").unwrap();
+                        None
+                    }
+                }
+            }
+            Ok(None) => {
+                writeln!(screen::Writer, "no suitable VESA mode found").unwrap();
+                None
+            }
+            Err(status) => {
+                writeln!(screen::Writer, "VESA mode query failed: {status:#x}").unwrap();
+                None
+            }
+        },
+        Err(status) => {
+            writeln!(screen::Writer, "no VESA BIOS: {status:#x}").unwrap();
+            None
+        }
+    };
+    let framebuffer = framebuffer.unwrap_or_else(|| {
+        writeln!(screen::Writer, "going on without a framebuffer").unwrap();
+        BiosFramebufferInfo {
+            region: Region { start: 0, len: 0 },
+            width: 0,
+            height: 0,
+            bytes_per_pixel: 0,
+            stride: 0,
+            pixel_format: bootloader_x86_64_bios_common::PixelFormat::Rgb,
+        }
+    });
 
     let mut info = BiosInfo {
         stage_4: Region {
@@ -166,17 +211,7 @@ fn start(disk_number: u16, partition_table_start: *const u8) -> ! {
         last_used_addr: config_file_start as u64 + config_file_len - 1,
         memory_map_addr: memory_map.as_mut_ptr() as u32,
         memory_map_len: memory_map.len().try_into().unwrap(),
-        framebuffer: BiosFramebufferInfo {
-            region: Region {
-                start: vesa_mode.framebuffer_start.into(),
-                len: u64::from(vesa_mode.height) * u64::from(vesa_mode.bytes_per_scanline),
-            },
-            width: vesa_mode.width,
-            height: vesa_mode.height,
-            bytes_per_pixel: vesa_mode.bytes_per_pixel,
-            stride: vesa_mode.bytes_per_scanline / u16::from(vesa_mode.bytes_per_pixel),
-            pixel_format: vesa_mode.pixel_format,
-        },
+        framebuffer,
     };
 
     enter_protected_mode_and_jump_to_stage_3(STAGE_3_DST, &mut info);

@@ -110,7 +110,11 @@ pub unsafe fn read_from_protected_mode(ptr: *mut u8) -> u8 {
 }
 
 pub fn enter_protected_mode_and_jump_to_stage_3(entry_point: *const u8, info: &mut BiosInfo) {
-    unsafe { asm!("cli") };
+    // Patched: reload our GDT (with `cli`) right before the switch. The video
+    // BIOS calls since `enter_unreal_mode` may have loaded a GDT of their own
+    // (QEMU's ati-vga BIOS does), and the far jump below needs selector 0x08
+    // to be this table's code segment, or the machine triple-faults.
+    GDT.clear_interrupts_and_load();
     set_protected_mode_bit();
     unsafe {
         asm!(

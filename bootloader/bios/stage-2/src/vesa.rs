@@ -63,7 +63,11 @@ impl<'a> VesaInfo<'a> {
                 Some(mode) => mode,
                 None => break,
             };
-            let mode_info = VesaModeInfo::query(mode, self.rest_of_buffer).unwrap();
+            // Patched: a mode the BIOS lists but will not describe is skipped,
+            // not a panic.
+            let Ok(mode_info) = VesaModeInfo::query(mode, self.rest_of_buffer) else {
+                continue;
+            };
 
             if mode_info.attributes & 0x90 != 0x90 {
                 // not a graphics mode with linear frame buffer support
@@ -76,6 +80,12 @@ impl<'a> VesaInfo<'a> {
             ];
             if !supported_modes.contains(&mode_info.memory_model) {
                 // unsupported mode
+                continue;
+            }
+
+            // Patched: under 8 bits per pixel the stride division in `main.rs`
+            // would divide by zero.
+            if mode_info.bytes_per_pixel == 0 {
                 continue;
             }
 
@@ -217,6 +227,11 @@ impl VesaModeInfo {
     }
 
     pub fn enable(&self) -> Result<(), u16> {
+        // Patched: ask for the linear framebuffer (VBE 2.0+ bit 14 of BX);
+        // without it a real card sets the banked mode, and the framebuffer
+        // address handed on is one nothing scans out.
+        const LINEAR_FRAMEBUFFER: u16 = 0x4000;
+        let mode = self.mode | LINEAR_FRAMEBUFFER;
         let mut ret: u16;
         unsafe {
             asm!(
@@ -224,7 +239,7 @@ impl VesaModeInfo {
                 "mov bx, {:x}",
                 "int 0x10",
                 "pop bx",
-                in(reg) self.mode,
+                in(reg) mode,
                 inout("ax") 0x4f02u16 => ret,
             )
         };

@@ -7,12 +7,19 @@ pub struct Writer;
 
 impl fmt::Write for Writer {
     fn write_str(&mut self, s: &str) -> fmt::Result {
-        let writer = unsafe { WRITER.get_mut() }.as_mut().unwrap();
-        writer.write_str(s)
+        // Patched: with no framebuffer there is no writer, and text goes nowhere.
+        match unsafe { WRITER.get_mut() }.as_mut() {
+            Some(writer) => writer.write_str(s),
+            None => Ok(()),
+        }
     }
 }
 
 pub fn init(info: BiosFramebufferInfo) {
+    // Patched: stage 2 hands on a zero-length region when it set no VESA mode.
+    if info.region.len == 0 {
+        return;
+    }
     let framebuffer = unsafe {
         core::slice::from_raw_parts_mut(
             info.region.start as *mut u8,

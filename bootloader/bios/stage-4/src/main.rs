@@ -156,7 +156,9 @@ pub extern "C" fn _start(info: &mut BiosInfo) -> ! {
     log::info!("BIOS boot");
 
     let system_info = SystemInfo {
-        framebuffer: Some(RawFrameBufferInfo {
+        // Patched: stage 2 hands on a zero-length region when it set no VESA
+        // mode; the boot info then says there is no framebuffer.
+        framebuffer: (info.framebuffer.region.len != 0).then(|| RawFrameBufferInfo {
             addr: PhysAddr::new(info.framebuffer.region.start),
             info: framebuffer_info,
         }),
@@ -198,18 +200,25 @@ fn init_logger(
         stride: info.stride.into(),
     };
 
-    let framebuffer = unsafe {
-        core::slice::from_raw_parts_mut(
-            info.region.start as *mut u8,
-            info.region.len.try_into().unwrap(),
-        )
+    // Patched: no framebuffer (a zero-length region from stage 2) means no
+    // framebuffer logging, and no slice made from a null address.
+    let has_framebuffer = info.region.len != 0;
+    let framebuffer: &'static mut [u8] = if has_framebuffer {
+        unsafe {
+            core::slice::from_raw_parts_mut(
+                info.region.start as *mut u8,
+                info.region.len.try_into().unwrap(),
+            )
+        }
+    } else {
+        &mut []
     };
 
     bootloader_x86_64_common::init_logger(
         framebuffer,
         framebuffer_info,
         log_level,
-        frame_buffer_logger_status,
+        frame_buffer_logger_status && has_framebuffer,
         serial_logger_status,
     );
 
