@@ -137,7 +137,8 @@ fn build_bios_boot_sector() -> PathBuf {
         cmd.arg("--path").arg(&local_path);
         // Patched copy: build in OUT_DIR, not in a `target/` inside the
         // watched source directory (which would rerun this script every build).
-        cmd.arg("--target-dir").arg(out_dir.join("boot_sector-target"));
+        cmd.arg("--target-dir")
+            .arg(out_dir.join("boot_sector-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);

@@ -184,7 +184,10 @@ impl DiskImageBuilder {
     /// (the kernel, the config), so that both loaders read the same kernel.
     pub fn create_bios_uefi_fat_partition(&self, partition_path: &Path) -> anyhow::Result<()> {
         let mut internal_files = BTreeMap::new();
-        internal_files.insert("efi/boot/bootx64.efi", FileDataSource::Bytes(UEFI_BOOTLOADER));
+        internal_files.insert(
+            "efi/boot/bootx64.efi",
+            FileDataSource::Bytes(UEFI_BOOTLOADER),
+        );
         internal_files.insert("boot-stage-3", FileDataSource::Bytes(BIOS_STAGE_3));
         internal_files.insert("boot-stage-4", FileDataSource::Bytes(BIOS_STAGE_4));
         self.create_fat_filesystem_image(internal_files, partition_path)

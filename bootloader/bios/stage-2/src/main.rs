@@ -155,8 +155,7 @@ fn start(disk_number: u16, partition_table_start: *const u8) -> ! {
                         width: vesa_mode.width,
                         height: vesa_mode.height,
                         bytes_per_pixel: vesa_mode.bytes_per_pixel,
-                        stride: vesa_mode.bytes_per_scanline
-                            / u16::from(vesa_mode.bytes_per_pixel),
+                        stride: vesa_mode.bytes_per_scanline / u16::from(vesa_mode.bytes_per_pixel),
                         pixel_format: vesa_mode.pixel_format,
                     }),
                     Err(status) => {
