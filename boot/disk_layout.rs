@@ -410,8 +410,13 @@ pub fn hybrid_image(
         entry[16..32].copy_from_slice(&unique.0);
         entry[32..40].copy_from_slice(&start.to_le_bytes());
         entry[40..48].copy_from_slice(&(start + sectors - 1).to_le_bytes());
-        for (slot, unit) in entry[56..128].chunks_exact_mut(2).zip(name.encode_utf16()) {
-            slot.copy_from_slice(&unit.to_le_bytes());
+        for (slot, unit) in entry[56..128]
+            .as_chunks_mut::<2>()
+            .0
+            .iter_mut()
+            .zip(name.encode_utf16())
+        {
+            *slot = unit.to_le_bytes();
         }
     }
     let entries_crc = crc32(&gpt_entries);
