@@ -15,10 +15,6 @@ mod disk_layout;
 
 use std::path::{Path, PathBuf};
 
-/// Stage 2 copies the kernel to 16 MiB with 32-bit addresses: it must end
-/// below 4 GiB (and be a FAT file, under 4 GiB too).
-const MAX_KERNEL_BYTES: u64 = (1 << 32) - 0x0100_0000;
-
 fn main() {
     println!("cargo:rerun-if-changed=boot/build.rs");
     println!("cargo:rerun-if-changed=boot/disk_layout.rs");
@@ -27,19 +23,15 @@ fn main() {
         std::env::var_os("CARGO_BIN_FILE_KERNEL_kernel")
             .expect("cargo sets the kernel artifact path"),
     );
-    match std::fs::metadata(&kernel) {
+    let kernel_bytes = match std::fs::metadata(&kernel) {
+        Ok(meta) => meta.len(),
         Err(error) => fail(&format!(
             "the kernel {} is missing: {error}",
             kernel.display()
         )),
-        Ok(meta) if meta.len() == 0 => fail(&format!("the kernel {} is empty", kernel.display())),
-        Ok(meta) if meta.len() > MAX_KERNEL_BYTES => fail(&format!(
-            "the kernel {} is too large: {} bytes, at most {MAX_KERNEL_BYTES} fit \
-             (the BIOS stage 2 loads it at 16 MiB with 32-bit addresses)",
-            kernel.display(),
-            meta.len()
-        )),
-        Ok(_) => {}
+    };
+    if let Err(why) = disk_layout::check_kernel_size(kernel_bytes) {
+        fail(&format!("{why}: {}", kernel.display()));
     }
 
     let mut config = bootloader::BootConfig::default();

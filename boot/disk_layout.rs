@@ -118,6 +118,13 @@ pub enum LayoutError {
     },
     /// The EFI system partition's contents are not a FAT file system.
     NotFat(&'static str),
+    /// The kernel file is empty.
+    EmptyKernel,
+    /// The kernel is larger than the BIOS stage 2 can place.
+    KernelTooLarge {
+        /// Its size.
+        bytes: u64,
+    },
     /// The disk would need more sectors than an MBR entry can describe.
     TooLarge {
         /// The sectors it would need.
@@ -141,6 +148,12 @@ impl fmt::Display for LayoutError {
                     "the EFI system partition is not a FAT file system: {why}"
                 )
             }
+            LayoutError::EmptyKernel => write!(f, "the kernel is empty"),
+            LayoutError::KernelTooLarge { bytes } => write!(
+                f,
+                "the kernel is too large: {bytes} bytes, at most {MAX_KERNEL_BYTES} fit \
+                 (the BIOS stage 2 loads it at 16 MiB with 32-bit addresses)"
+            ),
             LayoutError::TooLarge { sectors } => write!(
                 f,
                 "the disk would be {sectors} sectors, more than an MBR can address"
@@ -150,6 +163,19 @@ impl fmt::Display for LayoutError {
 }
 
 impl std::error::Error for LayoutError {}
+
+/// The BIOS stage 2 copies the kernel to 16 MiB with 32-bit addresses: it
+/// must end below 4 GiB (and, as a FAT file, be under 4 GiB too).
+pub const MAX_KERNEL_BYTES: u64 = (1 << 32) - 0x0100_0000;
+
+/// Whether a kernel of `bytes` can go on the image.
+pub fn check_kernel_size(bytes: u64) -> Result<(), LayoutError> {
+    match bytes {
+        0 => Err(LayoutError::EmptyKernel),
+        bytes if bytes > MAX_KERNEL_BYTES => Err(LayoutError::KernelTooLarge { bytes }),
+        _ => Ok(()),
+    }
+}
 
 /// Stage 2 is loaded at 0x7E00 and must end by 0x80000.
 pub const MAX_STAGE_2_BYTES: usize = 0x8_0000 - 0x7E00;

@@ -9,7 +9,9 @@
 //! describe the same partitions, inside the disk and not overlapping; the
 //! ESP holds the UEFI loader, BIOS stages 3 and 4 and one kernel for both.
 //! `bios.img`'s MBR (the patched bootloader's) keeps the same MBR rules.
-//! And the layout refuses inputs it cannot boot, naming what is wrong.
+//! And the layout refuses inputs it cannot boot (an empty or oversized
+//! kernel, a missing stage 2, a bad boot sector, an ESP that is not a FAT),
+//! naming what is wrong.
 
 use boot::disk_layout::{self, FatType, LayoutError, SECTOR};
 use std::io::{Read, Seek};
@@ -340,6 +342,19 @@ fn the_layout_names_what_it_cannot_boot() {
         disk_layout::hybrid_image(&boot_sector(), &stage_2, &vec![0u8; 4096]),
         Err(LayoutError::NotFat(_))
     ));
+    assert_eq!(
+        disk_layout::check_kernel_size(0),
+        Err(LayoutError::EmptyKernel)
+    );
+    assert_eq!(disk_layout::check_kernel_size(1 << 20), Ok(()));
+    let huge = disk_layout::MAX_KERNEL_BYTES + 1;
+    assert_eq!(
+        disk_layout::check_kernel_size(huge),
+        Err(LayoutError::KernelTooLarge { bytes: huge })
+    );
+    assert!(LayoutError::KernelTooLarge { bytes: huge }
+        .to_string()
+        .contains("kernel is too large"));
     let message = LayoutError::MissingStage2.to_string();
     assert!(message.contains("stage 2"), "{message}");
 }
