@@ -1,10 +1,14 @@
 //! The disk images the build script made, copied to stable paths a user can
-//! find and write to a USB stick: `target/images/bios.img` and `uefi.img`.
+//! find and write to a USB stick: `target/images/modex-cube.img`, the one image
+//! that boots under BIOS (and CSM) and under UEFI, and the single-firmware
+//! `bios.img` and `uefi.img`.
 
 use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 
+/// Built by `boot/build.rs` into cargo's OUT_DIR.
+const BUILT_HYBRID_IMAGE: &str = env!("ONE_IMAGE");
 /// Built by `boot/build.rs` into cargo's OUT_DIR.
 const BUILT_BIOS_IMAGE: &str = env!("BIOS_IMAGE");
 /// Built by `boot/build.rs` into cargo's OUT_DIR.
@@ -13,6 +17,9 @@ const BUILT_UEFI_IMAGE: &str = env!("UEFI_IMAGE");
 /// Where the published images are: stable paths that survive rebuilds.
 #[derive(Clone, Debug)]
 pub struct Images {
+    /// The one image for every PC: a GPT disk with a hybrid MBR, booting
+    /// under BIOS (and CSM) and under UEFI from the same bytes.
+    pub hybrid: PathBuf,
     /// The legacy-BIOS disk image (MBR boot sector and stage loaders).
     pub bios: PathBuf,
     /// The UEFI disk image (GPT with an EFI system partition).
@@ -73,9 +80,11 @@ fn publish_now() -> Result<Images, PublishError> {
     let dir = images_dir();
     std::fs::create_dir_all(&dir).map_err(PublishError::write("create", &dir))?;
     let images = Images {
+        hybrid: dir.join("modex-cube.img"),
         bios: dir.join("bios.img"),
         uefi: dir.join("uefi.img"),
     };
+    copy_if_changed(Path::new(BUILT_HYBRID_IMAGE), &images.hybrid)?;
     copy_if_changed(Path::new(BUILT_BIOS_IMAGE), &images.bios)?;
     copy_if_changed(Path::new(BUILT_UEFI_IMAGE), &images.uefi)?;
     Ok(images)

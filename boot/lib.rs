@@ -27,6 +27,7 @@
 #![warn(missing_debug_implementations)]
 
 pub mod bochs;
+pub mod disk_layout;
 pub mod image;
 pub mod images;
 pub mod qemu;

@@ -12,12 +12,13 @@ use std::time::Duration;
 /// Boot the modex-cube kernel in QEMU.
 ///
 /// Without a display (no $DISPLAY or $WAYLAND_DISPLAY) the kernel runs
-/// headless. The images are also written to target/images/bios.img and
-/// target/images/uefi.img.
+/// headless. The image that boots both ways is also written to
+/// target/images/modex-cube.img (with the single-firmware bios.img and
+/// uefi.img beside it).
 #[derive(Debug, Parser)]
 #[command(name = "cargo run --release --", version)]
 struct Args {
-    /// Boot target/images/uefi.img with OVMF instead of the BIOS image.
+    /// Boot the image with OVMF (UEFI) instead of SeaBIOS.
     #[arg(long)]
     uefi: bool,
     /// No window: the serial console streams to this terminal.
@@ -45,12 +46,28 @@ struct Args {
     /// modex=true-mode-x (see the README).
     #[arg(long, value_name = "OPTION", value_parser = boot_request, default_value = "")]
     boot_option: BootRequest,
-    /// Instead of booting, write the image (bios.img, or uefi.img with --uefi)
-    /// to the whole USB stick DEVICE, e.g. /dev/sdb, after checking it is a
-    /// removable, unmounted disk; shows what will be overwritten and asks you
-    /// to type its name.
+    /// Instead of booting, write the image (modex-cube.img, which boots under
+    /// BIOS and UEFI, unless --image says otherwise) to the whole USB disk
+    /// DEVICE, e.g. /dev/sdb, after checking it is an unmounted disk that is
+    /// removable or on USB; shows what will be overwritten and asks you to
+    /// type its name.
     #[arg(long, value_name = "DEVICE")]
     write_usb: Option<PathBuf>,
+    /// Which image to boot or write: `one` (modex-cube.img, for BIOS and
+    /// UEFI), or the single-firmware `bios` (bios.img) or `uefi` (uefi.img).
+    #[arg(long, value_enum, default_value_t = ImageChoice::One)]
+    image: ImageChoice,
+}
+
+/// The runner's `--image` names.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum ImageChoice {
+    /// modex-cube.img: GPT with a hybrid MBR, for BIOS (and CSM) and UEFI.
+    One,
+    /// bios.img: MBR only.
+    Bios,
+    /// uefi.img: GPT only.
+    Uefi,
 }
 
 /// Key names checked against `demo::keys`, the one table of them.
@@ -102,10 +119,20 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
         Firmware::Bios
     };
     let images = boot::images::publish()?;
-    let image = match firmware {
-        Firmware::Bios => images.bios,
-        Firmware::Uefi => images.uefi,
+    // The one image boots under both firmwares.
+    let image = match args.image {
+        ImageChoice::One => images.hybrid,
+        ImageChoice::Bios => images.bios,
+        ImageChoice::Uefi => images.uefi,
     };
+    let mismatch = match (args.image, firmware) {
+        (ImageChoice::Bios, Firmware::Uefi) => Some("bios.img has no UEFI loader"),
+        (ImageChoice::Uefi, Firmware::Bios) => Some("uefi.img has no BIOS boot code"),
+        _ => None,
+    };
+    if let (Some(why), None) = (mismatch, &args.write_usb) {
+        anyhow::bail!("{why}; boot it with the other firmware, or use --image one");
+    }
     if let Some(device) = &args.write_usb {
         return write_usb(&image, device);
     }
@@ -223,6 +250,15 @@ mod tests {
         let error = Args::try_parse_from(["runner", "--keys", "r nope"]).unwrap_err();
         assert!(error.to_string().contains("\"nope\""), "{error}");
         assert!(error.to_string().contains("pgdn"), "{error}");
+    }
+
+    #[test]
+    fn the_one_image_is_the_default() {
+        let args = Args::try_parse_from(["runner", "--write-usb", "/dev/sdb"]).unwrap();
+        assert_eq!(args.image, ImageChoice::One);
+        let args = Args::try_parse_from(["runner", "--image", "bios"]).unwrap();
+        assert_eq!(args.image, ImageChoice::Bios);
+        assert!(Args::try_parse_from(["runner", "--image", "floppy"]).is_err());
     }
 
     #[test]

@@ -1,6 +1,8 @@
 //! Writing a disk image to a USB stick, with the checks `dd` does not make:
-//! the target must be a whole, removable disk with nothing of it in use, its
-//! description is shown, and the caller must confirm before a byte is written.
+//! the target must be a whole disk that is removable or on USB (many USB SSDs
+//! and card readers call themselves non-removable; `lsblk`'s TRAN column
+//! says `usb` for them) with nothing of it in use, its description is shown,
+//! and the caller must confirm before a byte is written.
 //!
 //! Everything is read from sysfs and procfs (Linux), under roots that tests
 //! replace with a fake tree, so no test ever needs a real device.
@@ -64,10 +66,11 @@ pub enum UsbError {
         /// The whole disk it belongs to (`sdb`).
         disk: String,
     },
-    /// The kernel does not call the disk removable: perhaps a system disk.
+    /// The kernel does not call the disk removable, and it is not on USB:
+    /// perhaps a system disk.
     #[error(
-        "{} ({name}) is not a removable disk (sysfs says removable={}): refusing to \
-         overwrite what may be a system disk",
+        "{} ({name}) is not a removable disk (sysfs says removable={}) nor on USB: \
+         refusing to overwrite what may be a system disk",
         path.display(),
         if removable.is_empty() { "?" } else { removable }
     )]
@@ -190,13 +193,13 @@ impl UsbError {
     }
 }
 
-/// Writes `image` to the whole removable disk `device` (e.g. `/dev/sdb`)
+/// Writes `image` to the whole removable or USB disk `device` (e.g. `/dev/sdb`)
 /// after checking it and calling `confirm` with a description of what will
 /// be overwritten; returns the bytes written, flushed to the device.
 ///
 /// Refused, with an error saying why: anything that is not a block device,
-/// a partition rather than a whole disk, a disk the kernel does not report as
-/// removable, a disk with a partition mounted, used as swap or held by
+/// a partition rather than a whole disk, a disk the kernel neither reports as
+/// removable nor finds on a USB bus, a disk with a partition mounted, used as swap or held by
 /// device-mapper, RAID or LVM, a disk smaller than the image, and an answer
 /// of `false` from `confirm` (nothing is written then).
 pub fn write_image_to_usb(
@@ -264,10 +267,24 @@ struct Disk {
     /// The device numbers of the disk and each of its partitions, with names.
     members: Vec<(String, String)>,
     bytes: u64,
+    /// sysfs's `removable` is 1 (else the disk is on USB).
+    removable: bool,
+}
+
+/// Whether the disk whose sysfs directory is `dir` hangs off a USB bus: its
+/// device path runs through a USB bus (`.../usb2/2-1/...`), the test `lsblk`
+/// makes for its TRAN column's `usb`.
+fn on_usb(dir: &Path) -> bool {
+    dir.components().any(|part| {
+        part.as_os_str()
+            .to_str()
+            .and_then(|name| name.strip_prefix("usb"))
+            .is_some_and(|bus| !bus.is_empty() && bus.bytes().all(|b| b.is_ascii_digit()))
+    })
 }
 
 impl Disk {
-    /// The whole, removable disk behind `node`, or why not.
+    /// The whole, removable or USB disk behind `node`, or why not.
     fn identify(node: &DeviceNode, roots: &SystemRoots) -> Result<Disk, UsbError> {
         let listing = roots.sys.join("dev/block");
         let Ok(dir) = fs::canonicalize(listing.join(&node.number)) else {
@@ -286,7 +303,7 @@ impl Disk {
             });
         }
         let removable = read_trimmed(&dir.join("removable")).unwrap_or_default();
-        if removable != "1" {
+        if removable != "1" && !on_usb(&dir) {
             return Err(UsbError::NotRemovable {
                 path: node.path.clone(),
                 name,
@@ -315,6 +332,7 @@ impl Disk {
             dir,
             members,
             bytes: sectors * SYSFS_SECTOR_BYTES,
+            removable: removable == "1",
         })
     }
 
@@ -390,8 +408,13 @@ impl Disk {
         } else {
             maker.join(" ")
         };
+        let kind = if self.removable {
+            "removable"
+        } else {
+            "a USB disk that says it is not removable"
+        };
         format!(
-            "{} ({}) will be overwritten with {} ({}): {maker}, {}, removable. \
+            "{} ({}) will be overwritten with {} ({}): {maker}, {}, {kind}. \
              Everything on it will be lost.",
             node.path.display(),
             self.name,
@@ -507,6 +530,7 @@ mod tests {
 
     /// A fake /sys and /proc with one disk, `sdb` (8:16), partition `sdb1`
     /// (8:17), a 16 MiB "device" that is a plain file, and a 1 MiB image.
+    /// [`Fixture::new`]'s disk is on USB; [`Fixture::on_bus`] puts it elsewhere.
     struct Fixture {
         root: PathBuf,
         roots: SystemRoots,
@@ -515,17 +539,28 @@ mod tests {
     }
 
     const DEVICE_BYTES: u64 = 16 << 20;
+    /// Where a USB stick sits in sysfs: below a USB bus.
+    const USB_BUS: &str = "0000:00:14.0/usb2/2-1/2-1:1.0/host6/target6:0:0/6:0:0:0";
+    /// Where a SATA disk sits in sysfs.
+    const SATA_BUS: &str = "0000:00:17.0/ata1/host0/target0:0:0/0:0:0:0";
     const ORIGINAL: u8 = 0xEE;
 
     impl Fixture {
         fn new(removable: &str) -> Fixture {
+            Fixture::on_bus(USB_BUS, removable)
+        }
+
+        fn on_bus(bus: &str, removable: &str) -> Fixture {
             static NEXT: AtomicU32 = AtomicU32::new(0);
             let root = std::env::temp_dir().join(format!(
                 "modex-usb-test-{}-{}",
                 std::process::id(),
                 NEXT.fetch_add(1, Ordering::Relaxed)
             ));
-            let disk = root.join("sys/devices/pci0000:00/usb1/block/sdb");
+            let disk = root
+                .join("sys/devices/pci0000:00")
+                .join(bus)
+                .join("block/sdb");
             fs::create_dir_all(disk.join("sdb1")).unwrap();
             fs::create_dir_all(disk.join("device")).unwrap();
             fs::create_dir_all(disk.join("holders")).unwrap();
@@ -570,6 +605,15 @@ mod tests {
                 image,
                 root,
             }
+        }
+
+        /// The disk's sysfs directory, for [`Fixture::new`]'s disk on USB.
+        fn usb_disk(&self) -> PathBuf {
+            self.roots
+                .sys
+                .join("devices/pci0000:00")
+                .join(USB_BUS)
+                .join("block/sdb")
         }
 
         fn write(&self, confirm: impl FnOnce(&str) -> bool) -> Result<u64, UsbError> {
@@ -649,7 +693,7 @@ mod tests {
 
     #[test]
     fn a_fixed_disk_is_refused() {
-        let error = refused(&Fixture::new("0"));
+        let error = refused(&Fixture::on_bus(SATA_BUS, "0"));
         assert!(
             matches!(&error, UsbError::NotRemovable { removable, .. } if removable == "0"),
             "{error:?}"
@@ -657,6 +701,44 @@ mod tests {
         let error = error.to_string();
         assert!(error.contains("not a removable disk"), "{error}");
         assert!(error.contains("removable=0"), "{error}");
+    }
+
+    /// Many USB SSDs and card readers report removable=0; on a USB bus they
+    /// are written after the same confirmation, which says what they are.
+    #[test]
+    fn a_non_removable_usb_disk_is_described_then_written() {
+        let fixture = Fixture::new("0");
+        let mut shown = String::new();
+        let written = fixture
+            .write(|description| {
+                shown = description.to_owned();
+                true
+            })
+            .unwrap();
+        assert_eq!(written, 1 << 20);
+        assert!(
+            shown.contains("a USB disk that says it is not removable"),
+            "{shown:?}"
+        );
+        let device = fs::read(&fixture.node.path).unwrap();
+        assert_eq!(device[..1 << 20], fs::read(&fixture.image).unwrap()[..]);
+    }
+
+    /// A removable disk off USB (an SD slot on PCI) is still accepted.
+    #[test]
+    fn a_removable_disk_not_on_usb_is_accepted() {
+        let fixture = Fixture::on_bus("0000:00:1e.6/mmc_host/mmc0/mmc0:0001", "1");
+        assert_eq!(fixture.write(|_| true).unwrap(), 1 << 20);
+    }
+
+    #[test]
+    fn usb_is_told_by_a_usb_bus_in_the_device_path() {
+        let sys = Path::new("/sys/devices/pci0000:00");
+        assert!(on_usb(&sys.join(USB_BUS).join("block/sdb")));
+        assert!(!on_usb(&sys.join(SATA_BUS).join("block/sda")));
+        // Not a bus: a name that merely starts with "usb".
+        assert!(!on_usb(&sys.join("0000:00:17.0/usbfoo/block/sdc")));
+        assert!(!on_usb(&sys.join("nvme/usb/block/nvme0n1")));
     }
 
     #[test]
@@ -722,10 +804,7 @@ mod tests {
         assert!(error.contains("used as swap"), "{error}");
 
         let fixture = Fixture::new("1");
-        let holder = fixture
-            .roots
-            .sys
-            .join("devices/pci0000:00/usb1/block/sdb/sdb1/holders/dm-0");
+        let holder = fixture.usb_disk().join("sdb1/holders/dm-0");
         fs::create_dir_all(holder).unwrap();
         let error = refused(&fixture).to_string();
         assert!(error.contains("held by dm-0"), "{error}");
@@ -734,10 +813,7 @@ mod tests {
     #[test]
     fn an_image_larger_than_the_disk_is_refused() {
         let fixture = Fixture::new("1");
-        let sectors = fixture
-            .roots
-            .sys
-            .join("devices/pci0000:00/usb1/block/sdb/size");
+        let sectors = fixture.usb_disk().join("size");
         fs::write(sectors, "1024\n").unwrap(); // 512 KiB
         let error = refused(&fixture);
         assert!(matches!(error, UsbError::TooSmall { .. }), "{error:?}");

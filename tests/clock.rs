@@ -117,10 +117,8 @@ fn on_every_machine_the_clock_keeps_time_and_the_machine_powers_off_or_resets() 
 /// ACPI, as on a real PC.
 fn boot(machine: &Machine) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
-    let mut options = QemuOptions::new(match machine.firmware {
-        Firmware::Bios => images.bios,
-        Firmware::Uefi => images.uefi,
-    });
+    // The one image, which boots under SeaBIOS and OVMF alike.
+    let mut options = QemuOptions::new(images.hybrid);
     options.firmware = machine.firmware;
     options.board = machine.board;
     options.graphics = Graphics::StdVga;

@@ -2,12 +2,18 @@
 //! kernel asks the card's BIOS for mode 13h, tweaks it into Mode X and reads
 //! the registers back. On each card QEMU's picture must equal the software
 //! VGA's after every key, the serial log must name the route, and Esc must
-//! end in the BIOS's own text mode.
+//! end in the BIOS's own text mode. All boot the one image (GPT with a hybrid
+//! MBR) under SeaBIOS.
+//!
+//! Two cards fail with the unpatched bootloader 0.11.17 (see
+//! `bootloader/CHANGES.md`): the ATI's video BIOS loads a GDT of its own, on
+//! which stage 2's far jump into protected mode triple-faulted, and the ISA
+//! Cirrus has no VBE linear mode, on which stage 2 panicked.
 
 mod common;
 
-use boot::{Graphics, Qemu};
-use common::{after_each_key_on, assert_same_picture, boot_bios_on, BOOT_TIMEOUT};
+use boot::{Board, Graphics, Qemu};
+use common::{after_each_key_on, assert_same_picture, boot_bios_on_board, BOOT_TIMEOUT};
 use demo::command::{Axis, Command, SceneCommand, Sense};
 use std::time::Duration;
 
@@ -21,7 +27,11 @@ const KEYS: [(&str, Command); 5] = [
 ];
 
 fn boots_to_mode_x_through_its_video_bios(graphics: Graphics) {
-    let mut qemu = boot_bios_on(graphics, None);
+    boots_to_mode_x_on(Board::PC, graphics);
+}
+
+fn boots_to_mode_x_on(board: Board, graphics: Graphics) {
+    let mut qemu = boot_bios_on_board(board, graphics, None);
     let console = qemu
         .wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
         .unwrap();
@@ -78,4 +88,23 @@ fn qxl() {
 #[test]
 fn virtio_vga() {
     boots_to_mode_x_through_its_video_bios(Graphics::Virtio);
+}
+
+/// Its video BIOS returns from the VESA calls with GDTR on a table of its own.
+#[test]
+fn ati() {
+    boots_to_mode_x_through_its_video_bios(Graphics::Ati);
+}
+
+/// `-M isapc -cpu qemu64`: no PCI, and no VBE linear mode, so the bootloader
+/// hands over no framebuffer; Mode X needs none.
+#[test]
+fn isa_cirrus() {
+    boots_to_mode_x_through_its_video_bios(Graphics::IsaCirrus);
+}
+
+/// SeaBIOS on a Q35 (AHCI disk, PCI Express), as a PC of today with CSM.
+#[test]
+fn std_vga_on_q35() {
+    boots_to_mode_x_on(Board::Q35, Graphics::StdVga);
 }

@@ -4,15 +4,16 @@
 //! the bootloader got from UEFI GOP. QEMU's screendump of that framebuffer
 //! must equal the model's picture scaled the same way by the same `present`,
 //! with OVMF and QEMU's standard VGA as with `-vga none -device
-//! bochs-display`, where nothing answers on the VGA ports at all. The BIOS
-//! image, and UEFI with the `modex=true-mode-x` boot option, drive the real
-//! registers. The text screens (fault panels, goodbye) are in `text_screens`.
+//! bochs-display`, where nothing answers on the VGA ports at all. A BIOS
+//! boot, and UEFI with the `modex=true-mode-x` boot option, drive the real
+//! registers. Every boot here is of the one image (`modex-cube.img`), OVMF's
+//! on a Q35. The text screens (fault panels, goodbye) are in `text_screens`.
 
 mod common;
 #[path = "uefi_parts/text_screens.rs"]
 mod text_screens;
 
-use boot::{BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions};
+use boot::{Board, BootOption, BootRequest, Firmware, Graphics, Qemu, QemuOptions};
 use common::{
     assert_pictures_equal, assert_same_picture, model_picture, pattern_picture, presented,
     soft_vga_in_mode_x, BOOT_TIMEOUT,
@@ -45,12 +46,12 @@ fn boot_with(
     request: BootRequest,
     debug_exit: bool,
 ) -> Qemu {
+    // The one image, under either firmware; OVMF on a Q35, as UEFI PCs are.
     let images = boot::images::publish().expect("the build script made the images");
-    let image = match firmware {
-        Firmware::Bios => images.bios,
-        Firmware::Uefi => images.uefi,
-    };
-    let mut options = QemuOptions::new(image);
+    let mut options = QemuOptions::new(images.hybrid);
+    if firmware == Firmware::Uefi {
+        options.board = Board::Q35;
+    }
     options.firmware = firmware;
     options.graphics = graphics;
     options.boot = request;
@@ -169,7 +170,7 @@ fn without_legacy_vga_the_lit_solids_reach_the_framebuffer_too() {
 }
 
 #[test]
-fn the_bios_image_finds_the_legacy_vga() {
+fn a_bios_boot_of_the_same_image_finds_the_legacy_vga() {
     let mut qemu = boot(
         Firmware::Bios,
         Graphics::StdVga,

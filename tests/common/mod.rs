@@ -1,11 +1,11 @@
-//! What the integration tests share: booting the BIOS image, the software
-//! VGA's picture, and comparing it with QEMU's.
+//! What the integration tests share: booting the one image under SeaBIOS,
+//! the software VGA's picture, and comparing it with QEMU's.
 
 #![allow(dead_code)] // each test binary uses its own part of this
 
 use boot::line;
 use boot::BootOption;
-use boot::{Graphics, Qemu, QemuOptions, RgbImage};
+use boot::{Board, Graphics, Qemu, QemuOptions, RgbImage};
 use demo::app::App;
 use demo::command::{Axis, Command, SceneCommand, Sense};
 use modex::present::{present_rgb, FramebufferLayout, PixelOrder};
@@ -64,15 +64,24 @@ pub const CUBE_KEYS: [(&str, Command); 10] = [
 pub const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
 pub const PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
 
-/// Boots the BIOS image headless, with an optional boot option.
+/// Boots the one image (`modex-cube.img`, GPT with a hybrid MBR) under
+/// SeaBIOS, headless, with an optional boot option.
 pub fn boot_bios(option: Option<BootOption>) -> Qemu {
     boot_bios_on(Graphics::StdVga, option)
 }
 
-/// Boots the BIOS image headless on a display adapter, with an optional boot option.
+/// Boots the one image under SeaBIOS headless on a display adapter, with an
+/// optional boot option.
 pub fn boot_bios_on(graphics: Graphics, option: Option<BootOption>) -> Qemu {
+    boot_bios_on_board(Board::PC, graphics, option)
+}
+
+/// Boots the one image under SeaBIOS headless on a board and a display
+/// adapter, with an optional boot option.
+pub fn boot_bios_on_board(board: Board, graphics: Graphics, option: Option<BootOption>) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
-    let mut options = QemuOptions::new(images.bios);
+    let mut options = QemuOptions::new(images.hybrid);
+    options.board = board;
     options.graphics = graphics;
     options.boot.option = option;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
