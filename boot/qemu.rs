@@ -9,7 +9,7 @@
 //! emulator behind.
 
 use crate::image::{ImageError, RgbImage};
-use machine::protocol::{BootRequest, BOOT_OPTION_FILE};
+use machine::protocol::{BootRequest, Exit, BOOT_OPTION_FILE};
 use serde_json::{json, Value};
 use std::fmt;
 use std::io::{BufRead, BufReader, Read, Write};
@@ -22,10 +22,10 @@ use std::time::{Duration, Instant};
 /// QEMU exits with `(code << 1) | 1` for a write of `code` to isa-debug-exit.
 /// QEMU's status when the kernel ends it with success (0x10): after its
 /// goodbye, or when a boot request asks.
-pub const EXIT_SUCCESS: i32 = (0x10 << 1) | 1;
+pub const EXIT_SUCCESS: i32 = Exit::Success.qemu_status();
 /// QEMU's status when the kernel ends it with failure (0x11), as a boot
 /// request can ask.
-pub const EXIT_FAILURE: i32 = (0x11 << 1) | 1;
+pub const EXIT_FAILURE: i32 = Exit::Failure.qemu_status();
 
 /// OVMF from Debian's `ovmf` package.
 pub const OVMF_CODE: &str = "/usr/share/OVMF/OVMF_CODE.fd";

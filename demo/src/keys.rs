@@ -7,10 +7,7 @@
 //! the simulator (which turns names and host keys into scan codes) and the
 //! README's list of names (which a test compares with it).
 
-/// The prefix of the extended keys.
-const EXTENDED_PREFIX: u8 = 0xE0;
-/// Set on a make code, it makes the break code.
-const BREAK_BIT: u8 = 0x80;
+use machine::scancode::{BREAK_BIT, EXTENDED_PREFIX};
 
 /// One key's scan code in set 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

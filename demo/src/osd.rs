@@ -71,47 +71,8 @@ pub struct Overlay {
     pub help: bool,
 }
 
-/// A line of text without a heap; what does not fit is cut off.
-pub struct Line {
-    bytes: [u8; 64],
-    len: usize,
-}
-
-impl Line {
-    fn new() -> Self {
-        Line {
-            bytes: [0; 64],
-            len: 0,
-        }
-    }
-}
-
-impl core::fmt::Debug for Line {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        core::fmt::Debug::fmt(&**self, f)
-    }
-}
-
-impl core::ops::Deref for Line {
-    type Target = str;
-    fn deref(&self) -> &str {
-        // Only whole characters are ever copied in, so this cannot fail.
-        core::str::from_utf8(&self.bytes[..self.len]).unwrap_or("")
-    }
-}
-
-impl Write for Line {
-    fn write_str(&mut self, text: &str) -> core::fmt::Result {
-        let room = self.bytes.len() - self.len;
-        let mut take = text.len().min(room);
-        while !text.is_char_boundary(take) {
-            take -= 1;
-        }
-        self.bytes[self.len..self.len + take].copy_from_slice(&text.as_bytes()[..take]);
-        self.len += take;
-        Ok(())
-    }
-}
+/// One line of the statistics: the machine's one line buffer, 64 bytes.
+pub type Line = machine::log::LogLine<64>;
 
 impl Stats {
     /// "59.9 fps  0.43 ms/frame" ("--.- fps" until a second has passed).

@@ -5,6 +5,7 @@
 
 use crate::{clock, keyboard, serial_println, usb};
 use machine::pacing::Pacing;
+use machine::scancode::{BREAK_BIT, EXTENDED_PREFIX};
 use modex::{ModeX, Page, VgaBus};
 
 /// Draws the pattern into pages 0 and 1, shows page 0, and flips to the other
@@ -22,7 +23,7 @@ pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
         let mut pressed = false;
         while let Some(byte) = keyboard::SCANCODES.pop() {
             // Only make codes: a release must not flip again.
-            pressed |= byte & 0x80 == 0 && byte != 0xE0;
+            pressed |= byte & BREAK_BIT == 0 && byte != EXTENDED_PREFIX;
         }
         if pressed {
             shown = shown.other();

@@ -4,7 +4,7 @@
 //! before it), and the CPU halts for good. Halting, rather than returning or rebooting,
 //! keeps the report readable and avoids a triple fault's reboot loop.
 
-use core::fmt::{self, Write};
+use core::fmt::Write;
 use core::sync::atomic::{AtomicU64, Ordering};
 use modex::card::Card;
 use spin::Once;
@@ -29,35 +29,7 @@ const PANEL_LOG_LINES: usize = demo::screens::PANEL_LOG_LINES;
 const LINE_BYTES: usize = modex::TEXT_COLUMNS as usize;
 
 /// A screen line built without a heap; text past the line's end is cut.
-struct Line {
-    bytes: [u8; LINE_BYTES],
-    len: usize,
-}
-
-impl Line {
-    const fn new() -> Self {
-        Line {
-            bytes: [b' '; LINE_BYTES],
-            len: 0,
-        }
-    }
-
-    fn as_str(&self) -> &str {
-        core::str::from_utf8(&self.bytes[..self.len]).unwrap_or("?")
-    }
-}
-
-impl Write for Line {
-    fn write_str(&mut self, s: &str) -> fmt::Result {
-        for &byte in s.as_bytes() {
-            if self.len < LINE_BYTES && byte.is_ascii() {
-                self.bytes[self.len] = byte;
-                self.len += 1;
-            }
-        }
-        Ok(())
-    }
-}
+type Line = machine::log::LogLine<LINE_BYTES>;
 
 pub fn halt_with(
     kind: &str,
@@ -112,7 +84,7 @@ fn report(lines: &[Line]) -> ! {
     // ring), and the panel shows the lines that led up to it.
     // SAFETY: as above: the interrupted code never resumes.
     let ring = unsafe { crate::log::for_fault_handler() };
-    for line in lines.iter().filter(|l| l.len > 0) {
+    for line in lines.iter().filter(|l| !l.is_empty()) {
         crate::serial_println!("{}", line.as_str());
     }
     let mut tail = [""; PANEL_LOG_LINES];

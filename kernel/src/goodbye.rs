@@ -25,7 +25,7 @@ pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
         crate::keyboard::SCANCODES.dropped(),
         crate::serial::dropped()
     );
-    qemu::exit(qemu::ExitCode::Success);
+    qemu::exit(machine::protocol::Exit::Success);
     idle::until(clock::micros() + GOODBYE_SHOWN_MICROS);
     power::off();
     fault::halt_forever()

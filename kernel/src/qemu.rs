@@ -5,27 +5,22 @@
 //! not one of these ports is touched.
 
 use machine::fw_cfg;
+use machine::protocol::Exit;
 use x86_64::instructions::port::Port;
 
 /// `-device isa-debug-exit,iobase=0xf4,iosize=0x04`: QEMU exits with
 /// `(code << 1) | 1`, so the host sees 33 for success and 35 for failure.
 const DEBUG_EXIT_PORT: u16 = 0xF4;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u32)]
-pub enum ExitCode {
-    Success = 0x10,
-    Failure = 0x11,
-}
-
-/// Ends QEMU if the debug-exit device is fitted; returns if it is not.
-pub fn exit(code: ExitCode) {
+/// Ends QEMU with `exit`'s status if the debug-exit device is fitted;
+/// returns if it is not.
+pub fn exit(exit: Exit) {
     if !hypervisor_present() {
         return;
     }
     // SAFETY: with a hypervisor present the port is QEMU's isa-debug-exit (or
     // unassigned, when a write is ignored).
-    unsafe { Port::<u32>::new(DEBUG_EXIT_PORT).write(code as u32) };
+    unsafe { Port::<u32>::new(DEBUG_EXIT_PORT).write(exit.code()) };
 }
 
 /// CPUID leaf 1, ECX bit 31: set by every hypervisor, clear on real hardware.

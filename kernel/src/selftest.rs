@@ -2,7 +2,7 @@
 //! (`fault=...`, `exit=...`). They prove that each kind of fault is reported and
 //! ends in a clean halt. A real PC has no fw_cfg, so it can never take this path.
 
-use crate::qemu::{self, ExitCode};
+use crate::qemu;
 use machine::protocol::{Exit, Fault};
 
 /// Raises `fault`; only a breakpoint returns.
@@ -25,10 +25,7 @@ pub fn raise(fault: Fault) {
 
 /// Ends QEMU with the status `exit` asks for.
 pub fn exit(exit: Exit) {
-    qemu::exit(match exit {
-        Exit::Success => ExitCode::Success,
-        Exit::Failure => ExitCode::Failure,
-    });
+    qemu::exit(exit);
 }
 
 fn invalid_opcode() {

@@ -19,7 +19,10 @@ use core::fmt;
 /// The kernel's ring: 256 lines of up to 120 bytes (about 31 KiB).
 pub type KernelLog = LogRing<256, 120>;
 
-/// One line: its bytes, all printable ASCII.
+/// One line of text built without a heap: its bytes, all printable ASCII
+/// (anything else becomes `?`), text past `BYTES` cut. The log's lines, the
+/// statistics lines of the on-screen display and the fault panel's lines are
+/// all this one type.
 #[derive(Clone, Copy)]
 pub struct LogLine<const BYTES: usize> {
     bytes: [u8; BYTES],
@@ -51,6 +54,13 @@ impl<const BYTES: usize> LogLine<BYTES> {
         self.bytes[self.len] = printable(byte);
         self.len += 1;
         true
+    }
+}
+
+impl<const BYTES: usize> core::ops::Deref for LogLine<BYTES> {
+    type Target = str;
+    fn deref(&self) -> &str {
+        self.as_str()
     }
 }
 

@@ -27,13 +27,29 @@ pub enum Fault {
     Breakpoint,
 }
 
-/// How to end QEMU through isa-debug-exit.
+/// How to end QEMU through isa-debug-exit: the kernel's goodbye (success),
+/// or a boot option's request (either).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Exit {
     /// Status 33.
     Success,
     /// Status 35.
     Failure,
+}
+
+impl Exit {
+    /// The value the kernel writes to isa-debug-exit.
+    pub const fn code(self) -> u32 {
+        match self {
+            Exit::Success => 0x10,
+            Exit::Failure => 0x11,
+        }
+    }
+
+    /// QEMU's exit status for it: `(code << 1) | 1`.
+    pub const fn qemu_status(self) -> i32 {
+        ((self.code() << 1) | 1) as i32
+    }
 }
 
 /// A boot option: what the kernel shows or does instead of (or before) the demo.

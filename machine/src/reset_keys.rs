@@ -2,10 +2,8 @@
 //! Ctrl and Alt as nothing, and after a fault there is no decoder at all, so
 //! the kernel watches the bytes itself and resets the machine on the chord.
 
-/// The prefix of the extended keys (right Ctrl and Alt, the editing block).
-const EXTENDED: u8 = 0xE0;
-/// Set in a break (release) code.
-const BREAK: u8 = 0x80;
+use crate::scancode::{BREAK_BIT as BREAK, EXTENDED_PREFIX as EXTENDED};
+
 const CTRL: u8 = 0x1D;
 const ALT: u8 = 0x38;
 /// Delete: E0 53 in the editing block, 53 on the keypad (NumLock off).

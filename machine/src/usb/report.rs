@@ -6,6 +6,8 @@
 //! repeats here at the PS/2 defaults (500 ms, then about 10.9 a second),
 //! driven by the caller's clock.
 
+use crate::scancode::{BREAK_BIT as BREAK, EXTENDED_PREFIX as PREFIX_E0};
+
 /// The eight bytes of a boot-protocol keyboard report: modifier bits, a
 /// reserved byte, and up to six usages of keys held down.
 pub const REPORT_BYTES: usize = 8;
@@ -16,8 +18,6 @@ pub const REPEAT_PERIOD_MICROS: u64 = 91_743;
 /// Usages 1-3 in every key slot say "too many keys" (ErrorRollOver,
 /// POSTFail, ErrorUndefined), not which keys are down.
 const FIRST_REAL_USAGE: u8 = 0x04;
-const PREFIX_E0: u8 = 0xE0;
-const BREAK: u8 = 0x80;
 
 /// A set-1 key: its code and whether PS/2 sends an E0 before it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
