@@ -75,6 +75,18 @@ fn main() {
     println!("cargo:rustc-env=BIOS_IMAGE={}", bios.display());
     println!("cargo:rustc-env=UEFI_IMAGE={}", uefi.display());
     println!("cargo:rustc-env=KERNEL_ELF={}", kernel.display());
+    // The commit the kernel's report names (kernel/build.rs reads it the same
+    // way, and a moved HEAD rebuilds the kernel, so this script runs again):
+    // the tests compare with this, not with whatever HEAD is when they run.
+    let commit = std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .output()
+        .ok()
+        .filter(|output| output.status.success())
+        .map(|output| String::from_utf8_lossy(&output.stdout).trim().to_owned())
+        .filter(|commit| !commit.is_empty())
+        .unwrap_or_else(|| "unknown".to_owned());
+    println!("cargo:rustc-env=KERNEL_COMMIT={commit}");
 }
 
 /// Makes `path` with `make`, which writes a temporary file beside it; only a
