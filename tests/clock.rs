@@ -15,11 +15,9 @@ use boot::{
     line, Board, BootOption, BootRequest, ClockReference, Firmware, Graphics, Qemu, QemuOptions,
 };
 use common::{
-    assert_pictures_equal, model_picture, presented, soft_vga_in_mode_x, text_picture,
-    BOOT_TIMEOUT, CUBE_KEYS,
+    after_each_key_on, assert_pictures_equal, escape_leaves_the_goodbye_on_the_framebuffer,
+    presented, BOOT_TIMEOUT, CUBE_KEYS,
 };
-use demo::app::App;
-use modex::ModeX;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread;
@@ -266,31 +264,12 @@ fn spin_keys_and_goodbye(qemu: &mut Qemu) {
         started.elapsed()
     );
 
-    let mut soft = soft_vga_in_mode_x();
-    let mut app = App::new();
-    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-    for (n, &(key, command)) in CUBE_KEYS.iter().enumerate() {
-        qemu.send_key(key).unwrap();
-        let done = line::CommandDone(n as u64 + 1).to_string();
-        qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
-        app.apply(command);
-        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-        let screen = qemu.screendump().unwrap();
-        let expected = presented(&model_picture(&soft), screen.width, screen.height);
-        assert_pictures_equal(
-            &screen,
-            &expected,
-            &format!("pit=off, after key {} ({key})", n + 1),
-        );
-    }
+    after_each_key_on(qemu, &CUBE_KEYS, |screen, model, _, what| {
+        let expected = presented(model, screen.width, screen.height);
+        assert_pictures_equal(screen, &expected, &format!("pit=off, {what}"));
+    });
     println!("  {} keys: the software VGA's pictures", CUBE_KEYS.len());
 
-    qemu.send_key("esc").unwrap();
-    qemu.wait_powered_off(BOOT_TIMEOUT).unwrap();
-    let screen = qemu.screendump().unwrap();
-    let mut soft = soft_vga_in_mode_x();
-    demo::screens::goodbye(&mut ModeX::new(&mut *soft));
-    let expected = presented(&text_picture(&soft), screen.width, screen.height);
-    assert_pictures_equal(&screen, &expected, "pit=off, the goodbye line");
+    escape_leaves_the_goodbye_on_the_framebuffer(qemu, "pit=off, the goodbye line");
     println!("  Esc: the goodbye line, then powered off");
 }

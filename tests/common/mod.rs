@@ -200,6 +200,19 @@ pub fn after_each_key(
     after_each_key_on(&mut qemu, keys, compare);
 }
 
+/// Esc on a framebuffer boot run with `keep_after_power_off`: the kernel
+/// says goodbye, then switches the machine off through ACPI, and the screen
+/// QEMU kept must be the goodbye line, presented as the kernel presents it.
+pub fn escape_leaves_the_goodbye_on_the_framebuffer(qemu: &mut Qemu, what: &str) {
+    qemu.send_key("esc").unwrap();
+    qemu.wait_powered_off(BOOT_TIMEOUT).unwrap();
+    let screen = qemu.screendump().unwrap();
+    let mut soft = soft_vga_in_mode_x();
+    demo::screens::goodbye(&mut ModeX::new(&mut *soft));
+    let expected = presented(&text_picture(&soft), screen.width, screen.height);
+    assert_pictures_equal(&screen, &expected, what);
+}
+
 /// As [`after_each_key`], on a QEMU already booted to the ready line.
 pub fn after_each_key_on(
     qemu: &mut Qemu,

@@ -13,7 +13,8 @@
 
 use super::{boot, boot_with, presented, UEFI_BOOT_TIMEOUT, UEFI_FRAMEBUFFER};
 use crate::common::{
-    assert_pictures_equal, boot_bios, soft_vga_in_mode_x, text_picture, BOOT_TIMEOUT,
+    assert_pictures_equal, boot_bios, escape_leaves_the_goodbye_on_the_framebuffer,
+    soft_vga_in_mode_x, text_picture, BOOT_TIMEOUT,
 };
 use boot::{line, BootOption, BootRequest, Fault, Firmware, Graphics, RgbImage};
 use demo::screens::REPORT_LINES;
@@ -131,13 +132,7 @@ fn escape_shows_the_goodbye_line_on_the_framebuffer() {
     );
     qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
         .unwrap();
-    qemu.send_key("esc").unwrap();
-    qemu.wait_powered_off(BOOT_TIMEOUT).unwrap();
-    let screen = qemu.screendump().unwrap();
-    let mut soft = soft_vga_in_mode_x();
-    demo::screens::goodbye(&mut ModeX::new(&mut *soft));
-    let expected = presented(&text_picture(&soft), screen.width, screen.height);
-    assert_pictures_equal(&screen, &expected, "goodbye on the framebuffer");
+    escape_leaves_the_goodbye_on_the_framebuffer(&mut qemu, "goodbye on the framebuffer");
 }
 
 /// The oracle for the text scan-out: QEMU's VGA shows the BIOS boot's panel
