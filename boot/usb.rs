@@ -658,9 +658,9 @@ mod tests {
         error
     }
 
-    #[test]
-    fn a_removable_unmounted_disk_is_described_then_written_and_synced() {
-        let fixture = Fixture::new("1");
+    /// Writes with the confirmation given; returns what it showed, after
+    /// checking that the whole image was written.
+    fn confirmed_write(fixture: &Fixture) -> String {
         let mut shown = String::new();
         let written = fixture
             .write(|description| {
@@ -669,6 +669,15 @@ mod tests {
             })
             .unwrap();
         assert_eq!(written, 1 << 20);
+        let device = fs::read(&fixture.node.path).unwrap();
+        assert_eq!(device[..1 << 20], fs::read(&fixture.image).unwrap()[..]);
+        shown
+    }
+
+    #[test]
+    fn a_removable_unmounted_disk_is_described_then_written_and_synced() {
+        let fixture = Fixture::new("1");
+        let shown = confirmed_write(&fixture);
         for part in [
             "sdb",
             "SanDisk Cruzer Blade",
@@ -678,7 +687,6 @@ mod tests {
             assert!(shown.contains(part), "{part:?} missing from {shown:?}");
         }
         let device = fs::read(&fixture.node.path).unwrap();
-        assert_eq!(device[..1 << 20], fs::read(&fixture.image).unwrap()[..]);
         assert!(device[1 << 20..].iter().all(|&b| b == ORIGINAL));
     }
 
@@ -707,21 +715,11 @@ mod tests {
     /// are written after the same confirmation, which says what they are.
     #[test]
     fn a_non_removable_usb_disk_is_described_then_written() {
-        let fixture = Fixture::new("0");
-        let mut shown = String::new();
-        let written = fixture
-            .write(|description| {
-                shown = description.to_owned();
-                true
-            })
-            .unwrap();
-        assert_eq!(written, 1 << 20);
+        let shown = confirmed_write(&Fixture::new("0"));
         assert!(
             shown.contains("a USB disk that says it is not removable"),
             "{shown:?}"
         );
-        let device = fs::read(&fixture.node.path).unwrap();
-        assert_eq!(device[..1 << 20], fs::read(&fixture.image).unwrap()[..]);
     }
 
     /// A removable disk off USB (an SD slot on PCI) is still accepted.

@@ -201,19 +201,7 @@ pub fn interrupt_interval(speed_id: u32, b_interval: u8) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::BTreeMap;
-
-    #[derive(Default)]
-    struct Words(BTreeMap<u64, u32>);
-
-    impl Memory for Words {
-        fn mem_read(&mut self, address: u64) -> u32 {
-            self.0.get(&address).copied().unwrap_or(0)
-        }
-        fn mem_write(&mut self, address: u64, value: u32) {
-            self.0.insert(address, value);
-        }
-    }
+    use crate::usb::test_memory::Words;
 
     #[test]
     fn sixty_four_byte_contexts_double_every_offset() {

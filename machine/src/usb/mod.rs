@@ -20,6 +20,8 @@ pub mod xhci;
 #[cfg(test)]
 mod model;
 #[cfg(test)]
+mod test_memory;
+#[cfg(test)]
 mod tests;
 
 /// DMA memory, by physical address, a 32-bit word at a time.

@@ -246,19 +246,7 @@ impl EventRing {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::collections::BTreeMap;
-
-    #[derive(Default)]
-    struct Words(BTreeMap<u64, u32>);
-
-    impl Memory for Words {
-        fn mem_read(&mut self, address: u64) -> u32 {
-            self.0.get(&address).copied().unwrap_or(0)
-        }
-        fn mem_write(&mut self, address: u64, value: u32) {
-            self.0.insert(address, value);
-        }
-    }
+    use crate::usb::test_memory::Words;
 
     #[test]
     fn the_producer_links_back_and_toggles_its_cycle() {
