@@ -2,9 +2,13 @@
 //! image that boots under BIOS and UEFI (see `boot/disk_layout.rs`), and the
 //! single-firmware `bios.img` and `uefi.img`.
 //!
-//! The kernel is an artifact dependency (`-Z bindeps`), so cargo compiles it for
-//! `x86_64-unknown-none` first and a kernel compile error is shown as cargo's own
-//! error. The bootloader is the patched copy in `bootloader/` (see its
+//! The kernel is built here by a second cargo, for the kernel's own target
+//! (`kernel/x86_64-modex-kernel.json`: `x86_64-unknown-none` with SSE2 floating
+//! point, so the pipeline's arithmetic is instructions, not library calls).
+//! That target has no prebuilt `core`, so the build is `-Z build-std`, which
+//! cargo cannot combine with an artifact dependency (it panics in
+//! `unit_dependencies`); the bootloader builds its own stages the same way. A
+//! kernel compile error is shown with cargo's own messages. The bootloader is the patched copy in `bootloader/` (see its
 //! CHANGES.md). The images land in OUT_DIR, each written whole to a temporary
 //! name and then renamed, so no half image is ever there; the runner copies
 //! them to `target/images/`.
@@ -19,10 +23,7 @@ fn main() {
     println!("cargo:rerun-if-changed=boot/build.rs");
     println!("cargo:rerun-if-changed=boot/disk_layout.rs");
     let out_dir = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    let kernel = PathBuf::from(
-        std::env::var_os("CARGO_BIN_FILE_KERNEL_kernel")
-            .expect("cargo sets the kernel artifact path"),
-    );
+    let kernel = build_kernel(&out_dir);
     let kernel_bytes = match std::fs::metadata(&kernel) {
         Ok(meta) => meta.len(),
         Err(error) => fail(&format!(
@@ -78,15 +79,100 @@ fn main() {
     // The commit the kernel's report names (kernel/build.rs reads it the same
     // way, and a moved HEAD rebuilds the kernel, so this script runs again):
     // the tests compare with this, not with whatever HEAD is when they run.
-    let commit = std::process::Command::new("git")
-        .args(["rev-parse", "--short=12", "HEAD"])
-        .output()
-        .ok()
-        .filter(|output| output.status.success())
-        .map(|output| String::from_utf8_lossy(&output.stdout).trim().to_owned())
-        .filter(|commit| !commit.is_empty())
-        .unwrap_or_else(|| "unknown".to_owned());
+    let commit = git(&["rev-parse", "--short=12", "HEAD"]).unwrap_or_else(|| "unknown".to_owned());
     println!("cargo:rustc-env=KERNEL_COMMIT={commit}");
+}
+
+/// The kernel's target, beside its manifest.
+const KERNEL_TARGET: &str = "kernel/x86_64-modex-kernel.json";
+
+/// Everything the kernel is built from: a change anywhere here runs this
+/// script again, and the second cargo decides what to rebuild.
+const KERNEL_SOURCES: &[&str] = &[
+    "kernel",
+    "machine",
+    "modex",
+    "engine",
+    "demo",
+    "Cargo.toml",
+    "Cargo.lock",
+    "rust-toolchain.toml",
+];
+
+/// Builds the kernel with a second cargo into its own target directory beside
+/// this build's (`target/kernel/`), with this build's profile, and returns the
+/// ELF file's path.
+fn build_kernel(out_dir: &Path) -> PathBuf {
+    for source in KERNEL_SOURCES {
+        println!("cargo:rerun-if-changed={source}");
+    }
+    // The kernel's commit (kernel/build.rs) follows HEAD; so must this script.
+    for git_path in ["HEAD", "packed-refs"] {
+        if let Some(file) = git(&["rev-parse", "--git-path", git_path]) {
+            println!("cargo:rerun-if-changed={file}");
+        }
+    }
+    if let Some(branch) = git(&["symbolic-ref", "-q", "HEAD"]) {
+        if let Some(file) = git(&["rev-parse", "--git-path", &branch]) {
+            println!("cargo:rerun-if-changed={file}");
+        }
+    }
+    // OUT_DIR is <target>/<profile>/build/<package>[-/]<hash>/out.
+    let target_dir = out_dir
+        .ancestors()
+        .find(|dir| dir.file_name().is_some_and(|name| name == "build"))
+        .and_then(|build| build.parent()?.parent())
+        .map(|target| target.join("kernel"))
+        .unwrap_or_else(|| out_dir.join("kernel"));
+    let release = std::env::var("PROFILE").as_deref() == Ok("release");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let mut command = std::process::Command::new(cargo);
+    command
+        .args([
+            "build",
+            "--package",
+            "kernel",
+            "--bin",
+            "kernel",
+            "--locked",
+        ])
+        .args(["--target", KERNEL_TARGET, "-Zjson-target-spec"])
+        .args(["-Zbuild-std=core,compiler_builtins"])
+        .args(["-Zbuild-std-features=compiler-builtins-mem"])
+        .arg("--target-dir")
+        .arg(&target_dir)
+        .args(["--profile", if release { "release" } else { "dev" }])
+        // Line tables are enough to turn a fault's rip into a source line;
+        // full debug info would more than double the kernel in the image,
+        // and every BIOS boot reads the whole file through INT 13h.
+        .env("CARGO_PROFILE_DEV_DEBUG", "line-tables-only")
+        .env("CARGO_PROFILE_RELEASE_DEBUG", "line-tables-only")
+        // This build's flags and wrappers (clippy's) are not the kernel's.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("RUSTC_WORKSPACE_WRAPPER")
+        .env_remove("RUSTC_WRAPPER");
+    match command.status() {
+        Ok(status) if status.success() => {}
+        Ok(status) => fail(&format!(
+            "building the kernel failed ({status}); cargo's messages are above"
+        )),
+        Err(error) => fail(&format!("cannot run cargo to build the kernel: {error}")),
+    }
+    let target_name = Path::new(KERNEL_TARGET)
+        .file_stem()
+        .expect("the target file has a name");
+    target_dir
+        .join(target_name)
+        .join(if release { "release" } else { "debug" })
+        .join("kernel")
+}
+
+fn git(args: &[&str]) -> Option<String> {
+    let output = std::process::Command::new("git").args(args).output().ok()?;
+    let text = String::from_utf8(output.stdout).ok()?;
+    let text = text.trim();
+    (output.status.success() && !text.is_empty()).then(|| text.to_owned())
 }
 
 /// Makes `path` with `make`, which writes a temporary file beside it; only a

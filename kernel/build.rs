@@ -28,5 +28,7 @@ fn main() {
             println!("cargo:rerun-if-changed={file}");
         }
     }
+    // The entry point turns SSE on before any Rust code runs (src/fpu.rs).
+    println!("cargo:rustc-link-arg-bins=--entry=kernel_entry");
     println!("cargo:rerun-if-changed=build.rs");
 }

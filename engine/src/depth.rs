@@ -8,10 +8,11 @@
 //! pixel centre — no interpolation error along edges or spans — and nearer
 //! points have larger w (w → 0 far away, w = 1 at z = −1).
 //!
-//! Why fixed point: the kernel's target has no floating-point unit enabled
-//! (x86_64-unknown-none is soft-float), so a per-pixel `f32` test cost ten
-//! times the whole frame there; integers cost one add and one compare a
-//! pixel. The plane's coefficients are computed once per face in `f64` and
+//! Why fixed point: integers cost one add and one compare a pixel, and the
+//! buffer holds more than `f32` would in the same four bytes (below). (The
+//! kernel was soft-float when this was written, where a per-pixel `f32` test
+//! cost ten times the whole frame; it now has SSE2, but the integers stay
+//! the cheaper and the finer.) The plane's coefficients are computed once per face in `f64` and
 //! cut to 40 fractional bits; a span steps w by the integer a per pixel,
 //! so the only error is a's truncation, under 320 · 2^-40 ≈ 3e-10 in w across
 //! the screen. The buffer keeps w with 32 fractional bits in a `u32` (w = 1,
@@ -64,8 +65,8 @@ impl DepthPlane {
         let c = -(normal.z - normal.x * cx / k + normal.y * cy / k) / d;
         let fixed = |v: f64| {
             let v = v * W_ONE;
-            // Truncation, not rounding: an error under 2^-40, and no call
-            // into the soft-float library.
+            // Truncation, not rounding: an error under 2^-40, one
+            // instruction.
             (v.abs() < COEFFICIENT_LIMIT).then_some(v as i64)
         };
         Some(DepthPlane {

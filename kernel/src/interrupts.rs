@@ -30,6 +30,11 @@ static IDT: Lazy<InterruptDescriptorTable> = Lazy::new(|| {
         .set_handler_fn(general_protection);
     idt.stack_segment_fault.set_handler_fn(stack_segment);
     idt.page_fault.set_handler_fn(page_fault);
+    // Neither should ever happen (src/fpu.rs turns SSE on and masks every
+    // SIMD exception); if one does, it is reported, not silently a #DF.
+    idt.device_not_available
+        .set_handler_fn(device_not_available);
+    idt.simd_floating_point.set_handler_fn(simd_floating_point);
     // SAFETY: the IST index names the stack that gdt::init puts in the TSS,
     // used by nothing else.
     unsafe {
@@ -103,6 +108,19 @@ extern "x86-interrupt" fn divide_error(frame: InterruptStackFrame) {
 
 extern "x86-interrupt" fn invalid_opcode(frame: InterruptStackFrame) {
     fault::halt_with("invalid opcode", &frame, None, None);
+}
+
+extern "x86-interrupt" fn device_not_available(frame: InterruptStackFrame) {
+    fault::halt_with(
+        "device not available (SSE used while CR0.TS or EM set)",
+        &frame,
+        None,
+        None,
+    );
+}
+
+extern "x86-interrupt" fn simd_floating_point(frame: InterruptStackFrame) {
+    fault::halt_with("SIMD floating-point exception", &frame, None, None);
 }
 
 extern "x86-interrupt" fn general_protection(frame: InterruptStackFrame, error: u64) {

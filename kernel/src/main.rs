@@ -15,6 +15,7 @@ mod diagnostics;
 mod dma;
 mod fault;
 mod firmware;
+mod fpu;
 mod framebuffer;
 mod gdt;
 mod goodbye;

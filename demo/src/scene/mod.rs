@@ -303,7 +303,7 @@ impl Scene {
     /// As `each_visible_face`, but leaving out (while still counting) the
     /// faces whose corners all lie above or all below `rows`: the renderer
     /// draws a band of rows at a time, and a face's depth plane and shade
-    /// cost arithmetic that the kernel does without a floating-point unit.
+    /// cost arithmetic worth saving.
     pub fn each_visible_face_in_rows(
         &mut self,
         rows: core::ops::Range<i32>,

@@ -137,10 +137,18 @@ impl VideoBios {
                 // SAFETY: the trampoline was installed at `area` by `find`,
                 // identity-mapped; it preserves the callee-saved registers and
                 // restores GDT, IDT, control registers, EFER, stack and
-                // selectors before it returns. Interrupts are off.
+                // selectors before it returns. Interrupts are off. MXCSR and
+                // the x87 control word are kept around it, so a video BIOS
+                // that changed the rounding could not change the pictures.
                 unsafe {
                     core::arch::asm!(
+                        "sub rsp, 16",
+                        "stmxcsr [rsp]",
+                        "fnstcw [rsp + 4]",
                         "call {entry}",
+                        "fldcw [rsp + 4]",
+                        "ldmxcsr [rsp]",
+                        "add rsp, 16",
                         entry = in(reg) entry,
                         in("rdi") self.area,
                         clobber_abi("C"),
