@@ -40,6 +40,7 @@ pub mod baseline;
 pub mod command;
 pub mod depth;
 pub mod frame;
+pub mod grid;
 pub mod keymap;
 pub mod keys;
 pub mod osd;

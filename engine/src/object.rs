@@ -114,33 +114,43 @@ pub struct Object {
 
 /// Panics if the model has more vertices, or a face more corners, than the
 /// fixed-size buffers hold, or a face names a vertex that is not there.
-fn check_model(model: &Model) {
+/// (`const`, hence the index loops: an object can then be a static's.)
+const fn check_model(model: &Model) {
     assert!(
         model.vertices.len() <= MAX_VERTICES,
         "model has too many vertices"
     );
-    for face in model.faces {
+    let mut f = 0;
+    while f < model.faces.len() {
+        let corners = model.faces[f].vertices;
         assert!(
-            face.vertices.len() <= MAX_FACE_VERTICES,
+            corners.len() <= MAX_FACE_VERTICES,
             "face has too many vertices"
         );
-        assert!(
-            face.vertices.iter().all(|&v| v < model.vertices.len()),
-            "face names a missing vertex"
-        );
+        let mut c = 0;
+        while c < corners.len() {
+            assert!(
+                corners[c] < model.vertices.len(),
+                "face names a missing vertex"
+            );
+            c += 1;
+        }
+        f += 1;
     }
 }
 
 impl Object {
     /// Panics if the model does not fit the fixed-size buffers (see
     /// `MAX_VERTICES`, `MAX_FACE_VERTICES`) or a face names a missing vertex.
-    pub fn new(model: &'static Model, object_to_world: Xform) -> Self {
+    /// `const`, so that many objects can live in a static rather than on a
+    /// stack.
+    pub const fn new(model: &'static Model, object_to_world: Xform) -> Self {
         check_model(model);
         Object {
             model,
             object_to_world,
-            view: [Vec3::default(); MAX_VERTICES],
-            screen: [Point::default(); MAX_VERTICES],
+            view: [Vec3::new(0.0, 0.0, 0.0); MAX_VERTICES],
+            screen: [Point::new(0, 0); MAX_VERTICES],
             in_front: false,
             recalc: true,
             #[cfg(any(test, feature = "test-support"))]

@@ -2,7 +2,9 @@
 //! spinning frames drawn by our renderer and by per-pixel Map Mask drawing,
 //! without waiting for retrace, timed by the kernel's clock; then our
 //! renderer on the crowd of many solids (key X), all depth-tested; then, for
-//! the cube and the crowd, where a frame's time goes, phase by phase.
+//! the cube and the crowd, where a frame's time goes, phase by phase; and
+//! last, the largest grid of solids (`demo::grid`) whose frame still fits one
+//! refresh (60 frames a second).
 
 use crate::clock;
 use crate::run::RENDERER;
@@ -10,6 +12,7 @@ use crate::serial_println;
 use demo::baseline::PerPixel;
 use demo::depth::{render_with_depth, rows_needing_depth_test};
 use demo::frame::{FrameDrawer, BACKGROUND};
+use demo::grid::Grid;
 use demo::scene::{Scene, SceneCommand};
 use engine::DepthBand;
 use modex::regs::Port;
@@ -17,6 +20,14 @@ use modex::{ModeX, Page, PageImage, VgaBus, PAGE_PIXELS};
 use spin::Mutex;
 
 const FRAMES: u64 = 120;
+/// Frames drawn for each size of the grid.
+const GRID_FRAMES: u64 = 30;
+/// The grid's sizes: from 16 solids up to this many.
+const GRID_START: usize = 16;
+const GRID_LIMIT: usize = 1024;
+
+/// The grid's solids (about 1.1 KiB each: 1.1 MiB, so a static).
+static GRID: Mutex<Grid<GRID_LIMIT>> = Mutex::new(Grid::new());
 
 /// Mean microseconds per frame for `drawer` over the spinning scene, with
 /// `commands` applied first.
@@ -79,7 +90,72 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
             phases.bus_writes
         );
     }
+    largest_grid_at_60_fps(vga);
     vga.set_mode();
+}
+
+/// Grows the grid until a frame (motion, transform, scan conversion with the
+/// depth test, comparison, grouping and bus writes: all but the wait for
+/// retrace) takes longer than one refresh, and reports the largest size that
+/// fits, with every size measured.
+fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
+    let mut grid = GRID.lock();
+    let mut images = IMAGES.lock();
+    let images = &mut *images;
+    let found = machine::scale::largest_that_fits(
+        GRID_START,
+        GRID_LIMIT,
+        machine::pacing::FRAME_MICROS,
+        |count| {
+            vga.set_mode();
+            images.shadows = [[BACKGROUND; PAGE_PIXELS]; 2];
+            grid.reset(count);
+            let mut page = Page::Zero;
+            let start = clock::micros();
+            let mut drawing = 0;
+            let mut written = 0u64;
+            for _ in 0..GRID_FRAMES {
+                page = page.other();
+                let t0 = clock::rdtsc();
+                grid.tick();
+                grid.render(&mut images.next, &mut images.band);
+                drawing += clock::rdtsc() - t0;
+                let shadow = &mut images.shadows[usize::from(page.index())];
+                written += u64::from(vga.update_page(page, shadow, &images.next));
+            }
+            let total = (clock::micros() - start) / GRID_FRAMES;
+            let drawing = clock::cycles_to_micros(drawing) / GRID_FRAMES;
+            serial_println!(
+                "bench: grid of {} solids, {} us/frame: drawing {}, page update {} ({} bytes)",
+                count,
+                total,
+                drawing,
+                total.saturating_sub(drawing),
+                written / GRID_FRAMES
+            );
+            total
+        },
+    );
+    match (found.fits, found.misses) {
+        (Some(fits), Some(misses)) => serial_println!(
+            "bench: largest grid at 60 fps: {} solids ({} us/frame; {} solids take {} us, over the {} us refresh)",
+            fits.count,
+            fits.micros,
+            misses.count,
+            misses.micros,
+            machine::pacing::FRAME_MICROS
+        ),
+        (Some(fits), None) => serial_println!(
+            "bench: largest grid at 60 fps: at least {} solids, the most the bench holds ({} us/frame)",
+            fits.count,
+            fits.micros
+        ),
+        (None, _) => serial_println!(
+            "bench: largest grid at 60 fps: none; {} solids already take over the {} us refresh",
+            GRID_START,
+            machine::pacing::FRAME_MICROS
+        ),
+    }
 }
 
 /// Mean microseconds per frame in each phase of `Renderer`'s frame.

@@ -43,6 +43,7 @@ pub mod pacing;
 pub mod pat;
 pub mod protocol;
 pub mod reset_keys;
+pub mod scale;
 pub mod scancode;
 pub mod stack;
 pub mod trampoline;

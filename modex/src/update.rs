@@ -43,11 +43,13 @@ impl<B: VgaBus> ModeX<B> {
         for (y, range) in changed.iter_mut().enumerate() {
             *range = changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width]);
         }
-        let written = match Writes::collect(&changed, shadow, target) {
-            Some(writes) => self.write_by_mask(page, &writes),
+        let mut writes = Writes::new();
+        let written = if writes.collect(&changed, shadow, target) {
+            self.write_by_mask(page, &writes)
+        } else {
             // More writes than the list holds (a whole new picture): the
             // same writes in the same order, found again for each mask.
-            None => self.write_by_passes(page, &changed, shadow, target),
+            self.write_by_passes(page, &changed, shadow, target)
         };
         for (y, range) in changed.iter().enumerate() {
             if let Some(range) = range {
@@ -90,12 +92,13 @@ impl<B: VgaBus> ModeX<B> {
         cached.into_iter().chain(others)
     }
 
-    /// Makes the collected writes, one pass over the list per mask.
+    /// Makes the collected writes mask by mask, each mask's in the order
+    /// they were found, following the list's links.
     fn write_by_mask(&mut self, page: Page, writes: &Writes) -> u32 {
         let mut written = 0;
         for mask in self.mask_order(writes.masks) {
             self.io.set_map_mask(mask);
-            for write in writes.list[..writes.len].iter().filter(|w| w.mask == mask) {
+            for write in writes.with_mask(mask) {
                 let address = page.base() + write.address;
                 if write.count == 1 {
                     self.io.write_vram8(address, write.colour);
@@ -173,32 +176,50 @@ struct Write {
 }
 
 /// Writes a frame's update can collect before it falls back to finding them
-/// again mask by mask: many times what a spinning scene needs (the crowd of
-/// 59 solids averages 3,600), 24 KiB of stack.
-const WRITE_LIST_CAPACITY: usize = 4096;
+/// again mask by mask: far more than a spinning scene needs (the crowd of 59
+/// solids averages 3,600; a screen-filling grid of 256 turning solids about
+/// 5,000), 128 KiB of stack with the links.
+const WRITE_LIST_CAPACITY: usize = 16_384;
+/// The end of a mask's chain of writes.
+const NO_WRITE: u16 = u16::MAX;
+const _: () = assert!(WRITE_LIST_CAPACITY < NO_WRITE as usize);
 
 /// A frame's writes in the order they are found (line by line, address by
-/// address), and the set of masks among them.
+/// address), each mask's chained in that order, and the set of masks among
+/// them: making them mask by mask is then one step per write, not one pass
+/// over the whole list per mask.
 struct Writes {
     list: [Write; WRITE_LIST_CAPACITY],
+    /// For each write, the next with the same mask, or `NO_WRITE`.
+    next_with_mask: [u16; WRITE_LIST_CAPACITY],
+    /// Each mask's first and last write, or `NO_WRITE`.
+    first_with_mask: [u16; 16],
+    last_with_mask: [u16; 16],
     len: usize,
     masks: u16,
 }
 
 impl Writes {
-    /// Every write the changed lines need, or `None` if there are more than
-    /// the list holds.
+    fn new() -> Self {
+        Writes {
+            list: [Write::default(); WRITE_LIST_CAPACITY],
+            next_with_mask: [NO_WRITE; WRITE_LIST_CAPACITY],
+            first_with_mask: [NO_WRITE; 16],
+            last_with_mask: [NO_WRITE; 16],
+            len: 0,
+            masks: 0,
+        }
+    }
+
+    /// Collects every write the changed lines need; false if there are more
+    /// than the list holds (what was collected is then of no use).
     fn collect(
+        &mut self,
         changed: &[Option<Range<usize>>],
         shadow: &PageImage,
         target: &PageImage,
-    ) -> Option<Writes> {
+    ) -> bool {
         let width = SCREEN_WIDTH as usize;
-        let mut writes = Writes {
-            list: [Write::default(); WRITE_LIST_CAPACITY],
-            len: 0,
-            masks: 0,
-        };
         let mut overflow = false;
         for (y, range) in changed.iter().enumerate() {
             let Some(range) = range else { continue };
@@ -206,22 +227,48 @@ impl Writes {
                 (&shadow[y * width..][..width], &target[y * width..][..width]);
             let line_base = y as u16 * BYTES_PER_LINE;
             each_write(old_line, new_line, quads(range), |write| {
-                let Some(slot) = writes.list.get_mut(writes.len) else {
+                if overflow
+                    || !self.push(Write {
+                        address: line_base + write.address,
+                        ..write
+                    })
+                {
                     overflow = true;
-                    return;
-                };
-                *slot = Write {
-                    address: line_base + write.address,
-                    ..write
-                };
-                writes.len += 1;
-                writes.masks |= mask_bit(write.mask);
+                }
             });
             if overflow {
-                return None;
+                return false;
             }
         }
-        Some(writes)
+        true
+    }
+
+    /// Appends `write` to the list and to its mask's chain; false if full.
+    fn push(&mut self, write: Write) -> bool {
+        let index = self.len;
+        let Some(slot) = self.list.get_mut(index) else {
+            return false;
+        };
+        *slot = write;
+        let mask = usize::from(write.mask.bits());
+        match self.last_with_mask[mask] {
+            NO_WRITE => self.first_with_mask[mask] = index as u16,
+            last => self.next_with_mask[usize::from(last)] = index as u16,
+        }
+        self.last_with_mask[mask] = index as u16;
+        self.len += 1;
+        self.masks |= mask_bit(write.mask);
+        true
+    }
+
+    /// The writes with `mask`, in the order they were found.
+    fn with_mask(&self, mask: PlaneMask) -> impl Iterator<Item = &Write> {
+        let mut next = self.first_with_mask[usize::from(mask.bits())];
+        core::iter::from_fn(move || {
+            let write = self.list.get(usize::from(next))?;
+            next = self.next_with_mask[usize::from(next)];
+            Some(write)
+        })
     }
 }
 
@@ -260,6 +307,12 @@ fn changed_bytes(old: &[u8], new: &[u8]) -> Option<Range<usize>> {
 fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, mut write: impl FnMut(Write)) {
     let mut i = quads.start;
     while i < quads.end {
+        // Most addresses inside a changed range keep their pixels: one
+        // compare, and on. (An unchanged address never starts a run.)
+        if quad(old_line, i) == quad(new_line, i) {
+            i += 1;
+            continue;
+        }
         let run = solid_run(old_line, new_line, i, quads.end);
         if run > 0 {
             write(Write {
@@ -467,7 +520,11 @@ mod tests {
                     changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width])
                 })
                 .collect();
-            let writes = Writes::collect(&changed, &shadow, &target).expect("a small change fits");
+            let mut writes = Box::new(Writes::new());
+            assert!(
+                writes.collect(&changed, &shadow, &target),
+                "a small change fits"
+            );
             let mut by_list = ModeX::new(Recorder::default());
             by_list.write_by_mask(Page::One, &writes);
             let mut by_passes = ModeX::new(Recorder::default());
@@ -510,7 +567,7 @@ mod tests {
         let changed: std::vec::Vec<_> = (0..SCREEN_HEIGHT as usize)
             .map(|y| changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width]))
             .collect();
-        assert!(Writes::collect(&changed, &shadow, &target).is_none());
+        assert!(!Writes::new().collect(&changed, &shadow, &target));
         assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 38_400);
         assert_eq!(indices(vga.bus()), target.to_vec());
         assert!(shadow[..] == target[..]);

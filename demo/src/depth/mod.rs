@@ -14,7 +14,9 @@ use crate::frame::{BACKGROUND, SCREEN_CLIP};
 use crate::scene::{Scene, MAX_OBJECTS};
 use bounds::{hull, overlap_rows, ScreenBox};
 use core::ops::Range;
-use engine::{fill_convex_polygon, ClipRect, DepthBand, FaceCounts, VisibleFace, BANDS, BAND_ROWS};
+use engine::{
+    fill_convex_polygon, ClipRect, DepthBand, FaceCounts, Object, VisibleFace, BANDS, BAND_ROWS,
+};
 use modex::{PageImage, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Whether hidden surfaces need the depth test this frame. Within one convex
@@ -99,6 +101,29 @@ pub fn render_with_depth(
     depth_test_bands(image, band, first..last, |clip, draw| {
         scene.each_visible_face_in_rows(clip.y0..clip.y1, |visible, colour| draw(visible, colour))
     })
+}
+
+/// Every face of `objects` that survives backface removal, object by object,
+/// leaving out (while still counting) the faces whose corners all lie above
+/// or all below `rows`: a band's faces, without paying for the depth plane of
+/// a face that misses the band.
+pub fn each_visible_face_in_rows(
+    objects: &mut [Object],
+    rows: Range<i32>,
+    mut draw: impl FnMut(&VisibleFace),
+) -> FaceCounts {
+    let mut counts = FaceCounts::default();
+    for object in objects {
+        counts += object.each_visible_face(|visible| {
+            let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
+            let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
+            // The filler draws rows top..bottom.
+            if top < rows.end && bottom > rows.start {
+                draw(visible);
+            }
+        });
+    }
+    counts
 }
 
 /// The depth-tested drawing of `render_with_depth` for any set of objects:

@@ -311,18 +311,9 @@ impl Scene {
     ) -> FaceCounts {
         let (lighting, light) = (self.lighting, self.light);
         let count = self.object_count();
-        let mut counts = FaceCounts::default();
-        for object in &mut self.objects[..count] {
-            counts += object.each_visible_face(|visible| {
-                let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
-                let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
-                // The filler draws rows top..bottom.
-                if top < rows.end && bottom > rows.start {
-                    draw(visible, face_colour(visible, lighting, &light));
-                }
-            });
-        }
-        counts
+        crate::depth::each_visible_face_in_rows(&mut self.objects[..count], rows, |visible| {
+            draw(visible, face_colour(visible, lighting, &light))
+        })
     }
 }
 
