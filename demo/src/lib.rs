@@ -50,10 +50,3 @@ pub mod scene;
 pub mod screens;
 pub mod shading;
 pub mod solids;
-
-// The 3-D pipeline projects onto the screen the Mode X driver shows. The two
-// crates know nothing of each other (the pipeline is not tied to VGA), so the
-// demo, which joins them, refuses to build if their screens differ.
-const _: () = assert!(
-    engine::SCREEN_WIDTH == modex::SCREEN_WIDTH && engine::SCREEN_HEIGHT == modex::SCREEN_HEIGHT
-);
