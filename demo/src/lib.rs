@@ -1,5 +1,5 @@
 //! The culled-cube demo, free of hardware: the scene, the key-to-command map,
-//! the scancode queue, the frame renderer and the app that ties them together.
+//! the frame renderer and the app that ties them together.
 //! The kernel supplies a VGA bus and scancodes; the host tests supply a
 //! software VGA and the same scancodes.
 //!
@@ -41,10 +41,8 @@ pub mod command;
 pub mod depth;
 pub mod frame;
 pub mod keymap;
-pub mod keys;
 pub mod osd;
 pub mod pattern;
-pub mod queue;
 pub mod report;
 pub mod scene;
 pub mod screens;
