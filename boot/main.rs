@@ -70,17 +70,17 @@ enum ImageChoice {
     Uefi,
 }
 
-/// Key names checked against `demo::keys`, the one table of them.
+/// Key names checked against `machine::keys`, the one table of them.
 #[derive(Clone, Debug, Default)]
 struct KeyNames(Vec<String>);
 
 fn parse_keys(text: &str) -> Result<KeyNames, String> {
     text.split_whitespace()
-        .map(|name| match demo::keys::scancode_for_name(name) {
+        .map(|name| match machine::keys::scancode_for_name(name) {
             Some(_) => Ok(name.to_lowercase()),
             None => Err(format!(
                 "unknown key {name:?}; key names: {}",
-                demo::keys::names().collect::<Vec<_>>().join(" ")
+                machine::keys::names().collect::<Vec<_>>().join(" ")
             )),
         })
         .collect::<Result<_, _>>()
@@ -295,7 +295,7 @@ mod tests {
             .split_whitespace()
             .map(|name| name.trim_matches('`'))
             .collect();
-        let table: Vec<&str> = demo::keys::names().collect();
+        let table: Vec<&str> = machine::keys::names().collect();
         assert_eq!(listed, table);
     }
 }

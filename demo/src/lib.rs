@@ -1,5 +1,5 @@
 //! The culled-cube demo, free of hardware: the scene, the key-to-command map,
-//! the scancode queue, the frame renderer and the app that ties them together.
+//! the frame renderer and the app that ties them together.
 //! The kernel supplies a VGA bus and scancodes; the host tests supply a
 //! software VGA and the same scancodes.
 //!
@@ -42,19 +42,10 @@ pub mod depth;
 pub mod frame;
 pub mod grid;
 pub mod keymap;
-pub mod keys;
 pub mod osd;
 pub mod pattern;
-pub mod queue;
 pub mod report;
 pub mod scene;
 pub mod screens;
 pub mod shading;
 pub mod solids;
-
-// The 3-D pipeline projects onto the screen the Mode X driver shows. The two
-// crates know nothing of each other (the pipeline is not tied to VGA), so the
-// demo, which joins them, refuses to build if their screens differ.
-const _: () = assert!(
-    engine::SCREEN_WIDTH == modex::SCREEN_WIDTH && engine::SCREEN_HEIGHT == modex::SCREEN_HEIGHT
-);

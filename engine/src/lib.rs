@@ -79,6 +79,6 @@ pub use math::{Point, Vec3};
 pub use object::{
     Face, FaceCounts, Model, Object, VisibleFace, MAX_FACE_VERTICES, MAX_VERTICES, NEAREST_DRAWN_Z,
 };
-pub use project::{project_to_screen, PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
+pub use project::{project_to_screen, PROJECTION_RATIO};
 pub use raster::{fill_convex_polygon, ClipRect};
 pub use xform::Xform;

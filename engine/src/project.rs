@@ -3,11 +3,9 @@
 //! right-handed.
 
 use crate::math::{Point, Vec3};
-
-/// Width of the screen projected onto, in pixels.
-pub const SCREEN_WIDTH: i32 = 320;
-/// Height of the screen projected onto, in pixels.
-pub const SCREEN_HEIGHT: i32 = 240;
+// The screen projected onto is the one the Mode X driver shows; its size is
+// defined there, once.
+pub(crate) use modex::{SCREEN_HEIGHT, SCREEN_WIDTH};
 /// Distance from the viewpoint to the projection plane over the plane's
 /// width; negative because the view looks toward -Z.
 pub const PROJECTION_RATIO: f64 = -2.0;

@@ -19,7 +19,8 @@ use bootloader_api::info::{FrameBuffer, FrameBufferInfo, PixelFormat};
 use core::sync::atomic::{AtomicPtr, Ordering};
 use machine::pacing::FRAME_MICROS;
 use modex::present::{
-    FirmwareFormat, FramebufferLayout, PackedFormat, PixelOrder, Placement, Presenter,
+    FirmwareFormat, FirmwareFramebuffer, FramebufferLayout, PackedFormat, PixelOrder, Placement,
+    Presenter,
 };
 use modex::soft::SoftVga;
 use modex::{ModeX, SCREEN_HEIGHT, SCREEN_WIDTH};
@@ -39,8 +40,10 @@ static FAULT_DISPLAY: AtomicPtr<Display> = AtomicPtr::new(core::ptr::null_mut())
 /// A report of present costs every this many presents (about ten seconds).
 const COST_REPORT_PRESENTS: u64 = 600;
 
-/// The bootloader's framebuffer as the portable presenter sees it. 16-bit
-/// formats get their bit fields; only formats nobody described are grey.
+/// The bootloader's framebuffer as the portable presenter sees it
+/// ([`FirmwareFramebuffer::layout`] decides; this only converts and logs).
+/// A framebuffer that cannot be drawn into safely gets a layout with no
+/// pixels: the demo runs on, and serial says why the screen stays as it is.
 pub fn layout_of(info: &FrameBufferInfo) -> FramebufferLayout {
     let format = match info.pixel_format {
         PixelFormat::Rgb => FirmwareFormat::Rgb,
@@ -57,20 +60,32 @@ pub fn layout_of(info: &FrameBufferInfo) -> FramebufferLayout {
         },
         _ => FirmwareFormat::Other,
     };
-    let order = PixelOrder::for_framebuffer(format, info.bytes_per_pixel).unwrap_or_else(|| {
-        serial_println!(
-            "display: pixel format {:?} with {} bytes/pixel not understood; showing grey",
-            info.pixel_format,
-            info.bytes_per_pixel
-        );
-        PixelOrder::Grey
-    });
-    FramebufferLayout {
+    let framebuffer = FirmwareFramebuffer {
+        byte_len: info.byte_len,
         width: info.width,
         height: info.height,
         stride: info.stride,
         bytes_per_pixel: info.bytes_per_pixel,
-        order,
+        format,
+    };
+    match framebuffer.layout() {
+        Ok(choice) => {
+            if choice.grey_instead {
+                serial_println!(
+                    "display: pixel format {:?} with {} bytes/pixel not understood; showing grey",
+                    info.pixel_format,
+                    info.bytes_per_pixel
+                );
+            }
+            choice.layout
+        }
+        Err(refusal) => {
+            serial_println!(
+                "display: the framebuffer is refused, nothing is drawn on it: {}",
+                refusal
+            );
+            FramebufferLayout::NOTHING
+        }
     }
 }
 

@@ -9,7 +9,7 @@
 //! keyboard then speaks set 2 untranslated.
 
 use crate::serial_println;
-use demo::queue::ScancodeQueue;
+use machine::scancode_queue::ScancodeQueue;
 use x86_64::instructions::port::Port;
 
 const DATA_PORT: u16 = 0x60;

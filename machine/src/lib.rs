@@ -6,6 +6,10 @@
 //! in QEMU's fw_cfg file directory, and the USB keyboard driver ([`usb`]:
 //! an xHCI controller driven through a trait over its registers and DMA
 //! memory, which the host tests implement with a model of the controller).
+//! It also owns the keyboard's vocabulary: set 1's scan codes by key name
+//! ([`keys`], shared with the runner and the simulator) and the queue that
+//! carries them from the keyboard interrupt to the render loop
+//! ([`scancode_queue`]).
 //!
 //! The kernel supplies the readings (port reads, `rdtsc`, MMIO); everything
 //! that decides what those readings mean lives here.
@@ -38,6 +42,7 @@ pub mod calibration;
 pub mod clock;
 pub mod firmware;
 pub mod fw_cfg;
+pub mod keys;
 pub mod log;
 pub mod pacing;
 pub mod pat;
@@ -45,6 +50,7 @@ pub mod protocol;
 pub mod reset_keys;
 pub mod scale;
 pub mod scancode;
+pub mod scancode_queue;
 pub mod stack;
 pub mod trampoline;
 pub mod usb;

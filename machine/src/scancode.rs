@@ -1,5 +1,5 @@
 //! PS/2 scan code set 1's two marks, defined once for everyone who reads or
-//! makes set-1 bytes: the demo's key table and decoder, the USB keyboard's
+//! makes set-1 bytes: the key table ([`crate::keys`]), the USB keyboard's
 //! report conversion, and the kernel's Ctrl+Alt+Del watch.
 
 /// The prefix of the keys the 84-key keyboard did not have (the arrows, the

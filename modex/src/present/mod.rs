@@ -13,9 +13,11 @@ use crate::soft::{dac_6_to_8, SoftVga};
 
 mod changes;
 mod encode;
+mod layout;
 
 pub use changes::{PresentReport, Presenter, MAX_PICTURE_PIXELS};
 pub use encode::{luma, Channel, FirmwareFormat, PackedFormat, PixelOrder};
+pub use layout::{FirmwareFramebuffer, LayoutChoice, LayoutRefusal};
 
 /// A linear framebuffer's geometry and pixel encoding.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

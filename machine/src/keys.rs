@@ -7,7 +7,7 @@
 //! the simulator (which turns names and host keys into scan codes) and the
 //! README's list of names (which a test compares with it).
 
-use machine::scancode::{BREAK_BIT, EXTENDED_PREFIX};
+use crate::scancode::{BREAK_BIT, EXTENDED_PREFIX};
 
 /// One key's scan code in set 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
