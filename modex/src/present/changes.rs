@@ -1,31 +1,49 @@
 //! Presenting only what changed: a flip that moves a cube across a 1280x800
-//! screen should not cost 4 MB of framebuffer writes.
+//! screen should not cost 4 MB of framebuffer writes, nor a scan-out and a
+//! diff of the whole picture when the cube covers a fifth of it.
 //!
 //! How the changes are found: the presenter keeps the picture it presented
-//! last (DAC indices, as scanned out) and that picture's encoded palette, and
-//! diffs the new scan-out against them. A pixel is written again when its
-//! index changed or its index's colour did. The alternative, having the
-//! software VGA track the bytes the CPU wrote, would have to reason about
-//! every other way the picture changes — a flip to another page, DAC loads
-//! (the lighting ramps), the pixel mask, blanking, a mode change — and would
-//! still rewrite pixels drawn over with the colour they had. The diff is
-//! right by construction, and costs reading two 75 KiB buffers in RAM, which
-//! is nothing next to writing the framebuffer over the bus.
+//! last (DAC indices, as scanned out) and that picture's encoded palette. A
+//! pixel is written again when its index changed or its index's colour did.
+//! Colours are compared entry by entry (256 of them), so DAC loads, the
+//! pixel mask and blanking need nothing more. Indices are compared only in
+//! the tiles of the picture (a row's run of 64 pixels) that may have
+//! changed; the rest are known to be equal without being scanned out:
+//!
+//! * The software VGA stamps each block of video memory with the count of
+//!   writes at its last write, and says what the picture is made of besides
+//!   memory (its [`PictureSource`]: the raster with its start address,
+//!   Offset, line compare and sizes; for text, every register). Same source,
+//!   and none of a tile's memory written since: same indices in that tile.
+//! * A page flip changes the source at each present. So the presenter
+//!   remembers its last few presents: the source, the write count, and the
+//!   tiles where that picture differed from the one before. The new picture
+//!   equals the last one with the same source except in the tiles written
+//!   since; that one equals the last shown except where the presents since
+//!   changed something. The union of those is what gets scanned out and
+//!   diffed: with Mode X's two pages, the tiles drawn into the page since it
+//!   was last shown and those where the two pages differed last time.
+//! * No remembered present has this source (a mode change, a new start
+//!   address, any register write in text mode): all of it.
 //!
 //! The first present, and any present whose picture size or framebuffer
 //! layout differs from the last, writes everything, black borders included;
 //! after that only changed pixels are written (each run of changed pixels in
-//! a row as one span, scaled), so the borders are never written again and a
-//! still picture costs nothing.
+//! a tile's part of a row as one span, scaled), so the borders are never
+//! written again and a still picture costs nothing.
 
 use core::ops::Range;
 
 use super::{blit, encoded_palette, FramebufferLayout, PixelOrder, Placement};
-use crate::soft::SoftVga;
+use crate::soft::{PictureSource, SoftVga, TileSet};
 
 /// The largest picture the presenter keeps: 80x25 text in 9x16 cells. Mode X
 /// is 320x240; a picture larger than this is presented black.
 pub const MAX_PICTURE_PIXELS: usize = 720 * 400;
+
+/// Presents remembered: Mode X flips between two pages (three with the
+/// report's), so a page was shown at most two or three presents ago.
+const REMEMBERED_PRESENTS: usize = 4;
 
 /// What one present did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -34,12 +52,36 @@ pub struct PresentReport {
     pub bytes_written: usize,
     /// Whether everything was written (first present, new size or layout).
     pub full: bool,
+    /// Picture pixels scanned out and compared with those shown: the whole
+    /// picture when `full`, else those of the tiles that may have changed.
+    pub pixels_scanned: usize,
+}
+
+/// What the presenter remembers of one present.
+#[derive(Clone)]
+struct PastPresent {
+    /// What the picture was made of besides memory.
+    source: PictureSource,
+    /// The model's count of memory writes at the time.
+    memory_writes: u64,
+    /// The tiles where its DAC indices differed from the present before's
+    /// (every tile if it wrote everything).
+    changed: TileSet,
+}
+
+impl PastPresent {
+    const NONE: PastPresent = PastPresent {
+        source: PictureSource::NOTHING,
+        memory_writes: 0,
+        changed: TileSet::new(),
+    };
 }
 
 /// Presents a software VGA's picture into a framebuffer, writing only what
-/// changed since its last present. ~580 KiB: keep it in a static or a `Box`.
-/// It assumes nobody else writes the framebuffer between presents (call
-/// [`Presenter::forget`] if someone did).
+/// changed since its last present. ~590 KiB: keep it in a static or a `Box`.
+/// It assumes nobody else writes the framebuffer between presents, and that
+/// it presents one software VGA (call [`Presenter::forget`] if someone else
+/// wrote, or to present another).
 #[derive(Clone)]
 pub struct Presenter {
     current: [u8; MAX_PICTURE_PIXELS],
@@ -51,6 +93,12 @@ pub struct Presenter {
     /// one then costs nothing in its image, .bss rather than .data.)
     shown_layout: FramebufferLayout,
     presented: bool,
+    /// The last presents, a ring: the newest at `newest`, `remembered` of them.
+    past: [PastPresent; REMEMBERED_PRESENTS],
+    newest: usize,
+    remembered: usize,
+    /// The tiles this present scans out and compares.
+    to_scan: TileSet,
 }
 
 /// Leaves out the pictures and the palette, ~580 KiB.
@@ -60,6 +108,7 @@ impl core::fmt::Debug for Presenter {
             .field("shown_size", &self.shown_size)
             .field("shown_layout", &self.shown_layout)
             .field("presented", &self.presented)
+            .field("remembered", &self.remembered)
             .finish_non_exhaustive()
     }
 }
@@ -87,12 +136,17 @@ impl Presenter {
                 order: PixelOrder::Rgb,
             },
             presented: false,
+            past: [PastPresent::NONE; REMEMBERED_PRESENTS],
+            newest: 0,
+            remembered: 0,
+            to_scan: TileSet::new(),
         }
     }
 
     /// The next present writes everything.
     pub fn forget(&mut self) {
         self.presented = false;
+        self.remembered = 0;
     }
 
     /// Presents `soft`'s picture into `out` laid out as `layout`, as
@@ -104,25 +158,46 @@ impl Presenter {
         layout: &FramebufferLayout,
         out: &mut [u8],
     ) -> PresentReport {
+        let source = soft.picture_source();
+        let memory_writes = soft.memory_writes();
         let (width, height) = soft.picture_size();
         let size = if width * height <= MAX_PICTURE_PIXELS {
-            soft.scanout_indices(&mut self.current[..width * height])
+            (width, height)
         } else {
             (0, 0)
         };
         let pixels = size.0 * size.1;
         let palette = encoded_palette(soft, layout.order);
         let full = !self.presented || self.shown_layout != *layout || self.shown_size != size;
+        if full {
+            self.to_scan.fill(size);
+        } else {
+            self.find_tiles_to_scan(soft, &source, size);
+        }
+        let pixels_scanned = if pixels > 0 && self.to_scan.any(size.1) {
+            soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+            self.to_scan.pixels(size)
+        } else {
+            0
+        };
+        // The oldest remembered present, no longer needed once the tiles to
+        // scan are known, becomes this one.
+        let slot = (self.newest + 1) % REMEMBERED_PRESENTS;
         let bytes_written = if full {
             let picture = &self.current[..pixels];
             blit(picture, size, layout, out, |row, column| {
                 palette[usize::from(picture[row * size.0 + column])]
             });
+            self.shown[..pixels].copy_from_slice(picture);
+            self.past[slot].changed.fill(size);
             full_present_bytes(layout, out.len())
         } else {
-            self.present_changes(size, &palette, layout, out)
+            self.present_changes(size, &palette, layout, out, slot)
         };
-        self.shown[..pixels].copy_from_slice(&self.current[..pixels]);
+        self.past[slot].source = source;
+        self.past[slot].memory_writes = memory_writes;
+        self.newest = slot;
+        self.remembered = (self.remembered + 1).min(REMEMBERED_PRESENTS);
         self.shown_palette = palette;
         self.shown_size = size;
         self.shown_layout = *layout;
@@ -130,15 +205,37 @@ impl Presenter {
         PresentReport {
             bytes_written,
             full,
+            pixels_scanned,
         }
     }
 
+    /// The tiles whose indices may differ from those shown: going back from
+    /// the newest present to the last one with the same source, the tiles
+    /// each changed, and the tiles written since that one. Everything if no
+    /// remembered present had this source.
+    fn find_tiles_to_scan(&mut self, soft: &SoftVga, source: &PictureSource, size: (usize, usize)) {
+        self.to_scan.clear();
+        for back in 0..self.remembered {
+            let past = &self.past[(self.newest + REMEMBERED_PRESENTS - back) % REMEMBERED_PRESENTS];
+            if past.source == *source {
+                soft.add_tiles_written_since(past.memory_writes, &mut self.to_scan);
+                return;
+            }
+            self.to_scan.add(&past.changed);
+        }
+        self.to_scan.fill(size);
+    }
+
+    /// Writes the pixels of the scanned tiles whose index changed, and those
+    /// anywhere whose colour changed; notes the tiles that changed in
+    /// `self.past[slot]` and takes the scanned ones into the shown picture.
     fn present_changes(
-        &self,
+        &mut self,
         (width, height): (usize, usize),
         palette: &[[u8; 4]; 256],
         layout: &FramebufferLayout,
         out: &mut [u8],
+        slot: usize,
     ) -> usize {
         let mut recoloured = [false; 256];
         for (flag, (new, old)) in recoloured
@@ -149,27 +246,58 @@ impl Presenter {
         }
         let any_recoloured = recoloured.contains(&true);
         let placement = Placement::fit((width, height), (layout.width, layout.height));
+        let across = TileSet::across(width);
+        let changed = &mut self.past[slot].changed;
+        changed.clear();
         let mut written = 0;
         for row in 0..height {
-            let new = &self.current[row * width..(row + 1) * width];
-            let old = &self.shown[row * width..(row + 1) * width];
-            // Most rows of most frames: one slice comparison, no pixel loop.
-            if !any_recoloured && new == old {
+            let scanned = self.to_scan.row(row);
+            // Most rows of most frames: nothing to look at.
+            if scanned == 0 && !any_recoloured {
                 continue;
             }
-            let changed = |x: usize| new[x] != old[x] || recoloured[usize::from(new[x])];
-            let mut x = 0;
-            while x < width {
-                if !changed(x) {
-                    x += 1;
+            let line = row * width..(row + 1) * width;
+            for tile in 0..across {
+                let was_scanned = scanned & (1 << tile) != 0;
+                if !was_scanned && !any_recoloured {
                     continue;
                 }
-                let start = x;
-                while x < width && changed(x) {
-                    x += 1;
+                let columns = TileSet::columns(tile, width);
+                let pixels = line.start + columns.start..line.start + columns.end;
+                let old = &self.shown[pixels.clone()];
+                // A tile not scanned shows what it showed.
+                let new = if was_scanned {
+                    &self.current[pixels.clone()]
+                } else {
+                    old
+                };
+                let same = !was_scanned || new == old;
+                if !same {
+                    changed.insert(row, tile);
                 }
-                let pixel = |column: usize| palette[usize::from(new[column])];
-                written += write_span(layout, &placement, row, start..x, pixel, out);
+                if same && !any_recoloured {
+                    continue;
+                }
+                let first = columns.start;
+                let changed_at = |x: usize| {
+                    new[x - first] != old[x - first] || recoloured[usize::from(new[x - first])]
+                };
+                let pixel = |column: usize| palette[usize::from(new[column - first])];
+                let mut x = columns.start;
+                while x < columns.end {
+                    if !changed_at(x) {
+                        x += 1;
+                        continue;
+                    }
+                    let start = x;
+                    while x < columns.end && changed_at(x) {
+                        x += 1;
+                    }
+                    written += write_span(layout, &placement, row, start..x, pixel, out);
+                }
+                if !same {
+                    self.shown[pixels.clone()].copy_from_slice(&self.current[pixels]);
+                }
             }
         }
         written

@@ -33,6 +33,7 @@ mod probe;
 mod registers;
 mod scanout;
 mod text_scanout;
+mod tiles;
 mod timing;
 
 use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
@@ -51,6 +52,8 @@ pub use memory::PLANE_BYTES;
 pub use probe::BusCounts;
 pub use scanout::dac_6_to_8;
 pub use timing::{CrtTiming, PORT_ACCESS_NS, VRAM_ACCESS_NS};
+
+pub(crate) use tiles::{PictureSource, TileSet};
 
 /// The software VGA.
 ///
@@ -80,6 +83,8 @@ pub struct SoftVga {
     displayed_start: u16,
     frame_count: u64,
     retrace_stuck: Option<bool>,
+    /// Register writes so far (any port): a text picture may change with any.
+    register_writes: u64,
     counts: BusCounts,
     guard: WriteGuard,
 }
@@ -122,6 +127,7 @@ impl SoftVga {
             now_ns: 0,
             frame_count: 0,
             retrace_stuck: None,
+            register_writes: 0,
             counts: BusCounts {
                 port_writes: 0,
                 port_reads: 0,
@@ -268,6 +274,7 @@ impl SoftVga {
     // --- Bus internals.
 
     fn port_write(&mut self, port: Port, value: u8) {
+        self.register_writes += 1;
         self.registers.write_port(port, value);
         // Misc Output, Clocking Mode and the CRTC set the timing.
         self.timing = CrtTiming::from_registers(&self.registers);
@@ -300,6 +307,7 @@ impl VgaBus for SoftVga {
         self.counts.port_writes += 1;
         self.advance_ns(PORT_ACCESS_NS);
         if port == Port::VBE_DISPI_INDEX || port == Port::VBE_DISPI_DATA {
+            self.register_writes += 1;
             self.registers.write_dispi(port, value);
         } else {
             let [low, high] = value.to_le_bytes();
