@@ -271,7 +271,7 @@ impl Presenter {
                 } else {
                     old
                 };
-                let same = !was_scanned || new == old;
+                let same = !was_scanned || same_indices(new, old);
                 if !same {
                     changed.insert(row, tile);
                 }
@@ -279,21 +279,17 @@ impl Presenter {
                     continue;
                 }
                 let first = columns.start;
-                let changed_at = |x: usize| {
-                    new[x - first] != old[x - first] || recoloured[usize::from(new[x - first])]
-                };
                 let pixel = |column: usize| palette[usize::from(new[column - first])];
-                let mut x = columns.start;
-                while x < columns.end {
-                    if !changed_at(x) {
-                        x += 1;
-                        continue;
-                    }
-                    let start = x;
-                    while x < columns.end && changed_at(x) {
-                        x += 1;
-                    }
-                    written += write_span(layout, &placement, row, start..x, pixel, out);
+                let mut span = |span: Range<usize>| {
+                    let columns = first + span.start..first + span.end;
+                    written += write_span(layout, &placement, row, columns, pixel, out);
+                };
+                if any_recoloured {
+                    let changed_at =
+                        |x: usize| new[x] != old[x] || recoloured[usize::from(new[x])];
+                    for_each_run(new.len(), changed_at, &mut span);
+                } else {
+                    changed_runs(new, old, &mut span);
                 }
                 if !same {
                     self.shown[pixels.clone()].copy_from_slice(&self.current[pixels]);
@@ -302,6 +298,71 @@ impl Presenter {
         }
         written
     }
+}
+
+/// Calls `span` with each maximal run of positions below `len` where
+/// `changed_at` holds.
+fn for_each_run(len: usize, changed_at: impl Fn(usize) -> bool, mut span: impl FnMut(Range<usize>)) {
+    let mut x = 0;
+    while x < len {
+        if !changed_at(x) {
+            x += 1;
+            continue;
+        }
+        let start = x;
+        while x < len && changed_at(x) {
+            x += 1;
+        }
+        span(start..x);
+    }
+}
+
+/// Calls `span` with each maximal run of positions where `new` and `old`
+/// differ, skipping equal runs of eight in one comparison.
+fn changed_runs(new: &[u8], old: &[u8], mut span: impl FnMut(Range<usize>)) {
+    let len = new.len().min(old.len());
+    let mut run_start = None;
+    let mut x = 0;
+    while x < len {
+        if x + 8 <= len && word(new, x) == word(old, x) {
+            if let Some(start) = run_start.take() {
+                span(start..x);
+            }
+            x += 8;
+            continue;
+        }
+        let end = (x + 8).min(len);
+        while x < end {
+            if new[x] != old[x] {
+                run_start.get_or_insert(x);
+            } else if let Some(start) = run_start.take() {
+                span(start..x);
+            }
+            x += 1;
+        }
+    }
+    if let Some(start) = run_start {
+        span(start..len);
+    }
+}
+
+/// Eight indices from `at` as one word.
+fn word(indices: &[u8], at: usize) -> u64 {
+    let mut bytes = [0; 8];
+    bytes.copy_from_slice(&indices[at..at + 8]);
+    u64::from_ne_bytes(bytes)
+}
+
+/// Whether two runs of indices are equal, compared eight at a time: the
+/// kernel's `memcmp` (compiler-builtins) goes byte by byte.
+fn same_indices(new: &[u8], old: &[u8]) -> bool {
+    let (new_words, new_rest) = new.as_chunks::<8>();
+    let (old_words, old_rest) = old.as_chunks::<8>();
+    new_words
+        .iter()
+        .zip(old_words)
+        .all(|(new, old)| u64::from_ne_bytes(*new) == u64::from_ne_bytes(*old))
+        && new_rest.iter().zip(old_rest).all(|(new, old)| new == old)
 }
 
 /// Bytes a full present writes: every visible pixel of every line that fits.
@@ -329,31 +390,85 @@ fn write_span(
     pixel: impl Fn(usize) -> [u8; 4],
     out: &mut [u8],
 ) -> usize {
+    match layout.bytes_per_pixel {
+        1 => write_span_of::<1>(layout, placement, row, columns, &pixel, out),
+        2 => write_span_of::<2>(layout, placement, row, columns, &pixel, out),
+        3 => write_span_of::<3>(layout, placement, row, columns, &pixel, out),
+        4 => write_span_of::<4>(layout, placement, row, columns, &pixel, out),
+        _ => 0,
+    }
+}
+
+/// Screen pixels of a span scaled once and copied to each of its lines.
+const SCALED_SPAN_PIXELS: usize = 256;
+
+/// [`write_span`] for `N`-byte pixels: the span is scaled into a buffer once,
+/// a piece at a time, and each piece copied onto every line the row covers
+/// (the framebuffer is never read: it may be write-combining).
+fn write_span_of<const N: usize>(
+    layout: &FramebufferLayout,
+    placement: &Placement,
+    row: usize,
+    columns: Range<usize>,
+    pixel: &impl Fn(usize) -> [u8; 4],
+    out: &mut [u8],
+) -> usize {
     let scale = placement.scale;
-    let mut written = 0;
-    for repeat in 0..scale {
-        let y = placement.top + (row * scale + repeat) as isize;
-        let Ok(y) = usize::try_from(y) else {
-            continue;
-        };
-        if y >= layout.height {
-            break;
+    // Framebuffer sizes are far below isize::MAX.
+    let top = placement.top + (row * scale) as isize;
+    let lines = top.clamp(0, layout.height as isize) as usize
+        ..(top + scale as isize).clamp(0, layout.height as isize) as usize;
+    if lines.is_empty() {
+        return 0;
+    }
+    if scale > SCALED_SPAN_PIXELS {
+        // A screen over 256 times the picture's width: pixel by pixel.
+        let mut written = 0;
+        for y in lines {
+            let Some(line) = layout.visible_line(out, y) else {
+                break;
+            };
+            written += span_on_line::<N>(line, placement, columns.clone(), pixel);
         }
-        let Some(line) = layout.visible_line(out, y) else {
-            break;
-        };
-        written += match layout.bytes_per_pixel {
-            1 => span_on_line::<1>(line, placement, columns.clone(), &pixel),
-            2 => span_on_line::<2>(line, placement, columns.clone(), &pixel),
-            3 => span_on_line::<3>(line, placement, columns.clone(), &pixel),
-            4 => span_on_line::<4>(line, placement, columns.clone(), &pixel),
-            _ => 0,
-        };
+        return written;
+    }
+    let columns_per_piece = SCALED_SPAN_PIXELS / scale;
+    let mut scaled = [[0u8; N]; SCALED_SPAN_PIXELS];
+    let mut written = 0;
+    let mut first = columns.start;
+    while first < columns.end {
+        let piece = first..(first + columns_per_piece).min(columns.end);
+        first = piece.end;
+        let mut length = 0;
+        for column in piece.clone() {
+            let encoded = pixel(column);
+            let bytes: [u8; N] = core::array::from_fn(|i| encoded[i]);
+            scaled[length..length + scale].fill(bytes);
+            length += scale;
+        }
+        let left = placement.left + (piece.start * scale) as isize;
+        let right = left + length as isize;
+        for y in lines.clone() {
+            let Some(line) = layout.visible_line(out, y) else {
+                break;
+            };
+            let pixels = line.as_chunks_mut::<N>().0;
+            let screen_width = pixels.len() as isize;
+            let (from, to) = (left.clamp(0, screen_width), right.clamp(0, screen_width));
+            if from >= to {
+                continue;
+            }
+            // Both ends are clamped to 0..=screen_width, and within the piece.
+            let skip = (from - left) as usize;
+            let count = (to - from) as usize;
+            pixels[from as usize..to as usize].copy_from_slice(&scaled[skip..skip + count]);
+            written += count * N;
+        }
     }
     written
 }
 
-/// One screen line's part of a span of `N`-byte pixels.
+/// One screen line's part of a span of `N`-byte pixels, pixel by pixel.
 fn span_on_line<const N: usize>(
     line: &mut [u8],
     placement: &Placement,

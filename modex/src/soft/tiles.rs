@@ -101,14 +101,27 @@ impl TileSet {
     /// Pixels of the set's tiles in a `width` x `height` picture.
     pub(crate) fn pixels(&self, (width, height): (usize, usize)) -> usize {
         let across = Self::across(width);
-        (0..height.min(MAX_ROWS))
-            .map(|row| {
-                (0..across)
-                    .filter(|tile| self.rows[row] & (1 << tile) != 0)
-                    .map(|tile| Self::columns(tile, width).len())
-                    .sum::<usize>()
+        if across == 0 {
+            return 0;
+        }
+        let last_tile = 1u16 << (across - 1);
+        let last_tile_width = Self::columns(across - 1, width).len();
+        self.rows[..height.min(MAX_ROWS)]
+            .iter()
+            .map(|&row| {
+                let row = row & (u16::MAX >> (MAX_TILES_ACROSS - across));
+                if row & last_tile != 0 {
+                    (row.count_ones() as usize - 1) * TILE_PIXELS + last_tile_width
+                } else {
+                    row.count_ones() as usize * TILE_PIXELS
+                }
             })
             .sum()
+    }
+
+    /// Adds the tiles of `tiles` (bit `t` for tile `t`) to row `row`.
+    pub(crate) fn add_to_row(&mut self, row: usize, tiles: u16) {
+        self.rows[row] |= tiles;
     }
 
     /// Row `row`'s tiles, bit `t` for tile `t` (0 past the last row).
@@ -192,19 +205,23 @@ impl SoftVga {
             return;
         };
         let written = &self.memory.block_written;
-        let across = TileSet::across(raster.width);
+        let quads_per_row = raster.width / PLANE_COUNT;
         raster.rows(|row, address| {
-            for tile in 0..across {
-                let quads = quads_of(tile, raster.width);
-                let first = address + quads.start;
-                let blocks = (first % BLOCK_OFFSETS + quads.len()).div_ceil(BLOCK_OFFSETS);
-                let first_block = first % PLANE_BYTES / BLOCK_OFFSETS;
-                let was_written =
-                    (0..blocks).any(|block| written[(first_block + block) % BLOCKS] > writes);
-                if was_written {
-                    tiles.insert(row, tile);
+            // The blocks the row reads, in order: quad `q` of the row is at
+            // `first + q`, in block `(skew + q) / BLOCK_OFFSETS` from the first.
+            let first = address % PLANE_BYTES;
+            let skew = first % BLOCK_OFFSETS;
+            let first_block = first / BLOCK_OFFSETS;
+            let blocks = (skew + quads_per_row).div_ceil(BLOCK_OFFSETS);
+            let mut row_tiles = 0;
+            for block in 0..blocks {
+                if written[(first_block + block) % BLOCKS] > writes {
+                    let quads = (block * BLOCK_OFFSETS).saturating_sub(skew)
+                        ..((block + 1) * BLOCK_OFFSETS - skew).min(quads_per_row);
+                    row_tiles |= tiles_of_quads(quads);
                 }
             }
+            tiles.add_to_row(row, row_tiles);
         });
     }
 
@@ -236,14 +253,37 @@ impl SoftVga {
             for tile in (0..across).filter(|tile| mask & (1 << tile) != 0) {
                 let quads = quads_of(tile, width);
                 let pixels = &mut line[quads.start * PLANE_COUNT..quads.end * PLANE_COUNT];
-                for (quad, pixels) in quads.zip(pixels.as_chunks_mut::<PLANE_COUNT>().0) {
-                    let offset = (address + quad) % PLANE_BYTES;
-                    *pixels = core::array::from_fn(|plane| planes[plane][offset]);
+                let pixels = pixels.as_chunks_mut::<PLANE_COUNT>().0;
+                let first = (address + quads.start) % PLANE_BYTES;
+                let count = pixels.len();
+                if first + count <= PLANE_BYTES {
+                    // The usual case: one run of each plane, no wrap to check.
+                    for (plane, source) in planes.iter().enumerate() {
+                        for (pixels, &index) in pixels.iter_mut().zip(&source[first..first + count]) {
+                            pixels[plane] = index;
+                        }
+                    }
+                } else {
+                    for (quad, pixels) in quads.zip(pixels) {
+                        let offset = (address + quad) % PLANE_BYTES;
+                        *pixels = core::array::from_fn(|plane| planes[plane][offset]);
+                    }
                 }
             }
         });
         (width, raster.height)
     }
+}
+
+/// The tiles of a 256-colour row that quads `quads` (not empty, within the
+/// row) fall in, as a row's bits.
+fn tiles_of_quads(quads: core::ops::Range<usize>) -> u16 {
+    let quads_per_tile = TILE_PIXELS / PLANE_COUNT;
+    let last_tile = MAX_TILES_ACROSS - 1;
+    let first = (quads.start / quads_per_tile).min(last_tile);
+    let last = ((quads.end - 1) / quads_per_tile).min(last_tile);
+    let through_last = (u32::MAX >> (u32::BITS as usize - 1 - last)) as u16;
+    through_last & !((1u16 << first) - 1)
 }
 
 /// The quads (4 pixels, one plane offset) of tile `tile` of a 256-colour row
