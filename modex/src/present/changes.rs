@@ -35,7 +35,8 @@
 use core::ops::Range;
 
 use super::{blit, encoded_palette, FramebufferLayout, PixelOrder, Placement};
-use crate::soft::{PictureSource, SoftVga, TileSet};
+use crate::regs::PLANE_COUNT;
+use crate::soft::{PictureSource, SoftVga, TileSet, TILE_PIXELS};
 
 /// The largest picture the presenter keeps: 80x25 text in 9x16 cells. Mode X
 /// is 320x240; a picture larger than this is presented black.
@@ -99,6 +100,8 @@ pub struct Presenter {
     remembered: usize,
     /// The tiles this present scans out and compares.
     to_scan: TileSet,
+    /// Where a span is scaled before it is copied to its screen lines.
+    span_buffer: [u8; SPAN_BUFFER_BYTES],
 }
 
 /// Leaves out the pictures and the palette, ~580 KiB.
@@ -140,6 +143,7 @@ impl Presenter {
             newest: 0,
             remembered: 0,
             to_scan: TileSet::new(),
+            span_buffer: [0; SPAN_BUFFER_BYTES],
         }
     }
 
@@ -174,8 +178,7 @@ impl Presenter {
         } else {
             self.find_tiles_to_scan(soft, &source, size);
         }
-        let pixels_scanned = if pixels > 0 && self.to_scan.any(size.1) {
-            soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+        let pixels_scanned = if pixels > 0 {
             self.to_scan.pixels(size)
         } else {
             0
@@ -184,6 +187,9 @@ impl Presenter {
         // scan are known, becomes this one.
         let slot = (self.newest + 1) % REMEMBERED_PRESENTS;
         let bytes_written = if full {
+            if pixels > 0 {
+                soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+            }
             let picture = &self.current[..pixels];
             blit(picture, size, layout, out, |row, column| {
                 palette[usize::from(picture[row * size.0 + column])]
@@ -192,7 +198,28 @@ impl Presenter {
             self.past[slot].changed.fill(size);
             full_present_bytes(layout, out.len())
         } else {
-            self.present_changes(size, &palette, layout, out, slot)
+            let mut recoloured = [false; 256];
+            for (flag, (new, old)) in recoloured
+                .iter_mut()
+                .zip(palette.iter().zip(&self.shown_palette))
+            {
+                *flag = new != old;
+            }
+            if recoloured.contains(&true) {
+                if pixels > 0 && self.to_scan.any(size.1) {
+                    soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+                }
+                self.present_changes(size, &palette, &recoloured, layout, out, slot)
+            } else if let Some(written) =
+                self.present_from_planes(soft, size, &palette, layout, out, slot)
+            {
+                written
+            } else {
+                if pixels > 0 && self.to_scan.any(size.1) {
+                    soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+                }
+                self.present_changes(size, &palette, &recoloured, layout, out, slot)
+            }
         };
         self.past[slot].source = source;
         self.past[slot].memory_writes = memory_writes;
@@ -226,6 +253,84 @@ impl Presenter {
         self.to_scan.fill(size);
     }
 
+    /// [`Self::present_changes`] for 256-colour pictures whose colours did
+    /// not change, reading the tiles straight from the planes: eight pixels
+    /// are gathered and compared with those shown in one word, and only
+    /// words that differ are stored. None (nothing done) in other modes.
+    fn present_from_planes(
+        &mut self,
+        soft: &SoftVga,
+        (width, height): (usize, usize),
+        palette: &[[u8; 4]; 256],
+        layout: &FramebufferLayout,
+        out: &mut [u8],
+        slot: usize,
+    ) -> Option<usize> {
+        let placement = Placement::fit((width, height), (layout.width, layout.height));
+        let changed = &mut self.past[slot].changed;
+        changed.clear();
+        let (current, shown) = (&mut self.current, &mut self.shown);
+        let span_buffer = &mut self.span_buffer;
+        let mut written = 0;
+        let visited = soft.visit_tiles_in_planes(&self.to_scan, |row, tile, planes| {
+            let tile_start = tile * TILE_PIXELS;
+            let first = row * width + tile_start;
+            let count = planes[0].len() * PLANE_COUNT;
+            let new = &mut current[first..first + count];
+            let old = &mut shown[first..first + count];
+            let mut emit = |run: Range<usize>, new: &[u8]| {
+                let columns = tile_start + run.start..tile_start + run.end;
+                let pixel = |column: usize| palette[usize::from(new[column - tile_start])];
+                written += write_span(layout, &placement, row, columns, pixel, out, span_buffer);
+            };
+            let mut run_start = None;
+            let mut tile_changed = false;
+            let [p0, p1, p2, p3] = planes;
+            let quads = p0.len();
+            for quad in (0..quads).step_by(2) {
+                let x = quad * PLANE_COUNT;
+                let gathered = if quad + 1 < quads {
+                    let next = quad + 1;
+                    [
+                        p0[quad], p1[quad], p2[quad], p3[quad], p0[next], p1[next], p2[next],
+                        p3[next],
+                    ]
+                } else {
+                    [p0[quad], p1[quad], p2[quad], p3[quad], 0, 0, 0, 0]
+                };
+                let length = (count - x).min(8);
+                let unchanged = if length == 8 {
+                    u64::from_ne_bytes(gathered) == word(old, x)
+                } else {
+                    gathered[..length] == old[x..x + length]
+                };
+                if unchanged {
+                    if let Some(start) = run_start.take() {
+                        emit(start..x, new);
+                    }
+                    continue;
+                }
+                tile_changed = true;
+                new[x..x + length].copy_from_slice(&gathered[..length]);
+                for (i, &pixel) in gathered[..length].iter().enumerate() {
+                    if pixel != old[x + i] {
+                        run_start.get_or_insert(x + i);
+                    } else if let Some(start) = run_start.take() {
+                        emit(start..x + i, new);
+                    }
+                }
+                old[x..x + length].copy_from_slice(&gathered[..length]);
+            }
+            if let Some(start) = run_start {
+                emit(start..count, new);
+            }
+            if tile_changed {
+                changed.insert(row, tile);
+            }
+        });
+        visited.then_some(written)
+    }
+
     /// Writes the pixels of the scanned tiles whose index changed, and those
     /// anywhere whose colour changed; notes the tiles that changed in
     /// `self.past[slot]` and takes the scanned ones into the shown picture.
@@ -233,17 +338,11 @@ impl Presenter {
         &mut self,
         (width, height): (usize, usize),
         palette: &[[u8; 4]; 256],
+        recoloured: &[bool; 256],
         layout: &FramebufferLayout,
         out: &mut [u8],
         slot: usize,
     ) -> usize {
-        let mut recoloured = [false; 256];
-        for (flag, (new, old)) in recoloured
-            .iter_mut()
-            .zip(palette.iter().zip(&self.shown_palette))
-        {
-            *flag = new != old;
-        }
         let any_recoloured = recoloured.contains(&true);
         let placement = Placement::fit((width, height), (layout.width, layout.height));
         let across = TileSet::across(width);
@@ -280,13 +379,14 @@ impl Presenter {
                 }
                 let first = columns.start;
                 let pixel = |column: usize| palette[usize::from(new[column - first])];
+                let span_buffer = &mut self.span_buffer;
                 let mut span = |span: Range<usize>| {
                     let columns = first + span.start..first + span.end;
-                    written += write_span(layout, &placement, row, columns, pixel, out);
+                    written +=
+                        write_span(layout, &placement, row, columns, pixel, out, span_buffer);
                 };
                 if any_recoloured {
-                    let changed_at =
-                        |x: usize| new[x] != old[x] || recoloured[usize::from(new[x])];
+                    let changed_at = |x: usize| new[x] != old[x] || recoloured[usize::from(new[x])];
                     for_each_run(new.len(), changed_at, &mut span);
                 } else {
                     changed_runs(new, old, &mut span);
@@ -302,7 +402,11 @@ impl Presenter {
 
 /// Calls `span` with each maximal run of positions below `len` where
 /// `changed_at` holds.
-fn for_each_run(len: usize, changed_at: impl Fn(usize) -> bool, mut span: impl FnMut(Range<usize>)) {
+fn for_each_run(
+    len: usize,
+    changed_at: impl Fn(usize) -> bool,
+    mut span: impl FnMut(Range<usize>),
+) {
     let mut x = 0;
     while x < len {
         if !changed_at(x) {
@@ -389,18 +493,22 @@ fn write_span(
     columns: Range<usize>,
     pixel: impl Fn(usize) -> [u8; 4],
     out: &mut [u8],
+    buffer: &mut [u8; SPAN_BUFFER_BYTES],
 ) -> usize {
     match layout.bytes_per_pixel {
-        1 => write_span_of::<1>(layout, placement, row, columns, &pixel, out),
-        2 => write_span_of::<2>(layout, placement, row, columns, &pixel, out),
-        3 => write_span_of::<3>(layout, placement, row, columns, &pixel, out),
-        4 => write_span_of::<4>(layout, placement, row, columns, &pixel, out),
+        1 => write_span_of::<1>(layout, placement, row, columns, &pixel, out, buffer),
+        2 => write_span_of::<2>(layout, placement, row, columns, &pixel, out, buffer),
+        3 => write_span_of::<3>(layout, placement, row, columns, &pixel, out, buffer),
+        4 => write_span_of::<4>(layout, placement, row, columns, &pixel, out, buffer),
         _ => 0,
     }
 }
 
 /// Screen pixels of a span scaled once and copied to each of its lines.
 const SCALED_SPAN_PIXELS: usize = 256;
+/// Bytes of the buffer they are scaled into (kept in the presenter, so it is
+/// not cleared for every span).
+const SPAN_BUFFER_BYTES: usize = SCALED_SPAN_PIXELS * 4;
 
 /// [`write_span`] for `N`-byte pixels: the span is scaled into a buffer once,
 /// a piece at a time, and each piece copied onto every line the row covers
@@ -412,6 +520,7 @@ fn write_span_of<const N: usize>(
     columns: Range<usize>,
     pixel: &impl Fn(usize) -> [u8; 4],
     out: &mut [u8],
+    buffer: &mut [u8; SPAN_BUFFER_BYTES],
 ) -> usize {
     let scale = placement.scale;
     // Framebuffer sizes are far below isize::MAX.
@@ -433,7 +542,7 @@ fn write_span_of<const N: usize>(
         return written;
     }
     let columns_per_piece = SCALED_SPAN_PIXELS / scale;
-    let mut scaled = [[0u8; N]; SCALED_SPAN_PIXELS];
+    let scaled = &mut buffer.as_chunks_mut::<N>().0[..SCALED_SPAN_PIXELS];
     let mut written = 0;
     let mut first = columns.start;
     while first < columns.end {

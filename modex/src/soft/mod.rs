@@ -53,7 +53,7 @@ pub use probe::BusCounts;
 pub use scanout::dac_6_to_8;
 pub use timing::{CrtTiming, PORT_ACCESS_NS, VRAM_ACCESS_NS};
 
-pub(crate) use tiles::{PictureSource, TileSet};
+pub(crate) use tiles::{PictureSource, TileSet, TILE_PIXELS};
 
 /// The software VGA.
 ///

@@ -259,7 +259,8 @@ impl SoftVga {
                 if first + count <= PLANE_BYTES {
                     // The usual case: one run of each plane, no wrap to check.
                     for (plane, source) in planes.iter().enumerate() {
-                        for (pixels, &index) in pixels.iter_mut().zip(&source[first..first + count]) {
+                        for (pixels, &index) in pixels.iter_mut().zip(&source[first..first + count])
+                        {
                             pixels[plane] = index;
                         }
                     }
@@ -275,6 +276,53 @@ impl SoftVga {
     }
 }
 
+impl SoftVga {
+    /// In 256-colour modes, calls `visit(row, tile, planes)` for each tile of
+    /// `tiles` with its quads' bytes in each plane (pixel `4 * q + p` of the
+    /// tile is `planes[p][q]`), so the picture can be compared with what was
+    /// shown without scanning it out first; returns false, visiting nothing,
+    /// in other modes.
+    pub(crate) fn visit_tiles_in_planes(
+        &self,
+        tiles: &TileSet,
+        mut visit: impl FnMut(usize, usize, [&[u8]; PLANE_COUNT]),
+    ) -> bool {
+        let Some(raster) = self.raster() else {
+            return false;
+        };
+        let planes = &self.memory.planes;
+        let across = TileSet::across(raster.width);
+        // A tile whose plane offsets wrap past the end is copied here.
+        let mut wrapped = [[0u8; TILE_QUADS]; PLANE_COUNT];
+        raster.rows(|row, address| {
+            let mask = tiles.row(row);
+            if mask == 0 {
+                return;
+            }
+            for tile in (0..across).filter(|tile| mask & (1 << tile) != 0) {
+                let quads = quads_of(tile, raster.width);
+                let count = quads.len();
+                let first = (address + quads.start) % PLANE_BYTES;
+                if first + count <= PLANE_BYTES {
+                    visit(
+                        row,
+                        tile,
+                        planes.each_ref().map(|plane| &plane[first..first + count]),
+                    );
+                } else {
+                    for (copy, plane) in wrapped.iter_mut().zip(planes) {
+                        for (quad, byte) in copy[..count].iter_mut().enumerate() {
+                            *byte = plane[(first + quad) % PLANE_BYTES];
+                        }
+                    }
+                    visit(row, tile, wrapped.each_ref().map(|copy| &copy[..count]));
+                }
+            }
+        });
+        true
+    }
+}
+
 /// The tiles of a 256-colour row that quads `quads` (not empty, within the
 /// row) fall in, as a row's bits.
 fn tiles_of_quads(quads: core::ops::Range<usize>) -> u16 {
@@ -285,6 +333,9 @@ fn tiles_of_quads(quads: core::ops::Range<usize>) -> u16 {
     let through_last = (u32::MAX >> (u32::BITS as usize - 1 - last)) as u16;
     through_last & !((1u16 << first) - 1)
 }
+
+/// Quads in a tile of a 256-colour row (one plane offset each).
+pub(crate) const TILE_QUADS: usize = TILE_PIXELS / PLANE_COUNT;
 
 /// The quads (4 pixels, one plane offset) of tile `tile` of a 256-colour row
 /// `width` pixels wide.
