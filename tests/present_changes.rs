@@ -69,6 +69,8 @@ enum Step {
     FramePasses,
     /// Draws into the page not shown and flips to it, as the demo does.
     DrawAndFlip(i32, i32, i32, u8),
+    /// Draws into the page shown and loads a DAC entry, before one present.
+    FillAndDac(i32, i32, i32, u8, u8, [u8; 3]),
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -102,6 +104,8 @@ fn step() -> impl Strategy<Value = Step> {
         2 => Just(Step::FramePasses),
         4 => (-20..340i32, -20..260i32, 0..40i32, any::<u8>())
             .prop_map(|(x, y, size, c)| Step::DrawAndFlip(x, y, size, c)),
+        2 => (-20..340i32, -20..260i32, 0..40i32, 0..4u8, any::<u8>(), prop::array::uniform3(0..64u8))
+            .prop_map(|(x, y, size, c, i, rgb)| Step::FillAndDac(x, y, size, c, i, rgb)),
     ]
 }
 
@@ -203,6 +207,15 @@ fn apply(soft: &mut SoftVga, step: &Step) {
             let mut vga = ModeX::new(&mut *soft);
             vga.fill_rect(hidden, x, y, x + size, y + size, colour);
             vga.show_page(hidden);
+        }
+        Step::FillAndDac(x, y, size, colour, index, rgb) => {
+            let shown = Page::ALL
+                .into_iter()
+                .find(|page| page.base() == soft.displayed_start())
+                .unwrap_or(Page::Zero);
+            let mut vga = ModeX::new(&mut *soft);
+            vga.fill_rect(shown, x, y, x + size, y + size, colour);
+            vga.load_palette(index, &[rgb]);
         }
     }
 }

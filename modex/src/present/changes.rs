@@ -42,6 +42,9 @@ use crate::soft::{PictureSource, SoftVga, TileSet, TILE_PIXELS};
 /// is 320x240; a picture larger than this is presented black.
 pub const MAX_PICTURE_PIXELS: usize = 720 * 400;
 
+/// Quads (one byte of each plane) of the largest picture.
+const PLANE_QUADS: usize = MAX_PICTURE_PIXELS / PLANE_COUNT;
+
 /// Presents remembered: Mode X flips between two pages (three with the
 /// report's), so a page was shown at most two or three presents ago.
 const REMEMBERED_PRESENTS: usize = 4;
@@ -87,6 +90,9 @@ impl PastPresent {
 pub struct Presenter {
     current: [u8; MAX_PICTURE_PIXELS],
     shown: [u8; MAX_PICTURE_PIXELS],
+    /// `shown` plane by plane, as a 256-colour picture is in video memory:
+    /// `shown_planes[p][i]` is `shown[4 * i + p]`, whatever the picture.
+    shown_planes: [[u8; PLANE_QUADS]; PLANE_COUNT],
     shown_palette: [[u8; 4]; 256],
     shown_size: (usize, usize),
     /// The layout presented into last, if `presented`. (A flag rather than
@@ -129,6 +135,7 @@ impl Presenter {
         Presenter {
             current: [0; MAX_PICTURE_PIXELS],
             shown: [0; MAX_PICTURE_PIXELS],
+            shown_planes: [[0; PLANE_QUADS]; PLANE_COUNT],
             shown_palette: [[0; 4]; 256],
             shown_size: (0, 0),
             shown_layout: FramebufferLayout {
@@ -195,6 +202,7 @@ impl Presenter {
                 palette[usize::from(picture[row * size.0 + column])]
             });
             self.shown[..pixels].copy_from_slice(picture);
+            take_into_planes(&mut self.shown_planes, 0, picture);
             self.past[slot].changed.fill(size);
             full_present_bytes(layout, out.len())
         } else {
@@ -254,9 +262,11 @@ impl Presenter {
     }
 
     /// [`Self::present_changes`] for 256-colour pictures whose colours did
-    /// not change, reading the tiles straight from the planes: eight pixels
-    /// are gathered and compared with those shown in one word, and only
-    /// words that differ are stored. None (nothing done) in other modes.
+    /// not change, reading the tiles straight from the planes and comparing
+    /// them with the shown picture kept plane by plane: eight quads of a
+    /// plane in one word, so a tile costs eight comparisons and only the
+    /// quads that differ are gathered into pixels. None (nothing done) in
+    /// other modes.
     fn present_from_planes(
         &mut self,
         soft: &SoftVga,
@@ -269,63 +279,54 @@ impl Presenter {
         let placement = Placement::fit((width, height), (layout.width, layout.height));
         let changed = &mut self.past[slot].changed;
         changed.clear();
-        let (current, shown) = (&mut self.current, &mut self.shown);
+        let (shown, shown_planes) = (&mut self.shown, &mut self.shown_planes);
         let span_buffer = &mut self.span_buffer;
         let mut written = 0;
         let visited = soft.visit_tiles_in_planes(&self.to_scan, |row, tile, planes| {
             let tile_start = tile * TILE_PIXELS;
             let first = row * width + tile_start;
-            let count = planes[0].len() * PLANE_COUNT;
-            let new = &mut current[first..first + count];
-            let old = &mut shown[first..first + count];
-            let mut emit = |run: Range<usize>, new: &[u8]| {
+            // 256-colour widths are whole quads, so the tile's quads start
+            // at a quad of the flat picture.
+            let first_quad = first / PLANE_COUNT;
+            let quads = planes[0].len();
+            let differing = differing_quads(&planes, shown_planes, first_quad);
+            if differing == 0 {
+                return;
+            }
+            changed.insert(row, tile);
+            let shown = &mut shown[first..first + quads * PLANE_COUNT];
+            let mut emit = |run: Range<usize>, shown: &[u8]| {
                 let columns = tile_start + run.start..tile_start + run.end;
-                let pixel = |column: usize| palette[usize::from(new[column - tile_start])];
+                let pixel = |column: usize| palette[usize::from(shown[column - tile_start])];
                 written += write_span(layout, &placement, row, columns, pixel, out, span_buffer);
             };
             let mut run_start = None;
-            let mut tile_changed = false;
-            let [p0, p1, p2, p3] = planes;
-            let quads = p0.len();
-            for quad in (0..quads).step_by(2) {
+            let mut next_quad = 0;
+            let mut quads_left = differing;
+            while quads_left != 0 {
+                let quad = quads_left.trailing_zeros() as usize;
+                quads_left &= quads_left - 1;
                 let x = quad * PLANE_COUNT;
-                let gathered = if quad + 1 < quads {
-                    let next = quad + 1;
-                    [
-                        p0[quad], p1[quad], p2[quad], p3[quad], p0[next], p1[next], p2[next],
-                        p3[next],
-                    ]
-                } else {
-                    [p0[quad], p1[quad], p2[quad], p3[quad], 0, 0, 0, 0]
-                };
-                let length = (count - x).min(8);
-                let unchanged = if length == 8 {
-                    u64::from_ne_bytes(gathered) == word(old, x)
-                } else {
-                    gathered[..length] == old[x..x + length]
-                };
-                if unchanged {
+                // A run does not reach over a quad that did not change.
+                if quad != next_quad {
                     if let Some(start) = run_start.take() {
-                        emit(start..x, new);
+                        emit(start..next_quad * PLANE_COUNT, shown);
                     }
-                    continue;
                 }
-                tile_changed = true;
-                new[x..x + length].copy_from_slice(&gathered[..length]);
-                for (i, &pixel) in gathered[..length].iter().enumerate() {
-                    if pixel != old[x + i] {
-                        run_start.get_or_insert(x + i);
+                next_quad = quad + 1;
+                for (plane, source) in planes.iter().enumerate() {
+                    let index = source[quad];
+                    if index != shown[x + plane] {
+                        run_start.get_or_insert(x + plane);
+                        shown[x + plane] = index;
+                        shown_planes[plane][first_quad + quad] = index;
                     } else if let Some(start) = run_start.take() {
-                        emit(start..x + i, new);
+                        emit(start..x + plane, shown);
                     }
                 }
-                old[x..x + length].copy_from_slice(&gathered[..length]);
             }
             if let Some(start) = run_start {
-                emit(start..count, new);
-            }
-            if tile_changed {
-                changed.insert(row, tile);
+                emit(start..next_quad * PLANE_COUNT, shown);
             }
         });
         visited.then_some(written)
@@ -392,12 +393,61 @@ impl Presenter {
                     changed_runs(new, old, &mut span);
                 }
                 if !same {
-                    self.shown[pixels.clone()].copy_from_slice(&self.current[pixels]);
+                    let new = &self.current[pixels.clone()];
+                    self.shown[pixels.clone()].copy_from_slice(new);
+                    take_into_planes(&mut self.shown_planes, pixels.start, new);
                 }
             }
         }
         written
     }
+}
+
+/// Keeps `shown_planes` the planes of `shown` where `pixels`, from pixel
+/// `first` of the picture, were taken into it.
+fn take_into_planes(
+    shown_planes: &mut [[u8; PLANE_QUADS]; PLANE_COUNT],
+    first: usize,
+    pixels: &[u8],
+) {
+    for (offset, &index) in pixels.iter().enumerate() {
+        let pixel = first + offset;
+        shown_planes[pixel % PLANE_COUNT][pixel / PLANE_COUNT] = index;
+    }
+}
+
+/// The quads of a tile (bit `q` for quad `q`, up to 16) whose bytes in
+/// `planes` differ from those at `first_quad` of `shown_planes`, eight quads
+/// of a plane compared as one word.
+fn differing_quads(
+    planes: &[&[u8]; PLANE_COUNT],
+    shown_planes: &[[u8; PLANE_QUADS]; PLANE_COUNT],
+    first_quad: usize,
+) -> u32 {
+    let quads = planes[0].len();
+    let mut differing = 0u32;
+    for (source, shown) in planes.iter().zip(shown_planes) {
+        let shown = &shown[first_quad..first_quad + quads];
+        let mut quad = 0;
+        while quad < quads {
+            let length = (quads - quad).min(8);
+            let (new, old) = (&source[quad..quad + length], &shown[quad..quad + length]);
+            let same = if length == 8 {
+                word(new, 0) == word(old, 0)
+            } else {
+                new == old
+            };
+            if !same {
+                for (offset, (new, old)) in new.iter().zip(old).enumerate() {
+                    if new != old {
+                        differing |= 1 << (quad + offset);
+                    }
+                }
+            }
+            quad += length;
+        }
+    }
+    differing
 }
 
 /// Calls `span` with each maximal run of positions below `len` where
