@@ -500,11 +500,12 @@ fn changed_runs(new: &[u8], old: &[u8], mut span: impl FnMut(Range<usize>)) {
     }
 }
 
-/// Eight indices from `at` as one word.
+/// Eight indices from `at` as one word (no copy: the kernel's build checks
+/// every `copy_from_slice` for overlap).
 fn word(indices: &[u8], at: usize) -> u64 {
-    let mut bytes = [0; 8];
-    bytes.copy_from_slice(&indices[at..at + 8]);
-    u64::from_ne_bytes(bytes)
+    indices[at..]
+        .first_chunk::<8>()
+        .map_or(0, |bytes| u64::from_ne_bytes(*bytes))
 }
 
 /// Whether two runs of indices are equal, compared eight at a time: the
