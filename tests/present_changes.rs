@@ -69,6 +69,8 @@ enum Step {
     FramePasses,
     /// Draws into the page not shown and flips to it, as the demo does.
     DrawAndFlip(i32, i32, i32, u8),
+    /// A DAC entry loaded through the ports alone (no pixel mask write).
+    RawDac(u8, [u8; 3]),
     /// Draws into the page shown and loads a DAC entry, before one present.
     FillAndDac(i32, i32, i32, u8, u8, [u8; 3]),
 }
@@ -104,6 +106,7 @@ fn step() -> impl Strategy<Value = Step> {
         2 => Just(Step::FramePasses),
         4 => (-20..340i32, -20..260i32, 0..40i32, any::<u8>())
             .prop_map(|(x, y, size, c)| Step::DrawAndFlip(x, y, size, c)),
+        1 => (0..4u8, prop::array::uniform3(0..64u8)).prop_map(|(i, c)| Step::RawDac(i, c)),
         2 => (-20..340i32, -20..260i32, 0..40i32, 0..4u8, any::<u8>(), prop::array::uniform3(0..64u8))
             .prop_map(|(x, y, size, c, i, rgb)| Step::FillAndDac(x, y, size, c, i, rgb)),
     ]
@@ -207,6 +210,13 @@ fn apply(soft: &mut SoftVga, step: &Step) {
             let mut vga = ModeX::new(&mut *soft);
             vga.fill_rect(hidden, x, y, x + size, y + size, colour);
             vga.show_page(hidden);
+        }
+        Step::RawDac(index, rgb) => {
+            let bus = vga.bus_mut();
+            bus.write_port8(Port::DAC_WRITE_INDEX, index);
+            for component in rgb {
+                bus.write_port8(Port::DAC_DATA, component);
+            }
         }
         Step::FillAndDac(x, y, size, colour, index, rgb) => {
             let shown = Page::ALL

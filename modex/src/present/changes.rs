@@ -94,6 +94,8 @@ pub struct Presenter {
     /// `shown_planes[p][i]` is `shown[4 * i + p]`, whatever the picture.
     shown_planes: [[u8; PLANE_QUADS]; PLANE_COUNT],
     shown_palette: [[u8; 4]; 256],
+    /// The model's count of colour writes when `shown_palette` was encoded.
+    shown_colour_writes: u64,
     shown_size: (usize, usize),
     /// The layout presented into last, if `presented`. (A flag rather than
     /// an Option so that a new presenter is all zero bytes: a kernel's static
@@ -137,6 +139,7 @@ impl Presenter {
             shown: [0; MAX_PICTURE_PIXELS],
             shown_planes: [[0; PLANE_QUADS]; PLANE_COUNT],
             shown_palette: [[0; 4]; 256],
+            shown_colour_writes: 0,
             shown_size: (0, 0),
             shown_layout: FramebufferLayout {
                 width: 0,
@@ -178,7 +181,17 @@ impl Presenter {
             (0, 0)
         };
         let pixels = size.0 * size.1;
-        let palette = encoded_palette(soft, layout.order);
+        // Encoding 256 colours costs as much as comparing a few tiles: not
+        // again while no colour can have changed.
+        let colour_writes = soft.colour_writes();
+        let same_colours = self.presented
+            && colour_writes == self.shown_colour_writes
+            && layout.order == self.shown_layout.order;
+        let palette = if same_colours {
+            self.shown_palette
+        } else {
+            encoded_palette(soft, layout.order)
+        };
         let full = !self.presented || self.shown_layout != *layout || self.shown_size != size;
         if full {
             self.to_scan.fill(size);
@@ -207,11 +220,13 @@ impl Presenter {
             full_present_bytes(layout, out.len())
         } else {
             let mut recoloured = [false; 256];
-            for (flag, (new, old)) in recoloured
-                .iter_mut()
-                .zip(palette.iter().zip(&self.shown_palette))
-            {
-                *flag = new != old;
+            if !same_colours {
+                for (flag, (new, old)) in recoloured
+                    .iter_mut()
+                    .zip(palette.iter().zip(&self.shown_palette))
+                {
+                    *flag = new != old;
+                }
             }
             if recoloured.contains(&true) {
                 if pixels > 0 && self.to_scan.any(size.1) {
@@ -234,6 +249,7 @@ impl Presenter {
         self.newest = slot;
         self.remembered = (self.remembered + 1).min(REMEMBERED_PRESENTS);
         self.shown_palette = palette;
+        self.shown_colour_writes = colour_writes;
         self.shown_size = size;
         self.shown_layout = *layout;
         self.presented = true;

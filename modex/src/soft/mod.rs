@@ -85,6 +85,10 @@ pub struct SoftVga {
     retrace_stuck: Option<bool>,
     /// Register writes so far (any port): a text picture may change with any.
     register_writes: u64,
+    /// Writes so far to the ports that can change a colour on screen: DAC
+    /// data and pixel mask, the Attribute Controller's index (Palette
+    /// Address Source blanks) and the sequencer (screen off).
+    colour_writes: u64,
     counts: BusCounts,
     guard: WriteGuard,
 }
@@ -128,6 +132,7 @@ impl SoftVga {
             frame_count: 0,
             retrace_stuck: None,
             register_writes: 0,
+            colour_writes: 0,
             counts: BusCounts {
                 port_writes: 0,
                 port_reads: 0,
@@ -243,6 +248,12 @@ impl SoftVga {
         self.retrace_stuck = stuck;
     }
 
+    /// Writes so far that may have changed a colour on screen (the DAC, the
+    /// pixel mask, blanking): unchanged, the colours are as they were.
+    pub(crate) fn colour_writes(&self) -> u64 {
+        self.colour_writes
+    }
+
     // --- Probes.
 
     /// Bus operations so far.
@@ -275,6 +286,12 @@ impl SoftVga {
 
     fn port_write(&mut self, port: Port, value: u8) {
         self.register_writes += 1;
+        if matches!(
+            port,
+            Port::DAC_DATA | Port::DAC_PIXEL_MASK | Port::ATTRIBUTE_INDEX | Port::SEQUENCER_DATA
+        ) {
+            self.colour_writes += 1;
+        }
         self.registers.write_port(port, value);
         // Misc Output, Clocking Mode and the CRTC set the timing.
         self.timing = CrtTiming::from_registers(&self.registers);
