@@ -26,6 +26,11 @@
 //! * No remembered present has this source (a mode change, a new start
 //!   address, any register write in text mode): all of it.
 //!
+//! In 256-colour modes those tiles are compared straight from the planes
+//! with a copy of the shown picture kept plane by plane, eight quads of a
+//! plane in one word, and only the quads that differ become pixels. The
+//! palette is encoded again only after a write that can change a colour.
+//!
 //! The first present, and any present whose picture size or framebuffer
 //! layout differs from the last, writes everything, black borders included;
 //! after that only changed pixels are written (each run of changed pixels in

@@ -87,7 +87,7 @@ pub struct SoftVga {
     register_writes: u64,
     /// Writes so far to the ports that can change a colour on screen: DAC
     /// data and pixel mask, the Attribute Controller's index (Palette
-    /// Address Source blanks) and the sequencer (screen off).
+    /// Address Source blanks) and Clocking Mode (screen off).
     colour_writes: u64,
     counts: BusCounts,
     guard: WriteGuard,
@@ -286,10 +286,15 @@ impl SoftVga {
 
     fn port_write(&mut self, port: Port, value: u8) {
         self.register_writes += 1;
-        if matches!(
-            port,
-            Port::DAC_DATA | Port::DAC_PIXEL_MASK | Port::ATTRIBUTE_INDEX | Port::SEQUENCER_DATA
-        ) {
+        let colour = match port {
+            Port::DAC_DATA | Port::DAC_PIXEL_MASK | Port::ATTRIBUTE_INDEX => true,
+            // Not the Map Mask, written every frame: Clocking Mode's screen off.
+            Port::SEQUENCER_DATA => {
+                self.registers.sequencer_index() == Sequencer::ClockingMode.index()
+            }
+            _ => false,
+        };
+        if colour {
             self.colour_writes += 1;
         }
         self.registers.write_port(port, value);
