@@ -647,11 +647,17 @@ fn write_span_of<const N: usize>(
                 continue;
             }
             // Both ends are clamped to 0..=screen_width, and within the piece.
-            let skip = (from - left) as usize * N;
-            let count = (to - from) as usize * N;
+            let skip = (from - left) as usize;
+            let count = (to - from) as usize;
             let start = line_start + from as usize * N;
-            out[start..start + count].copy_from_slice(&buffer[skip..skip + count]);
-            written += count;
+            let line = &mut out[start..start + count * N];
+            let scaled = &buffer.as_chunks::<N>().0[skip..skip + count];
+            // A store a pixel: spans are short, and the kernel's build
+            // checks each `copy_from_slice` before its `memcpy`.
+            for (pixel, &bytes) in line.as_chunks_mut::<N>().0.iter_mut().zip(scaled) {
+                *pixel = bytes;
+            }
+            written += count * N;
         }
     }
     written
