@@ -10,7 +10,7 @@
 //!   start address latched at the start of each vertical retrace;
 //! * `probe`: bus operation counts and a write guard.
 //!
-//! It is `no_std` and heap-free, and large (~260 KiB): keep it in a `Box` and
+//! It is `no_std` and heap-free, and large (~300 KiB: the planes, and a write stamp per 16 offsets): keep it in a `Box` and
 //! drive it through `&mut SoftVga`, which is a [`VgaBus`] too.
 //!
 //! Where the model and QEMU (7.2, the installed oracle) part ways, and why:
@@ -119,7 +119,7 @@ impl SoftVga {
     /// cleared (the model has no BIOS font), clock at 0.
     ///
     /// `const`, so a kernel can keep its model in a static: built by value it
-    /// needs several copies of its ~260 KiB on the stack.
+    /// needs several copies of its ~300 KiB on the stack.
     pub const fn new() -> Self {
         let registers = Registers::with_mode(&TEXT_80X25, &EGA_PALETTE);
         let timing = CrtTiming::from_registers(&registers);
