@@ -10,8 +10,9 @@
 //!   start address latched at the start of each vertical retrace;
 //! * `probe`: bus operation counts and a write guard.
 //!
-//! It is `no_std` and heap-free, and large (~300 KiB: the planes, and a write stamp per 16 offsets): keep it in a `Box` and
-//! drive it through `&mut SoftVga`, which is a [`VgaBus`] too.
+//! It is `no_std` and heap-free, and large (~300 KiB: the planes, and a
+//! write stamp per 16 plane offsets): keep it in a `Box` and drive it
+//! through `&mut SoftVga`, which is a [`VgaBus`] too.
 //!
 //! Where the model and QEMU (7.2, the installed oracle) part ways, and why:
 //!
