@@ -8,7 +8,8 @@
 //! full present each flip (what the kernel did before: every pixel, borders
 //! included), the other only the changes (`Presenter`). After every flip the
 //! two framebuffers must be equal. It reports, per frame, the bytes each
-//! writes, the picture pixels that changed, and the bytes a still scene
+//! writes, the picture pixels that changed, the picture pixels the presenter
+//! scanned out and compared to find them, and the bytes a still scene
 //! costs, at 1280x800 and 1920x1080 (4 bytes a pixel, as GOP gives). The
 //! last line is machine-readable.
 
@@ -29,6 +30,7 @@ struct Costs {
     changes_bytes: u64,
     changes_max: u64,
     changed_pixels: u64,
+    scanned_pixels: u64,
     full_time: Duration,
     changes_time: Duration,
 }
@@ -70,6 +72,7 @@ fn run(frames: &[Option<SceneCommand>], width: usize, height: usize) -> (Costs, 
             costs.full_bytes += layout.required_bytes() as u64;
             costs.changes_bytes += report.bytes_written as u64;
             costs.changes_max = costs.changes_max.max(report.bytes_written as u64);
+            costs.scanned_pixels += report.pixels_scanned as u64;
             costs.changed_pixels += picture
                 .iter()
                 .zip(&last_picture)
@@ -100,7 +103,7 @@ fn run(frames: &[Option<SceneCommand>], width: usize, height: usize) -> (Costs, 
 fn main() {
     println!("bytes written to the framebuffer per flip (4 bytes a pixel), host software VGA");
     println!(
-        "{:<18} {:>10} {:>7} {:>12} {:>12} {:>12} {:>10} {:>9} {:>9} {:>7}",
+        "{:<18} {:>10} {:>7} {:>12} {:>12} {:>12} {:>10} {:>10} {:>9} {:>9} {:>7}",
         "set",
         "screen",
         "flips",
@@ -108,6 +111,7 @@ fn main() {
         "changes",
         "changes max",
         "changed px",
+        "scanned px",
         "full µs",
         "chg µs",
         "still"
@@ -119,7 +123,7 @@ fn main() {
             let per = |n: u64| n as f64 / costs.presents as f64;
             let micros = |d: Duration| d.as_secs_f64() * 1e6 / costs.presents as f64;
             println!(
-                "{:<18} {:>10} {:>7} {:>12.0} {:>12.0} {:>12} {:>10.0} {:>9.0} {:>9.0} {:>7}",
+                "{:<18} {:>10} {:>7} {:>12.0} {:>12.0} {:>12} {:>10.0} {:>10.0} {:>9.0} {:>9.0} {:>7}",
                 name,
                 format!("{width}x{height}"),
                 costs.presents,
@@ -127,6 +131,7 @@ fn main() {
                 per(costs.changes_bytes),
                 costs.changes_max,
                 per(costs.changed_pixels),
+                per(costs.scanned_pixels),
                 micros(costs.full_time),
                 micros(costs.changes_time),
                 still

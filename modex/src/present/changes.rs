@@ -1,31 +1,58 @@
 //! Presenting only what changed: a flip that moves a cube across a 1280x800
-//! screen should not cost 4 MB of framebuffer writes.
+//! screen should not cost 4 MB of framebuffer writes, nor a scan-out and a
+//! diff of the whole picture when the cube covers a fifth of it.
 //!
 //! How the changes are found: the presenter keeps the picture it presented
-//! last (DAC indices, as scanned out) and that picture's encoded palette, and
-//! diffs the new scan-out against them. A pixel is written again when its
-//! index changed or its index's colour did. The alternative, having the
-//! software VGA track the bytes the CPU wrote, would have to reason about
-//! every other way the picture changes — a flip to another page, DAC loads
-//! (the lighting ramps), the pixel mask, blanking, a mode change — and would
-//! still rewrite pixels drawn over with the colour they had. The diff is
-//! right by construction, and costs reading two 75 KiB buffers in RAM, which
-//! is nothing next to writing the framebuffer over the bus.
+//! last (DAC indices, as scanned out) and that picture's encoded palette. A
+//! pixel is written again when its index changed or its index's colour did.
+//! Colours are compared entry by entry (256 of them), so DAC loads, the
+//! pixel mask and blanking need nothing more. Indices are compared only in
+//! the tiles of the picture (a row's run of 64 pixels) that may have
+//! changed; the rest are known to be equal without being scanned out:
+//!
+//! * The software VGA stamps each block of video memory with the count of
+//!   writes at its last write, and says what the picture is made of besides
+//!   memory (its [`PictureSource`]: the raster with its start address,
+//!   Offset, line compare and sizes; for text, every register). Same source,
+//!   and none of a tile's memory written since: same indices in that tile.
+//! * A page flip changes the source at each present. So the presenter
+//!   remembers its last few presents: the source, the write count, and the
+//!   tiles where that picture differed from the one before. The new picture
+//!   equals the last one with the same source except in the tiles written
+//!   since; that one equals the last shown except where the presents since
+//!   changed something. The union of those is what gets scanned out and
+//!   diffed: with Mode X's two pages, the tiles drawn into the page since it
+//!   was last shown and those where the two pages differed last time.
+//! * No remembered present has this source (a mode change, a new start
+//!   address, any register write in text mode): all of it.
+//!
+//! In 256-colour modes those tiles are compared straight from the planes
+//! with a copy of the shown picture kept plane by plane, eight quads of a
+//! plane in one word, and only the quads that differ become pixels. The
+//! palette is encoded again only after a write that can change a colour.
 //!
 //! The first present, and any present whose picture size or framebuffer
 //! layout differs from the last, writes everything, black borders included;
 //! after that only changed pixels are written (each run of changed pixels in
-//! a row as one span, scaled), so the borders are never written again and a
-//! still picture costs nothing.
+//! a tile's part of a row as one span, scaled), so the borders are never
+//! written again and a still picture costs nothing.
 
 use core::ops::Range;
 
 use super::{blit, encoded_palette, FramebufferLayout, PixelOrder, Placement};
-use crate::soft::SoftVga;
+use crate::regs::PLANE_COUNT;
+use crate::soft::{PictureSource, SoftVga, TileSet, TILE_PIXELS};
 
 /// The largest picture the presenter keeps: 80x25 text in 9x16 cells. Mode X
 /// is 320x240; a picture larger than this is presented black.
 pub const MAX_PICTURE_PIXELS: usize = 720 * 400;
+
+/// Quads (one byte of each plane) of the largest picture.
+const PLANE_QUADS: usize = MAX_PICTURE_PIXELS / PLANE_COUNT;
+
+/// Presents remembered: Mode X flips between two pages (three with the
+/// report's), so a page was shown at most two or three presents ago.
+const REMEMBERED_PRESENTS: usize = 4;
 
 /// What one present did.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -34,32 +61,70 @@ pub struct PresentReport {
     pub bytes_written: usize,
     /// Whether everything was written (first present, new size or layout).
     pub full: bool,
+    /// Picture pixels scanned out and compared with those shown: the whole
+    /// picture when `full`, else those of the tiles that may have changed.
+    pub pixels_scanned: usize,
+}
+
+/// What the presenter remembers of one present.
+#[derive(Clone)]
+struct PastPresent {
+    /// What the picture was made of besides memory.
+    source: PictureSource,
+    /// The model's count of memory writes at the time.
+    memory_writes: u64,
+    /// The tiles where its DAC indices differed from the present before's
+    /// (every tile if it wrote everything).
+    changed: TileSet,
+}
+
+impl PastPresent {
+    const NONE: PastPresent = PastPresent {
+        source: PictureSource::NOTHING,
+        memory_writes: 0,
+        changed: TileSet::new(),
+    };
 }
 
 /// Presents a software VGA's picture into a framebuffer, writing only what
-/// changed since its last present. ~580 KiB: keep it in a static or a `Box`.
-/// It assumes nobody else writes the framebuffer between presents (call
-/// [`Presenter::forget`] if someone did).
+/// changed since its last present. ~880 KiB: keep it in a static or a `Box`.
+/// It assumes nobody else writes the framebuffer between presents, and that
+/// it presents one software VGA (call [`Presenter::forget`] if someone else
+/// wrote, or to present another).
 #[derive(Clone)]
 pub struct Presenter {
     current: [u8; MAX_PICTURE_PIXELS],
     shown: [u8; MAX_PICTURE_PIXELS],
+    /// `shown` plane by plane, as a 256-colour picture is in video memory:
+    /// `shown_planes[p][i]` is `shown[4 * i + p]`, whatever the picture.
+    shown_planes: [[u8; PLANE_QUADS]; PLANE_COUNT],
     shown_palette: [[u8; 4]; 256],
+    /// The model's count of colour writes when `shown_palette` was encoded.
+    shown_colour_writes: u64,
     shown_size: (usize, usize),
     /// The layout presented into last, if `presented`. (A flag rather than
     /// an Option so that a new presenter is all zero bytes: a kernel's static
     /// one then costs nothing in its image, .bss rather than .data.)
     shown_layout: FramebufferLayout,
     presented: bool,
+    /// The last presents, a ring: the newest at `newest`, `remembered` of them.
+    past: [PastPresent; REMEMBERED_PRESENTS],
+    newest: usize,
+    remembered: usize,
+    /// The tiles this present scans out and compares.
+    to_scan: TileSet,
+    /// Where a span is scaled before it is copied to its screen lines.
+    span_buffer: [u8; SPAN_BUFFER_BYTES],
 }
 
-/// Leaves out the pictures and the palette, ~580 KiB.
+/// Leaves out the pictures and the palette, ~870 KiB.
 impl core::fmt::Debug for Presenter {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("Presenter")
             .field("shown_size", &self.shown_size)
             .field("shown_layout", &self.shown_layout)
             .field("presented", &self.presented)
+            .field("remembered", &self.remembered)
             .finish_non_exhaustive()
     }
 }
@@ -77,7 +142,9 @@ impl Presenter {
         Presenter {
             current: [0; MAX_PICTURE_PIXELS],
             shown: [0; MAX_PICTURE_PIXELS],
+            shown_planes: [[0; PLANE_QUADS]; PLANE_COUNT],
             shown_palette: [[0; 4]; 256],
+            shown_colour_writes: 0,
             shown_size: (0, 0),
             shown_layout: FramebufferLayout {
                 width: 0,
@@ -87,12 +154,18 @@ impl Presenter {
                 order: PixelOrder::Rgb,
             },
             presented: false,
+            past: [PastPresent::NONE; REMEMBERED_PRESENTS],
+            newest: 0,
+            remembered: 0,
+            to_scan: TileSet::new(),
+            span_buffer: [0; SPAN_BUFFER_BYTES],
         }
     }
 
     /// The next present writes everything.
     pub fn forget(&mut self) {
         self.presented = false;
+        self.remembered = 0;
     }
 
     /// Presents `soft`'s picture into `out` laid out as `layout`, as
@@ -104,76 +177,372 @@ impl Presenter {
         layout: &FramebufferLayout,
         out: &mut [u8],
     ) -> PresentReport {
+        let source = soft.picture_source();
+        let memory_writes = soft.memory_writes();
         let (width, height) = soft.picture_size();
         let size = if width * height <= MAX_PICTURE_PIXELS {
-            soft.scanout_indices(&mut self.current[..width * height])
+            (width, height)
         } else {
             (0, 0)
         };
         let pixels = size.0 * size.1;
-        let palette = encoded_palette(soft, layout.order);
+        // Encoding 256 colours costs as much as comparing a few tiles: not
+        // again while no colour can have changed.
+        let colour_writes = soft.colour_writes();
+        let same_colours = self.presented
+            && colour_writes == self.shown_colour_writes
+            && layout.order == self.shown_layout.order;
+        let palette = if same_colours {
+            self.shown_palette
+        } else {
+            encoded_palette(soft, layout.order)
+        };
         let full = !self.presented || self.shown_layout != *layout || self.shown_size != size;
+        if full {
+            self.to_scan.fill(size);
+        } else {
+            self.find_tiles_to_scan(soft, &source, size);
+        }
+        let pixels_scanned = if pixels > 0 {
+            self.to_scan.pixels(size)
+        } else {
+            0
+        };
+        // The oldest remembered present, no longer needed once the tiles to
+        // scan are known, becomes this one.
+        let slot = (self.newest + 1) % REMEMBERED_PRESENTS;
         let bytes_written = if full {
+            if pixels > 0 {
+                soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+            }
             let picture = &self.current[..pixels];
             blit(picture, size, layout, out, |row, column| {
                 palette[usize::from(picture[row * size.0 + column])]
             });
+            self.shown[..pixels].copy_from_slice(picture);
+            take_into_planes(&mut self.shown_planes, 0, picture);
+            self.past[slot].changed.fill(size);
             full_present_bytes(layout, out.len())
         } else {
-            self.present_changes(size, &palette, layout, out)
+            let mut recoloured = [false; 256];
+            if !same_colours {
+                for (flag, (new, old)) in recoloured
+                    .iter_mut()
+                    .zip(palette.iter().zip(&self.shown_palette))
+                {
+                    *flag = new != old;
+                }
+            }
+            if recoloured.contains(&true) {
+                if pixels > 0 && self.to_scan.any(size.1) {
+                    soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+                }
+                self.present_changes(size, &palette, &recoloured, layout, out, slot)
+            } else if let Some(written) =
+                self.present_from_planes(soft, size, &palette, layout, out, slot)
+            {
+                written
+            } else {
+                if pixels > 0 && self.to_scan.any(size.1) {
+                    soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
+                }
+                self.present_changes(size, &palette, &recoloured, layout, out, slot)
+            }
         };
-        self.shown[..pixels].copy_from_slice(&self.current[..pixels]);
+        self.past[slot].source = source;
+        self.past[slot].memory_writes = memory_writes;
+        self.newest = slot;
+        self.remembered = (self.remembered + 1).min(REMEMBERED_PRESENTS);
         self.shown_palette = palette;
+        self.shown_colour_writes = colour_writes;
         self.shown_size = size;
         self.shown_layout = *layout;
         self.presented = true;
         PresentReport {
             bytes_written,
             full,
+            pixels_scanned,
         }
     }
 
-    fn present_changes(
-        &self,
+    /// The tiles whose indices may differ from those shown: going back from
+    /// the newest present to the last one with the same source, the tiles
+    /// each changed, and the tiles written since that one. Everything if no
+    /// remembered present had this source.
+    fn find_tiles_to_scan(&mut self, soft: &SoftVga, source: &PictureSource, size: (usize, usize)) {
+        self.to_scan.clear();
+        for back in 0..self.remembered {
+            let past = &self.past[(self.newest + REMEMBERED_PRESENTS - back) % REMEMBERED_PRESENTS];
+            if past.source == *source {
+                soft.add_tiles_written_since(past.memory_writes, &mut self.to_scan);
+                return;
+            }
+            self.to_scan.add(&past.changed);
+        }
+        self.to_scan.fill(size);
+    }
+
+    /// [`Self::present_changes`] for 256-colour pictures whose colours did
+    /// not change, reading the tiles straight from the planes and comparing
+    /// them with the shown picture kept plane by plane: eight quads of a
+    /// plane in one word, so a tile costs eight comparisons and only the
+    /// quads that differ are gathered into pixels. None (nothing done) in
+    /// other modes.
+    fn present_from_planes(
+        &mut self,
+        soft: &SoftVga,
         (width, height): (usize, usize),
         palette: &[[u8; 4]; 256],
         layout: &FramebufferLayout,
         out: &mut [u8],
+        slot: usize,
+    ) -> Option<usize> {
+        let placement = Placement::fit((width, height), (layout.width, layout.height));
+        let changed = &mut self.past[slot].changed;
+        changed.clear();
+        let (shown, shown_planes) = (&mut self.shown, &mut self.shown_planes);
+        let span_buffer = &mut self.span_buffer;
+        let mut written = 0;
+        let visited = soft.visit_tiles_in_planes(&self.to_scan, |row, tile, planes| {
+            let tile_start = tile * TILE_PIXELS;
+            let first = row * width + tile_start;
+            // 256-colour widths are whole quads, so the tile's quads start
+            // at a quad of the flat picture.
+            let first_quad = first / PLANE_COUNT;
+            let quads = planes[0].len();
+            let differing = differing_quads(&planes, shown_planes, first_quad);
+            if differing == 0 {
+                return;
+            }
+            changed.insert(row, tile);
+            let shown = &mut shown[first..first + quads * PLANE_COUNT];
+            let mut emit = |run: Range<usize>, shown: &[u8]| {
+                let columns = tile_start + run.start..tile_start + run.end;
+                let pixel = |column: usize| palette[usize::from(shown[column - tile_start])];
+                written += write_span(layout, &placement, row, columns, pixel, out, span_buffer);
+            };
+            let mut run_start = None;
+            let mut next_quad = 0;
+            let mut quads_left = differing;
+            while quads_left != 0 {
+                let quad = quads_left.trailing_zeros() as usize;
+                quads_left &= quads_left - 1;
+                let x = quad * PLANE_COUNT;
+                // A run does not reach over a quad that did not change.
+                if quad != next_quad {
+                    if let Some(start) = run_start.take() {
+                        emit(start..next_quad * PLANE_COUNT, shown);
+                    }
+                }
+                next_quad = quad + 1;
+                for (plane, source) in planes.iter().enumerate() {
+                    let index = source[quad];
+                    if index != shown[x + plane] {
+                        run_start.get_or_insert(x + plane);
+                        shown[x + plane] = index;
+                        shown_planes[plane][first_quad + quad] = index;
+                    } else if let Some(start) = run_start.take() {
+                        emit(start..x + plane, shown);
+                    }
+                }
+            }
+            if let Some(start) = run_start {
+                emit(start..next_quad * PLANE_COUNT, shown);
+            }
+        });
+        visited.then_some(written)
+    }
+
+    /// Writes the pixels of the scanned tiles whose index changed, and those
+    /// anywhere whose colour changed; notes the tiles that changed in
+    /// `self.past[slot]` and takes the scanned ones into the shown picture.
+    fn present_changes(
+        &mut self,
+        (width, height): (usize, usize),
+        palette: &[[u8; 4]; 256],
+        recoloured: &[bool; 256],
+        layout: &FramebufferLayout,
+        out: &mut [u8],
+        slot: usize,
     ) -> usize {
-        let mut recoloured = [false; 256];
-        for (flag, (new, old)) in recoloured
-            .iter_mut()
-            .zip(palette.iter().zip(&self.shown_palette))
-        {
-            *flag = new != old;
-        }
         let any_recoloured = recoloured.contains(&true);
         let placement = Placement::fit((width, height), (layout.width, layout.height));
+        let across = TileSet::across(width);
+        let changed = &mut self.past[slot].changed;
+        changed.clear();
         let mut written = 0;
         for row in 0..height {
-            let new = &self.current[row * width..(row + 1) * width];
-            let old = &self.shown[row * width..(row + 1) * width];
-            // Most rows of most frames: one slice comparison, no pixel loop.
-            if !any_recoloured && new == old {
+            let scanned = self.to_scan.row(row);
+            // Most rows of most frames: nothing to look at.
+            if scanned == 0 && !any_recoloured {
                 continue;
             }
-            let changed = |x: usize| new[x] != old[x] || recoloured[usize::from(new[x])];
-            let mut x = 0;
-            while x < width {
-                if !changed(x) {
-                    x += 1;
+            let line = row * width..(row + 1) * width;
+            for tile in 0..across {
+                let was_scanned = scanned & (1 << tile) != 0;
+                if !was_scanned && !any_recoloured {
                     continue;
                 }
-                let start = x;
-                while x < width && changed(x) {
-                    x += 1;
+                let columns = TileSet::columns(tile, width);
+                let pixels = line.start + columns.start..line.start + columns.end;
+                let old = &self.shown[pixels.clone()];
+                // A tile not scanned shows what it showed.
+                let new = if was_scanned {
+                    &self.current[pixels.clone()]
+                } else {
+                    old
+                };
+                let same = !was_scanned || same_indices(new, old);
+                if !same {
+                    changed.insert(row, tile);
                 }
-                let pixel = |column: usize| palette[usize::from(new[column])];
-                written += write_span(layout, &placement, row, start..x, pixel, out);
+                if same && !any_recoloured {
+                    continue;
+                }
+                let first = columns.start;
+                let pixel = |column: usize| palette[usize::from(new[column - first])];
+                let span_buffer = &mut self.span_buffer;
+                let mut span = |span: Range<usize>| {
+                    let columns = first + span.start..first + span.end;
+                    written +=
+                        write_span(layout, &placement, row, columns, pixel, out, span_buffer);
+                };
+                if any_recoloured {
+                    let changed_at = |x: usize| new[x] != old[x] || recoloured[usize::from(new[x])];
+                    for_each_run(new.len(), changed_at, &mut span);
+                } else {
+                    changed_runs(new, old, &mut span);
+                }
+                if !same {
+                    let new = &self.current[pixels.clone()];
+                    self.shown[pixels.clone()].copy_from_slice(new);
+                    take_into_planes(&mut self.shown_planes, pixels.start, new);
+                }
             }
         }
         written
     }
+}
+
+/// Keeps `shown_planes` the planes of `shown` where `pixels`, from pixel
+/// `first` of the picture, were taken into it.
+fn take_into_planes(
+    shown_planes: &mut [[u8; PLANE_QUADS]; PLANE_COUNT],
+    first: usize,
+    pixels: &[u8],
+) {
+    for (offset, &index) in pixels.iter().enumerate() {
+        let pixel = first + offset;
+        shown_planes[pixel % PLANE_COUNT][pixel / PLANE_COUNT] = index;
+    }
+}
+
+/// The quads of a tile (bit `q` for quad `q`, up to 16) whose bytes in
+/// `planes` differ from those at `first_quad` of `shown_planes`, eight quads
+/// of a plane compared as one word.
+fn differing_quads(
+    planes: &[&[u8]; PLANE_COUNT],
+    shown_planes: &[[u8; PLANE_QUADS]; PLANE_COUNT],
+    first_quad: usize,
+) -> u32 {
+    let quads = planes[0].len();
+    let mut differing = 0u32;
+    for (source, shown) in planes.iter().zip(shown_planes) {
+        let shown = &shown[first_quad..first_quad + quads];
+        let mut quad = 0;
+        while quad + 8 <= quads {
+            let changed_bytes = word(source, quad) ^ word(shown, quad);
+            if changed_bytes != 0 {
+                differing |= nonzero_bytes(changed_bytes) << quad;
+            }
+            quad += 8;
+        }
+        for (offset, (new, old)) in source[quad..].iter().zip(&shown[quad..]).enumerate() {
+            if new != old {
+                differing |= 1 << (quad + offset);
+            }
+        }
+    }
+    differing
+}
+
+/// Bit `k` set for each nonzero byte `k` of `word` (in memory order).
+fn nonzero_bytes(word: u64) -> u32 {
+    word.to_ne_bytes()
+        .iter()
+        .enumerate()
+        .filter(|(_, &byte)| byte != 0)
+        .fold(0, |bits, (k, _)| bits | 1 << k)
+}
+
+/// Calls `span` with each maximal run of positions below `len` where
+/// `changed_at` holds.
+fn for_each_run(
+    len: usize,
+    changed_at: impl Fn(usize) -> bool,
+    mut span: impl FnMut(Range<usize>),
+) {
+    let mut x = 0;
+    while x < len {
+        if !changed_at(x) {
+            x += 1;
+            continue;
+        }
+        let start = x;
+        while x < len && changed_at(x) {
+            x += 1;
+        }
+        span(start..x);
+    }
+}
+
+/// Calls `span` with each maximal run of positions where `new` and `old`
+/// differ, skipping equal runs of eight in one comparison.
+fn changed_runs(new: &[u8], old: &[u8], mut span: impl FnMut(Range<usize>)) {
+    let len = new.len().min(old.len());
+    let mut run_start = None;
+    let mut x = 0;
+    while x < len {
+        if x + 8 <= len && word(new, x) == word(old, x) {
+            if let Some(start) = run_start.take() {
+                span(start..x);
+            }
+            x += 8;
+            continue;
+        }
+        let end = (x + 8).min(len);
+        while x < end {
+            if new[x] != old[x] {
+                run_start.get_or_insert(x);
+            } else if let Some(start) = run_start.take() {
+                span(start..x);
+            }
+            x += 1;
+        }
+    }
+    if let Some(start) = run_start {
+        span(start..len);
+    }
+}
+
+/// Eight indices from `at` as one word (no copy: the kernel's build checks
+/// every `copy_from_slice` for overlap).
+fn word(indices: &[u8], at: usize) -> u64 {
+    indices[at..]
+        .first_chunk::<8>()
+        .map_or(0, |bytes| u64::from_ne_bytes(*bytes))
+}
+
+/// Whether two runs of indices are equal, compared eight at a time: the
+/// kernel's `memcmp` (compiler-builtins) goes byte by byte.
+fn same_indices(new: &[u8], old: &[u8]) -> bool {
+    let (new_words, new_rest) = new.as_chunks::<8>();
+    let (old_words, old_rest) = old.as_chunks::<8>();
+    new_words
+        .iter()
+        .zip(old_words)
+        .all(|(new, old)| u64::from_ne_bytes(*new) == u64::from_ne_bytes(*old))
+        && new_rest.iter().zip(old_rest).all(|(new, old)| new == old)
 }
 
 /// Bytes a full present writes: every visible pixel of every line that fits.
@@ -200,32 +569,101 @@ fn write_span(
     columns: Range<usize>,
     pixel: impl Fn(usize) -> [u8; 4],
     out: &mut [u8],
+    buffer: &mut [u8; SPAN_BUFFER_BYTES],
+) -> usize {
+    match layout.bytes_per_pixel {
+        1 => write_span_of::<1>(layout, placement, row, columns, &pixel, out, buffer),
+        2 => write_span_of::<2>(layout, placement, row, columns, &pixel, out, buffer),
+        3 => write_span_of::<3>(layout, placement, row, columns, &pixel, out, buffer),
+        4 => write_span_of::<4>(layout, placement, row, columns, &pixel, out, buffer),
+        _ => 0,
+    }
+}
+
+/// Screen pixels of a span scaled once and copied to each of its lines.
+const SCALED_SPAN_PIXELS: usize = 256;
+/// Bytes of the buffer they are scaled into (kept in the presenter, so it is
+/// not cleared for every span).
+const SPAN_BUFFER_BYTES: usize = SCALED_SPAN_PIXELS * 4;
+
+/// [`write_span`] for `N`-byte pixels: the span is scaled into a buffer once,
+/// a piece at a time, and each piece copied onto every line the row covers
+/// (the framebuffer is never read: it may be write-combining).
+fn write_span_of<const N: usize>(
+    layout: &FramebufferLayout,
+    placement: &Placement,
+    row: usize,
+    columns: Range<usize>,
+    pixel: &impl Fn(usize) -> [u8; 4],
+    out: &mut [u8],
+    buffer: &mut [u8; SPAN_BUFFER_BYTES],
 ) -> usize {
     let scale = placement.scale;
-    let mut written = 0;
-    for repeat in 0..scale {
-        let y = placement.top + (row * scale + repeat) as isize;
-        let Ok(y) = usize::try_from(y) else {
-            continue;
-        };
-        if y >= layout.height {
-            break;
+    // Framebuffer sizes are far below isize::MAX.
+    let top = placement.top + (row * scale) as isize;
+    let lines = top.clamp(0, layout.height as isize) as usize
+        ..(top + scale as isize).clamp(0, layout.height as isize) as usize;
+    if lines.is_empty() {
+        return 0;
+    }
+    if scale > SCALED_SPAN_PIXELS {
+        // A screen over 256 times the picture's width: pixel by pixel.
+        let mut written = 0;
+        for y in lines {
+            let Some(line) = layout.visible_line(out, y) else {
+                break;
+            };
+            written += span_on_line::<N>(line, placement, columns.clone(), pixel);
         }
-        let Some(line) = layout.visible_line(out, y) else {
-            break;
-        };
-        written += match layout.bytes_per_pixel {
-            1 => span_on_line::<1>(line, placement, columns.clone(), &pixel),
-            2 => span_on_line::<2>(line, placement, columns.clone(), &pixel),
-            3 => span_on_line::<3>(line, placement, columns.clone(), &pixel),
-            4 => span_on_line::<4>(line, placement, columns.clone(), &pixel),
-            _ => 0,
-        };
+        return written;
+    }
+    let columns_per_piece = SCALED_SPAN_PIXELS / scale;
+    let line_bytes = layout.line_bytes();
+    let visible_width = layout.visible_width();
+    let mut written = 0;
+    let mut first = columns.start;
+    while first < columns.end {
+        let piece = first..(first + columns_per_piece).min(columns.end);
+        first = piece.end;
+        let scaled = &mut buffer.as_chunks_mut::<N>().0[..SCALED_SPAN_PIXELS];
+        let mut length = 0;
+        for column in piece.clone() {
+            let encoded = pixel(column);
+            let bytes: [u8; N] = core::array::from_fn(|i| encoded[i]);
+            scaled[length..length + scale].fill(bytes);
+            length += scale;
+        }
+        let left = placement.left + (piece.start * scale) as isize;
+        let right = left + length as isize;
+        for y in lines.clone() {
+            // As `FramebufferLayout::visible_line`: whole pixels within `out`.
+            let line_start = y * line_bytes;
+            if line_start > out.len() {
+                break;
+            }
+            let screen_width = visible_width.min((out.len() - line_start) / N) as isize;
+            let (from, to) = (left.clamp(0, screen_width), right.clamp(0, screen_width));
+            if from >= to {
+                continue;
+            }
+            // Both ends are clamped to 0..=screen_width, and within the piece.
+            let skip = (from - left) as usize;
+            let count = (to - from) as usize;
+            let start = line_start + from as usize * N;
+            let line = &mut out[start..start + count * N];
+            let scaled = &buffer.as_chunks::<N>().0[skip..skip + count];
+            // A store a pixel: spans are short, and the kernel's build
+            // checks each `copy_from_slice` before its `memcpy`.
+            for (pixel, &bytes) in line.as_chunks_mut::<N>().0.iter_mut().zip(scaled) {
+                *pixel = bytes;
+            }
+            written += count * N;
+        }
     }
     written
 }
 
-/// One screen line's part of a span of `N`-byte pixels.
+/// One screen line's part of a span of `N`-byte pixels, pixel by pixel.
 fn span_on_line<const N: usize>(
     line: &mut [u8],
     placement: &Placement,

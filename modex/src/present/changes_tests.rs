@@ -4,7 +4,7 @@
 //! without turning on `std` features in the kernel's build).
 
 use super::*;
-use crate::{ModeX, Page};
+use crate::{ModeX, Page, VgaBus};
 use std::boxed::Box;
 use std::vec;
 use std::vec::Vec;
@@ -96,5 +96,68 @@ fn a_palette_change_rewrites_the_pixels_of_that_colour_only() {
     ModeX::new(&mut *soft).load_palette(200, &[[63, 0, 0]]);
     let report = presenter.present(&soft, &layout, &mut out);
     assert_eq!(report.bytes_written, 10 * 5 * 2 * 2 * 4);
+    assert_eq!(out, full(&soft, &layout, out.len()));
+}
+
+/// Mode X's double buffering: the start address changes at every flip, yet
+/// each present scans only the tiles drawn into since that page was shown
+/// and those where the two pages differed at the last flip.
+#[test]
+fn a_flip_scans_only_the_tiles_either_page_changed() {
+    let mut soft = mode_x();
+    let layout = layout(1280, 800, 4, PixelOrder::Bgr);
+    let mut out = vec![0xEE; layout.required_bytes()];
+    let mut presenter = Box::new(Presenter::new());
+    assert!(presenter.present(&soft, &layout, &mut out).full);
+    let mut shown = Page::Zero;
+    // A dot moving right along row 20, one column a frame, both pages
+    // erased and redrawn as a game would.
+    for frame in 0..8 {
+        let hidden = shown.other();
+        let mut vga = ModeX::new(&mut *soft);
+        vga.fill_rect(hidden, 0, 20, 320, 21, 0);
+        vga.put_pixel(hidden, 100 + frame, 20, 15);
+        vga.show_page(hidden);
+        shown = hidden;
+        let report = presenter.present(&soft, &layout, &mut out);
+        assert!(!report.full);
+        // Page 1 was never shown: all of it. Then row 20 only: its five
+        // tiles (the erase wrote all of them).
+        let expected = if frame == 0 { 320 * 240 } else { 320 };
+        assert_eq!(report.pixels_scanned, expected, "frame {frame}");
+        assert_eq!(out, full(&soft, &layout, out.len()), "frame {frame}");
+    }
+    // A flip back to a page nobody drew into since: only the tiles where
+    // the pages differ, row 20's dot's.
+    ModeX::new(&mut *soft).show_page(shown.other());
+    let report = presenter.present(&soft, &layout, &mut out);
+    assert_eq!(report.pixels_scanned, 64);
+    assert_eq!(report.bytes_written, 2 * 3 * 3 * 4, "two dots, scale 3");
+    assert_eq!(out, full(&soft, &layout, out.len()));
+    // Nothing drawn, no flip: nothing scanned.
+    let report = presenter.present(&soft, &layout, &mut out);
+    assert_eq!((report.pixels_scanned, report.bytes_written), (0, 0));
+}
+
+/// A start address no present showed before (a scroll) is all new.
+#[test]
+fn a_new_start_address_scans_everything() {
+    let mut soft = mode_x();
+    let layout = layout(640, 480, 4, PixelOrder::Rgb);
+    let mut out = vec![0; layout.required_bytes()];
+    let mut presenter = Box::new(Presenter::new());
+    presenter.present(&soft, &layout, &mut out);
+    let mut vga = ModeX::new(&mut *soft);
+    vga.fill_rect(Page::Zero, 0, 0, 320, 240, 3);
+    vga.fill_rect(Page::Zero, 0, 100, 320, 101, 9);
+    let start = u16::from_le_bytes([80, 0]); // one row down
+    let bus = vga.bus_mut();
+    bus.write_port16(
+        crate::regs::Port::CRTC_INDEX,
+        u16::from_le_bytes([crate::regs::Crtc::StartAddressLow.index(), start as u8]),
+    );
+    soft.let_a_frame_pass();
+    let report = presenter.present(&soft, &layout, &mut out);
+    assert_eq!(report.pixels_scanned, 320 * 240);
     assert_eq!(out, full(&soft, &layout, out.len()));
 }

@@ -18,6 +18,11 @@ use super::registers::Registers;
 
 /// Bytes in each plane.
 pub const PLANE_BYTES: usize = 0x1_0000;
+/// Plane offsets per block of write tracking: a fifth of a Mode X row (80
+/// offsets), so a row starting on a block boundary is exactly five blocks.
+pub(super) const BLOCK_OFFSETS: usize = 16;
+/// Blocks of write tracking in a plane.
+pub(super) const BLOCKS: usize = PLANE_BYTES / BLOCK_OFFSETS;
 
 /// Planes of even and odd addresses in odd/even mode.
 const EVEN_PLANES: u8 = 0b0101;
@@ -54,6 +59,13 @@ enum Function {
 pub(super) struct VideoMemory {
     pub(super) planes: [[u8; PLANE_BYTES]; PLANE_COUNT],
     pub(super) latches: [u8; PLANE_COUNT],
+    /// CPU writes so far that reached a plane offset (whatever the Map Mask
+    /// let through): each stamps its block with the new count, so a
+    /// presenter that noted the count can tell which memory changed since.
+    pub(super) writes: u64,
+    /// Per block of plane offsets (all four planes), the write count just
+    /// after its last write; 0 if never written.
+    pub(super) block_written: [u64; BLOCKS],
 }
 
 impl VideoMemory {
@@ -61,7 +73,16 @@ impl VideoMemory {
         Self {
             planes: [[0; PLANE_BYTES]; PLANE_COUNT],
             latches: [0; PLANE_COUNT],
+            writes: 0,
+            block_written: [0; BLOCKS],
         }
+    }
+
+    /// Notes a write at plane offset `offset` (in any plane): one store, as
+    /// it runs on every CPU write. Reads (which load the latches) never call it.
+    fn note_write(&mut self, offset: usize) {
+        self.writes += 1;
+        self.block_written[offset / BLOCK_OFFSETS] = self.writes;
     }
 
     /// One CPU byte write at `offset` in the 0xA0000 window.
@@ -73,8 +94,10 @@ impl VideoMemory {
         match write_addressing(registers) {
             Addressing::Chain4 => {
                 let plane = (address & CHAIN_4_PLANE_BITS) as usize;
+                let offset = plane_offset(address >> 2);
+                self.note_write(offset);
                 if map_mask & (1 << plane) != 0 {
-                    self.planes[plane][plane_offset(address >> 2)] = value;
+                    self.planes[plane][offset] = value;
                 }
             }
             Addressing::OddEven => {
@@ -83,15 +106,14 @@ impl VideoMemory {
                 } else {
                     ODD_PLANES
                 };
-                self.write_latched(
-                    registers,
-                    plane_offset(address >> 1),
-                    value,
-                    map_mask & planes,
-                );
+                let offset = plane_offset(address >> 1);
+                self.note_write(offset);
+                self.write_latched(registers, offset, value, map_mask & planes);
             }
             Addressing::Planar => {
-                self.write_latched(registers, plane_offset(address), value, map_mask)
+                let offset = plane_offset(address);
+                self.note_write(offset);
+                self.write_latched(registers, offset, value, map_mask)
             }
         }
     }

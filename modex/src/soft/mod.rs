@@ -10,8 +10,9 @@
 //!   start address latched at the start of each vertical retrace;
 //! * `probe`: bus operation counts and a write guard.
 //!
-//! It is `no_std` and heap-free, and large (~260 KiB): keep it in a `Box` and
-//! drive it through `&mut SoftVga`, which is a [`VgaBus`] too.
+//! It is `no_std` and heap-free, and large (~300 KiB: the planes, and a
+//! write stamp per 16 plane offsets): keep it in a `Box` and drive it
+//! through `&mut SoftVga`, which is a [`VgaBus`] too.
 //!
 //! Where the model and QEMU (7.2, the installed oracle) part ways, and why:
 //!
@@ -33,6 +34,7 @@ mod probe;
 mod registers;
 mod scanout;
 mod text_scanout;
+mod tiles;
 mod timing;
 
 use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
@@ -51,6 +53,8 @@ pub use memory::PLANE_BYTES;
 pub use probe::BusCounts;
 pub use scanout::dac_6_to_8;
 pub use timing::{CrtTiming, PORT_ACCESS_NS, VRAM_ACCESS_NS};
+
+pub(crate) use tiles::{PictureSource, TileSet, TILE_PIXELS};
 
 /// The software VGA.
 ///
@@ -80,6 +84,12 @@ pub struct SoftVga {
     displayed_start: u16,
     frame_count: u64,
     retrace_stuck: Option<bool>,
+    /// Register writes so far (any port): a text picture may change with any.
+    register_writes: u64,
+    /// Writes so far to the ports that can change a colour on screen: DAC
+    /// data and pixel mask, the Attribute Controller's index (Palette
+    /// Address Source blanks) and Clocking Mode (screen off).
+    colour_writes: u64,
     counts: BusCounts,
     guard: WriteGuard,
 }
@@ -110,7 +120,7 @@ impl SoftVga {
     /// cleared (the model has no BIOS font), clock at 0.
     ///
     /// `const`, so a kernel can keep its model in a static: built by value it
-    /// needs several copies of its ~260 KiB on the stack.
+    /// needs several copies of its ~300 KiB on the stack.
     pub const fn new() -> Self {
         let registers = Registers::with_mode(&TEXT_80X25, &EGA_PALETTE);
         let timing = CrtTiming::from_registers(&registers);
@@ -122,6 +132,8 @@ impl SoftVga {
             now_ns: 0,
             frame_count: 0,
             retrace_stuck: None,
+            register_writes: 0,
+            colour_writes: 0,
             counts: BusCounts {
                 port_writes: 0,
                 port_reads: 0,
@@ -237,6 +249,12 @@ impl SoftVga {
         self.retrace_stuck = stuck;
     }
 
+    /// Writes so far that may have changed a colour on screen (the DAC, the
+    /// pixel mask, blanking): unchanged, the colours are as they were.
+    pub(crate) fn colour_writes(&self) -> u64 {
+        self.colour_writes
+    }
+
     // --- Probes.
 
     /// Bus operations so far.
@@ -268,6 +286,18 @@ impl SoftVga {
     // --- Bus internals.
 
     fn port_write(&mut self, port: Port, value: u8) {
+        self.register_writes += 1;
+        let colour = match port {
+            Port::DAC_DATA | Port::DAC_PIXEL_MASK | Port::ATTRIBUTE_INDEX => true,
+            // Not the Map Mask, written every frame: Clocking Mode's screen off.
+            Port::SEQUENCER_DATA => {
+                self.registers.sequencer_index() == Sequencer::ClockingMode.index()
+            }
+            _ => false,
+        };
+        if colour {
+            self.colour_writes += 1;
+        }
         self.registers.write_port(port, value);
         // Misc Output, Clocking Mode and the CRTC set the timing.
         self.timing = CrtTiming::from_registers(&self.registers);
@@ -300,6 +330,7 @@ impl VgaBus for SoftVga {
         self.counts.port_writes += 1;
         self.advance_ns(PORT_ACCESS_NS);
         if port == Port::VBE_DISPI_INDEX || port == Port::VBE_DISPI_DATA {
+            self.register_writes += 1;
             self.registers.write_dispi(port, value);
         } else {
             let [low, high] = value.to_le_bytes();

@@ -120,6 +120,11 @@ impl Registers {
         }
     }
 
+    /// The sequencer register the data port writes now.
+    pub(super) fn sequencer_index(&self) -> u8 {
+        self.sequencer_index
+    }
+
     /// The port of Input Status 1 under the current I/O addressing.
     pub(super) fn input_status_1_port(&self) -> Port {
         if self.color_addressing() {

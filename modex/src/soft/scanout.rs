@@ -24,16 +24,32 @@ const MAX_WIDTH: usize = 256 * PIXELS_PER_CHARACTER;
 /// The Offset register counts words: two plane addresses each.
 const ADDRESSES_PER_OFFSET_UNIT: usize = 2;
 
-/// The displayed picture's layout in memory.
-struct Raster {
-    width: usize,
-    height: usize,
+/// The displayed picture's layout in memory: with video memory, all that
+/// makes the picture's DAC indices (two equal rasters over equal memory
+/// scan out the same picture).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Raster {
+    pub(super) width: usize,
+    pub(super) height: usize,
     /// Displayed scan lines, each row repeated.
-    scan_lines: usize,
-    scan_lines_per_row: usize,
-    addresses_per_row: usize,
-    line_compare: usize,
-    start: usize,
+    pub(super) scan_lines: usize,
+    pub(super) scan_lines_per_row: usize,
+    pub(super) addresses_per_row: usize,
+    pub(super) line_compare: usize,
+    pub(super) start: usize,
+}
+
+impl Raster {
+    /// No raster: all zero.
+    pub(super) const NONE: Raster = Raster {
+        width: 0,
+        height: 0,
+        scan_lines: 0,
+        scan_lines_per_row: 0,
+        addresses_per_row: 0,
+        line_compare: 0,
+        start: 0,
+    };
 }
 
 /// QEMU's screendump expansion of a 6-bit DAC component to 8 bits: the six
@@ -105,7 +121,7 @@ impl SoftVga {
             && self.registers.sequencer(Sequencer::ClockingMode) & seq::CLOCKING_SCREEN_OFF == 0
     }
 
-    fn raster(&self) -> Option<Raster> {
+    pub(super) fn raster(&self) -> Option<Raster> {
         let registers = &self.registers;
         let graphics = registers.graphics(Graphics::Misc) & gc::MISC_GRAPHICS != 0;
         let shift_256 = registers.graphics(Graphics::Mode) & gc::MODE_SHIFT_256 != 0;
@@ -158,29 +174,42 @@ impl SoftVga {
         );
         let planes = &self.memory.planes;
         let mut line = [0u8; MAX_WIDTH];
-        let mut address = raster.start;
-        let mut repeats_left = raster.scan_lines_per_row - 1;
-        for scan_line in 0..raster.scan_lines {
-            let row = scan_line / raster.scan_lines_per_row;
-            // Each row once, from the first of its repeated scan lines.
-            if scan_line % raster.scan_lines_per_row == 0 && row < raster.height {
-                let line = &mut line[..raster.width];
-                for (quad, pixels) in line.as_chunks_mut::<PLANE_COUNT>().0.iter_mut().enumerate() {
-                    let offset = (address + quad) % PLANE_BYTES;
-                    *pixels = core::array::from_fn(|plane| planes[plane][offset]);
-                }
-                put(row * raster.width, line);
+        raster.rows(|row, address| {
+            let line = &mut line[..raster.width];
+            for (quad, pixels) in line.as_chunks_mut::<PLANE_COUNT>().0.iter_mut().enumerate() {
+                let offset = (address + quad) % PLANE_BYTES;
+                *pixels = core::array::from_fn(|plane| planes[plane][offset]);
+            }
+            put(row * raster.width, line);
+        });
+        (raster.width, raster.height)
+    }
+}
+
+impl Raster {
+    /// Calls `row_at(row, plane offset)` with each displayed row and the
+    /// offset its first pixel is fetched from (not yet wrapped to the
+    /// plane), walking the scan lines as the CRTC does: each row is fetched
+    /// once, from the first of its repeated scan lines, and Line Compare
+    /// restarts the address at 0. The scan-out and the tracking of which
+    /// rows were written both walk it, so they cannot disagree.
+    pub(super) fn rows(&self, mut row_at: impl FnMut(usize, usize)) {
+        let mut address = self.start;
+        let mut repeats_left = self.scan_lines_per_row - 1;
+        for scan_line in 0..self.scan_lines {
+            let row = scan_line / self.scan_lines_per_row;
+            if scan_line % self.scan_lines_per_row == 0 && row < self.height {
+                row_at(row, address);
             }
             if repeats_left == 0 {
-                address += raster.addresses_per_row;
-                repeats_left = raster.scan_lines_per_row - 1;
+                address += self.addresses_per_row;
+                repeats_left = self.scan_lines_per_row - 1;
             } else {
                 repeats_left -= 1;
             }
-            if scan_line == raster.line_compare {
+            if scan_line == self.line_compare {
                 address = 0;
             }
         }
-        (raster.width, raster.height)
     }
 }
