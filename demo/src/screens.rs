@@ -26,7 +26,7 @@ pub const GOODBYE: &str = "modex-cube: goodbye. The machine can be switched off.
 const WHITE_ON_BLACK: u8 = 0x0F;
 
 /// The fault panel's lines of report, below its heading.
-pub const REPORT_LINES: usize = 4;
+pub const REPORT_LINES: usize = machine::protocol::line::FAULT_ROWS;
 const WHITE_ON_RED: u8 = 0x4F;
 const PANEL_HEADING: &str = "modex-cube stopped. The report (also on serial):";
 const PANEL_FOOTER: &str = "Stopped. Ctrl+Alt+Del (PS/2 keyboard) or the reset button restarts.";

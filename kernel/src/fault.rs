@@ -6,6 +6,7 @@
 
 use core::fmt::Write;
 use core::sync::atomic::{AtomicU64, Ordering};
+use machine::protocol::line::{FaultLine, InterruptFrame};
 use modex::card::Card;
 use spin::Once;
 use x86_64::structures::idt::InterruptStackFrame;
@@ -37,39 +38,45 @@ pub fn halt_with(
     error: Option<u64>,
     address: Option<u64>,
 ) -> ! {
-    let mut lines = [const { Line::new() }; REPORT_LINES];
-    let _ = write!(lines[0], "EXCEPTION: {}", kind);
-    let _ = write!(
-        lines[1],
-        "  rip={:#x} cs={:#x} rflags={:#x} rsp={:#x} ss={:#x}",
-        frame.instruction_pointer.as_u64(),
-        frame.code_segment.0,
-        frame.cpu_flags.bits(),
-        frame.stack_pointer.as_u64(),
-        frame.stack_segment.0
-    );
-    if let Some(error) = error {
-        let _ = write!(lines[2], "  error code={:#x}", error);
-    }
-    if let Some(address) = address {
-        let _ = write!(lines[3], "  address={:#x}", address);
-    }
-    report(&lines)
+    let frame = InterruptFrame {
+        rip: frame.instruction_pointer.as_u64(),
+        cs: frame.code_segment.0.into(),
+        rflags: frame.cpu_flags.bits(),
+        rsp: frame.stack_pointer.as_u64(),
+        ss: frame.stack_segment.0.into(),
+    };
+    let fault_lines = [
+        Some(FaultLine::<&str>::Exception(kind)),
+        Some(FaultLine::Frame(frame)),
+        error.map(FaultLine::ErrorCode),
+        address.map(FaultLine::Address),
+    ];
+    report(&lines_of(fault_lines))
 }
 
 pub fn halt_with_panic(info: &core::panic::PanicInfo) -> ! {
+    let location = info.location().map(|at| FaultLine::Location {
+        file: at.file(),
+        line: at.line(),
+        column: at.column(),
+    });
+    report(&lines_of([
+        Some(FaultLine::Panic(info.message())),
+        location,
+        None,
+        None,
+    ]))
+}
+
+/// The report's lines, each in its row.
+fn lines_of<M: core::fmt::Display>(
+    fault_lines: [Option<FaultLine<'_, M>>; REPORT_LINES],
+) -> [Line; REPORT_LINES] {
     let mut lines = [const { Line::new() }; REPORT_LINES];
-    let _ = write!(lines[0], "PANIC: {}", info.message());
-    if let Some(location) = info.location() {
-        let _ = write!(
-            lines[1],
-            "  at {}:{}:{}",
-            location.file(),
-            location.line(),
-            location.column()
-        );
+    for fault_line in fault_lines.into_iter().flatten() {
+        let _ = write!(lines[fault_line.row()], "{}", fault_line);
     }
-    report(&lines)
+    lines
 }
 
 fn report(lines: &[Line]) -> ! {

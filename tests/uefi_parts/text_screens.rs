@@ -16,32 +16,23 @@ use crate::common::{
     assert_pictures_equal, boot_bios, escape_leaves_the_goodbye_on_the_framebuffer,
     soft_vga_in_mode_x, text_picture, BOOT_TIMEOUT,
 };
+use boot::line::FaultReport;
 use boot::{line, BootOption, BootRequest, Fault, Firmware, Graphics, RgbImage};
 use demo::screens::REPORT_LINES;
 use modex::ModeX;
 use std::time::Duration;
 
+/// The fault report the kernel printed on serial.
+fn fault_report(console: &str) -> FaultReport<'_> {
+    FaultReport::parse(console).unwrap_or_else(|| panic!("no fault report on serial:\n{console}"))
+}
+
 /// The panel's lines as the kernel printed them on serial, each in its row
-/// (serial leaves out empty lines; their prefixes say where each belongs).
+/// (serial leaves out empty lines).
 fn report_lines(console: &str) -> [String; REPORT_LINES] {
-    let start = console
-        .find("EXCEPTION: ")
-        .or_else(|| console.find("PANIC: "))
-        .unwrap_or_else(|| panic!("no report on serial:\n{console}"));
-    let mut lines: [String; REPORT_LINES] = Default::default();
-    for line in console[start..]
-        .lines()
-        .take_while(|l| l.trim() != line::HALTED)
-    {
-        let row = match line {
-            l if l.starts_with("  rip=") || l.starts_with("  at ") => 1,
-            l if l.starts_with("  error code=") => 2,
-            l if l.starts_with("  address=") => 3,
-            _ => 0,
-        };
-        lines[row] = line.trim_end_matches('\r').to_owned();
-    }
-    lines
+    fault_report(console)
+        .rows
+        .map(|row| row.map(|line| line.to_string()).unwrap_or_default())
 }
 
 /// The kernel's log before the fault, as the panel shows it: its serial
@@ -51,11 +42,7 @@ fn log_before_fault(console: &str) -> Vec<String> {
     let first = console
         .find(line::KERNEL_BANNER)
         .unwrap_or_else(|| panic!("no kernel on serial:\n{console}"));
-    let fault = console
-        .find("EXCEPTION: ")
-        .or_else(|| console.find("PANIC: "))
-        .unwrap_or_else(|| panic!("no report on serial:\n{console}"));
-    console[first..fault]
+    console[first..fault_report(console).start]
         .lines()
         .map(|line| line.chars().take(120).collect())
         .collect()
