@@ -54,8 +54,20 @@ fn assert_reported_and_halted(fault: Fault, expected: FaultLine) {
     let screen = qemu.screendump().unwrap();
     assert_eq!(
         (screen.width, screen.height),
-        (720, 400),
-        "{option}: the screen is not in 80x25 text"
+        (640, 400),
+        "{option}: the screen is not in 80x25 text with 8-dot cells"
+    );
+    // Its QR code says what the kernel encoded, the report first.
+    let encoded: Vec<&str> = report.qr_lines().collect();
+    assert_eq!(
+        encoded.first().copied().and_then(FaultLine::parse),
+        report.fault(),
+        "{option}: the code's text does not start with the fault"
+    );
+    assert_eq!(
+        common::decode_qr_codes(&screen),
+        [encoded.join("\n")],
+        "{option}: the panel's QR code"
     );
     let count = |is: fn([u8; 3]) -> bool| screen.pixels.iter().filter(|&&p| is(p)).count();
     let (red, white) = (count(is_red), count(is_white));

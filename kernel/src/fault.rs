@@ -31,6 +31,8 @@ const LINE_BYTES: usize = modex::TEXT_COLUMNS as usize;
 
 /// A screen line built without a heap; text past the line's end is cut.
 type Line = machine::log::LogLine<LINE_BYTES>;
+/// A fact for the QR code (a CPU brand string is up to 48 bytes).
+type FactLine = machine::log::LogLine<120>;
 
 pub fn halt_with(
     kind: &str,
@@ -96,13 +98,44 @@ fn report(lines: &[Line]) -> ! {
     }
     let mut tail = [""; PANEL_LOG_LINES];
     let mut shown = 0;
+    // The facts a report needs most, for the QR code: the build, the CPU,
+    // and what the firmware and display code said.
+    let mut build = Line::new();
+    crate::report::write_build_fact(&mut build);
+    let mut cpu = FactLine::new();
+    crate::report::write_cpu_fact(&mut cpu);
+    let mut facts = [build.as_str(), cpu.as_str(), "", "", ""];
     if let Some(ring) = ring.as_deref() {
         shown = ring.len().min(PANEL_LOG_LINES);
         for (slot, back) in tail[..shown].iter_mut().zip((0..shown).rev()) {
             *slot = ring.newest(back).unwrap_or("");
         }
+        let said = [
+            ring.latest_with_any_prefix(&["firmware:"], 0),
+            ring.earliest_with_any_prefix(&["display:"], 0),
+            ring.earliest_with_any_prefix(&["display:"], 1),
+        ];
+        for (fact, text) in facts[2..].iter_mut().zip(said) {
+            *fact = text.unwrap_or("");
+        }
     }
-    show_on_screen(lines, &tail[..shown]);
+    let mut text = [""; REPORT_LINES];
+    for (text, line) in text.iter_mut().zip(lines) {
+        *text = line.as_str();
+    }
+    let mut qr_text = [0u8; demo::screens::PANEL_QR_TEXT_BYTES];
+    let qr_len = demo::screens::fault_qr_text(&text, &facts, &tail[..shown], &mut qr_text);
+    let qr_text = &qr_text[..qr_len];
+    // What the code says, on serial too (a test decodes the screen's code
+    // and compares).
+    for qr_line in qr_text.split(|&byte| byte == b'\n') {
+        crate::serial_println!(
+            "{}{}",
+            machine::protocol::line::FAULT_QR,
+            core::str::from_utf8(qr_line).unwrap_or("?")
+        );
+    }
+    show_on_screen(&text, &tail[..shown], qr_text);
     halt_forever()
 }
 
@@ -112,21 +145,17 @@ fn report(lines: &[Line]) -> ! {
 /// a fault while showing the panel goes to serial only. The interrupted code
 /// may have been half-way through a register write; the mode set starts from
 /// scratch, so that does not matter.
-fn show_on_screen(lines: &[Line], log: &[&str]) {
-    let mut text = [""; demo::screens::REPORT_LINES];
-    for (text, line) in text.iter_mut().zip(lines) {
-        *text = line.as_str();
-    }
+fn show_on_screen(text: &[&str; REPORT_LINES], log: &[&str], qr_text: &[u8]) {
     let offset = SCREEN_PHYSICAL_OFFSET.swap(0, Ordering::Acquire);
     if offset == 0 {
-        crate::framebuffer::show_fault_panel(&text, log);
+        crate::framebuffer::show_fault_panel(text, log, qr_text);
         return;
     }
     // SAFETY: the offset was recorded by the kernel after it found legacy VGA
     // through this mapping; nothing else runs after a fault, so the bus is ours.
     let bus = unsafe { crate::vga_bus::PortBus::new(offset) };
     let card = SCREEN_CARD.get().copied().unwrap_or(Card::Standard);
-    demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), &text, log);
+    demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), text, log, qr_text);
 }
 
 /// Stops the demo with interrupts off. What is left is a loop that watches
