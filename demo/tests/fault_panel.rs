@@ -102,7 +102,7 @@ fn long_lines_and_a_full_log_stay_in_their_areas_and_the_code_decodes() {
             } else if column > LOWER_TEXT_COLUMNS {
                 assert_eq!(
                     (character, attribute),
-                    (b' ', 0x07),
+                    (b' ', 0x0F),
                     "row {row} column {column}"
                 );
             }

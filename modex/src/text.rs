@@ -30,6 +30,9 @@ const BLOCK_ROWS: u16 = 4;
 const BLOCK_LINES: u16 = 4;
 /// Light grey on black.
 const DEFAULT_ATTRIBUTE: u8 = 0x07;
+/// White on black, for the blank screen with the block map: attribute bit 3
+/// set, so blanks are the font's spaces, not blocks.
+const DEFAULT_ATTRIBUTE_WITH_BLOCKS: u8 = 0x0F;
 
 /// Planes 0 and 1: characters and attributes.
 const TEXT_PLANES: PlaneMask = PlaneMask::from_bits_truncate(0x03);
@@ -60,8 +63,9 @@ impl<B: VgaBus> ModeX<B> {
     /// character map of blocks: with attribute bit 3 clear, character `n`
     /// is a 2-wide, 4-tall block of squares of 4x4 dots, square `k` (left to
     /// right, then top to bottom) in the foreground colour if bit `k` of `n`
-    /// is set. Attributes with bit 3 set show `font`. Each cell can so carry
-    /// eight modules of a QR code.
+    /// is set. Attributes with bit 3 set show `font`; the blank screen is
+    /// white on black spaces of the font. Each cell can so carry eight
+    /// modules of a QR code.
     pub fn set_text_mode_with_blocks(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
         self.enter_text_mode(&TEXT_80X25_TWO_MAPS, font, true);
     }
@@ -95,6 +99,11 @@ impl<B: VgaBus> ModeX<B> {
         self.program(mode);
         self.load_palette(0, &EGA_PALETTE);
         self.load_font(font, blocks);
+        let blank_attribute = if blocks {
+            DEFAULT_ATTRIBUTE_WITH_BLOCKS
+        } else {
+            DEFAULT_ATTRIBUTE
+        };
         // Character and attribute pairs through both planes, as text is
         // written: odd/even addressing sends each byte to its plane. (Filling
         // each plane alone relies on odd/even too, and Bochs, which does not
@@ -104,7 +113,7 @@ impl<B: VgaBus> ModeX<B> {
             for cell in 0..CELLS {
                 vga.io.write_vram8(cell * BYTES_PER_CELL, BLANK);
                 vga.io
-                    .write_vram8(cell * BYTES_PER_CELL + 1, DEFAULT_ATTRIBUTE);
+                    .write_vram8(cell * BYTES_PER_CELL + 1, blank_attribute);
             }
         });
         let [high, low] = CELLS.to_be_bytes();
