@@ -4,6 +4,7 @@
 
 mod common;
 
+use boot::line::{FaultLine, FaultReport};
 use boot::qemu::{EXIT_FAILURE, EXIT_SUCCESS};
 use boot::{line, BootOption, Exit, Fault};
 use common::{boot_bios as boot, BOOT_TIMEOUT};
@@ -23,14 +24,25 @@ fn kernel_boots_and_prints_its_banner() {
 
 /// Each fault is reported on serial and on screen (a white-on-red panel in
 /// 80x25 text), then the kernel halts: QEMU (started with -no-reboot, so a
-/// triple fault would end it) keeps running.
-fn assert_reported_and_halted(fault: Fault, report: &str) {
+/// triple fault would end it) keeps running. The report must hold
+/// `expected`, and say where the CPU was (the frame, or the panic's place).
+fn assert_reported_and_halted(fault: Fault, expected: FaultLine) {
     let option = BootOption::Fault(fault);
     let mut qemu = boot(Some(option));
     let console = qemu.wait_for_serial(line::HALTED, BOOT_TIMEOUT).unwrap();
+    let report = FaultReport::parse(&console)
+        .unwrap_or_else(|| panic!("{option}: no fault report; console:\n{console}"));
     assert!(
-        console.contains(report),
-        "expected {report:?} for {option}; console:\n{console}"
+        report.rows.contains(&Some(expected)),
+        "expected {expected:?} for {option}, read {:?}; console:\n{console}",
+        report.rows
+    );
+    assert!(
+        matches!(
+            report.rows[1],
+            Some(FaultLine::Frame(_) | FaultLine::Location { .. })
+        ),
+        "{option}: no frame or location; console:\n{console}"
     );
     assert_eq!(
         qemu.wait_exit(Duration::from_secs(2)).unwrap(),
@@ -42,8 +54,20 @@ fn assert_reported_and_halted(fault: Fault, report: &str) {
     let screen = qemu.screendump().unwrap();
     assert_eq!(
         (screen.width, screen.height),
-        (720, 400),
-        "{option}: the screen is not in 80x25 text"
+        (640, 400),
+        "{option}: the screen is not in 80x25 text with 8-dot cells"
+    );
+    // Its QR code says what the kernel encoded, the report first.
+    let encoded: Vec<&str> = report.qr_lines().collect();
+    assert_eq!(
+        encoded.first().copied().and_then(FaultLine::parse),
+        report.fault(),
+        "{option}: the code's text does not start with the fault"
+    );
+    assert_eq!(
+        common::decode_qr_codes(&screen),
+        [encoded.join("\n")],
+        "{option}: the panel's QR code"
     );
     let count = |is: fn([u8; 3]) -> bool| screen.pixels.iter().filter(|&&p| is(p)).count();
     let (red, white) = (count(is_red), count(is_white));
@@ -65,30 +89,36 @@ fn is_white([r, g, b]: [u8; 3]) -> bool {
 
 #[test]
 fn invalid_opcode_is_reported_and_the_kernel_halts() {
-    assert_reported_and_halted(Fault::InvalidOpcode, "EXCEPTION: invalid opcode");
+    assert_reported_and_halted(Fault::InvalidOpcode, FaultLine::Exception("invalid opcode"));
 }
 
 #[test]
 fn page_fault_is_reported_with_its_address() {
-    assert_reported_and_halted(Fault::Page, "address=0x7f00dead0000");
+    assert_reported_and_halted(Fault::Page, FaultLine::Address(0x7f00_dead_0000));
 }
 
 #[test]
 fn general_protection_fault_is_reported() {
     assert_reported_and_halted(
         Fault::GeneralProtection,
-        "EXCEPTION: general protection fault",
+        FaultLine::Exception("general protection fault"),
     );
 }
 
 #[test]
 fn stack_overflow_becomes_a_reported_double_fault() {
-    assert_reported_and_halted(Fault::StackOverflow, "EXCEPTION: double fault");
+    assert_reported_and_halted(
+        Fault::StackOverflow,
+        FaultLine::Exception("double fault (kernel stack overflow?)"),
+    );
 }
 
 #[test]
 fn panic_is_reported_and_the_kernel_halts() {
-    assert_reported_and_halted(Fault::Panic, "panic requested by the boot option");
+    assert_reported_and_halted(
+        Fault::Panic,
+        FaultLine::Panic("panic requested by the boot option"),
+    );
 }
 
 #[test]
@@ -97,7 +127,11 @@ fn breakpoint_is_reported_and_execution_resumes() {
     let console = qemu
         .wait_for_serial("breakpoint: resumed", BOOT_TIMEOUT)
         .unwrap();
-    assert!(console.contains("EXCEPTION: breakpoint"), "{console}");
+    let reported = console.lines().any(|text| {
+        matches!(FaultLine::parse(text), Some(FaultLine::Exception(kind))
+            if kind.starts_with("breakpoint at 0x"))
+    });
+    assert!(reported, "{console}");
 }
 
 #[test]

@@ -165,7 +165,12 @@ fn a_fault_while_the_report_is_shown_ends_in_the_whole_panel() {
     let lines: [&str; REPORT_LINES] = ["EXCEPTION: PAGE FAULT", "  rip=0x1234", "", ""];
     let log = ["kernel: initialised", "demo: command 1 done"];
     let mut expected = soft_vga_in_mode_x();
-    fault_panel(&mut ModeX::new(&mut *expected), &lines, &log);
+    fault_panel(
+        &mut ModeX::new(&mut *expected),
+        &lines,
+        &log,
+        b"EXCEPTION: PAGE FAULT",
+    );
 
     let mut soft = soft_vga_in_mode_x();
     let mut app = App::new();
@@ -175,11 +180,16 @@ fn a_fault_while_the_report_is_shown_ends_in_the_whole_panel() {
     assert_eq!(soft.displayed_start(), REPORT_PAGE.base());
     // As the kernel's fault path on the framebuffer: the panel straight
     // onto the model the report was drawn on.
-    fault_panel(&mut ModeX::new(&mut *soft), &lines, &log);
+    fault_panel(
+        &mut ModeX::new(&mut *soft),
+        &lines,
+        &log,
+        b"EXCEPTION: PAGE FAULT",
+    );
 
     let text_picture = |soft: &SoftVga| {
-        let mut pixels = vec![0u8; 720 * 400];
-        assert_eq!(soft.scanout_indices(&mut pixels), (720, 400));
+        let mut pixels = vec![0u8; 640 * 400];
+        assert_eq!(soft.scanout_indices(&mut pixels), (640, 400));
         pixels
     };
     assert!(text_picture(&soft) == text_picture(&expected));

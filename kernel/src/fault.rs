@@ -6,6 +6,7 @@
 
 use core::fmt::Write;
 use core::sync::atomic::{AtomicU64, Ordering};
+use machine::protocol::line::{FaultLine, InterruptFrame};
 use modex::card::Card;
 use spin::Once;
 use x86_64::structures::idt::InterruptStackFrame;
@@ -30,6 +31,8 @@ const LINE_BYTES: usize = modex::TEXT_COLUMNS as usize;
 
 /// A screen line built without a heap; text past the line's end is cut.
 type Line = machine::log::LogLine<LINE_BYTES>;
+/// A fact for the QR code (a CPU brand string is up to 48 bytes).
+type FactLine = machine::log::LogLine<120>;
 
 pub fn halt_with(
     kind: &str,
@@ -37,39 +40,45 @@ pub fn halt_with(
     error: Option<u64>,
     address: Option<u64>,
 ) -> ! {
-    let mut lines = [const { Line::new() }; REPORT_LINES];
-    let _ = write!(lines[0], "EXCEPTION: {}", kind);
-    let _ = write!(
-        lines[1],
-        "  rip={:#x} cs={:#x} rflags={:#x} rsp={:#x} ss={:#x}",
-        frame.instruction_pointer.as_u64(),
-        frame.code_segment.0,
-        frame.cpu_flags.bits(),
-        frame.stack_pointer.as_u64(),
-        frame.stack_segment.0
-    );
-    if let Some(error) = error {
-        let _ = write!(lines[2], "  error code={:#x}", error);
-    }
-    if let Some(address) = address {
-        let _ = write!(lines[3], "  address={:#x}", address);
-    }
-    report(&lines)
+    let frame = InterruptFrame {
+        rip: frame.instruction_pointer.as_u64(),
+        cs: frame.code_segment.0.into(),
+        rflags: frame.cpu_flags.bits(),
+        rsp: frame.stack_pointer.as_u64(),
+        ss: frame.stack_segment.0.into(),
+    };
+    let fault_lines = [
+        Some(FaultLine::<&str>::Exception(kind)),
+        Some(FaultLine::Frame(frame)),
+        error.map(FaultLine::ErrorCode),
+        address.map(FaultLine::Address),
+    ];
+    report(&lines_of(fault_lines))
 }
 
 pub fn halt_with_panic(info: &core::panic::PanicInfo) -> ! {
+    let location = info.location().map(|at| FaultLine::Location {
+        file: at.file(),
+        line: at.line(),
+        column: at.column(),
+    });
+    report(&lines_of([
+        Some(FaultLine::Panic(info.message())),
+        location,
+        None,
+        None,
+    ]))
+}
+
+/// The report's lines, each in its row.
+fn lines_of<M: core::fmt::Display>(
+    fault_lines: [Option<FaultLine<'_, M>>; REPORT_LINES],
+) -> [Line; REPORT_LINES] {
     let mut lines = [const { Line::new() }; REPORT_LINES];
-    let _ = write!(lines[0], "PANIC: {}", info.message());
-    if let Some(location) = info.location() {
-        let _ = write!(
-            lines[1],
-            "  at {}:{}:{}",
-            location.file(),
-            location.line(),
-            location.column()
-        );
+    for fault_line in fault_lines.into_iter().flatten() {
+        let _ = write!(lines[fault_line.row()], "{}", fault_line);
     }
-    report(&lines)
+    lines
 }
 
 fn report(lines: &[Line]) -> ! {
@@ -89,13 +98,44 @@ fn report(lines: &[Line]) -> ! {
     }
     let mut tail = [""; PANEL_LOG_LINES];
     let mut shown = 0;
+    // The facts a report needs most, for the QR code: the build, the CPU,
+    // and what the firmware and display code said.
+    let mut build = Line::new();
+    crate::report::write_build_fact(&mut build);
+    let mut cpu = FactLine::new();
+    crate::report::write_cpu_fact(&mut cpu);
+    let mut facts = [build.as_str(), cpu.as_str(), "", "", ""];
     if let Some(ring) = ring.as_deref() {
         shown = ring.len().min(PANEL_LOG_LINES);
         for (slot, back) in tail[..shown].iter_mut().zip((0..shown).rev()) {
             *slot = ring.newest(back).unwrap_or("");
         }
+        let said = [
+            ring.latest_with_any_prefix(&["firmware:"], 0),
+            ring.earliest_with_any_prefix(&["display:"], 0),
+            ring.earliest_with_any_prefix(&["display:"], 1),
+        ];
+        for (fact, text) in facts[2..].iter_mut().zip(said) {
+            *fact = text.unwrap_or("");
+        }
     }
-    show_on_screen(lines, &tail[..shown]);
+    let mut text = [""; REPORT_LINES];
+    for (text, line) in text.iter_mut().zip(lines) {
+        *text = line.as_str();
+    }
+    let mut qr_text = [0u8; demo::screens::PANEL_QR_TEXT_BYTES];
+    let qr_len = demo::screens::fault_qr_text(&text, &facts, &tail[..shown], &mut qr_text);
+    let qr_text = &qr_text[..qr_len];
+    // What the code says, on serial too (a test decodes the screen's code
+    // and compares).
+    for qr_line in qr_text.split(|&byte| byte == b'\n') {
+        crate::serial_println!(
+            "{}{}",
+            machine::protocol::line::FAULT_QR,
+            core::str::from_utf8(qr_line).unwrap_or("?")
+        );
+    }
+    show_on_screen(&text, &tail[..shown], qr_text);
     halt_forever()
 }
 
@@ -105,21 +145,17 @@ fn report(lines: &[Line]) -> ! {
 /// a fault while showing the panel goes to serial only. The interrupted code
 /// may have been half-way through a register write; the mode set starts from
 /// scratch, so that does not matter.
-fn show_on_screen(lines: &[Line], log: &[&str]) {
-    let mut text = [""; demo::screens::REPORT_LINES];
-    for (text, line) in text.iter_mut().zip(lines) {
-        *text = line.as_str();
-    }
+fn show_on_screen(text: &[&str; REPORT_LINES], log: &[&str], qr_text: &[u8]) {
     let offset = SCREEN_PHYSICAL_OFFSET.swap(0, Ordering::Acquire);
     if offset == 0 {
-        crate::framebuffer::show_fault_panel(&text, log);
+        crate::framebuffer::show_fault_panel(text, log, qr_text);
         return;
     }
     // SAFETY: the offset was recorded by the kernel after it found legacy VGA
     // through this mapping; nothing else runs after a fault, so the bus is ours.
     let bus = unsafe { crate::vga_bus::PortBus::new(offset) };
     let card = SCREEN_CARD.get().copied().unwrap_or(Card::Standard);
-    demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), &text, log);
+    demo::screens::fault_panel(&mut modex::ModeX::for_card(bus, card), text, log, qr_text);
 }
 
 /// Stops the demo with interrupts off. What is left is a loop that watches

@@ -216,7 +216,11 @@ impl Display {
 /// For the fault handler: shows the panel on the framebuffer, once, if the
 /// framebuffer display exists and no earlier fault took it. No waiting, no
 /// lock, no allocation.
-pub fn show_fault_panel(lines: &[&str; demo::screens::REPORT_LINES], log: &[&str]) -> bool {
+pub fn show_fault_panel(
+    lines: &[&str; demo::screens::REPORT_LINES],
+    log: &[&str],
+    qr_text: &[u8],
+) -> bool {
     let display = FAULT_DISPLAY.swap(core::ptr::null_mut(), Ordering::AcqRel);
     if display.is_null() {
         return false;
@@ -227,7 +231,7 @@ pub fn show_fault_panel(lines: &[&str; demo::screens::REPORT_LINES], log: &[&str
     // SAFETY: as for the display: the leaked static model, and nothing else
     // runs after a fault.
     let soft = unsafe { &mut *display.soft };
-    demo::screens::fault_panel(&mut ModeX::new(&mut *soft), lines, log);
+    demo::screens::fault_panel(&mut ModeX::new(&mut *soft), lines, log, qr_text);
     display
         .presenter
         .present(soft, &display.layout, display.pixels);

@@ -41,25 +41,8 @@ pub fn show_if_asked<B: VgaBus, R: core::borrow::BorrowMut<demo::frame::Renderer
             fact_count += 1;
         }
     };
-    add_fact(&|fact| {
-        let _ = write!(
-            fact,
-            "modex-cube {} commit {}",
-            env!("CARGO_PKG_VERSION"),
-            env!("GIT_COMMIT")
-        );
-    });
-    let cpu = cpu_identity();
-    add_fact(&|fact| {
-        let _ = match text_of_field(&cpu.brand) {
-            "" => write!(
-                fact,
-                "cpu: {} (no brand string)",
-                text_of_field(&cpu.vendor)
-            ),
-            brand => write!(fact, "cpu: {}, {}", text_of_field(&cpu.vendor), brand),
-        };
-    });
+    add_fact(&|fact| write_build_fact(fact));
+    add_fact(&|fact| write_cpu_fact(fact));
     let adapter = pci::display_controller();
     add_fact(&|fact| {
         let _ = match adapter {
@@ -164,6 +147,25 @@ pub fn show_if_asked<B: VgaBus, R: core::borrow::BorrowMut<demo::frame::Renderer
             last: position.last,
             total: position.total,
         }
+    );
+}
+
+/// "cpu: VENDOR, BRAND" (or "(no brand string)"), from CPUID.
+pub fn write_cpu_fact(out: &mut impl Write) {
+    let cpu = cpu_identity();
+    let _ = match text_of_field(&cpu.brand) {
+        "" => write!(out, "cpu: {} (no brand string)", text_of_field(&cpu.vendor)),
+        brand => write!(out, "cpu: {}, {}", text_of_field(&cpu.vendor), brand),
+    };
+}
+
+/// "modex-cube VERSION commit COMMIT".
+pub fn write_build_fact(out: &mut impl Write) {
+    let _ = write!(
+        out,
+        "modex-cube {} commit {}",
+        env!("CARGO_PKG_VERSION"),
+        env!("GIT_COMMIT")
     );
 }
 

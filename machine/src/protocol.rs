@@ -319,6 +319,199 @@ pub mod line {
         }
     }
 
+    /// Rows of a fault report: the fault itself, then where it happened, the
+    /// error code and the faulting address (a row a kind of line; rows a
+    /// fault has nothing for stay empty).
+    pub const FAULT_ROWS: usize = 4;
+
+    /// Before each line of the text the fault panel's QR code encodes, printed
+    /// after the fault's own lines (so a test can decode the code and compare).
+    pub const FAULT_QR: &str = "fault qr: ";
+
+    /// The CPU's interrupt stack frame, as a fault report prints it.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub struct InterruptFrame {
+        /// The instruction pointer.
+        pub rip: u64,
+        /// The code segment selector.
+        pub cs: u64,
+        /// The flags register.
+        pub rflags: u64,
+        /// The stack pointer.
+        pub rsp: u64,
+        /// The stack segment selector.
+        pub ss: u64,
+    }
+
+    /// One line of the report a fault or a panic prints on serial before the
+    /// halt, and the fault panel shows in its row ([`FaultLine::row`]).
+    /// `Display` writes it; [`FaultLine::parse`] reads it back. A panic's
+    /// message is any `Display` (`M`) when written, text when read.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum FaultLine<'a, M = &'a str> {
+        /// "EXCEPTION: KIND", the CPU exception's name.
+        Exception(&'a str),
+        /// "PANIC: MESSAGE".
+        Panic(M),
+        /// "  rip=0x.. cs=0x.. rflags=0x.. rsp=0x.. ss=0x..".
+        Frame(InterruptFrame),
+        /// "  at FILE:LINE:COLUMN", where a panic was raised.
+        Location {
+            /// The source file.
+            file: &'a str,
+            /// Its line.
+            line: u32,
+            /// Its column.
+            column: u32,
+        },
+        /// "  error code=0x..", the exception's error code.
+        ErrorCode(u64),
+        /// "  address=0x..", the address a page fault was for (CR2).
+        Address(u64),
+    }
+
+    impl<M> FaultLine<'_, M> {
+        const EXCEPTION: &'static str = "EXCEPTION: ";
+        const PANIC: &'static str = "PANIC: ";
+        const AT: &'static str = "  at ";
+        const ERROR_CODE: &'static str = "  error code=";
+        const ADDRESS: &'static str = "  address=";
+        const FRAME_FIELDS: [&'static str; 5] = ["rip=", "cs=", "rflags=", "rsp=", "ss="];
+
+        /// The report's row for this line, below [`FAULT_ROWS`].
+        pub const fn row(&self) -> usize {
+            match self {
+                FaultLine::Exception(_) | FaultLine::Panic(_) => 0,
+                FaultLine::Frame(_) | FaultLine::Location { .. } => 1,
+                FaultLine::ErrorCode(_) => 2,
+                FaultLine::Address(_) => 3,
+            }
+        }
+    }
+
+    /// "0x1f" as a number.
+    fn hex(text: &str) -> Option<u64> {
+        u64::from_str_radix(text.strip_prefix("0x")?, 16).ok()
+    }
+
+    impl<'a> FaultLine<'a> {
+        /// The line `text` is, if it is one (a trailing `\r` is ignored). A
+        /// line cut short reads as its own kind (a cut panic message as the
+        /// cut text, a cut number as its first digits) or as `None`, never
+        /// as another kind of line.
+        pub fn parse(text: &'a str) -> Option<FaultLine<'a>> {
+            let text = text.trim_end_matches('\r');
+            if let Some(kind) = text.strip_prefix(Self::EXCEPTION) {
+                return Some(FaultLine::Exception(kind));
+            }
+            if let Some(message) = text.strip_prefix(Self::PANIC) {
+                return Some(FaultLine::Panic(message));
+            }
+            if let Some(code) = text.strip_prefix(Self::ERROR_CODE) {
+                return hex(code).map(FaultLine::ErrorCode);
+            }
+            if let Some(address) = text.strip_prefix(Self::ADDRESS) {
+                return hex(address).map(FaultLine::Address);
+            }
+            if let Some(location) = text.strip_prefix(Self::AT) {
+                let mut parts = location.rsplitn(3, ':');
+                let column = parts.next()?.parse().ok()?;
+                let line = parts.next()?.parse().ok()?;
+                let file = parts.next()?;
+                return Some(FaultLine::Location { file, line, column });
+            }
+            let mut fields = text.strip_prefix("  ")?.split(' ');
+            let mut values = [0; 5];
+            for (value, name) in values.iter_mut().zip(Self::FRAME_FIELDS) {
+                *value = hex(fields.next()?.strip_prefix(name)?)?;
+            }
+            if fields.next().is_some() {
+                return None;
+            }
+            let [rip, cs, rflags, rsp, ss] = values;
+            Some(FaultLine::Frame(InterruptFrame {
+                rip,
+                cs,
+                rflags,
+                rsp,
+                ss,
+            }))
+        }
+    }
+
+    impl<M: fmt::Display> fmt::Display for FaultLine<'_, M> {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            match self {
+                FaultLine::Exception(kind) => write!(f, "{}{}", Self::EXCEPTION, kind),
+                FaultLine::Panic(message) => write!(f, "{}{}", Self::PANIC, message),
+                FaultLine::Frame(frame) => write!(
+                    f,
+                    "  rip={:#x} cs={:#x} rflags={:#x} rsp={:#x} ss={:#x}",
+                    frame.rip, frame.cs, frame.rflags, frame.rsp, frame.ss
+                ),
+                FaultLine::Location { file, line, column } => {
+                    write!(f, "{}{}:{}:{}", Self::AT, file, line, column)
+                }
+                FaultLine::ErrorCode(code) => write!(f, "{}{:#x}", Self::ERROR_CODE, code),
+                FaultLine::Address(address) => write!(f, "{}{:#x}", Self::ADDRESS, address),
+            }
+        }
+    }
+
+    /// The fault report in a serial console: the lines from the first
+    /// "EXCEPTION: " or "PANIC: " line up to [`HALTED`], each in its row,
+    /// and the text the fault panel's QR code encodes ([`FAULT_QR`] lines).
+    #[derive(Clone, Copy, Debug)]
+    pub struct FaultReport<'a> {
+        /// The report's lines by row; `None` where the fault has nothing.
+        pub rows: [Option<FaultLine<'a>>; FAULT_ROWS],
+        /// Where the report's first line starts in the console: what comes
+        /// before it is the log from before the fault.
+        pub start: usize,
+        /// The console from the report's first line to the halt.
+        text: &'a str,
+    }
+
+    impl<'a> FaultReport<'a> {
+        /// The report in `console`, if it has one that reached the halt.
+        pub fn parse(console: &'a str) -> Option<FaultReport<'a>> {
+            let start = console
+                .match_indices('\n')
+                .map(|(at, _)| at + 1)
+                .chain([0])
+                .filter(|&at| {
+                    let rest = &console[at..];
+                    rest.starts_with(FaultLine::<&str>::EXCEPTION)
+                        && !rest.starts_with("EXCEPTION: breakpoint")
+                        || rest.starts_with(FaultLine::<&str>::PANIC)
+                })
+                .min()?;
+            let text = &console[start..];
+            let end = text.lines().position(|l| l.trim_end() == HALTED)?;
+            let mut rows = [None; FAULT_ROWS];
+            for line in text.lines().take(end) {
+                if let Some(fault) = FaultLine::parse(line) {
+                    rows[fault.row()].get_or_insert(fault);
+                }
+            }
+            Some(FaultReport { rows, start, text })
+        }
+
+        /// The first line: the exception or the panic.
+        pub fn fault(&self) -> Option<FaultLine<'a>> {
+            self.rows[0]
+        }
+
+        /// The lines of the QR code's text, in order.
+        pub fn qr_lines(&self) -> impl Iterator<Item = &'a str> {
+            self.text
+                .lines()
+                .take_while(|l| l.trim_end() != HALTED)
+                .filter_map(|l| l.strip_prefix(FAULT_QR))
+                .map(|l| l.trim_end_matches('\r'))
+        }
+    }
+
     /// "demo: command N done": the kernel has drawn the Nth command's frame.
     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
     pub struct CommandDone(pub u64);
@@ -437,5 +630,130 @@ mod tests {
         assert!(line::is_report_line(&text));
         assert!(line::is_report_line("report log: clock: TSC"));
         assert!(!line::is_report_line("clock: TSC"));
+    }
+
+    fn every_kind_of_fault_line() -> [line::FaultLine<'static>; 7] {
+        use line::{FaultLine, InterruptFrame};
+        [
+            FaultLine::Exception("page fault"),
+            FaultLine::Panic("panic requested by the boot option"),
+            FaultLine::Frame(InterruptFrame {
+                rip: 0x8000_0123_4567,
+                cs: 0x8,
+                rflags: 0x10006,
+                rsp: 0x0100_0020_1f58,
+                ss: 0,
+            }),
+            FaultLine::Frame(InterruptFrame {
+                rip: u64::MAX,
+                cs: 0xffff,
+                rflags: u64::MAX,
+                rsp: u64::MAX,
+                ss: 0xffff,
+            }),
+            FaultLine::Location {
+                file: "C:\\odd:path/kernel/src/main.rs",
+                line: 120,
+                column: 9,
+            },
+            FaultLine::ErrorCode(0x2),
+            FaultLine::Address(0x7f00_dead_0000),
+        ]
+    }
+
+    #[test]
+    fn fault_lines_read_back_as_written() {
+        for fault in every_kind_of_fault_line() {
+            let text = fault.to_string();
+            assert_eq!(line::FaultLine::parse(&text), Some(fault), "{text:?}");
+            let serial = text.clone() + "\r";
+            assert_eq!(line::FaultLine::parse(&serial), Some(fault));
+        }
+        // The kernel's text, byte for byte.
+        let [exception, _, frame, _, location, code, address] = every_kind_of_fault_line();
+        assert_eq!(exception.to_string(), "EXCEPTION: page fault");
+        assert_eq!(
+            frame.to_string(),
+            "  rip=0x800001234567 cs=0x8 rflags=0x10006 rsp=0x10000201f58 ss=0x0"
+        );
+        assert_eq!(
+            location.to_string(),
+            "  at C:\\odd:path/kernel/src/main.rs:120:9"
+        );
+        assert_eq!(code.to_string(), "  error code=0x2");
+        assert_eq!(address.to_string(), "  address=0x7f00dead0000");
+        let rows = every_kind_of_fault_line().map(|l| l.row());
+        assert_eq!(rows, [0, 0, 1, 1, 1, 2, 3]);
+        assert!(rows.iter().all(|&row| row < line::FAULT_ROWS));
+    }
+
+    #[test]
+    fn cut_fault_lines_are_never_read_as_another_line() {
+        for fault in every_kind_of_fault_line() {
+            let text = fault.to_string();
+            for cut in 0..text.len() {
+                let Some(read) = line::FaultLine::parse(&text[..cut]) else {
+                    continue;
+                };
+                // What a cut line reads as is its own kind, in its own row.
+                assert_eq!(
+                    core::mem::discriminant(&read),
+                    core::mem::discriminant(&fault),
+                    "{:?}",
+                    &text[..cut]
+                );
+                assert_eq!(read.row(), fault.row());
+            }
+        }
+        // A cut panic message is the cut text.
+        assert_eq!(
+            line::FaultLine::parse("PANIC: out of mem"),
+            Some(line::FaultLine::Panic("out of mem"))
+        );
+        for other in [
+            "HALTED",
+            "",
+            "  ",
+            "  rip=0x1",
+            "  at main.rs",
+            "stack: 1 KiB",
+        ] {
+            assert_eq!(line::FaultLine::parse(other), None, "{other:?}");
+        }
+    }
+
+    #[test]
+    fn a_fault_report_is_read_from_a_console() {
+        let console = "modex-cube kernel v0.1.0\r\n\
+            EXCEPTION: breakpoint at 0x1000\r\n\
+            breakpoint: resumed\r\n\
+            stack: 12 KiB used\r\n\
+            EXCEPTION: page fault\r\n  \
+            rip=0x10 cs=0x8 rflags=0x2 rsp=0x20 ss=0x0\r\n  \
+            error code=0x2\r\n  \
+            address=0xdead\r\n\
+            fault qr: EXCEPTION: page fault\r\n\
+            fault qr: firmware: BIOS\r\n\
+            HALTED\r\n\
+            fault qr: after the halt\r\n";
+        let report = line::FaultReport::parse(console).unwrap();
+        assert_eq!(
+            report.fault(),
+            Some(line::FaultLine::Exception("page fault"))
+        );
+        assert_eq!(report.rows[2], Some(line::FaultLine::ErrorCode(2)));
+        assert!(console[..report.start].ends_with("used\r\n"));
+        assert_eq!(report.rows[3], Some(line::FaultLine::Address(0xdead)));
+        assert!(matches!(report.rows[1], Some(line::FaultLine::Frame(f)) if f.rip == 0x10));
+        let qr: std::vec::Vec<&str> = report.qr_lines().collect();
+        assert_eq!(qr, ["EXCEPTION: page fault", "firmware: BIOS"]);
+
+        let panic = "PANIC: oops\n  at src/main.rs:1:2\nHALTED\n";
+        let report = line::FaultReport::parse(panic).unwrap();
+        assert_eq!(report.rows[0], Some(line::FaultLine::Panic("oops")));
+        assert_eq!(report.rows[2], None);
+        // No halt, no report.
+        assert!(line::FaultReport::parse("PANIC: oops\n").is_none());
+        assert!(line::FaultReport::parse("EXCEPTION: breakpoint at 0x1\nHALTED\n").is_none());
     }
 }

@@ -268,6 +268,25 @@ pub const TEXT_80X25: ModeRegisters = ModeRegisters {
     ),
 };
 
+/// Mode 3 with 8-dot cells (640x400, the 25.175 MHz clock keeps the line
+/// rate), 512 characters (attribute bit 3 clear picks map B, loaded 8 KiB
+/// into plane 2; set picks map A, the font) and blinking off (attribute bit 7
+/// is a bright background). The fault panel draws its QR code with map B.
+pub const TEXT_80X25_TWO_MAPS: ModeRegisters = {
+    let mut mode = TEXT_80X25;
+    // Colour I/O, RAM enabled, 25.175 MHz dot clock, 400-line sync.
+    mode.misc_output = 0x63;
+    mode.sequencer[Sequencer::ClockingMode as usize].1 = seq::CLOCKING_8_DOT;
+    // Map A at 0 (bits 5, 3-2), map B at 8 KiB (bits 4, 1-0).
+    mode.sequencer[Sequencer::CharacterMapSelect as usize].1 = 0x10;
+    // Text, line graphics, no blink.
+    mode.attribute[Attribute::ModeControl.slot()].1 = 0x04;
+    // 8-dot cells are not panned.
+    mode.attribute[Attribute::HorizontalPixelPanning.slot()].1 = 0x00;
+    mode
+};
+const _: () = assert!(TEXT_80X25_TWO_MAPS.in_index_order());
+
 /// The CPU window is cleared in two fills because a fill's count is 16 bits.
 const CLEAR_CHUNK_BYTES: u16 = 0x8000;
 

@@ -1,7 +1,8 @@
 //! The fallback 80x25 colour text mode, set from scratch without the BIOS,
-//! with a caller-supplied 8x8 font shown in 9x16 cells.
+//! with a caller-supplied 8x8 font shown in 9x16 cells (or in 8x16 cells
+//! beside a second character map of blocks, for the fault panel's QR code).
 
-use crate::mode::TEXT_80X25;
+use crate::mode::{ModeRegisters, TEXT_80X25, TEXT_80X25_TWO_MAPS};
 use crate::palette::EGA_PALETTE;
 use crate::regs::{seq, Crtc, Graphics, PlaneMask, Sequencer};
 use crate::{ModeX, VgaBus};
@@ -24,8 +25,14 @@ const GLYPH_SLOTS: u16 = 256;
 /// The font covers ASCII; other characters show as this.
 const REPLACEMENT_CHARACTER: u8 = b'?';
 const BLANK: u8 = b' ';
+/// Block rows of a block character, and scan lines of each.
+const BLOCK_ROWS: u16 = 4;
+const BLOCK_LINES: u16 = 4;
 /// Light grey on black.
 const DEFAULT_ATTRIBUTE: u8 = 0x07;
+/// White on black, for the blank screen with the block map: attribute bit 3
+/// set, so blanks are the font's spaces, not blocks.
+const DEFAULT_ATTRIBUTE_WITH_BLOCKS: u8 = 0x0F;
 
 /// Planes 0 and 1: characters and attributes.
 const TEXT_PLANES: PlaneMask = PlaneMask::from_bits_truncate(0x03);
@@ -48,9 +55,55 @@ impl<B: VgaBus> ModeX<B> {
     /// row bit 7 leftmost) in plane 2 with each row shown twice, a blank
     /// light-grey screen, and the cursor parked off screen.
     pub fn set_text_mode(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
-        self.program(&TEXT_80X25);
+        self.enter_text_mode(&TEXT_80X25, font, false);
+    }
+
+    /// As [`ModeX::set_text_mode`], but with 8-dot cells (640x400),
+    /// blinking off (attribute bit 7 is a bright background) and a second
+    /// character map of blocks: with attribute bit 3 clear, character `n`
+    /// is a 2-wide, 4-tall block of squares of 4x4 dots, square `k` (left to
+    /// right, then top to bottom) in the foreground colour if bit `k` of `n`
+    /// is set. Attributes with bit 3 set show `font`; the blank screen is
+    /// white on black spaces of the font. Each cell can so carry eight
+    /// modules of a QR code.
+    pub fn set_text_mode_with_blocks(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
+        self.enter_text_mode(&TEXT_80X25_TWO_MAPS, font, true);
+    }
+
+    /// Writes raw character codes (any of 256, no translation) at (`row`,
+    /// `col`) with `attribute`, cut at the end of the line.
+    pub fn write_characters(&mut self, row: u8, col: u8, characters: &[u8], attribute: u8) {
+        if row >= TEXT_ROWS || col >= TEXT_COLUMNS {
+            return;
+        }
+        let start = (u16::from(row) * u16::from(TEXT_COLUMNS) + u16::from(col)) * BYTES_PER_CELL;
+        let room = usize::from(TEXT_COLUMNS - col);
+        self.with_text_window(|vga| {
+            vga.io.set_map_mask(TEXT_PLANES);
+            for (offset, &character) in (start..)
+                .step_by(usize::from(BYTES_PER_CELL))
+                .zip(characters.iter().take(room))
+            {
+                vga.io.write_vram8(offset, character);
+                vga.io.write_vram8(offset + 1, attribute);
+            }
+        });
+    }
+
+    fn enter_text_mode(
+        &mut self,
+        mode: &ModeRegisters,
+        font: &[[u8; GLYPH_ROWS]; 128],
+        blocks: bool,
+    ) {
+        self.program(mode);
         self.load_palette(0, &EGA_PALETTE);
-        self.load_font(font);
+        self.load_font(font, blocks);
+        let blank_attribute = if blocks {
+            DEFAULT_ATTRIBUTE_WITH_BLOCKS
+        } else {
+            DEFAULT_ATTRIBUTE
+        };
         // Character and attribute pairs through both planes, as text is
         // written: odd/even addressing sends each byte to its plane. (Filling
         // each plane alone relies on odd/even too, and Bochs, which does not
@@ -60,7 +113,7 @@ impl<B: VgaBus> ModeX<B> {
             for cell in 0..CELLS {
                 vga.io.write_vram8(cell * BYTES_PER_CELL, BLANK);
                 vga.io
-                    .write_vram8(cell * BYTES_PER_CELL + 1, DEFAULT_ATTRIBUTE);
+                    .write_vram8(cell * BYTES_PER_CELL + 1, blank_attribute);
             }
         });
         let [high, low] = CELLS.to_be_bytes();
@@ -95,6 +148,23 @@ impl<B: VgaBus> ModeX<B> {
         });
     }
 
+    /// Map B of [`ModeX::set_text_mode_with_blocks`], 8 KiB into plane 2
+    /// (Character Map Select 0x10), while plane 2 is sequential memory.
+    fn load_block_map(&mut self) {
+        let base = GLYPH_SLOTS * GLYPH_SLOT_BYTES;
+        self.io.fill_vram(base, GLYPH_SLOTS * GLYPH_SLOT_BYTES, 0);
+        for character in 0..GLYPH_SLOTS {
+            let slot = base + character * GLYPH_SLOT_BYTES;
+            for block_row in 0..BLOCK_ROWS {
+                let bits = character >> (2 * block_row);
+                let left = if bits & 1 != 0 { 0xF0 } else { 0 };
+                let right = if bits & 2 != 0 { 0x0F } else { 0 };
+                self.io
+                    .fill_vram(slot + block_row * BLOCK_LINES, BLOCK_LINES, left | right);
+            }
+        }
+    }
+
     /// Runs `access` with text memory mapped at A0000.
     fn with_text_window(&mut self, access: impl FnOnce(&mut Self)) {
         let misc = TEXT_80X25.graphics_value(Graphics::Misc);
@@ -105,7 +175,7 @@ impl<B: VgaBus> ModeX<B> {
 
     /// Loads the font into plane 2 (glyph n at n * 32), rows doubled and the
     /// unused slots blank, then restores text addressing.
-    fn load_font(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
+    fn load_font(&mut self, font: &[[u8; GLYPH_ROWS]; 128], blocks: bool) {
         // Plane 2 as plain sequential memory, the way the BIOS loads fonts.
         self.io
             .write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
@@ -131,6 +201,9 @@ impl<B: VgaBus> ModeX<B> {
                 self.io
                     .fill_vram(slot + row, SCAN_LINES_PER_GLYPH_ROW, bits);
             }
+        }
+        if blocks {
+            self.load_block_map();
         }
 
         // Back to the text mode's odd/even addressing.

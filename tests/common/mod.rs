@@ -110,11 +110,11 @@ pub fn model_picture(soft: &SoftVga) -> RgbImage {
 pub fn text_picture(soft: &SoftVga) -> RgbImage {
     let mut rgb = vec![[0u8; 3]; 720 * 400];
     let (width, height) = soft.scanout_rgb(&mut rgb);
-    assert_eq!(
-        (width, height),
-        (720, 400),
-        "the model is not in 80x25 text"
+    assert!(
+        matches!((width, height), (720 | 640, 400)),
+        "the model is not in 80x25 text: {width}x{height}"
     );
+    rgb.truncate(width * height);
     RgbImage::new(width, height, rgb)
 }
 

@@ -13,35 +13,26 @@
 
 use super::{boot, boot_with, presented, UEFI_BOOT_TIMEOUT, UEFI_FRAMEBUFFER};
 use crate::common::{
-    assert_pictures_equal, boot_bios, escape_leaves_the_goodbye_on_the_framebuffer,
-    soft_vga_in_mode_x, text_picture, BOOT_TIMEOUT,
+    assert_pictures_equal, boot_bios, decode_qr_codes,
+    escape_leaves_the_goodbye_on_the_framebuffer, soft_vga_in_mode_x, text_picture, BOOT_TIMEOUT,
 };
+use boot::line::FaultReport;
 use boot::{line, BootOption, BootRequest, Fault, Firmware, Graphics, RgbImage};
 use demo::screens::REPORT_LINES;
 use modex::ModeX;
 use std::time::Duration;
 
+/// The fault report the kernel printed on serial.
+fn fault_report(console: &str) -> FaultReport<'_> {
+    FaultReport::parse(console).unwrap_or_else(|| panic!("no fault report on serial:\n{console}"))
+}
+
 /// The panel's lines as the kernel printed them on serial, each in its row
-/// (serial leaves out empty lines; their prefixes say where each belongs).
+/// (serial leaves out empty lines).
 fn report_lines(console: &str) -> [String; REPORT_LINES] {
-    let start = console
-        .find("EXCEPTION: ")
-        .or_else(|| console.find("PANIC: "))
-        .unwrap_or_else(|| panic!("no report on serial:\n{console}"));
-    let mut lines: [String; REPORT_LINES] = Default::default();
-    for line in console[start..]
-        .lines()
-        .take_while(|l| l.trim() != line::HALTED)
-    {
-        let row = match line {
-            l if l.starts_with("  rip=") || l.starts_with("  at ") => 1,
-            l if l.starts_with("  error code=") => 2,
-            l if l.starts_with("  address=") => 3,
-            _ => 0,
-        };
-        lines[row] = line.trim_end_matches('\r').to_owned();
-    }
-    lines
+    fault_report(console)
+        .rows
+        .map(|row| row.map(|line| line.to_string()).unwrap_or_default())
 }
 
 /// The kernel's log before the fault, as the panel shows it: its serial
@@ -51,27 +42,38 @@ fn log_before_fault(console: &str) -> Vec<String> {
     let first = console
         .find(line::KERNEL_BANNER)
         .unwrap_or_else(|| panic!("no kernel on serial:\n{console}"));
-    let fault = console
-        .find("EXCEPTION: ")
-        .or_else(|| console.find("PANIC: "))
-        .unwrap_or_else(|| panic!("no report on serial:\n{console}"));
-    console[first..fault]
+    console[first..fault_report(console).start]
         .lines()
         .map(|line| line.chars().take(120).collect())
         .collect()
 }
 
+/// The text the kernel encoded in the panel's QR code, as it printed it.
+fn qr_text(console: &str) -> String {
+    let lines: Vec<&str> = fault_report(console).qr_lines().collect();
+    assert!(!lines.is_empty(), "no QR text on serial:\n{console}");
+    lines.join("\n")
+}
+
 /// The fault panel for the kernel's serial output, drawn on a software VGA
-/// that was in Mode X.
+/// that was in Mode X. Its QR code must decode to the text the kernel
+/// encoded, which starts with the report's lines.
 fn panel_picture(console: &str) -> RgbImage {
     let lines = report_lines(console);
     let log = log_before_fault(console);
     assert!(log.len() >= 5, "{log:?}");
+    let qr = qr_text(console);
+    assert!(qr.starts_with(&lines[0]), "{qr}");
     let mut soft = soft_vga_in_mode_x();
     let text: [&str; REPORT_LINES] = std::array::from_fn(|i| lines[i].as_str());
     let log: Vec<&str> = log.iter().map(String::as_str).collect();
-    demo::screens::fault_panel(&mut ModeX::new(&mut *soft), &text, &log);
+    demo::screens::fault_panel(&mut ModeX::new(&mut *soft), &text, &log, qr.as_bytes());
     text_picture(&soft)
+}
+
+/// The screen's one QR code decodes to the text the kernel encoded.
+fn assert_code_decodes(screen: &RgbImage, console: &str, what: &str) {
+    assert_eq!(decode_qr_codes(screen), [qr_text(console)], "{what}");
 }
 
 /// Boots `option` on OVMF + bochs-display, waits for the halt, and compares
@@ -87,6 +89,7 @@ fn assert_panel_on_the_framebuffer(fault: Fault) {
     let screen = qemu.screendump().unwrap();
     let expected = presented(&panel_picture(&console), screen.width, screen.height);
     assert_pictures_equal(&screen, &expected, &format!("panel for {option}"));
+    assert_code_decodes(&screen, &console, &format!("code for {option}"));
 }
 
 #[test]
@@ -144,4 +147,5 @@ fn the_text_scan_out_matches_qemus_vga_dot_for_dot() {
     let screen = qemu.screendump().unwrap();
     let expected = panel_picture(&console);
     assert_pictures_equal(&screen, &expected, "panel on the VGA");
+    assert_code_decodes(&screen, &console, "code on the VGA");
 }

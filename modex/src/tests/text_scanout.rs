@@ -167,3 +167,48 @@ fn leaving_text_mode_brings_the_graphics_picture_back() {
     vga.set_mode();
     assert_eq!(vga.bus().picture_size(), (320, 240));
 }
+
+#[test]
+fn the_block_map_shows_each_bit_as_a_square_of_4x4_dots() {
+    let mut soft = power_on();
+    let mut vga = ModeX::new(&mut *soft);
+    vga.set_mode();
+    vga.set_text_mode_with_blocks(&font());
+    // Every block character, black on bright white (bit 3 clear: map B,
+    // blinking off: a 4-bit background); a font character beside them.
+    for character in 0..=255u8 {
+        vga.write_characters(character / 80, character % 80, &[character], 0xF0);
+    }
+    vga.write_text(10, 0, "A", 0x4F);
+    let (width, height, dots) = scan(&soft);
+    assert_eq!((width, height), (640, 400));
+    let (black, white) = (MODE_3_PALETTE[0], MODE_3_PALETTE[15]);
+    for character in 0..=255u8 {
+        let (row, column) = (usize::from(character / 80), usize::from(character % 80));
+        let cell = cell_dots(&dots, width, row, column, 8);
+        for (line, dots) in cell.iter().enumerate() {
+            for (dot, &colour) in dots.iter().enumerate() {
+                let bit = (line / 4) * 2 + dot / 4;
+                let expected = if character & (1 << bit) != 0 {
+                    black
+                } else {
+                    white
+                };
+                assert_eq!(
+                    colour, expected,
+                    "character {character} line {line} dot {dot}"
+                );
+            }
+        }
+    }
+    // Attribute bit 3 set: the font, in 8-dot cells.
+    assert_eq!(
+        cell_dots(&dots, width, 10, 0, 8),
+        expected_cell(b'A', 0x4F, 8)
+    );
+    // The blank screen is the font's spaces, white on black, not blocks.
+    assert_eq!(
+        cell_dots(&dots, width, 20, 5, 8),
+        expected_cell(b' ', 0x0F, 8)
+    );
+}
