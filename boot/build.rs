@@ -163,7 +163,11 @@ fn build_kernel(out_dir: &Path) -> PathBuf {
         // slice copies). The kernel's own crates keep theirs. (Given here,
         // not in Cargo.toml, where every other cargo command would warn
         // that no package of the workspace is called `core`.)
-        .args(STD_CRATES_OPTIMISED.iter().flat_map(|setting| ["--config", setting]))
+        .args(
+            STD_CRATES_OPTIMISED
+                .iter()
+                .flat_map(|setting| ["--config", setting]),
+        )
         // This build's flags and wrappers (clippy's) are not the kernel's.
         .env_remove("RUSTFLAGS")
         .env_remove("CARGO_ENCODED_RUSTFLAGS")
