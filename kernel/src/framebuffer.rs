@@ -27,10 +27,11 @@ use modex::{ModeX, SCREEN_HEIGHT, SCREEN_WIDTH};
 use spin::{Mutex, MutexGuard};
 
 /// The software VGA standing in for the missing one, powered on at compile
-/// time: at ~260 KiB it must never pass through the stack.
+/// time: at ~300 KiB it must never pass through the stack.
 static SOFT_VGA: Mutex<SoftVga> = Mutex::new(SoftVga::new());
 
-/// The last presented picture and the new one, ~580 KiB of zeros (.bss).
+/// The last presented picture, the new one and what the last four presents
+/// changed, ~880 KiB of zeros (.bss).
 static PRESENTER: Mutex<Presenter> = Mutex::new(Presenter::new());
 
 /// The display, once made; the fault handler's way to it (see the module
