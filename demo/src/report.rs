@@ -226,9 +226,23 @@ pub fn qr_text(report: &Report, out: &mut [u8]) -> usize {
 /// Encodes `text` (at most [`QR_TEXT_BYTES`]) and hands the code to `use_code`;
 /// `None` if it does not fit version [`QR_MAX_VERSION`].
 pub fn with_qr_code<T>(text: &[u8], use_code: impl FnOnce(&QrCode) -> T) -> Option<T> {
-    let mut data = [0u8; QR_BUFFER_BYTES];
-    let mut out = [0u8; QR_BUFFER_BYTES];
-    let len = text.len().min(QR_TEXT_BYTES).min(data.len());
+    let text = &text[..text.len().min(QR_TEXT_BYTES)];
+    encode_qr::<QR_BUFFER_BYTES, T>(text, QR_MAX_VERSION, use_code)
+}
+
+/// Encodes `text` in byte mode, low error correction, as a code of at most
+/// `max_version`, with the encoder's buffers (`BUFFER` bytes each, at least
+/// `Version::new(max_version).buffer_len()`) on the stack, and hands the
+/// code to `use_code`; `None` if it does not fit. No heap: the report
+/// screen and the fault panel both use it.
+pub fn encode_qr<const BUFFER: usize, T>(
+    text: &[u8],
+    max_version: u8,
+    use_code: impl FnOnce(&QrCode) -> T,
+) -> Option<T> {
+    let mut data = [0u8; BUFFER];
+    let mut out = [0u8; BUFFER];
+    let len = text.len().min(BUFFER);
     data[..len].copy_from_slice(&text[..len]);
     let code = QrCode::encode_binary(
         &mut data,
@@ -236,7 +250,7 @@ pub fn with_qr_code<T>(text: &[u8], use_code: impl FnOnce(&QrCode) -> T) -> Opti
         &mut out,
         QrCodeEcc::Low,
         Version::MIN,
-        Version::new(QR_MAX_VERSION),
+        Version::new(max_version),
         None,
         true,
     )

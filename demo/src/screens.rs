@@ -5,7 +5,7 @@
 
 use crate::report::fit;
 use modex::{ModeX, VgaBus, TEXT_COLUMNS, TEXT_ROWS};
-use qrcodegen_no_heap::{QrCode, QrCodeEcc, Version};
+use qrcodegen_no_heap::{QrCode, Version};
 
 /// font8x8's glyphs keep the leftmost pixel in bit 0; the VGA's character
 /// generator reads it from bit 7.
@@ -170,22 +170,19 @@ pub fn fault_panel<B: VgaBus>(
 /// Encodes `text` (cut at [`PANEL_QR_TEXT_BYTES`]) and writes the code's
 /// cells; the cells stay white if it does not encode.
 fn draw_code<B: VgaBus>(vga: &mut ModeX<B>, text: &[u8]) {
-    let mut data = [0u8; QR_BUFFER_BYTES];
-    let mut out = [0u8; QR_BUFFER_BYTES];
-    let len = text.len().min(PANEL_QR_TEXT_BYTES);
-    data[..len].copy_from_slice(&text[..len]);
-    let code = QrCode::encode_binary(
-        &mut data,
-        len,
-        &mut out,
-        QrCodeEcc::Low,
-        Version::MIN,
-        Version::new(PANEL_QR_MAX_VERSION),
-        None,
-        true,
-    )
-    .ok();
-    let (size, dark) = match &code {
+    let text = &text[..text.len().min(PANEL_QR_TEXT_BYTES)];
+    let drawn =
+        crate::report::encode_qr::<QR_BUFFER_BYTES, ()>(text, PANEL_QR_MAX_VERSION, |code| {
+            draw_code_cells(vga, Some(code))
+        });
+    if drawn.is_none() {
+        draw_code_cells(vga, None);
+    }
+}
+
+/// Writes the cells of `code` (all white for none), centred in its area.
+fn draw_code_cells<B: VgaBus>(vga: &mut ModeX<B>, code: Option<&QrCode>) {
+    let (size, dark) = match code {
         Some(code) => (code.size(), Some(code)),
         None => (0, None),
     };

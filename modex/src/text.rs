@@ -84,6 +84,7 @@ impl<B: VgaBus> ModeX<B> {
                 .step_by(usize::from(BYTES_PER_CELL))
                 .zip(characters.iter().take(room))
             {
+                // Odd/even addressing: the even byte goes to plane 0, the odd to plane 1.
                 vga.io.write_vram8(offset, character);
                 vga.io.write_vram8(offset + 1, attribute);
             }
@@ -125,27 +126,17 @@ impl<B: VgaBus> ModeX<B> {
     /// (background << 4 | foreground), cut at the end of the line. Characters
     /// outside ASCII show as '?'; a position off screen writes nothing.
     pub fn write_text(&mut self, row: u8, col: u8, text: &str, attribute: u8) {
-        if row >= TEXT_ROWS || col >= TEXT_COLUMNS {
-            return;
+        let mut glyphs = [0u8; TEXT_COLUMNS as usize];
+        let mut count = 0;
+        for (glyph, character) in glyphs.iter_mut().zip(text.chars()) {
+            *glyph = if character.is_ascii() {
+                character as u8
+            } else {
+                REPLACEMENT_CHARACTER
+            };
+            count += 1;
         }
-        let start = (u16::from(row) * u16::from(TEXT_COLUMNS) + u16::from(col)) * BYTES_PER_CELL;
-        let room = usize::from(TEXT_COLUMNS - col);
-        self.with_text_window(|vga| {
-            vga.io.set_map_mask(TEXT_PLANES);
-            for (offset, character) in (start..)
-                .step_by(usize::from(BYTES_PER_CELL))
-                .zip(text.chars().take(room))
-            {
-                let glyph = if character.is_ascii() {
-                    character as u8
-                } else {
-                    REPLACEMENT_CHARACTER
-                };
-                // Odd/even addressing: the even byte goes to plane 0, the odd to plane 1.
-                vga.io.write_vram8(offset, glyph);
-                vga.io.write_vram8(offset + 1, attribute);
-            }
-        });
+        self.write_characters(row, col, &glyphs[..count], attribute);
     }
 
     /// Map B of [`ModeX::set_text_mode_with_blocks`], 8 KiB into plane 2
