@@ -466,13 +466,15 @@ fn differing_quads(
     differing
 }
 
-/// Bit `k` set for each nonzero byte `k` of `word` (in memory order).
-fn nonzero_bytes(word: u64) -> u32 {
-    word.to_ne_bytes()
-        .iter()
-        .enumerate()
-        .filter(|(_, &byte)| byte != 0)
-        .fold(0, |bits, (k, _)| bits | 1 << k)
+/// Bit `k` set for each nonzero byte `k` of `word` (bits 8k to 8k + 7;
+/// [`word`] reads little-endian, so byte `k` is the `k`-th in memory).
+pub(super) fn nonzero_bytes(word: u64) -> u32 {
+    const LOW_SEVEN: u64 = 0x7F7F_7F7F_7F7F_7F7F;
+    // Each byte's top bit: set where the byte is nonzero (its low seven
+    // bits carry into it, or it was set); no carry crosses a byte.
+    let nonzero = ((word & LOW_SEVEN).wrapping_add(LOW_SEVEN) | word) & !LOW_SEVEN;
+    // The eight top bits gathered into the low byte, byte k to bit k.
+    ((nonzero >> 7).wrapping_mul(0x0102_0408_1020_4080) >> 56) as u32
 }
 
 /// Calls `span` with each maximal run of positions below `len` where
@@ -530,7 +532,7 @@ fn changed_runs(new: &[u8], old: &[u8], mut span: impl FnMut(Range<usize>)) {
 fn word(indices: &[u8], at: usize) -> u64 {
     indices[at..]
         .first_chunk::<8>()
-        .map_or(0, |bytes| u64::from_ne_bytes(*bytes))
+        .map_or(0, |bytes| u64::from_le_bytes(*bytes))
 }
 
 /// Whether two runs of indices are equal, compared eight at a time: the
@@ -580,6 +582,8 @@ fn write_span(
     }
 }
 
+/// Spans this short (in picture pixels) are written pixel by pixel.
+const SHORT_SPAN_COLUMNS: usize = 2;
 /// Screen pixels of a span scaled once and copied to each of its lines.
 const SCALED_SPAN_PIXELS: usize = 256;
 /// Bytes of the buffer they are scaled into (kept in the presenter, so it is
@@ -606,8 +610,10 @@ fn write_span_of<const N: usize>(
     if lines.is_empty() {
         return 0;
     }
-    if scale > SCALED_SPAN_PIXELS {
-        // A screen over 256 times the picture's width: pixel by pixel.
+    if scale > SCALED_SPAN_PIXELS || columns.len() <= SHORT_SPAN_COLUMNS {
+        // A screen over 256 times the picture's width, or a span of a pixel
+        // or two (most of a spinning frame's: its edges): pixel by pixel,
+        // without the set-up of scaling it once.
         let mut written = 0;
         for y in lines {
             let Some(line) = layout.visible_line(out, y) else {

@@ -161,3 +161,21 @@ fn a_new_start_address_scans_everything() {
     assert_eq!(report.pixels_scanned, 320 * 240);
     assert_eq!(out, full(&soft, &layout, out.len()));
 }
+
+/// The word trick finds exactly the nonzero bytes, for every pattern of
+/// zero and nonzero bytes and values that test each bit of a byte.
+#[test]
+fn nonzero_bytes_are_found_exactly() {
+    use super::changes::nonzero_bytes;
+    for pattern in 0..=255u32 {
+        for value in [0x01u8, 0x7F, 0x80, 0xFF, 0x40] {
+            let bytes: [u8; 8] =
+                core::array::from_fn(|k| if pattern & 1 << k != 0 { value } else { 0 });
+            assert_eq!(
+                nonzero_bytes(u64::from_le_bytes(bytes)),
+                pattern,
+                "{bytes:?}"
+            );
+        }
+    }
+}
