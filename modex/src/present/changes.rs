@@ -113,8 +113,6 @@ pub struct Presenter {
     remembered: usize,
     /// The tiles this present scans out and compares.
     to_scan: TileSet,
-    /// Where a span is scaled before it is copied to its screen lines.
-    span_buffer: [u8; SPAN_BUFFER_BYTES],
 }
 
 /// Leaves out the pictures and the palette, ~870 KiB.
@@ -158,7 +156,6 @@ impl Presenter {
             newest: 0,
             remembered: 0,
             to_scan: TileSet::new(),
-            span_buffer: [0; SPAN_BUFFER_BYTES],
         }
     }
 
@@ -203,15 +200,10 @@ impl Presenter {
         } else {
             self.find_tiles_to_scan(soft, &source, size);
         }
-        let pixels_scanned = if pixels > 0 {
-            self.to_scan.pixels(size)
-        } else {
-            0
-        };
         // The oldest remembered present, no longer needed once the tiles to
         // scan are known, becomes this one.
         let slot = (self.newest + 1) % REMEMBERED_PRESENTS;
-        let bytes_written = if full {
+        let (bytes_written, pixels_scanned) = if full {
             if pixels > 0 {
                 soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
             }
@@ -222,32 +214,30 @@ impl Presenter {
             self.shown[..pixels].copy_from_slice(picture);
             take_into_planes(&mut self.shown_planes, 0, picture);
             self.past[slot].changed.fill(size);
-            full_present_bytes(layout, out.len())
+            (full_present_bytes(layout, out.len()), pixels)
         } else {
             let mut recoloured = [false; 256];
+            let mut any_recoloured = false;
             if !same_colours {
                 for (flag, (new, old)) in recoloured
                     .iter_mut()
                     .zip(palette.iter().zip(&self.shown_palette))
                 {
                     *flag = new != old;
+                    any_recoloured |= *flag;
                 }
             }
-            if recoloured.contains(&true) {
-                if pixels > 0 && self.to_scan.any(size.1) {
-                    soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
-                }
-                self.present_changes(size, &palette, &recoloured, layout, out, slot)
-            } else if let Some(written) =
-                self.present_from_planes(soft, size, &palette, layout, out, slot)
-            {
-                written
+            let from_planes = if any_recoloured {
+                None
             } else {
+                self.present_from_planes(soft, size, &palette, layout, out, slot)
+            };
+            from_planes.unwrap_or_else(|| {
                 if pixels > 0 && self.to_scan.any(size.1) {
                     soft.scanout_tiles(&self.to_scan, &mut self.current[..pixels]);
                 }
                 self.present_changes(size, &palette, &recoloured, layout, out, slot)
-            }
+            })
         };
         self.past[slot].source = source;
         self.past[slot].memory_writes = memory_writes;
@@ -285,9 +275,10 @@ impl Presenter {
     /// [`Self::present_changes`] for 256-colour pictures whose colours did
     /// not change, reading the tiles straight from the planes and comparing
     /// them with the shown picture kept plane by plane: eight quads of a
-    /// plane in one word, so a tile costs eight comparisons and only the
-    /// quads that differ are gathered into pixels. None (nothing done) in
-    /// other modes.
+    /// plane in one word, so an unchanged tile costs eight comparisons, and
+    /// a changed one becomes a mask of its changed pixels whose runs of set
+    /// bits are the spans to write. Returns the bytes written and the pixels
+    /// compared; None (nothing done) in other modes.
     fn present_from_planes(
         &mut self,
         soft: &SoftVga,
@@ -296,66 +287,47 @@ impl Presenter {
         layout: &FramebufferLayout,
         out: &mut [u8],
         slot: usize,
-    ) -> Option<usize> {
-        let placement = Placement::fit((width, height), (layout.width, layout.height));
+    ) -> Option<(usize, usize)> {
+        let spans = Spans::new(layout, (width, height), out.len());
         let changed = &mut self.past[slot].changed;
         changed.clear();
         let (shown, shown_planes) = (&mut self.shown, &mut self.shown_planes);
-        let span_buffer = &mut self.span_buffer;
         let mut written = 0;
+        let mut pixels_compared = 0;
         let visited = soft.visit_tiles_in_planes(&self.to_scan, |row, tile, planes| {
+            let quads = planes[0].len();
+            pixels_compared += quads * PLANE_COUNT;
             let tile_start = tile * TILE_PIXELS;
             let first = row * width + tile_start;
             // 256-colour widths are whole quads, so the tile's quads start
             // at a quad of the flat picture.
             let first_quad = first / PLANE_COUNT;
-            let quads = planes[0].len();
-            let differing = differing_quads(&planes, shown_planes, first_quad);
-            if differing == 0 {
+            let changed_pixels = changed_pixels(&planes, shown_planes, first_quad);
+            if changed_pixels == 0 {
                 return;
             }
             changed.insert(row, tile);
-            let shown = &mut shown[first..first + quads * PLANE_COUNT];
-            let mut emit = |run: Range<usize>, shown: &[u8]| {
+            take_tile(
+                &planes,
+                changed_pixels,
+                &mut shown[first..first + quads * PLANE_COUNT],
+                shown_planes,
+                first_quad,
+            );
+            let index = |x: usize| planes[x % PLANE_COUNT][x / PLANE_COUNT];
+            for_each_run_of_bits(changed_pixels, |run| {
                 let columns = tile_start + run.start..tile_start + run.end;
-                let pixel = |column: usize| palette[usize::from(shown[column - tile_start])];
-                written += write_span(layout, &placement, row, columns, pixel, out, span_buffer);
-            };
-            let mut run_start = None;
-            let mut next_quad = 0;
-            let mut quads_left = differing;
-            while quads_left != 0 {
-                let quad = quads_left.trailing_zeros() as usize;
-                quads_left &= quads_left - 1;
-                let x = quad * PLANE_COUNT;
-                // A run does not reach over a quad that did not change.
-                if quad != next_quad {
-                    if let Some(start) = run_start.take() {
-                        emit(start..next_quad * PLANE_COUNT, shown);
-                    }
-                }
-                next_quad = quad + 1;
-                for (plane, source) in planes.iter().enumerate() {
-                    let index = source[quad];
-                    if index != shown[x + plane] {
-                        run_start.get_or_insert(x + plane);
-                        shown[x + plane] = index;
-                        shown_planes[plane][first_quad + quad] = index;
-                    } else if let Some(start) = run_start.take() {
-                        emit(start..x + plane, shown);
-                    }
-                }
-            }
-            if let Some(start) = run_start {
-                emit(start..next_quad * PLANE_COUNT, shown);
-            }
+                let pixel = |column: usize| palette[usize::from(index(column - tile_start))];
+                written += spans.write(row, columns, pixel, out);
+            });
         });
-        visited.then_some(written)
+        visited.then_some((written, pixels_compared))
     }
 
     /// Writes the pixels of the scanned tiles whose index changed, and those
     /// anywhere whose colour changed; notes the tiles that changed in
     /// `self.past[slot]` and takes the scanned ones into the shown picture.
+    /// Returns the bytes written and the pixels compared.
     fn present_changes(
         &mut self,
         (width, height): (usize, usize),
@@ -364,13 +336,14 @@ impl Presenter {
         layout: &FramebufferLayout,
         out: &mut [u8],
         slot: usize,
-    ) -> usize {
+    ) -> (usize, usize) {
         let any_recoloured = recoloured.contains(&true);
-        let placement = Placement::fit((width, height), (layout.width, layout.height));
+        let spans = Spans::new(layout, (width, height), out.len());
         let across = TileSet::across(width);
         let changed = &mut self.past[slot].changed;
         changed.clear();
         let mut written = 0;
+        let mut pixels_compared = 0;
         for row in 0..height {
             let scanned = self.to_scan.row(row);
             // Most rows of most frames: nothing to look at.
@@ -384,6 +357,9 @@ impl Presenter {
                     continue;
                 }
                 let columns = TileSet::columns(tile, width);
+                if was_scanned {
+                    pixels_compared += columns.len();
+                }
                 let pixels = line.start + columns.start..line.start + columns.end;
                 let old = &self.shown[pixels.clone()];
                 // A tile not scanned shows what it showed.
@@ -401,11 +377,9 @@ impl Presenter {
                 }
                 let first = columns.start;
                 let pixel = |column: usize| palette[usize::from(new[column - first])];
-                let span_buffer = &mut self.span_buffer;
                 let mut span = |span: Range<usize>| {
                     let columns = first + span.start..first + span.end;
-                    written +=
-                        write_span(layout, &placement, row, columns, pixel, out, span_buffer);
+                    written += spans.write(row, columns, pixel, out);
                 };
                 if any_recoloured {
                     let changed_at = |x: usize| new[x] != old[x] || recoloured[usize::from(new[x])];
@@ -420,7 +394,7 @@ impl Presenter {
                 }
             }
         }
-        written
+        (written, pixels_compared)
     }
 }
 
@@ -437,33 +411,100 @@ fn take_into_planes(
     }
 }
 
-/// The quads of a tile (bit `q` for quad `q`, up to 16) whose bytes in
-/// `planes` differ from those at `first_quad` of `shown_planes`, eight quads
-/// of a plane compared as one word.
-fn differing_quads(
+/// The pixels of a tile (bit `4q + p` for plane `p`'s byte of quad `q`,
+/// up to 16 quads) whose indices in `planes` differ from those at
+/// `first_quad` of `shown_planes`.
+fn changed_pixels(
     planes: &[&[u8]; PLANE_COUNT],
     shown_planes: &[[u8; PLANE_QUADS]; PLANE_COUNT],
     first_quad: usize,
-) -> u32 {
-    let quads = planes[0].len();
-    let mut differing = 0u32;
-    for (source, shown) in planes.iter().zip(shown_planes) {
-        let shown = &shown[first_quad..first_quad + quads];
-        let mut quad = 0;
-        while quad + 8 <= quads {
-            let changed_bytes = word(source, quad) ^ word(shown, quad);
-            if changed_bytes != 0 {
-                differing |= nonzero_bytes(changed_bytes) << quad;
-            }
-            quad += 8;
-        }
-        for (offset, (new, old)) in source[quad..].iter().zip(&shown[quad..]).enumerate() {
-            if new != old {
-                differing |= 1 << (quad + offset);
-            }
+) -> u64 {
+    let mut pixels = 0;
+    for (plane, (source, shown)) in planes.iter().zip(shown_planes).enumerate() {
+        let differing = differing_bytes(source, &shown[first_quad..first_quad + source.len()]);
+        // Most planes of most scanned tiles: unchanged.
+        if differing != 0 {
+            pixels |= every_fourth_bit(differing) << plane;
         }
     }
-    differing
+    pixels
+}
+
+/// Bit `k` set for each byte `k` where `new` and `old` differ (up to 16
+/// bytes): a whole tile's plane as two words.
+fn differing_bytes(new: &[u8], old: &[u8]) -> u16 {
+    if let (Some(new), Some(old)) = (new.first_chunk::<16>(), old.first_chunk::<16>()) {
+        let differing = u128::from_le_bytes(*new) ^ u128::from_le_bytes(*old);
+        if differing == 0 {
+            return 0;
+        }
+        // The low word is bytes 0 to 7, the high one 8 to 15.
+        let low = nonzero_bytes(differing as u64);
+        let high = nonzero_bytes((differing >> 64) as u64);
+        return (low | high << 8) as u16;
+    }
+    // A row's last tile may hold fewer quads.
+    new.iter()
+        .zip(old)
+        .enumerate()
+        .fold(0, |bits, (k, (new, old))| {
+            bits | (u16::from(new != old) << k)
+        })
+}
+
+/// Bit `k` of `bits` moved to bit `4k`: a plane's differing quads as the
+/// tile's pixels of plane 0.
+pub(super) fn every_fourth_bit(bits: u16) -> u64 {
+    let mut spread = u64::from(bits);
+    spread = (spread | spread << 24) & 0x0000_00FF_0000_00FF;
+    spread = (spread | spread << 12) & 0x000F_000F_000F_000F;
+    spread = (spread | spread << 6) & 0x0303_0303_0303_0303;
+    (spread | spread << 3) & 0x1111_1111_1111_1111
+}
+
+/// Takes a tile into the shown picture: its quads into `shown_planes` at
+/// `first_quad`, and its `changed` pixels into `shown_tile`.
+fn take_tile(
+    planes: &[&[u8]; PLANE_COUNT],
+    changed: u64,
+    shown_tile: &mut [u8],
+    shown_planes: &mut [[u8; PLANE_QUADS]; PLANE_COUNT],
+    first_quad: usize,
+) {
+    for (source, shown) in planes.iter().zip(shown_planes.iter_mut()) {
+        let shown = &mut shown[first_quad..first_quad + source.len()];
+        // Not `copy_from_slice`: the kernel's build checks each for overlap.
+        if let (Some(shown), Some(source)) = (shown.first_chunk_mut::<16>(), source.first_chunk()) {
+            *shown = *source;
+        } else {
+            shown
+                .iter_mut()
+                .zip(*source)
+                .for_each(|(shown, &new)| *shown = new);
+        }
+    }
+    let mut pixels = changed;
+    while pixels != 0 {
+        let x = pixels.trailing_zeros() as usize;
+        pixels &= pixels - 1;
+        shown_tile[x] = planes[x % PLANE_COUNT][x / PLANE_COUNT];
+    }
+}
+
+/// Calls `run` with each maximal run of set bits of `bits`, lowest first.
+pub(super) fn for_each_run_of_bits(bits: u64, mut run: impl FnMut(Range<usize>)) {
+    let mut left = bits;
+    while left != 0 {
+        let start = left.trailing_zeros();
+        let length = (!(left >> start)).trailing_zeros();
+        let end = start + length;
+        run(start as usize..end as usize);
+        left = if end < u64::BITS {
+            left & u64::MAX << end
+        } else {
+            0
+        };
+    }
 }
 
 /// Bit `k` set for each nonzero byte `k` of `word` (bits 8k to 8k + 7;
@@ -561,38 +602,123 @@ fn full_present_bytes(layout: &FramebufferLayout, out_len: usize) -> usize {
         .sum()
 }
 
-/// Writes picture row `row`'s `columns`, scaled, on each screen line that
-/// row covers, clipped to the visible screen and to `out`; returns the bytes
-/// written.
-fn write_span(
+/// Where a present's spans go: the framebuffer's layout and the picture's
+/// placement on it.
+struct Spans<'a> {
+    layout: &'a FramebufferLayout,
+    placement: Placement,
+    /// Whether the whole picture lies on the visible screen and within the
+    /// framebuffer's bytes, as it does unless the screen is smaller than the
+    /// picture or the firmware's buffer is cut short: then no span needs
+    /// clipping.
+    unclipped: bool,
+}
+
+impl<'a> Spans<'a> {
+    /// For a `width` x `height` picture on `layout` over `out_len` bytes.
+    fn new(layout: &'a FramebufferLayout, (width, height): (usize, usize), out_len: usize) -> Self {
+        let placement = Placement::fit((width, height), (layout.width, layout.height));
+        let (scale, n) = (placement.scale, layout.bytes_per_pixel);
+        let unclipped = match (
+            usize::try_from(placement.left),
+            usize::try_from(placement.top),
+        ) {
+            (Ok(left), Ok(top)) if height > 0 => {
+                let right = left + width * scale;
+                let bottom = top + height * scale;
+                let last_line_end = (bottom - 1) * layout.line_bytes() + right * n;
+                right <= layout.visible_width()
+                    && bottom <= layout.height
+                    && last_line_end <= out_len
+            }
+            _ => false,
+        };
+        Spans {
+            layout,
+            placement,
+            unclipped,
+        }
+    }
+
+    /// Writes picture row `row`'s `columns`, scaled, on each screen line that
+    /// row covers, clipped to the visible screen and to `out`; returns the
+    /// bytes written.
+    fn write(
+        &self,
+        row: usize,
+        columns: Range<usize>,
+        pixel: impl Fn(usize) -> [u8; 4],
+        out: &mut [u8],
+    ) -> usize {
+        match self.layout.bytes_per_pixel {
+            1 => self.write_of::<1>(row, columns, &pixel, out),
+            2 => self.write_of::<2>(row, columns, &pixel, out),
+            3 => self.write_of::<3>(row, columns, &pixel, out),
+            4 => self.write_of::<4>(row, columns, &pixel, out),
+            _ => 0,
+        }
+    }
+
+    fn write_of<const N: usize>(
+        &self,
+        row: usize,
+        columns: Range<usize>,
+        pixel: &impl Fn(usize) -> [u8; 4],
+        out: &mut [u8],
+    ) -> usize {
+        let (layout, placement) = (self.layout, &self.placement);
+        if self.unclipped {
+            write_unclipped_span::<N>(layout, placement, row, columns, pixel, out)
+        } else {
+            write_span_of::<N>(layout, placement, row, columns, pixel, out)
+        }
+    }
+}
+
+/// [`Spans::write`] for a picture wholly on the screen and in `out` (so
+/// nothing is clipped), in `N`-byte pixels: each column's colour encoded
+/// once and stored as a `scale` x `scale` square. The frame's spans are
+/// mostly a pixel or two at the edges of what moved, so this is the
+/// presenter's innermost loop.
+fn write_unclipped_span<const N: usize>(
     layout: &FramebufferLayout,
     placement: &Placement,
     row: usize,
     columns: Range<usize>,
-    pixel: impl Fn(usize) -> [u8; 4],
+    pixel: &impl Fn(usize) -> [u8; 4],
     out: &mut [u8],
-    buffer: &mut [u8; SPAN_BUFFER_BYTES],
 ) -> usize {
-    match layout.bytes_per_pixel {
-        1 => write_span_of::<1>(layout, placement, row, columns, &pixel, out, buffer),
-        2 => write_span_of::<2>(layout, placement, row, columns, &pixel, out, buffer),
-        3 => write_span_of::<3>(layout, placement, row, columns, &pixel, out, buffer),
-        4 => write_span_of::<4>(layout, placement, row, columns, &pixel, out, buffer),
-        _ => 0,
+    let scale = placement.scale;
+    let line_bytes = layout.line_bytes();
+    // Not negative: the picture is on the screen.
+    let top = placement.top as usize + row * scale;
+    let left = placement.left as usize + columns.start * scale;
+    let square_bytes = scale * N;
+    let span_bytes = columns.len() * square_bytes;
+    let first = top * line_bytes + left * N;
+    let span = &mut out[first..first + (scale - 1) * line_bytes + span_bytes];
+    let mut square_left = 0;
+    for column in columns {
+        let encoded = pixel(column);
+        let bytes: [u8; N] = core::array::from_fn(|i| encoded[i]);
+        let mut at = square_left;
+        for _ in 0..scale {
+            span[at..at + square_bytes]
+                .as_chunks_mut::<N>()
+                .0
+                .fill(bytes);
+            at += line_bytes;
+        }
+        square_left += square_bytes;
     }
+    span_bytes * scale
 }
 
-/// Spans this short (in picture pixels) are written pixel by pixel.
-const SHORT_SPAN_COLUMNS: usize = 2;
-/// Screen pixels of a span scaled once and copied to each of its lines.
-const SCALED_SPAN_PIXELS: usize = 256;
-/// Bytes of the buffer they are scaled into (kept in the presenter, so it is
-/// not cleared for every span).
-const SPAN_BUFFER_BYTES: usize = SCALED_SPAN_PIXELS * 4;
-
-/// [`write_span`] for `N`-byte pixels: the span is scaled into a buffer once,
-/// a piece at a time, and each piece copied onto every line the row covers
-/// (the framebuffer is never read: it may be write-combining).
+/// [`Spans::write`] for `N`-byte pixels: the span's screen columns are
+/// clipped to the visible width once, then each line the row covers gets
+/// them pixel by pixel (the framebuffer is never read: it may be
+/// write-combining). Most spans of a spinning frame are a pixel or two at
+/// its edges, so the set-up is kept to a few comparisons.
 fn write_span_of<const N: usize>(
     layout: &FramebufferLayout,
     placement: &Placement,
@@ -600,100 +726,51 @@ fn write_span_of<const N: usize>(
     columns: Range<usize>,
     pixel: &impl Fn(usize) -> [u8; 4],
     out: &mut [u8],
-    buffer: &mut [u8; SPAN_BUFFER_BYTES],
 ) -> usize {
     let scale = placement.scale;
     // Framebuffer sizes are far below isize::MAX.
     let top = placement.top + (row * scale) as isize;
-    let lines = top.clamp(0, layout.height as isize) as usize
-        ..(top + scale as isize).clamp(0, layout.height as isize) as usize;
-    if lines.is_empty() {
+    let height = layout.height as isize;
+    let lines = top.clamp(0, height) as usize..(top + scale as isize).clamp(0, height) as usize;
+    let left = placement.left + (columns.start * scale) as isize;
+    let right = placement.left + (columns.end * scale) as isize;
+    let visible_width = layout.visible_width() as isize;
+    let (from, to) = (left.clamp(0, visible_width), right.clamp(0, visible_width));
+    if lines.is_empty() || from >= to {
         return 0;
     }
-    if scale > SCALED_SPAN_PIXELS || columns.len() <= SHORT_SPAN_COLUMNS {
-        // A screen over 256 times the picture's width, or a span of a pixel
-        // or two (most of a spinning frame's: its edges): pixel by pixel,
-        // without the set-up of scaling it once.
-        let mut written = 0;
-        for y in lines {
-            let Some(line) = layout.visible_line(out, y) else {
-                break;
-            };
-            written += span_on_line::<N>(line, placement, columns.clone(), pixel);
-        }
-        return written;
-    }
-    let columns_per_piece = SCALED_SPAN_PIXELS / scale;
-    let line_bytes = layout.line_bytes();
-    let visible_width = layout.visible_width();
-    let mut written = 0;
-    let mut first = columns.start;
-    while first < columns.end {
-        let piece = first..(first + columns_per_piece).min(columns.end);
-        first = piece.end;
-        let scaled = &mut buffer.as_chunks_mut::<N>().0[..SCALED_SPAN_PIXELS];
-        let mut length = 0;
-        for column in piece.clone() {
-            let encoded = pixel(column);
-            let bytes: [u8; N] = core::array::from_fn(|i| encoded[i]);
-            scaled[length..length + scale].fill(bytes);
-            length += scale;
-        }
-        let left = placement.left + (piece.start * scale) as isize;
-        let right = left + length as isize;
-        for y in lines.clone() {
-            // As `FramebufferLayout::visible_line`: whole pixels within `out`.
-            let line_start = y * line_bytes;
-            if line_start > out.len() {
-                break;
-            }
-            let screen_width = visible_width.min((out.len() - line_start) / N) as isize;
-            let (from, to) = (left.clamp(0, screen_width), right.clamp(0, screen_width));
-            if from >= to {
-                continue;
-            }
-            // Both ends are clamped to 0..=screen_width, and within the piece.
-            let skip = (from - left) as usize;
-            let count = (to - from) as usize;
-            let start = line_start + from as usize * N;
-            let line = &mut out[start..start + count * N];
-            let scaled = &buffer.as_chunks::<N>().0[skip..skip + count];
-            // A store a pixel: spans are short, and the kernel's build
-            // checks each `copy_from_slice` before its `memcpy`.
-            for (pixel, &bytes) in line.as_chunks_mut::<N>().0.iter_mut().zip(scaled) {
-                *pixel = bytes;
-            }
-            written += count * N;
-        }
-    }
-    written
-}
-
-/// One screen line's part of a span of `N`-byte pixels, pixel by pixel.
-fn span_on_line<const N: usize>(
-    line: &mut [u8],
-    placement: &Placement,
-    columns: Range<usize>,
-    pixel: &impl Fn(usize) -> [u8; 4],
-) -> usize {
-    let scale = placement.scale as isize;
-    let pixels = line.as_chunks_mut::<N>().0;
-    let screen_width = pixels.len() as isize;
-    let mut written = 0;
-    for column in columns {
-        let left = placement.left + column as isize * scale;
-        let (from, to) = (
-            left.clamp(0, screen_width),
-            (left + scale).clamp(0, screen_width),
-        );
-        if from >= to {
-            continue;
-        }
+    // Screen pixels of the first column cropped off the left edge.
+    let cropped = (from - left) as usize;
+    let (from, to) = (from as usize, to as usize);
+    let encode = |column: usize| -> [u8; N] {
         let encoded = pixel(column);
-        let bytes: [u8; N] = core::array::from_fn(|i| encoded[i]);
-        // Both ends are clamped to 0..=screen_width.
-        pixels[from as usize..to as usize].fill(bytes);
-        written += (to - from) as usize * N;
+        core::array::from_fn(|i| encoded[i])
+    };
+    let line_bytes = layout.line_bytes();
+    let mut written = 0;
+    for y in lines {
+        // As `FramebufferLayout::visible_line`: whole pixels within `out`.
+        let Some(line) = out.get_mut(y * line_bytes..) else {
+            break;
+        };
+        let pixels = line.as_chunks_mut::<N>().0;
+        let end = to.min(pixels.len());
+        if from >= end {
+            break;
+        }
+        let mut column = columns.start + cropped / scale;
+        let mut repeats_left = scale - cropped % scale;
+        let mut bytes = encode(column);
+        for screen_pixel in &mut pixels[from..end] {
+            *screen_pixel = bytes;
+            repeats_left -= 1;
+            if repeats_left == 0 && column + 1 < columns.end {
+                column += 1;
+                repeats_left = scale;
+                bytes = encode(column);
+            }
+        }
+        written += (end - from) * N;
     }
     written
 }

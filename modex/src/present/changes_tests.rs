@@ -179,3 +179,115 @@ fn nonzero_bytes_are_found_exactly() {
         }
     }
 }
+
+/// A plane's differing quads land on its pixels: bit `k` to bit `4k`, for
+/// every pattern of 16 quads.
+#[test]
+fn every_fourth_bit_spreads_each_quad_to_its_pixel() {
+    use super::changes::every_fourth_bit;
+    for bits in 0..=u16::MAX {
+        let expected = (0..16)
+            .filter(|k| bits & 1 << k != 0)
+            .fold(0u64, |spread, k| spread | 1 << (4 * k));
+        assert_eq!(every_fourth_bit(bits), expected, "{bits:#06x}");
+    }
+}
+
+/// The runs of set bits are exactly the maximal runs, lowest first, the
+/// top bit and a full word included.
+#[test]
+fn runs_of_bits_are_the_maximal_runs() {
+    use super::changes::for_each_run_of_bits;
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut words = vec![0, u64::MAX, 1, 1 << 63, 0x8000_0000_0000_0001, 0xF0F0];
+    for _ in 0..2_000 {
+        // xorshift: patterns of every density, fixed so every run is the same.
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        words.push(state & state >> 3);
+        words.push(state | state << 5);
+    }
+    for bits in words {
+        let mut runs = Vec::new();
+        for_each_run_of_bits(bits, |run| runs.push(run));
+        let mut expected = Vec::new();
+        let mut start = None;
+        for k in 0..=64 {
+            let set = k < 64 && bits & 1 << k != 0;
+            match (set, start) {
+                (true, None) => start = Some(k),
+                (false, Some(first)) => {
+                    expected.push(first..k);
+                    start = None;
+                }
+                _ => {}
+            }
+        }
+        assert_eq!(runs, expected, "{bits:#018x}");
+    }
+}
+
+/// A Mode X picture 8 pixels wider than whole tiles (328: its rows' last
+/// tile two quads), a picture larger than the screen (cropped on every
+/// side) and a framebuffer cut short inside a line: presenting changes
+/// still leaves exactly what a full present leaves.
+#[test]
+fn short_tiles_cropped_pictures_and_short_buffers_match_a_full_present() {
+    let mut soft = mode_x();
+    {
+        let mut vga = ModeX::new(&mut *soft);
+        // 82 characters of 4 pixels: 328 pixels, Offset 41 words.
+        let bus = vga.bus_mut();
+        // Registers 0-7 unprotected first (Vertical Retrace End bit 7).
+        bus.write_port8(
+            crate::regs::Port::CRTC_INDEX,
+            crate::regs::Crtc::VerticalRetraceEnd.index(),
+        );
+        let retrace_end = bus.read_port8(crate::regs::Port::CRTC_DATA);
+        bus.write_port8(crate::regs::Port::CRTC_DATA, retrace_end & 0x7F);
+        for (index, value) in [
+            (crate::regs::Crtc::HorizontalDisplayEnd, 81u8),
+            (crate::regs::Crtc::Offset, 41),
+        ] {
+            bus.write_port16(
+                crate::regs::Port::CRTC_INDEX,
+                u16::from_le_bytes([index.index(), value]),
+            );
+        }
+    }
+    soft.let_a_frame_pass();
+    assert_eq!(soft.picture_size().0, 328);
+    let layouts = [
+        layout(1000, 700, 4, PixelOrder::Bgr),
+        layout(300, 200, 3, PixelOrder::Rgb),
+    ];
+    for layout in layouts {
+        for cut in [0, 1, 2 * layout.line_bytes() + 5] {
+            let length = layout.required_bytes() - cut;
+            let mut out = vec![0xEE; length];
+            let mut presenter = Box::new(Presenter::new());
+            presenter.present(&soft, &layout, &mut out);
+            for (step, colour) in (1..6u8).enumerate() {
+                // Planes chosen by the step, at the right edge (the short
+                // tile and the one before) and the top left corner.
+                let mut vga = ModeX::new(&mut *soft);
+                let bus = vga.bus_mut();
+                bus.write_port16(
+                    crate::regs::Port::SEQUENCER_INDEX,
+                    u16::from_le_bytes([crate::regs::Sequencer::MapMask.index(), colour]),
+                );
+                for row in (step * 7..240).step_by(3) {
+                    for quad in (77 - step..82).chain(0..step) {
+                        bus.write_vram8((row * 82 + quad) as u16, colour * 17);
+                    }
+                }
+                soft.let_a_frame_pass();
+                presenter.present(&soft, &layout, &mut out);
+                let expected = full(&soft, &layout, length);
+                let first_difference = out.iter().zip(&expected).position(|(a, b)| a != b);
+                assert_eq!(first_difference, None, "{layout:?}, {cut} bytes short");
+            }
+        }
+    }
+}

@@ -189,26 +189,79 @@ impl SoftVga {
 impl Raster {
     /// Calls `row_at(row, plane offset)` with each displayed row and the
     /// offset its first pixel is fetched from (not yet wrapped to the
-    /// plane), walking the scan lines as the CRTC does: each row is fetched
-    /// once, from the first of its repeated scan lines, and Line Compare
-    /// restarts the address at 0. The scan-out and the tracking of which
-    /// rows were written both walk it, so they cannot disagree.
+    /// plane), as the CRTC walks the scan lines: each row is fetched once,
+    /// from the first of its repeated scan lines, and Line Compare restarts
+    /// the address at 0. The scan-out and the tracking of which rows were
+    /// written both use it, so they cannot disagree.
     pub(super) fn rows(&self, mut row_at: impl FnMut(usize, usize)) {
-        let mut address = self.start;
-        let mut repeats_left = self.scan_lines_per_row - 1;
-        for scan_line in 0..self.scan_lines {
-            let row = scan_line / self.scan_lines_per_row;
-            if scan_line % self.scan_lines_per_row == 0 && row < self.height {
-                row_at(row, address);
+        for row in 0..self.height {
+            row_at(row, self.row_address(row));
+        }
+    }
+
+    /// The plane offset row `row`'s first scan line is fetched from. The
+    /// CRTC adds the Offset after each row's last scan line and restarts at
+    /// 0 after the scan line equal to Line Compare, so a row starting after
+    /// that line is as many rows past 0 as rows have ended since: the walk
+    /// in closed form (a present asks for every row twice, and a walk of
+    /// 480 scan lines a row at a time cost more than the rows' work).
+    pub(super) fn row_address(&self, row: usize) -> usize {
+        let first_scan_line = row * self.scan_lines_per_row;
+        if first_scan_line <= self.line_compare {
+            self.start + row * self.addresses_per_row
+        } else {
+            let rows_before_restart = (self.line_compare + 1) / self.scan_lines_per_row;
+            (row - rows_before_restart) * self.addresses_per_row
+        }
+    }
+}
+
+#[cfg(test)]
+mod raster_tests {
+    use super::Raster;
+    use std::vec::Vec;
+
+    /// The CRTC's walk, scan line by scan line: the offset of each row's
+    /// first scan line.
+    fn walked(raster: &Raster) -> Vec<usize> {
+        let mut addresses = Vec::new();
+        let mut address = raster.start;
+        for scan_line in 0..raster.scan_lines {
+            let line_in_row = scan_line % raster.scan_lines_per_row;
+            if line_in_row == 0 && scan_line / raster.scan_lines_per_row < raster.height {
+                addresses.push(address);
             }
-            if repeats_left == 0 {
-                address += self.addresses_per_row;
-                repeats_left = self.scan_lines_per_row - 1;
-            } else {
-                repeats_left -= 1;
+            if line_in_row == raster.scan_lines_per_row - 1 {
+                address += raster.addresses_per_row;
             }
-            if scan_line == self.line_compare {
+            if scan_line == raster.line_compare {
                 address = 0;
+            }
+        }
+        addresses
+    }
+
+    #[test]
+    fn row_addresses_follow_the_scan_line_walk() {
+        for scan_lines_per_row in 1..=5 {
+            for scan_lines in [1, 2, 7, 31, 480] {
+                for line_compare in (0..scan_lines + 3).chain([1023]) {
+                    let raster = Raster {
+                        width: 320,
+                        height: scan_lines / scan_lines_per_row,
+                        scan_lines,
+                        scan_lines_per_row,
+                        addresses_per_row: 80,
+                        line_compare,
+                        start: 19_200,
+                    };
+                    let mut rows = Vec::new();
+                    raster.rows(|row, address| {
+                        assert_eq!(row, rows.len());
+                        rows.push(address);
+                    });
+                    assert_eq!(rows, walked(&raster), "{raster:?}");
+                }
             }
         }
     }

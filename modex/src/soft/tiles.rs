@@ -61,6 +61,13 @@ impl TileSet {
         }
     }
 
+    /// A row's bits for its first `across` tiles.
+    pub(crate) fn row_of_all(across: usize) -> u16 {
+        u16::MAX
+            .checked_shr((MAX_TILES_ACROSS - across) as u32)
+            .unwrap_or(0)
+    }
+
     /// Empties the set.
     pub(crate) fn clear(&mut self) {
         self.rows = [0; MAX_ROWS];
@@ -68,12 +75,7 @@ impl TileSet {
 
     /// Every tile of a `width` x `height` picture (and no other).
     pub(crate) fn fill(&mut self, (width, height): (usize, usize)) {
-        let across = Self::across(width);
-        let all = if across == MAX_TILES_ACROSS {
-            u16::MAX
-        } else {
-            (1u16 << across) - 1
-        };
+        let all = Self::row_of_all(Self::across(width));
         let height = height.min(MAX_ROWS);
         self.rows[..height].fill(all);
         self.rows[height..].fill(0);
@@ -96,27 +98,6 @@ impl TileSet {
         self.rows[..height.min(MAX_ROWS)]
             .iter()
             .any(|&row| row != 0)
-    }
-
-    /// Pixels of the set's tiles in a `width` x `height` picture.
-    pub(crate) fn pixels(&self, (width, height): (usize, usize)) -> usize {
-        let across = Self::across(width);
-        if across == 0 {
-            return 0;
-        }
-        let last_tile = 1u16 << (across - 1);
-        let last_tile_width = Self::columns(across - 1, width).len();
-        self.rows[..height.min(MAX_ROWS)]
-            .iter()
-            .map(|&row| {
-                let row = row & (u16::MAX >> (MAX_TILES_ACROSS - across));
-                if row & last_tile != 0 {
-                    (row.count_ones() as usize - 1) * TILE_PIXELS + last_tile_width
-                } else {
-                    row.count_ones() as usize * TILE_PIXELS
-                }
-            })
-            .sum()
     }
 
     /// Adds the tiles of `tiles` (bit `t` for tile `t`) to row `row`.
@@ -213,9 +194,17 @@ impl SoftVga {
             let skew = first % BLOCK_OFFSETS;
             let first_block = first / BLOCK_OFFSETS;
             let blocks = (skew + quads_per_row).div_ceil(BLOCK_OFFSETS);
+            let written_since = |block: usize| written[(first_block + block) % BLOCKS] > writes;
             let mut row_tiles = 0;
-            for block in 0..blocks {
-                if written[(first_block + block) % BLOCKS] > writes {
+            if skew == 0 {
+                // A row that starts a block, as Mode X's pages' rows do:
+                // block `b` is tile `b` (a block's 16 offsets are a tile's
+                // quads).
+                for block in 0..blocks {
+                    row_tiles |= u16::from(written_since(block)) << block;
+                }
+            } else {
+                for block in (0..blocks).filter(|&block| written_since(block)) {
                     let quads = (block * BLOCK_OFFSETS).saturating_sub(skew)
                         ..((block + 1) * BLOCK_OFFSETS - skew).min(quads_per_row);
                     row_tiles |= tiles_of_quads(quads);
@@ -291,15 +280,14 @@ impl SoftVga {
             return false;
         };
         let planes = &self.memory.planes;
-        let across = TileSet::across(raster.width);
+        let in_picture = TileSet::row_of_all(TileSet::across(raster.width));
         // A tile whose plane offsets wrap past the end is copied here.
         let mut wrapped = [[0u8; TILE_QUADS]; PLANE_COUNT];
         raster.rows(|row, address| {
-            let mask = tiles.row(row);
-            if mask == 0 {
-                return;
-            }
-            for tile in (0..across).filter(|tile| mask & (1 << tile) != 0) {
+            let mut left = tiles.row(row) & in_picture;
+            while left != 0 {
+                let tile = left.trailing_zeros() as usize;
+                left &= left - 1;
                 let quads = quads_of(tile, raster.width);
                 let count = quads.len();
                 let first = (address + quads.start) % PLANE_BYTES;
@@ -336,10 +324,14 @@ fn tiles_of_quads(quads: core::ops::Range<usize>) -> u16 {
 
 /// Quads in a tile of a 256-colour row (one plane offset each).
 pub(crate) const TILE_QUADS: usize = TILE_PIXELS / PLANE_COUNT;
+// A block of written offsets is one tile's quads, which the rows that start
+// a block rely on.
+const _: () = assert!(BLOCK_OFFSETS == TILE_QUADS);
 
 /// The quads (4 pixels, one plane offset) of tile `tile` of a 256-colour row
-/// `width` pixels wide.
+/// `width` pixels wide: as [`TileSet::columns`], as such a row is at most
+/// 1,024 pixels, 16 tiles, so its last tile never stretches.
 fn quads_of(tile: usize, width: usize) -> core::ops::Range<usize> {
-    let columns = TileSet::columns(tile, width);
-    columns.start / PLANE_COUNT..columns.end / PLANE_COUNT
+    let start = tile * TILE_QUADS;
+    start..(start + TILE_QUADS).min(width / PLANE_COUNT)
 }
