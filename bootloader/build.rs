@@ -77,6 +77,10 @@ fn build_uefi_bootloader() -> PathBuf {
         cmd.arg("--target-dir").arg("target/uefi_target");
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
+        // Patched copy: build in OUT_DIR. Without a target directory of its
+        // own, `cargo install` takes CARGO_TARGET_DIR when it is set, whose
+        // build lock the outer cargo holds: the build waited forever.
+        cmd.arg("--target-dir").arg(out_dir.join("uefi-target"));
     }
     cmd.arg("--locked");
     cmd.arg("--target").arg("x86_64-unknown-uefi");
@@ -142,6 +146,8 @@ fn build_bios_boot_sector() -> PathBuf {
         println!("cargo:rerun-if-changed={}", local_path.display());
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
+        // Patched copy: build in OUT_DIR (see `build_uefi_bootloader`).
+        cmd.arg("--target-dir").arg(out_dir.join("boot_sector-target"));
     }
     cmd.arg("--locked");
     cmd.arg("--target")
