@@ -38,6 +38,12 @@ struct Args {
     /// The display adapter QEMU emulates, each with its own VGA BIOS.
     #[arg(long = "vga", value_name = "ADAPTER", value_parser = adapter, default_value = "std")]
     graphics: Graphics,
+    /// Count guest time in instructions (QEMU's -icount shift=0,sleep=off):
+    /// one instruction a nanosecond whatever the host's load, so the timings
+    /// the kernel reports (bench, present:) repeat exactly. The guest runs
+    /// slower than real time.
+    #[arg(long)]
+    icount: bool,
     /// Stop QEMU after SECS seconds.
     #[arg(long, value_name = "SECS", value_parser = seconds)]
     timeout: Option<Duration>,
@@ -153,6 +159,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     options.boot = args.boot_option;
     options.graphics = args.graphics;
     options.echo_serial = true;
+    options.instruction_clock = args.icount;
     println!("Booting {} ({:?})", image.display(), firmware);
     let mut qemu = Qemu::start(&options)?;
 
@@ -281,6 +288,13 @@ mod tests {
         assert_eq!(args.wait, Duration::from_secs(2));
         assert!(Args::try_parse_from(["runner", "--vga", "s3"]).is_err());
         assert!(Args::try_parse_from(["runner", "--timeout", "-1"]).is_err());
+    }
+
+    #[test]
+    fn the_instruction_clock_is_asked_for_by_name() {
+        assert!(!Args::try_parse_from(["runner"]).unwrap().icount);
+        let args = Args::try_parse_from(["runner", "--uefi", "--icount"]).unwrap();
+        assert!(args.icount && args.uefi);
     }
 
     /// The README lists the key names; it must list exactly the table's.

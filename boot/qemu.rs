@@ -228,6 +228,11 @@ pub struct QemuOptions {
     /// (`-no-shutdown`), so its last screen can still be looked at; see
     /// [`Qemu::wait_powered_off`]. Otherwise QEMU exits.
     pub keep_after_power_off: bool,
+    /// Count guest time in instructions (`-icount shift=0,sleep=off`): one
+    /// instruction a nanosecond, whatever the host's load, so the kernel's
+    /// timing reports (boot option `bench`, `present:`) repeat exactly. The
+    /// guest then runs slower than real time.
+    pub instruction_clock: bool,
 }
 
 impl QemuOptions {
@@ -246,6 +251,7 @@ impl QemuOptions {
             echo_serial: false,
             debug_exit: true,
             keep_after_power_off: false,
+            instruction_clock: false,
         }
     }
 }
@@ -362,6 +368,9 @@ impl Qemu {
         }
         if options.keep_after_power_off {
             command.arg("-no-shutdown");
+        }
+        if options.instruction_clock {
+            command.args(["-icount", "shift=0,sleep=off"]);
         }
         if options.display == Display::Headless {
             command.args(["-display", "none"]);
