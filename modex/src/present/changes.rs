@@ -314,10 +314,10 @@ impl Presenter {
                 shown_planes,
                 first_quad,
             );
-            let index = |x: usize| planes[x % PLANE_COUNT][x / PLANE_COUNT];
             for_each_run_of_bits(changed_pixels, |run| {
                 let columns = tile_start + run.start..tile_start + run.end;
-                let pixel = |column: usize| palette[usize::from(index(column - tile_start))];
+                let pixel =
+                    |column: usize| palette[usize::from(tile_pixel(&planes, column - tile_start))];
                 written += spans.write(row, columns, pixel, out);
             });
         });
@@ -487,8 +487,13 @@ fn take_tile(
     while pixels != 0 {
         let x = pixels.trailing_zeros() as usize;
         pixels &= pixels - 1;
-        shown_tile[x] = planes[x % PLANE_COUNT][x / PLANE_COUNT];
+        shown_tile[x] = tile_pixel(planes, x);
     }
+}
+
+/// Pixel `x` of a tile given by its quads in each plane.
+fn tile_pixel(planes: &[&[u8]; PLANE_COUNT], x: usize) -> u8 {
+    planes[x % PLANE_COUNT][x / PLANE_COUNT]
 }
 
 /// Calls `run` with each maximal run of set bits of `bits`, lowest first.

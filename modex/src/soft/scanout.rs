@@ -205,7 +205,7 @@ impl Raster {
     /// that line is as many rows past 0 as rows have ended since: the walk
     /// in closed form (a present asks for every row twice, and a walk of
     /// 480 scan lines a row at a time cost more than the rows' work).
-    pub(super) fn row_address(&self, row: usize) -> usize {
+    fn row_address(&self, row: usize) -> usize {
         let first_scan_line = row * self.scan_lines_per_row;
         if first_scan_line <= self.line_compare {
             self.start + row * self.addresses_per_row

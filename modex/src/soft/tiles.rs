@@ -105,6 +105,16 @@ impl TileSet {
         self.rows[row] |= tiles;
     }
 
+    /// The set's tiles in row `row` among its first `across`, lowest first.
+    pub(crate) fn tiles_in_row(&self, row: usize, across: usize) -> impl Iterator<Item = usize> {
+        let mut left = self.row(row) & Self::row_of_all(across);
+        core::iter::from_fn(move || {
+            let tile = (left != 0).then(|| left.trailing_zeros() as usize)?;
+            left &= left - 1;
+            Some(tile)
+        })
+    }
+
     /// Row `row`'s tiles, bit `t` for tile `t` (0 past the last row).
     pub(crate) fn row(&self, row: usize) -> u16 {
         self.rows.get(row).copied().unwrap_or(0)
@@ -234,12 +244,8 @@ impl SoftVga {
         let planes = &self.memory.planes;
         let across = TileSet::across(width);
         raster.rows(|row, address| {
-            let mask = tiles.row(row);
-            if mask == 0 {
-                return;
-            }
             let line = &mut out[row * width..(row + 1) * width];
-            for tile in (0..across).filter(|tile| mask & (1 << tile) != 0) {
+            for tile in tiles.tiles_in_row(row, across) {
                 let quads = quads_of(tile, width);
                 let pixels = &mut line[quads.start * PLANE_COUNT..quads.end * PLANE_COUNT];
                 let pixels = pixels.as_chunks_mut::<PLANE_COUNT>().0;
@@ -280,14 +286,11 @@ impl SoftVga {
             return false;
         };
         let planes = &self.memory.planes;
-        let in_picture = TileSet::row_of_all(TileSet::across(raster.width));
+        let across = TileSet::across(raster.width);
         // A tile whose plane offsets wrap past the end is copied here.
         let mut wrapped = [[0u8; TILE_QUADS]; PLANE_COUNT];
         raster.rows(|row, address| {
-            let mut left = tiles.row(row) & in_picture;
-            while left != 0 {
-                let tile = left.trailing_zeros() as usize;
-                left &= left - 1;
+            for tile in tiles.tiles_in_row(row, across) {
                 let quads = quads_of(tile, raster.width);
                 let count = quads.len();
                 let first = (address + quads.start) % PLANE_BYTES;
