@@ -7,7 +7,7 @@
 //!
 //! `cargo bench --bench grid_on_isa` prints each size measured and the
 //! largest whose frame's bus time fits one refresh, by the same search as
-//! the kernel's (`machine::scale`).
+//! the kernel's (`demo::scale`).
 
 use demo::frame::BACKGROUND;
 use demo::grid::Grid;
@@ -23,38 +23,37 @@ fn main() {
     let mut band = Box::new(DepthBand::new());
     let mut next = Box::new([BACKGROUND; PAGE_PIXELS]);
     let mut soft = Box::new(SoftVga::new());
-    let found =
-        machine::scale::largest_that_fits(16, LIMIT, machine::pacing::FRAME_MICROS, |count| {
-            let mut vga = ModeX::new(&mut *soft);
-            vga.set_mode();
-            let mut shadows = Box::new([[BACKGROUND; PAGE_PIXELS]; 2]);
-            grid.reset(count);
-            let mut page = Page::Zero;
-            let mut frame = |vga: &mut ModeX<&mut SoftVga>| {
-                page = page.other();
-                grid.tick();
-                grid.render(&mut next, &mut band);
-                vga.update_page(page, &mut shadows[usize::from(page.index())], &next)
-            };
-            // As in the kernel: two frames onto the blank pages first.
-            frame(&mut vga);
-            frame(&mut vga);
-            let start = vga.bus().now_ns();
-            let mut bytes = 0u64;
-            let mut slowest = 0;
-            for _ in 0..FRAMES {
-                let before = vga.bus().now_ns();
-                bytes += u64::from(frame(&mut vga));
-                slowest = slowest.max(vga.bus().now_ns() - before);
-            }
-            let mean = (vga.bus().now_ns() - start) / FRAMES / 1000;
-            println!(
-                "grid of {count:4} solids: bus {mean:5} us/frame (slowest {:5} us), {} bytes",
-                slowest / 1000,
-                bytes / FRAMES
-            );
-            mean
-        });
+    let found = demo::scale::largest_that_fits(16, LIMIT, clock::pacing::FRAME_MICROS, |count| {
+        let mut vga = ModeX::new(&mut *soft);
+        vga.set_mode();
+        let mut shadows = Box::new([[BACKGROUND; PAGE_PIXELS]; 2]);
+        grid.reset(count);
+        let mut page = Page::Zero;
+        let mut frame = |vga: &mut ModeX<&mut SoftVga>| {
+            page = page.other();
+            grid.tick();
+            grid.render(&mut next, &mut band);
+            vga.update_page(page, &mut shadows[usize::from(page.index())], &next)
+        };
+        // As in the kernel: two frames onto the blank pages first.
+        frame(&mut vga);
+        frame(&mut vga);
+        let start = vga.bus().now_ns();
+        let mut bytes = 0u64;
+        let mut slowest = 0;
+        for _ in 0..FRAMES {
+            let before = vga.bus().now_ns();
+            bytes += u64::from(frame(&mut vga));
+            slowest = slowest.max(vga.bus().now_ns() - before);
+        }
+        let mean = (vga.bus().now_ns() - start) / FRAMES / 1000;
+        println!(
+            "grid of {count:4} solids: bus {mean:5} us/frame (slowest {:5} us), {} bytes",
+            slowest / 1000,
+            bytes / FRAMES
+        );
+        mean
+    });
     match (found.fits, found.misses) {
         (Some(fits), Some(misses)) => println!(
             "SUMMARY largest_grid_at_60fps_isa={} (next measured: {} solids, {} us)",

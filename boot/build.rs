@@ -100,7 +100,13 @@ const STD_CRATES_OPTIMISED: &[&str] = &[
 /// script again, and the second cargo decides what to rebuild.
 const KERNEL_SOURCES: &[&str] = &[
     "kernel",
-    "machine",
+    "protocol",
+    "keyboard",
+    "xhci-keyboard",
+    "clock",
+    "firmware",
+    "memory",
+    "kernel-log",
     "modex",
     "engine",
     "demo",

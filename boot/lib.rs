@@ -38,6 +38,6 @@ pub use qemu::{Board, Chipset, Display, Firmware, Graphics, Qemu, QemuError, Qem
 
 /// The line the kernel prints on serial once its first picture is on screen
 /// and it is reading keys.
-pub const READY_LINE: &str = machine::protocol::line::READY;
+pub const READY_LINE: &str = protocol::line::READY;
 
-pub use machine::protocol::{line, BootOption, BootRequest, ClockReference, Exit, Fault};
+pub use protocol::{line, BootOption, BootRequest, ClockReference, Exit, Fault};

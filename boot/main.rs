@@ -76,17 +76,17 @@ enum ImageChoice {
     Uefi,
 }
 
-/// Key names checked against `machine::keys`, the one table of them.
+/// Key names checked against `keyboard::keys`, the one table of them.
 #[derive(Clone, Debug, Default)]
 struct KeyNames(Vec<String>);
 
 fn parse_keys(text: &str) -> Result<KeyNames, String> {
     text.split_whitespace()
-        .map(|name| match machine::keys::scancode_for_name(name) {
+        .map(|name| match keyboard::keys::scancode_for_name(name) {
             Some(_) => Ok(name.to_lowercase()),
             None => Err(format!(
                 "unknown key {name:?}; key names: {}",
-                machine::keys::names().collect::<Vec<_>>().join(" ")
+                keyboard::keys::names().collect::<Vec<_>>().join(" ")
             )),
         })
         .collect::<Result<_, _>>()
@@ -309,7 +309,7 @@ mod tests {
             .split_whitespace()
             .map(|name| name.trim_matches('`'))
             .collect();
-        let table: Vec<&str> = machine::keys::names().collect();
+        let table: Vec<&str> = keyboard::keys::names().collect();
         assert_eq!(listed, table);
     }
 }

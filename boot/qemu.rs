@@ -9,7 +9,7 @@
 //! emulator behind.
 
 use crate::image::{ImageError, RgbImage};
-use machine::protocol::{BootRequest, Exit, BOOT_OPTION_FILE};
+use protocol::{BootRequest, Exit, BOOT_OPTION_FILE};
 use serde_json::{json, Value};
 use std::fmt;
 use std::io::{BufRead, BufReader, Read, Write};

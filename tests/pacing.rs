@@ -5,8 +5,8 @@
 
 mod common;
 
+use clock::pacing::FRAME_MICROS;
 use common::{boot_bios, BOOT_TIMEOUT};
-use machine::pacing::FRAME_MICROS;
 use std::time::Duration;
 
 #[test]

@@ -11,8 +11,8 @@ mod common;
 
 use common::{boot_bios, BOOT_TIMEOUT};
 use demo::solids::SHAPES;
-use machine::protocol::{line, BootOption};
-use machine::stack::StackUse;
+use memory::stack::StackUse;
+use protocol::{line, BootOption};
 use std::time::Duration;
 
 /// The bench draws 360 frames without waiting for retrace first.

@@ -38,7 +38,7 @@ const HID_QUEUE_SCANCODES: usize = 16;
 /// Scancodes an event of `key` takes in QEMU's usb-hid queue: two for the
 /// keys PS/2 sends with an E0 prefix (the project's one key table says which).
 fn queue_cost(key: &str) -> usize {
-    machine::keys::scancode_for_name(key)
+    keyboard::keys::scancode_for_name(key)
         .unwrap_or_else(|| panic!("{key:?} is not a key name"))
         .make()
         .len()

@@ -391,7 +391,7 @@ mod tests {
     use std::vec::Vec;
 
     const WIDTH: usize = SCREEN_WIDTH as usize;
-    use machine::pacing::FRAME_MICROS;
+    use clock::pacing::FRAME_MICROS;
 
     fn soft_vga_in_mode_x() -> Box<SoftVga> {
         let mut soft = Box::new(SoftVga::new());

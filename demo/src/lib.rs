@@ -45,6 +45,7 @@ pub mod keymap;
 pub mod osd;
 pub mod pattern;
 pub mod report;
+pub mod scale;
 pub mod scene;
 pub mod screens;
 pub mod shading;

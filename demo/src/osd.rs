@@ -72,7 +72,7 @@ pub struct Overlay {
 }
 
 /// One line of the statistics: the machine's one line buffer, 64 bytes.
-pub type Line = machine::log::LogLine<64>;
+pub type Line = kernel_log::LogLine<64>;
 
 impl Stats {
     /// "59.9 fps  0.43 ms/frame" ("--.- fps" until a second has passed).

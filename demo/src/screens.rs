@@ -28,7 +28,7 @@ pub const GOODBYE: &str = "modex-cube: goodbye. The machine can be switched off.
 const WHITE_ON_BLACK: u8 = 0x0F;
 
 /// The fault panel's lines of report, below its heading.
-pub const REPORT_LINES: usize = machine::protocol::line::FAULT_ROWS;
+pub const REPORT_LINES: usize = protocol::line::FAULT_ROWS;
 const WHITE_ON_RED: u8 = 0x4F;
 /// The QR code's cells: bright white background (blinking is off), black
 /// foreground, attribute bit 3 clear so the characters are blocks (map B).

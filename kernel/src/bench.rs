@@ -6,9 +6,9 @@
 //! last, the largest grid of solids (`demo::grid`) whose frame still fits one
 //! refresh (60 frames a second).
 
-use crate::clock;
 use crate::run::RENDERER;
 use crate::serial_println;
+use crate::time;
 use demo::baseline::PerPixel;
 use demo::depth::{render_with_depth, rows_needing_depth_test};
 use demo::frame::{FrameDrawer, BACKGROUND};
@@ -41,12 +41,12 @@ fn time_frames<B: VgaBus, D: FrameDrawer>(
     for &command in commands {
         scene.apply(command);
     }
-    let start = clock::micros();
+    let start = time::micros();
     for _ in 0..FRAMES {
         scene.tick();
         drawer.draw(vga, &mut scene);
     }
-    (clock::micros() - start) / FRAMES
+    (time::micros() - start) / FRAMES
 }
 
 pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
@@ -102,10 +102,10 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
     let mut grid = GRID.lock();
     let mut images = IMAGES.lock();
     let images = &mut *images;
-    let found = machine::scale::largest_that_fits(
+    let found = demo::scale::largest_that_fits(
         GRID_START,
         GRID_LIMIT,
-        machine::pacing::FRAME_MICROS,
+        clock::pacing::FRAME_MICROS,
         |count| {
             vga.set_mode();
             images.shadows = [[BACKGROUND; PAGE_PIXELS]; 2];
@@ -114,10 +114,10 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
             // One frame: the drawing's TSC cycles and the bytes written.
             let mut frame = || {
                 page = page.other();
-                let t0 = clock::rdtsc();
+                let t0 = time::tsc::rdtsc();
                 grid.tick();
                 grid.render(&mut images.next, &mut images.band);
-                let cycles = clock::rdtsc() - t0;
+                let cycles = time::tsc::rdtsc() - t0;
                 let shadow = &mut images.shadows[usize::from(page.index())];
                 (
                     cycles,
@@ -128,15 +128,15 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
             // the steady state, not the grid appearing on blank pages.
             frame();
             frame();
-            let start = clock::micros();
+            let start = time::micros();
             let (mut drawing, mut written) = (0, 0);
             for _ in 0..GRID_FRAMES {
                 let (cycles, bytes) = frame();
                 drawing += cycles;
                 written += bytes;
             }
-            let total = (clock::micros() - start) / GRID_FRAMES;
-            let drawing = clock::cycles_to_micros(drawing) / GRID_FRAMES;
+            let total = (time::micros() - start) / GRID_FRAMES;
+            let drawing = time::cycles_to_micros(drawing) / GRID_FRAMES;
             serial_println!(
                 "bench: grid of {} solids, {} us/frame: drawing {}, page update {} ({} bytes)",
                 count,
@@ -155,7 +155,7 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
             fits.micros,
             misses.count,
             misses.micros,
-            machine::pacing::FRAME_MICROS
+            clock::pacing::FRAME_MICROS
         ),
         (Some(fits), None) => serial_println!(
             "bench: largest grid at 60 fps: at least {} solids, the most the bench holds ({} us/frame)",
@@ -165,7 +165,7 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
         (None, _) => serial_println!(
             "bench: largest grid at 60 fps: none; {} solids already take over the {} us refresh",
             GRID_START,
-            machine::pacing::FRAME_MICROS
+            clock::pacing::FRAME_MICROS
         ),
     }
 }
@@ -237,17 +237,17 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
         page = page.other();
         let shadow = &mut images.shadows[usize::from(page.index())];
         images.dry_run_shadow.copy_from_slice(shadow);
-        let t0 = clock::rdtsc();
+        let t0 = time::tsc::rdtsc();
         scene.tick();
-        let t1 = clock::rdtsc();
+        let t1 = time::tsc::rdtsc();
         let _ = rows_needing_depth_test(&mut scene);
-        let t2 = clock::rdtsc();
+        let t2 = time::tsc::rdtsc();
         render_with_depth(&mut scene, &mut images.next, &mut images.band);
-        let t3 = clock::rdtsc();
+        let t3 = time::tsc::rdtsc();
         dry_run.update_page(page, &mut images.dry_run_shadow, &images.next);
-        let t4 = clock::rdtsc();
+        let t4 = time::tsc::rdtsc();
         vga.update_page(page, shadow, &images.next);
-        let t5 = clock::rdtsc();
+        let t5 = time::tsc::rdtsc();
         let comparison = t4 - t3;
         let writes = (t5 - t4).saturating_sub(comparison);
         for (total, spent) in cycles
@@ -257,7 +257,7 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
             *total += spent;
         }
     }
-    let micros = |total: u64| clock::cycles_to_micros(total) / FRAMES;
+    let micros = |total: u64| time::cycles_to_micros(total) / FRAMES;
     Phases {
         motion: micros(cycles[0]),
         transform: micros(cycles[1]),

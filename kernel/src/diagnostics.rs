@@ -3,9 +3,9 @@
 //! measurement of how many page flips a second vertical retrace allows, and
 //! a check of the kernel's clock against the host's.
 
-use crate::{clock, keyboard, serial_println, usb};
-use machine::pacing::Pacing;
-use machine::scancode::{BREAK_BIT, EXTENDED_PREFIX};
+use crate::{input::ps2, input::xhci, serial_println, time};
+use clock::pacing::Pacing;
+use keyboard::scancode::{BREAK_BIT, EXTENDED_PREFIX};
 use modex::{ModeX, Page, VgaBus};
 
 /// Draws the pattern into pages 0 and 1, shows page 0, and flips to the other
@@ -16,12 +16,12 @@ pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut shown = Page::Zero;
     vga.show_page(shown);
     serial_println!("pattern: page {} shown", shown.index());
-    serial_println!("{}", machine::protocol::line::READY);
+    serial_println!("{}", protocol::line::READY);
     loop {
         crate::idle::idle();
-        usb::poll();
+        xhci::poll();
         let mut pressed = false;
-        while let Some(byte) = keyboard::SCANCODES.pop() {
+        while let Some(byte) = ps2::SCANCODES.pop() {
             // Only make codes: a release must not flip again.
             pressed |= byte & BREAK_BIT == 0 && byte != EXTENDED_PREFIX;
         }
@@ -43,16 +43,16 @@ pub fn flip_rate<B: VgaBus>(vga: &mut ModeX<B>) {
     demo::pattern::draw(vga, Page::Zero);
     demo::pattern::draw(vga, Page::One);
     vga.show_page(Page::Zero);
-    let start = clock::micros();
+    let start = time::micros();
     let mut pacing = Pacing::default();
     pacing.flipped(start, false);
     let mut shown = Page::Zero;
-    while clock::micros() - start < FLIP_RATE_MICROS {
+    while time::micros() - start < FLIP_RATE_MICROS {
         shown = shown.other();
         let report = vga.show_page(shown);
-        pacing.flipped(clock::micros(), report.timed_out());
+        pacing.flipped(time::micros(), report.timed_out());
     }
-    let elapsed = clock::micros() - start;
+    let elapsed = time::micros() - start;
     let flips = pacing.flips - 1;
     let millihertz = flips * 1_000_000_000 / elapsed.max(1);
     serial_println!(
@@ -73,13 +73,13 @@ const CLOCK_CHECK_SECONDS: u64 = 10;
 /// compare the kernel's time with the host's wall clock. Idles between
 /// readings, as the demo does.
 pub fn clock_check() {
-    let start = clock::micros();
+    let start = time::micros();
     serial_println!("clock-check: {} us", start);
     for second in 1..=CLOCK_CHECK_SECONDS {
         // The reading that ends the wait is the one printed, so the first and
         // last lines are at least the whole span apart.
         let now = loop {
-            let now = clock::micros();
+            let now = time::micros();
             if now - start >= second * 1_000_000 {
                 break now;
             }

@@ -6,8 +6,8 @@
 
 use core::fmt::Write;
 use core::sync::atomic::{AtomicU64, Ordering};
-use machine::protocol::line::{FaultLine, InterruptFrame};
 use modex::card::Card;
+use protocol::line::{FaultLine, InterruptFrame};
 use spin::Once;
 use x86_64::structures::idt::InterruptStackFrame;
 
@@ -30,9 +30,9 @@ const PANEL_LOG_LINES: usize = demo::screens::PANEL_LOG_LINES;
 const LINE_BYTES: usize = modex::TEXT_COLUMNS as usize;
 
 /// A screen line built without a heap; text past the line's end is cut.
-type Line = machine::log::LogLine<LINE_BYTES>;
+type Line = kernel_log::LogLine<LINE_BYTES>;
 /// A fact for the QR code (a CPU brand string is up to 48 bytes).
-type FactLine = machine::log::LogLine<120>;
+type FactLine = kernel_log::LogLine<120>;
 
 pub fn halt_with(
     kind: &str,
@@ -131,7 +131,7 @@ fn report(lines: &[Line]) -> ! {
     for qr_line in qr_text.split(|&byte| byte == b'\n') {
         crate::serial_println!(
             "{}{}",
-            machine::protocol::line::FAULT_QR,
+            protocol::line::FAULT_QR,
             core::str::from_utf8(qr_line).unwrap_or("?")
         );
     }
@@ -163,13 +163,13 @@ fn show_on_screen(text: &[&str; REPORT_LINES], log: &[&str], qr_text: &[u8]) {
 /// trusted here, so the controller is polled. (A machine without an 8042
 /// reads 0xFF there, which is no key; a USB keyboard is not polled here.)
 pub fn halt_forever() -> ! {
-    crate::serial_println!("{}", machine::protocol::line::HALTED);
+    crate::serial_println!("{}", protocol::line::HALTED);
     x86_64::instructions::interrupts::disable();
-    let mut reset_chord = machine::reset_keys::ResetChord::new();
+    let mut reset_chord = keyboard::reset_keys::ResetChord::new();
     loop {
-        if let Some(byte) = crate::keyboard::poll_byte() {
+        if let Some(byte) = crate::input::ps2::poll_byte() {
             if reset_chord.feed(byte) {
-                crate::power::reset();
+                crate::platform::power::reset();
             }
         }
         core::hint::spin_loop();

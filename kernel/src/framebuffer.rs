@@ -14,10 +14,10 @@
 //! handler halts), and the panel reprograms the whole model from scratch, so
 //! a half-done register write or present does not matter.
 
-use crate::{clock, serial_println};
+use crate::{serial_println, time};
 use bootloader_api::info::{FrameBuffer, FrameBufferInfo, PixelFormat};
+use clock::pacing::FRAME_MICROS;
 use core::sync::atomic::{AtomicPtr, Ordering};
-use machine::pacing::FRAME_MICROS;
 use modex::present::{
     FirmwareFormat, FirmwareFramebuffer, FramebufferLayout, PackedFormat, PixelOrder, Placement,
     Presenter,
@@ -178,9 +178,9 @@ impl Display {
     /// Presents what changed in the model's picture, then waits for the next
     /// refresh by the clock, as a flip on a real VGA waits for retrace.
     pub fn present(&mut self, soft: &SoftVga) {
-        let started = clock::micros();
+        let started = time::micros();
         let report = self.presenter.present(soft, &self.layout, self.pixels);
-        self.count(clock::micros() - started, report.bytes_written);
+        self.count(time::micros() - started, report.bytes_written);
         self.wait_for_next_frame();
     }
 
@@ -203,7 +203,7 @@ impl Display {
     }
 
     fn wait_for_next_frame(&mut self) {
-        let now = clock::micros();
+        let now = time::micros();
         let due = match self.next_frame_micros {
             // Late (drawing took longer than a frame): start a new cadence.
             Some(due) if due > now => due,

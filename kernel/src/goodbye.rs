@@ -4,7 +4,7 @@
 //! the machine powers off through ACPI S5, on a real PC as in QEMU. Where
 //! neither works the CPU halts with the line on screen.
 
-use crate::{clock, fault, idle, power, qemu, serial_println};
+use crate::{fault, idle, platform::power, platform::qemu, serial_println, time};
 
 /// How long the goodbye line stays up before the machine switches off.
 const GOODBYE_SHOWN_MICROS: u64 = 2_000_000;
@@ -21,12 +21,12 @@ pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     }
     serial_println!(
         "{} ({} scancodes dropped by a full queue, {} serial characters dropped)",
-        machine::protocol::line::GOODBYE,
-        crate::keyboard::SCANCODES.dropped(),
+        protocol::line::GOODBYE,
+        crate::input::ps2::SCANCODES.dropped(),
         crate::serial::dropped()
     );
-    qemu::exit(machine::protocol::Exit::Success);
-    idle::until(clock::micros() + GOODBYE_SHOWN_MICROS);
+    qemu::exit(protocol::Exit::Success);
+    idle::until(time::micros() + GOODBYE_SHOWN_MICROS);
     power::off();
     fault::halt_forever()
 }

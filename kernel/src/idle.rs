@@ -3,7 +3,7 @@
 //! least one in the last 10 ms); on a machine without a PIT it spins with
 //! `pause` instead. Either way every wait is bounded by the clock.
 
-use crate::{clock, pit};
+use crate::{time, time::pit};
 
 /// `pause`s per idle step without a timer: a few microseconds.
 const SPINS: u32 = 200;
@@ -22,7 +22,7 @@ pub fn idle() {
 
 /// Idles until the clock reads `micros`.
 pub fn until(micros: u64) {
-    while clock::micros() < micros {
+    while time::micros() < micros {
         idle();
     }
 }

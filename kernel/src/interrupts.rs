@@ -2,7 +2,7 @@
 //! interrupts the kernel uses, the PIT tick (IRQ 0) and the keyboard (IRQ 1),
 //! routed through the remapped 8259 PICs.
 
-use crate::{fault, gdt, keyboard, pit};
+use crate::{fault, gdt, input::ps2, time::pit};
 use pic8259::ChainedPics;
 use spin::{Lazy, Mutex};
 use x86_64::structures::idt::{InterruptDescriptorTable, InterruptStackFrame, PageFaultErrorCode};
@@ -88,7 +88,7 @@ extern "x86-interrupt" fn timer(_frame: InterruptStackFrame) {
 }
 
 extern "x86-interrupt" fn keyboard_irq(_frame: InterruptStackFrame) {
-    keyboard::on_interrupt();
+    ps2::on_interrupt();
     end_of_interrupt(KEYBOARD_VECTOR);
 }
 

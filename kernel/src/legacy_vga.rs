@@ -7,7 +7,7 @@ use crate::bios::VideoBios;
 use crate::vga_bus::PortBus;
 use crate::{pci, serial_println};
 use bootloader_api::info::MemoryRegions;
-use machine::firmware::Firmware;
+use firmware::boot_firmware::Firmware;
 use modex::card::{Card, Route, BIOS_MODE_13H};
 use modex::ModeX;
 use spin::Mutex;

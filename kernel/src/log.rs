@@ -1,4 +1,4 @@
-//! The kernel's log kept in memory (`machine::log`): `serial` feeds every
+//! The kernel's log kept in memory (`kernel_log`): `serial` feeds every
 //! line it prints into this ring, so the report screen and the fault panel
 //! can show the log on PCs without a serial port.
 //!
@@ -12,7 +12,7 @@
 
 use core::fmt::{self, Write};
 use core::sync::atomic::{AtomicU64, Ordering};
-use machine::log::KernelLog;
+use kernel_log::KernelLog;
 use spin::{Mutex, MutexGuard};
 
 static LOG: Mutex<KernelLog> = Mutex::new(KernelLog::new());

@@ -7,43 +7,39 @@
 // Every `unsafe` block says why it is sound (DEVELOPERS.md); clippy checks it.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
-mod acpi;
 mod bench;
 mod bios;
-mod clock;
 mod diagnostics;
 mod dma;
 mod fault;
-mod firmware;
 mod fpu;
 mod framebuffer;
 mod gdt;
 mod goodbye;
-mod hpet;
 mod idle;
+mod input;
 mod interrupts;
-mod keyboard;
 mod legacy_vga;
 mod log;
 mod pat;
 mod pci;
-mod pit;
-mod pm_timer;
-mod power;
-mod qemu;
+mod platform;
 mod report;
 mod run;
 mod selftest;
 mod serial;
 mod stack;
-mod usb;
+mod time;
 mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
-use machine::acpi::Presence;
-use machine::firmware::Firmware;
-use machine::protocol::{BootOption, BootRequest};
+use firmware::acpi::Presence;
+use firmware::boot_firmware::Firmware;
+use input::{ps2, xhci};
+use platform::{acpi, boot_firmware, qemu};
+use protocol::{BootOption, BootRequest};
+use time::pit;
 
 const BOOTLOADER_CONFIG: BootloaderConfig = {
     let mut config = BootloaderConfig::new_default();
@@ -62,7 +58,7 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     serial::init();
     serial_println!(
         "{}{}",
-        machine::protocol::line::KERNEL_BANNER,
+        protocol::line::KERNEL_BANNER,
         env!("CARGO_PKG_VERSION")
     );
     gdt::init();
@@ -80,7 +76,7 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         serial_println!(
             "keyboard: the ACPI tables say there is no PS/2 controller (8042); not set up"
         );
-    } else if let Err(problem) = keyboard::init() {
+    } else if let Err(problem) = ps2::init() {
         serial_println!("keyboard: {}", problem);
     }
     x86_64::instructions::interrupts::enable();
@@ -98,11 +94,11 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         }
     };
     let (force_true_mode_x, option) = (request.true_mode_x, request.option);
-    clock::init(acpi, physical_memory_offset, request.clock);
-    usb::init(&boot_info.memory_regions, physical_memory_offset);
+    time::init(acpi, physical_memory_offset, request.clock);
+    xhci::init(&boot_info.memory_regions, physical_memory_offset);
     serial_println!("kernel: initialised");
 
-    let booted_by = firmware::firmware(&boot_info.memory_regions);
+    let booted_by = boot_firmware::firmware(&boot_info.memory_regions);
     serial_println!("firmware: {:?} (told by the memory map)", booted_by);
 
     // SAFETY: the bootloader maps all physical memory at this offset (asked for

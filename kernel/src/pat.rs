@@ -12,7 +12,7 @@
 //! says what we started from.
 
 use crate::serial_println;
-use machine::pat::{
+use memory::pat::{
     entry_encoding, entry_type_name, pat_index, select_pat_entry, table_index, walk_step,
     with_entry, Level, MemoryType, Walk, CPUID_PAT, IA32_PAT, WC_ENTRY,
 };

@@ -3,17 +3,17 @@
 //! firmware, display, keyboard and clock code last said in the log (so the
 //! report shows what those subsystems logged, and needs nothing from them).
 //! Layout and drawing are `demo::report`'s. What is drawn is also printed on
-//! serial (`machine::protocol::line::REPORT_FACT` and friends), so the QEMU
+//! serial (`protocol::line::REPORT_FACT` and friends), so the QEMU
 //! tests can draw the same report on the software VGA and compare.
 
-use crate::{keyboard, pci, serial_println};
+use crate::{input::ps2, pci, serial_println};
+use clock::pacing::Pacing;
 use core::fmt::Write;
 use demo::app::App;
 use demo::report::{LogPosition, Report, FACT_ROWS, LOG_ROWS};
-use machine::log::{text_of_field, LogLine};
-use machine::pacing::Pacing;
-use machine::protocol::line;
+use kernel_log::{text_of_field, LogLine};
 use modex::{ModeX, PageImage, VgaBus, PAGE_PIXELS};
+use protocol::line;
 use spin::Mutex;
 
 /// A fact or a copied log line: printable ASCII, cut at 120 bytes.
@@ -62,7 +62,7 @@ pub fn show_if_asked<B: VgaBus, R: core::borrow::BorrowMut<demo::frame::Renderer
             fact,
             "counters: {} missed retraces, {} dropped scancodes",
             pacing.missed,
-            keyboard::SCANCODES.dropped(),
+            ps2::SCANCODES.dropped(),
         );
     });
     let frames = app.frames_drawn();

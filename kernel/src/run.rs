@@ -3,13 +3,13 @@
 //! an idle cube costs no bus traffic at all. While the cube spins it also
 //! keeps count of missed retraces. Ctrl+Alt+Del resets the machine.
 
-use crate::{clock, goodbye, idle, keyboard, power, serial_println, stack, usb};
+use crate::{goodbye, idle, input::ps2, input::xhci, platform::power, serial_println, stack, time};
+use clock::pacing::Pacing;
 use demo::app::App;
 use demo::frame::Renderer;
-use machine::pacing::Pacing;
-use machine::protocol::line;
-use machine::reset_keys::ResetChord;
+use keyboard::reset_keys::ResetChord;
 use modex::{ModeX, VgaBus};
+use protocol::line;
 use spin::Mutex;
 
 /// The renderer's three 75 KiB frame images and its depth band, in static
@@ -20,7 +20,7 @@ pub static RENDERER: Mutex<Renderer> = Mutex::new(Renderer::new());
 const PACING_REPORT_FLIPS: u64 = 600;
 
 fn count_flip(pacing: &mut Pacing, timed_out: bool) {
-    pacing.flipped(clock::micros(), timed_out);
+    pacing.flipped(time::micros(), timed_out);
     if pacing.flips.is_multiple_of(PACING_REPORT_FLIPS) {
         serial_println!(
             "pacing: {} flips, {} missed retraces, {} wait timeouts, {} gaps in {} us",
@@ -36,14 +36,14 @@ fn count_flip(pacing: &mut Pacing, timed_out: bool) {
 pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut renderer = RENDERER.lock();
     let mut app = App::with_renderer(&mut *renderer);
-    app.step(vga, &clock::micros);
+    app.step(vga, &time::micros);
     serial_println!("{}", line::READY);
     let mut reported_commands = 0;
     let mut pacing = Pacing::default();
     let mut reset_chord = ResetChord::new();
     loop {
-        usb::poll();
-        while let Some(byte) = keyboard::SCANCODES.pop() {
+        xhci::poll();
+        while let Some(byte) = ps2::SCANCODES.pop() {
             if reset_chord.feed(byte) {
                 power::reset();
             }
@@ -53,7 +53,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
             stack::report();
             goodbye::goodbye(vga);
         }
-        let flip = app.step(vga, &clock::micros);
+        let flip = app.step(vga, &time::micros);
         crate::report::show_if_asked(vga, &mut app, &pacing);
         if app.commands() != reported_commands {
             // Tests wait for this line before they look at the screen.
@@ -62,7 +62,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
                 "{}, paused={}, scancodes dropped={}",
                 line::CommandDone(reported_commands),
                 app.paused(),
-                keyboard::SCANCODES.dropped()
+                ps2::SCANCODES.dropped()
             );
         }
         match flip {

@@ -2,8 +2,8 @@
 //! (`fault=...`, `exit=...`). They prove that each kind of fault is reported and
 //! ends in a clean halt. A real PC has no fw_cfg, so it can never take this path.
 
-use crate::qemu;
-use machine::protocol::{Exit, Fault};
+use crate::platform::qemu;
+use protocol::{Exit, Fault};
 
 /// Raises `fault`; only a breakpoint returns.
 pub fn raise(fault: Fault) {

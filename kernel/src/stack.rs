@@ -1,8 +1,8 @@
 //! The kernel stack, measured: painted at boot, its high-water mark read back
 //! on demand (at Esc, in a fault report). What the paint means is decided in
-//! `machine::stack`; here are only the memory accesses.
+//! `memory::stack`; here are only the memory accesses.
 
-use machine::stack::{paint_range, unpainted_from, StackUse, PAINT, WORD_BYTES};
+use memory::stack::{paint_range, unpainted_from, StackUse, PAINT, WORD_BYTES};
 use spin::Once;
 
 /// The stack the bootloader made: its lowest address and its length.

@@ -1,12 +1,12 @@
 //! Host keys as a PC keyboard would send them: each host key has the runner's
-//! name for it, and `machine::keys` has the one table of names and PS/2 scan
+//! name for it, and `keyboard::keys` has the one table of names and PS/2 scan
 //! codes, so a key sequence means the same to the runner and to the simulator.
 
 use minifb::Key;
 
-pub use machine::keys::{scancode_for_name, Scancode};
+pub use keyboard::keys::{scancode_for_name, Scancode};
 
-/// Every host key the simulator passes on, with its name in `machine::keys`.
+/// Every host key the simulator passes on, with its name in `keyboard::keys`.
 const HOST_KEYS: &[(Key, &str)] = &[
     (Key::Escape, "esc"),
     (Key::Key1, "1"),
@@ -130,7 +130,7 @@ pub struct UnknownKey {
 }
 
 fn known_names() -> String {
-    machine::keys::names().collect::<Vec<_>>().join(" ")
+    keyboard::keys::names().collect::<Vec<_>>().join(" ")
 }
 
 /// A `--keys` argument ("r 4 4 f1 left spc"), as scan codes; an unknown name

@@ -14,7 +14,7 @@ use std::thread::sleep;
 use std::time::{Duration, Instant};
 
 use demo::keymap::INSPECTOR_KEY;
-use machine::scancode_queue::ScancodeQueue;
+use keyboard::scancode_queue::ScancodeQueue;
 use minifb::{InputCallback, Key, Window, WindowOptions};
 use sim::inspector::{draw_panel, History, PANEL_WIDTH};
 use sim::keys::{scancode_for_key, scancode_for_name};

@@ -11,7 +11,7 @@ mod trampoline;
 
 use crate::interrupts;
 use bootloader_api::info::MemoryRegions;
-use machine::firmware::Firmware;
+use firmware::boot_firmware::Firmware;
 use modex::card::{check_video_bios, NoVideoBios, VideoBios as RomCheck};
 use trampoline::layout;
 use x86_64::registers::control::{Cr4, Cr4Flags};

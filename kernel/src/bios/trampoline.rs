@@ -25,8 +25,8 @@
 use core::arch::global_asm;
 
 // The data block's layout, the GDT's selectors and its descriptors are
-// pure, so they live in `machine::trampoline` and are tested on the host.
-pub use machine::trampoline::{descriptors, layout, selector};
+// pure, so they live in `memory::trampoline` and are tested on the host.
+pub use memory::trampoline::{descriptors, layout, selector};
 
 extern "C" {
     static bios_trampoline_start: u8;

@@ -1,0 +1,20 @@
+//! What the firmware tells the kernel, read from its tables without touching
+//! hardware: the ACPI values for power-off and reset and the FADT's
+//! legacy-device flags ([`acpi`]), which firmware booted the machine, told
+//! by the memory map ([`boot_firmware`]), and QEMU's fw_cfg file directory,
+//! where the test harness leaves the boot option ([`fw_cfg`]).
+//!
+//! The kernel's shell, `kernel/src/firmware/`, maps the tables and does the
+//! port writes.
+
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![warn(missing_debug_implementations)]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod acpi;
+pub mod boot_firmware;
+pub mod fw_cfg;

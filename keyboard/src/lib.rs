@@ -1,0 +1,26 @@
+//! What every keyboard path shares, whatever the hardware: PS/2 scan code
+//! set 1 is the kernel's one keyboard language. The PS/2 keyboard sends it,
+//! and the USB driver (the `xhci-keyboard` crate) translates its reports
+//! into it.
+//!
+//! - [`scancode`]: the set-1 byte values every part agrees on;
+//! - [`keys`]: set-1 codes by key name, shared with the runner and the
+//!   simulator;
+//! - [`scancode_queue`]: the lock-free queue that carries bytes from the
+//!   keyboard interrupt (or a poll) to the frame loop;
+//! - [`reset_keys`]: Ctrl+Alt+Del, recognised from the byte stream.
+//!
+//! The kernel's PS/2 shell is `kernel/src/keyboard/`.
+
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![warn(missing_debug_implementations)]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod keys;
+pub mod reset_keys;
+pub mod scancode;
+pub mod scancode_queue;

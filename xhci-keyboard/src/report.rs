@@ -1,0 +1,411 @@
+//! A USB boot keyboard's reports become PS/2 scancode set 1, as the 8042
+//! delivers it after translation: each report is compared with the last,
+//! and every key that went down gives its make code and every key that came
+//! up its break code (the make code with bit 7 set, after the same E0
+//! prefix). A USB keyboard does not repeat by itself, so the last key pressed
+//! repeats here at the PS/2 defaults (500 ms, then about 10.9 a second),
+//! driven by the caller's clock.
+
+use keyboard::scancode::{BREAK_BIT as BREAK, EXTENDED_PREFIX as PREFIX_E0};
+
+/// The eight bytes of a boot-protocol keyboard report: modifier bits, a
+/// reserved byte, and up to six usages of keys held down.
+pub const REPORT_BYTES: usize = 8;
+/// PS/2's default typematic delay: a key held this long starts repeating.
+pub const REPEAT_DELAY_MICROS: u64 = 500_000;
+/// PS/2's default typematic rate, 10.9 characters a second, as a period.
+pub const REPEAT_PERIOD_MICROS: u64 = 91_743;
+/// Usages 1-3 in every key slot say "too many keys" (ErrorRollOver,
+/// POSTFail, ErrorUndefined), not which keys are down.
+const FIRST_REAL_USAGE: u8 = 0x04;
+
+/// A set-1 key: its code and whether PS/2 sends an E0 before it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Set1Key {
+    /// The make code (without the break bit).
+    pub code: u8,
+    /// PS/2 sends E0 first (the keys the original 84-key keyboard lacked).
+    pub extended: bool,
+}
+
+const fn plain(code: u8) -> Option<Set1Key> {
+    Some(Set1Key {
+        code,
+        extended: false,
+    })
+}
+
+const fn extended(code: u8) -> Option<Set1Key> {
+    Some(Set1Key {
+        code,
+        extended: true,
+    })
+}
+
+/// The modifier byte's bits, from bit 0: left Ctrl, Shift, Alt, GUI, then
+/// the right-hand ones.
+const MODIFIERS: [Set1Key; 8] = [
+    Set1Key {
+        code: 0x1D,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x2A,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x38,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x5B,
+        extended: true,
+    },
+    Set1Key {
+        code: 0x1D,
+        extended: true,
+    },
+    Set1Key {
+        code: 0x36,
+        extended: false,
+    },
+    Set1Key {
+        code: 0x38,
+        extended: true,
+    },
+    Set1Key {
+        code: 0x5C,
+        extended: true,
+    },
+];
+
+/// The set-1 key for a HID keyboard usage (page 7), if PS/2 has one.
+pub fn set1_key(usage: u8) -> Option<Set1Key> {
+    // Letters a-z in usage order.
+    const LETTERS: [u8; 26] = [
+        0x1E, 0x30, 0x2E, 0x20, 0x12, 0x21, 0x22, 0x23, 0x17, 0x24, 0x25, 0x26, 0x32, 0x31, 0x18,
+        0x19, 0x10, 0x13, 0x1F, 0x14, 0x16, 0x2F, 0x11, 0x2D, 0x15, 0x2C,
+    ];
+    match usage {
+        0x04..=0x1D => plain(LETTERS[usize::from(usage - 0x04)]),
+        // 1-9 then 0, as on the keyboard's top row.
+        0x1E..=0x27 => plain(usage - 0x1E + 0x02),
+        0x28 => plain(0x1C),                       // Enter
+        0x29 => plain(0x01),                       // Esc
+        0x2A => plain(0x0E),                       // Backspace
+        0x2B => plain(0x0F),                       // Tab
+        0x2C => plain(0x39),                       // Space
+        0x2D => plain(0x0C),                       // -
+        0x2E => plain(0x0D),                       // =
+        0x2F => plain(0x1A),                       // [
+        0x30 => plain(0x1B),                       // ]
+        0x31 | 0x32 => plain(0x2B),                // \ and the non-US # (same key position)
+        0x33 => plain(0x27),                       // ;
+        0x34 => plain(0x28),                       // '
+        0x35 => plain(0x29),                       // `
+        0x36 => plain(0x33),                       // ,
+        0x37 => plain(0x34),                       // .
+        0x38 => plain(0x35),                       // /
+        0x39 => plain(0x3A),                       // Caps Lock
+        0x3A..=0x43 => plain(usage - 0x3A + 0x3B), // F1-F10
+        0x44 => plain(0x57),                       // F11
+        0x45 => plain(0x58),                       // F12
+        0x46 => extended(0x37),                    // Print Screen (its E0 2A prefix left out)
+        0x47 => plain(0x46),                       // Scroll Lock
+        0x49 => extended(0x52),                    // Insert
+        0x4A => extended(0x47),                    // Home
+        0x4B => extended(0x49),                    // Page Up
+        0x4C => extended(0x53),                    // Delete
+        0x4D => extended(0x4F),                    // End
+        0x4E => extended(0x51),                    // Page Down
+        0x4F => extended(0x4D),                    // Right
+        0x50 => extended(0x4B),                    // Left
+        0x51 => extended(0x50),                    // Down
+        0x52 => extended(0x48),                    // Up
+        0x53 => plain(0x45),                       // Num Lock
+        0x54 => extended(0x35),                    // keypad /
+        0x55 => plain(0x37),                       // keypad *
+        0x56 => plain(0x4A),                       // keypad -
+        0x57 => plain(0x4E),                       // keypad +
+        0x58 => extended(0x1C),                    // keypad Enter
+        0x59 => plain(0x4F),                       // keypad 1
+        0x5A => plain(0x50),                       // keypad 2
+        0x5B => plain(0x51),                       // keypad 3
+        0x5C => plain(0x4B),                       // keypad 4
+        0x5D => plain(0x4C),                       // keypad 5
+        0x5E => plain(0x4D),                       // keypad 6
+        0x5F => plain(0x47),                       // keypad 7
+        0x60 => plain(0x48),                       // keypad 8
+        0x61 => plain(0x49),                       // keypad 9
+        0x62 => plain(0x52),                       // keypad 0
+        0x63 => plain(0x53),                       // keypad .
+        0x64 => plain(0x56),                       // the non-US \ left of Z
+        0x65 => extended(0x5D),                    // Menu (Application)
+        _ => None,
+    }
+}
+
+/// Pause has no break code and a six-byte make: E1 1D 45 E1 9D C5.
+const PAUSE_USAGE: u8 = 0x48;
+const PAUSE_BYTES: [u8; 6] = [0xE1, 0x1D, 0x45, 0xE1, 0x9D, 0xC5];
+
+/// What is held down and repeating; fed reports, gives scancode bytes.
+#[derive(Clone, Debug, Default)]
+pub struct BootKeyboard {
+    modifiers: u8,
+    keys: [u8; 6],
+    /// The key that repeats (the last pressed, while it is held) and when it
+    /// next does.
+    repeating: Option<(Set1Key, u64)>,
+}
+
+fn emit(key: Set1Key, released: bool, out: &mut impl FnMut(u8)) {
+    if key.extended {
+        out(PREFIX_E0);
+    }
+    out(if released { key.code | BREAK } else { key.code });
+}
+
+impl BootKeyboard {
+    /// A keyboard with nothing held.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Takes one report (`bytes`, as many as the device sent) received at
+    /// `now_micros`, giving the scancode bytes for what changed. Short
+    /// reports and rollover-error reports change nothing.
+    pub fn report(&mut self, bytes: &[u8], now_micros: u64, out: &mut impl FnMut(u8)) {
+        let Some(report) = bytes.get(..REPORT_BYTES) else {
+            return;
+        };
+        let keys: [u8; 6] = [
+            report[2], report[3], report[4], report[5], report[6], report[7],
+        ];
+        if keys
+            .iter()
+            .any(|&usage| usage != 0 && usage < FIRST_REAL_USAGE)
+        {
+            return;
+        }
+        let modifiers = report[0];
+        // Breaks first, so that a key moving between slots never looks released.
+        for (bit, key) in MODIFIERS.iter().enumerate() {
+            let mask = 1u8 << bit;
+            if self.modifiers & mask != 0 && modifiers & mask == 0 {
+                self.released(*key, out);
+            }
+        }
+        for usage in self.keys {
+            if usage != 0 && !keys.contains(&usage) && usage != PAUSE_USAGE {
+                if let Some(key) = set1_key(usage) {
+                    self.released(key, out);
+                }
+            }
+        }
+        for (bit, key) in MODIFIERS.iter().enumerate() {
+            let mask = 1u8 << bit;
+            if self.modifiers & mask == 0 && modifiers & mask != 0 {
+                self.pressed(*key, now_micros, out);
+            }
+        }
+        for (slot, &usage) in keys.iter().enumerate() {
+            // A usage listed twice in one report is one key.
+            if usage == 0 || self.keys.contains(&usage) || keys[..slot].contains(&usage) {
+                continue;
+            }
+            if usage == PAUSE_USAGE {
+                PAUSE_BYTES.iter().for_each(|&b| out(b));
+                // Pause does not repeat, and stops whatever did (as on PS/2).
+                self.repeating = None;
+            } else if let Some(key) = set1_key(usage) {
+                self.pressed(key, now_micros, out);
+            }
+        }
+        self.modifiers = modifiers;
+        self.keys = keys;
+    }
+
+    fn pressed(&mut self, key: Set1Key, now_micros: u64, out: &mut impl FnMut(u8)) {
+        emit(key, false, out);
+        self.repeating = Some((key, now_micros.saturating_add(REPEAT_DELAY_MICROS)));
+    }
+
+    fn released(&mut self, key: Set1Key, out: &mut impl FnMut(u8)) {
+        emit(key, true, out);
+        if self
+            .repeating
+            .is_some_and(|(repeating, _)| repeating == key)
+        {
+            self.repeating = None;
+        }
+    }
+
+    /// Repeats the held key's make code for every repeat due by `now_micros`
+    /// (at most a few, so a long stall gives a short burst, not a flood).
+    pub fn tick(&mut self, now_micros: u64, out: &mut impl FnMut(u8)) {
+        const MOST_REPEATS_AT_ONCE: u32 = 4;
+        let Some((key, mut due)) = self.repeating else {
+            return;
+        };
+        let mut repeats = 0;
+        while now_micros >= due {
+            if repeats < MOST_REPEATS_AT_ONCE {
+                emit(key, false, out);
+                repeats += 1;
+            }
+            due = due.saturating_add(REPEAT_PERIOD_MICROS);
+        }
+        self.repeating = Some((key, due));
+    }
+
+    /// Forgets every key (the device went away): gives break codes for what
+    /// was held, so nothing stays pressed.
+    pub fn release_all(&mut self, out: &mut impl FnMut(u8)) {
+        self.report(&[0; REPORT_BYTES], 0, out);
+        self.repeating = None;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    fn feed(keyboard: &mut BootKeyboard, report: [u8; 8], now: u64) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        keyboard.report(&report, now, &mut |b| bytes.push(b));
+        bytes
+    }
+
+    fn tick(keyboard: &mut BootKeyboard, now: u64) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        keyboard.tick(now, &mut |b| bytes.push(b));
+        bytes
+    }
+
+    #[test]
+    fn a_press_and_release_give_make_then_break() {
+        let mut keyboard = BootKeyboard::new();
+        assert_eq!(feed(&mut keyboard, [0, 0, 0x15, 0, 0, 0, 0, 0], 0), [0x13]); // r
+        assert_eq!(feed(&mut keyboard, [0; 8], 10), [0x93]);
+        assert_eq!(feed(&mut keyboard, [0; 8], 20), []);
+    }
+
+    #[test]
+    fn extended_keys_get_their_e0_prefix_both_ways() {
+        let mut keyboard = BootKeyboard::new();
+        // Left arrow, then keypad Enter added, then both released.
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x50, 0, 0, 0, 0, 0], 0),
+            [0xE0, 0x4B]
+        );
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x50, 0x58, 0, 0, 0, 0], 1),
+            [0xE0, 0x1C]
+        );
+        assert_eq!(feed(&mut keyboard, [0; 8], 2), [0xE0, 0xCB, 0xE0, 0x9C]);
+        // Keypad 4 has no prefix: the demo tells it from Left that way.
+        assert_eq!(feed(&mut keyboard, [0, 0, 0x5C, 0, 0, 0, 0, 0], 3), [0x4B]);
+    }
+
+    #[test]
+    fn modifiers_are_keys_of_their_own() {
+        let mut keyboard = BootKeyboard::new();
+        // Left Shift, then Right Ctrl too, with A; then all up.
+        assert_eq!(feed(&mut keyboard, [0x02, 0, 0, 0, 0, 0, 0, 0], 0), [0x2A]);
+        assert_eq!(
+            feed(&mut keyboard, [0x12, 0, 0x04, 0, 0, 0, 0, 0], 1),
+            [0xE0, 0x1D, 0x1E]
+        );
+        assert_eq!(feed(&mut keyboard, [0; 8], 2), [0xAA, 0xE0, 0x9D, 0x9E]);
+        // Right Alt and both GUI keys are E0 keys.
+        assert_eq!(
+            feed(&mut keyboard, [0xC8, 0, 0, 0, 0, 0, 0, 0], 3),
+            [0xE0, 0x5B, 0xE0, 0x38, 0xE0, 0x5C]
+        );
+    }
+
+    #[test]
+    fn a_rollover_error_report_changes_nothing() {
+        let mut keyboard = BootKeyboard::new();
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x04, 0x05, 0, 0, 0, 0], 0),
+            [0x1E, 0x30]
+        );
+        // Too many keys: every slot says ErrorRollOver; nothing is released.
+        assert_eq!(feed(&mut keyboard, [0, 0, 1, 1, 1, 1, 1, 1], 1), []);
+        // Back to two keys: no new makes either, as nothing changed.
+        assert_eq!(feed(&mut keyboard, [0, 0, 0x04, 0x05, 0, 0, 0, 0], 2), []);
+        assert_eq!(feed(&mut keyboard, [0, 0, 0x05, 0, 0, 0, 0, 0], 3), [0x9E]);
+    }
+
+    #[test]
+    fn a_held_key_repeats_at_the_ps2_defaults_and_stops_on_release() {
+        let mut keyboard = BootKeyboard::new();
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x21, 0, 0, 0, 0, 0], 1_000),
+            [0x05]
+        ); // 4
+        assert_eq!(tick(&mut keyboard, 1_000 + REPEAT_DELAY_MICROS - 1), []);
+        assert_eq!(tick(&mut keyboard, 1_000 + REPEAT_DELAY_MICROS), [0x05]);
+        assert_eq!(tick(&mut keyboard, 1_000 + REPEAT_DELAY_MICROS + 1), []);
+        // A second later: about 10.9 more.
+        let mut repeats = 0;
+        for ms in 0..1000 {
+            repeats += tick(&mut keyboard, 1_000 + REPEAT_DELAY_MICROS + 1 + ms * 1000).len();
+        }
+        assert_eq!(repeats, 10);
+        assert_eq!(
+            feed(&mut keyboard, [0; 8], 3_000_000),
+            [0x85],
+            "a release gives its break code"
+        );
+        assert_eq!(tick(&mut keyboard, 10_000_000), []);
+    }
+
+    #[test]
+    fn the_last_key_pressed_is_the_one_that_repeats() {
+        let mut keyboard = BootKeyboard::new();
+        feed(&mut keyboard, [0, 0, 0x04, 0, 0, 0, 0, 0], 0);
+        feed(&mut keyboard, [0, 0, 0x04, 0x50, 0, 0, 0, 0], 100_000);
+        assert_eq!(tick(&mut keyboard, 600_000), [0xE0, 0x4B]);
+        // Releasing A (not the repeating key) leaves Left repeating.
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0, 0x50, 0, 0, 0, 0], 650_000),
+            [0x9E]
+        );
+        assert_eq!(tick(&mut keyboard, 700_000), [0xE0, 0x4B]);
+    }
+
+    #[test]
+    fn a_long_stall_gives_a_few_repeats_not_a_flood() {
+        let mut keyboard = BootKeyboard::new();
+        feed(&mut keyboard, [0, 0, 0x04, 0, 0, 0, 0, 0], 0);
+        assert_eq!(tick(&mut keyboard, 60_000_000).len(), 4);
+        assert_eq!(tick(&mut keyboard, 60_000_001), []);
+    }
+
+    #[test]
+    fn pause_sends_its_e1_sequence_once_and_short_reports_are_ignored() {
+        let mut keyboard = BootKeyboard::new();
+        assert_eq!(
+            feed(&mut keyboard, [0, 0, 0x48, 0, 0, 0, 0, 0], 0),
+            PAUSE_BYTES
+        );
+        assert_eq!(feed(&mut keyboard, [0; 8], 1), []);
+        let mut bytes = Vec::new();
+        keyboard.report(&[0, 0, 0x04], 2, &mut |b| bytes.push(b));
+        assert_eq!(bytes, []);
+    }
+
+    #[test]
+    fn release_all_lets_go_of_everything() {
+        let mut keyboard = BootKeyboard::new();
+        feed(&mut keyboard, [0x01, 0, 0x04, 0, 0, 0, 0, 0], 0);
+        let mut bytes = Vec::new();
+        keyboard.release_all(&mut |b| bytes.push(b));
+        assert_eq!(bytes, [0x9D, 0x9E]);
+        assert_eq!(tick(&mut keyboard, 10_000_000), []);
+    }
+}

@@ -1,0 +1,314 @@
+//! xHCI rings in DMA memory: the producer rings the driver fills (the
+//! command ring and each endpoint's transfer ring, closed by a Link TRB that
+//! toggles the cycle bit) and the event ring the controller fills. A TRB
+//! belongs to whoever's cycle state matches its cycle bit, so the driver
+//! writes a TRB's control word (with the cycle bit) last.
+
+use super::Memory;
+
+/// Bytes in one TRB.
+pub const TRB_BYTES: u64 = 16;
+
+/// TRB types (xHCI 1.2, table 6-91).
+pub mod trb_type {
+    /// Normal (transfer).
+    pub const NORMAL: u32 = 1;
+    /// Setup Stage (control transfer).
+    pub const SETUP: u32 = 2;
+    /// Data Stage (control transfer).
+    pub const DATA: u32 = 3;
+    /// Status Stage (control transfer).
+    pub const STATUS: u32 = 4;
+    /// Link: go on at another address.
+    pub const LINK: u32 = 6;
+    /// No Op on a transfer ring.
+    pub const NO_OP_TRANSFER: u32 = 8;
+    /// Enable Slot command.
+    pub const ENABLE_SLOT: u32 = 9;
+    /// Address Device command.
+    pub const ADDRESS_DEVICE: u32 = 11;
+    /// Configure Endpoint command.
+    pub const CONFIGURE_ENDPOINT: u32 = 12;
+    /// Evaluate Context command.
+    pub const EVALUATE_CONTEXT: u32 = 13;
+    /// No Op command.
+    pub const NO_OP_COMMAND: u32 = 23;
+    /// Transfer event.
+    pub const TRANSFER_EVENT: u32 = 32;
+    /// Command Completion event.
+    pub const COMMAND_COMPLETION: u32 = 33;
+    /// Port Status Change event.
+    pub const PORT_STATUS_CHANGE: u32 = 34;
+}
+
+/// The control word's cycle bit.
+pub const CYCLE: u32 = 1 << 0;
+/// Link TRB: toggle the consumer's cycle state when following it.
+pub const TOGGLE_CYCLE: u32 = 1 << 1;
+/// Transfer TRB: interrupt (post an event) on a short packet.
+pub const INTERRUPT_ON_SHORT: u32 = 1 << 2;
+/// Transfer TRB: post an event when done.
+pub const INTERRUPT_ON_COMPLETION: u32 = 1 << 5;
+/// Setup TRB: the parameter holds the data itself.
+pub const IMMEDIATE_DATA: u32 = 1 << 6;
+
+/// One TRB's four words.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Trb(pub [u32; 4]);
+
+impl Trb {
+    /// A TRB of `kind` with a 64-bit parameter, status word and the other
+    /// control bits (the cycle bit is the ring's business).
+    pub fn new(kind: u32, parameter: u64, status: u32, control: u32) -> Trb {
+        Trb([
+            parameter as u32,
+            (parameter >> 32) as u32,
+            status,
+            (kind << 10) | (control & !(0x3F << 10) & !CYCLE),
+        ])
+    }
+
+    /// The TRB type.
+    pub fn kind(&self) -> u32 {
+        (self.0[3] >> 10) & 0x3F
+    }
+
+    /// The 64-bit parameter (for events: the TRB it reports on).
+    pub fn parameter(&self) -> u64 {
+        u64::from(self.0[0]) | (u64::from(self.0[1]) << 32)
+    }
+
+    /// An event's completion code.
+    pub fn completion_code(&self) -> u8 {
+        (self.0[2] >> 24) as u8
+    }
+
+    /// An event's slot.
+    pub fn slot(&self) -> u8 {
+        (self.0[3] >> 24) as u8
+    }
+
+    /// A transfer event's endpoint (device context index).
+    pub fn endpoint(&self) -> u8 {
+        ((self.0[3] >> 16) & 0x1F) as u8
+    }
+
+    /// A transfer event's residual: bytes asked for but not moved.
+    pub fn residual(&self) -> u32 {
+        self.0[2] & 0x00FF_FFFF
+    }
+
+    /// A port status change event's port (1-based).
+    pub fn port(&self) -> u8 {
+        (self.0[0] >> 24) as u8
+    }
+}
+
+fn write_trb(memory: &mut impl Memory, address: u64, trb: &Trb, cycle: bool) {
+    memory.mem_write(address, trb.0[0]);
+    memory.mem_write(address + 4, trb.0[1]);
+    memory.mem_write(address + 8, trb.0[2]);
+    // Last: this write hands the TRB to the controller.
+    memory.mem_write(address + 12, (trb.0[3] & !CYCLE) | u32::from(cycle));
+}
+
+/// A ring the driver produces into: `size` TRBs at `base`, the last a Link
+/// back to the start.
+#[derive(Clone, Debug)]
+pub struct ProducerRing {
+    base: u64,
+    size: u16,
+    enqueue: u16,
+    cycle: bool,
+}
+
+impl ProducerRing {
+    /// A ring over zeroed memory at `base` (16-byte aligned, not crossing a
+    /// 64 KiB boundary) holding `size` TRBs, at least 2.
+    pub fn new(base: u64, size: u16) -> ProducerRing {
+        assert!(size >= 2, "a ring needs a TRB and its Link");
+        ProducerRing {
+            base,
+            size,
+            enqueue: 0,
+            cycle: true,
+        }
+    }
+
+    /// Where the ring starts, with the cycle state the consumer starts with
+    /// (for CRCR and endpoint contexts' dequeue pointers).
+    pub fn dequeue_pointer(&self) -> u64 {
+        self.base | u64::from(self.cycle)
+    }
+
+    /// TRBs that can be written before the Link TRB.
+    pub fn room_before_link(&self) -> u16 {
+        self.size - 1 - self.enqueue
+    }
+
+    /// The ring's index of the TRB at `address`, if it is one of its TRBs.
+    pub fn index_of(&self, address: u64) -> Option<u16> {
+        let offset = address.checked_sub(self.base)?;
+        if offset % TRB_BYTES != 0 || offset / TRB_BYTES >= u64::from(self.size - 1) {
+            return None;
+        }
+        Some((offset / TRB_BYTES) as u16)
+    }
+
+    /// Where the next TRB will go.
+    pub fn enqueue_address(&self) -> u64 {
+        self.base + u64::from(self.enqueue) * TRB_BYTES
+    }
+
+    /// Writes `trb` with the producer's cycle bit, following the Link when
+    /// the ring's end is reached; returns the TRB's address.
+    pub fn push(&mut self, memory: &mut impl Memory, trb: Trb) -> u64 {
+        let address = self.enqueue_address();
+        write_trb(memory, address, &trb, self.cycle);
+        self.enqueue += 1;
+        if self.enqueue == self.size - 1 {
+            let link = Trb::new(trb_type::LINK, self.base, 0, TOGGLE_CYCLE);
+            write_trb(memory, self.enqueue_address(), &link, self.cycle);
+            self.enqueue = 0;
+            self.cycle = !self.cycle;
+        }
+        address
+    }
+
+    /// Makes the next `count` TRBs contiguous (a control transfer must not
+    /// be split by the Link), filling the rest of the segment with No Ops.
+    pub fn reserve_contiguous(&mut self, memory: &mut impl Memory, count: u16) {
+        if self.room_before_link() < count {
+            while self.enqueue != 0 {
+                self.push(memory, Trb::new(trb_type::NO_OP_TRANSFER, 0, 0, 0));
+            }
+        }
+    }
+}
+
+/// The event ring's one segment, consumed by the driver.
+#[derive(Clone, Debug)]
+pub struct EventRing {
+    base: u64,
+    size: u16,
+    dequeue: u16,
+    cycle: bool,
+}
+
+impl EventRing {
+    /// A ring over zeroed memory at `base` holding `size` TRBs.
+    pub fn new(base: u64, size: u16) -> EventRing {
+        EventRing {
+            base,
+            size,
+            dequeue: 0,
+            cycle: true,
+        }
+    }
+
+    /// The segment's start (for the ERST entry).
+    pub fn base(&self) -> u64 {
+        self.base
+    }
+
+    /// TRBs in the segment (for the ERST entry).
+    pub fn size(&self) -> u16 {
+        self.size
+    }
+
+    /// Where the next event will be read (for ERDP).
+    pub fn dequeue_address(&self) -> u64 {
+        self.base + u64::from(self.dequeue) * TRB_BYTES
+    }
+
+    /// The next event, if the controller has written one.
+    pub fn pop(&mut self, memory: &mut impl Memory) -> Option<Trb> {
+        let address = self.dequeue_address();
+        let control = memory.mem_read(address + 12);
+        if (control & CYCLE != 0) != self.cycle {
+            return None;
+        }
+        let trb = Trb([
+            memory.mem_read(address),
+            memory.mem_read(address + 4),
+            memory.mem_read(address + 8),
+            control,
+        ]);
+        self.dequeue += 1;
+        if self.dequeue == self.size {
+            self.dequeue = 0;
+            self.cycle = !self.cycle;
+        }
+        Some(trb)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_memory::Words;
+
+    #[test]
+    fn the_producer_links_back_and_toggles_its_cycle() {
+        let mut memory = Words::default();
+        let mut ring = ProducerRing::new(0x1000, 4);
+        assert_eq!(ring.dequeue_pointer(), 0x1001);
+        for expected in [0x1000, 0x1010, 0x1020] {
+            let trb = Trb::new(trb_type::NORMAL, 0xAB, 8, 0);
+            assert_eq!(ring.push(&mut memory, trb), expected);
+            assert_eq!(memory.mem_read(expected + 12) & CYCLE, 1);
+        }
+        // The Link at index 3, owned with cycle 1, pointing home, toggling.
+        let link = memory.mem_read(0x1030 + 12);
+        assert_eq!((link >> 10) & 0x3F, trb_type::LINK);
+        assert_eq!(link & (CYCLE | TOGGLE_CYCLE), CYCLE | TOGGLE_CYCLE);
+        assert_eq!(memory.mem_read(0x1030), 0x1000);
+        // The second lap writes cycle 0.
+        assert_eq!(ring.push(&mut memory, Trb::new(1, 0, 0, 0)), 0x1000);
+        assert_eq!(memory.mem_read(0x1000 + 12) & CYCLE, 0);
+        assert_eq!(ring.index_of(0x1010), Some(1));
+        assert_eq!(ring.index_of(0x1030), None, "the Link is no transfer");
+        assert_eq!(ring.index_of(0x1008), None);
+        assert_eq!(ring.index_of(0xFF0), None);
+    }
+
+    #[test]
+    fn a_control_transfer_is_never_split_by_the_link() {
+        let mut memory = Words::default();
+        let mut ring = ProducerRing::new(0, 8);
+        for _ in 0..5 {
+            ring.push(&mut memory, Trb::new(1, 0, 0, 0));
+        }
+        assert_eq!(ring.room_before_link(), 2);
+        ring.reserve_contiguous(&mut memory, 3);
+        assert_eq!(ring.enqueue_address(), 0, "No Ops filled the segment");
+        assert_eq!(
+            (memory.mem_read(5 * 16 + 12) >> 10) & 0x3F,
+            trb_type::NO_OP_TRANSFER
+        );
+        ring.reserve_contiguous(&mut memory, 3);
+        assert_eq!(ring.enqueue_address(), 0, "room enough: nothing written");
+    }
+
+    #[test]
+    fn the_event_ring_wraps_and_follows_the_cycle_bit() {
+        let mut memory = Words::default();
+        let mut ring = EventRing::new(0x2000, 3);
+        assert_eq!(ring.pop(&mut memory), None, "zeroed memory holds no event");
+        // The controller's first lap: cycle 1.
+        for i in 0..3u64 {
+            memory.mem_write(0x2000 + i * 16, i as u32);
+            memory.mem_write(0x2000 + i * 16 + 12, (33 << 10) | 1);
+        }
+        for i in 0..3u32 {
+            assert_eq!(ring.pop(&mut memory).map(|t| t.0[0]), Some(i));
+        }
+        assert_eq!(ring.dequeue_address(), 0x2000);
+        // The old lap's TRBs (cycle 1) are not new events on the second lap.
+        assert_eq!(ring.pop(&mut memory), None);
+        memory.mem_write(0x2000, 7);
+        memory.mem_write(0x2000 + 12, 33 << 10);
+        assert_eq!(ring.pop(&mut memory).map(|t| t.0[0]), Some(7));
+        assert_eq!(ring.pop(&mut memory), None);
+    }
+}
