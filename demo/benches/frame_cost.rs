@@ -1,0 +1,81 @@
+//! What the renderer's frame costs the CPU, on the host, without the bus.
+//!
+//! `cargo bench -p demo --bench frame_cost` spins four scenes — the starting
+//! cube, three lit solids, the letter L (not convex, so the depth test runs
+//! on its rows) and the crowd (the depth test everywhere) — and times
+//! `Renderer::draw` per frame on a VGA that drops every write: the scene's
+//! faces, the depth policy's drawing into the RAM frame, and comparing that
+//! frame with the page's shadow, but no bus. Each scene is timed over several
+//! runs of 360 frames; the fastest run is the figure least disturbed by other
+//! work on the machine, and the median shows the spread. Host figures only:
+//! they compare two versions of the code on one machine, not what a PC takes.
+//! The last line is machine-readable.
+
+use demo::frame::{FrameDrawer, Renderer};
+use demo::scene::{Scene, SceneCommand};
+use modex::regs::Port;
+use modex::{ModeX, VgaBus};
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+const FRAMES: u32 = 360;
+const RUNS: usize = 9;
+
+/// A VGA that takes every write and answers every read with zero: the
+/// renderer's own work without the bus.
+struct NoBus;
+
+impl VgaBus for NoBus {
+    fn write_port8(&mut self, _port: Port, _value: u8) {}
+    fn write_port16(&mut self, _port: Port, _value: u16) {}
+    fn read_port8(&mut self, _port: Port) -> u8 {
+        0
+    }
+    fn write_vram8(&mut self, _offset: u16, _value: u8) {}
+    fn read_vram8(&mut self, _offset: u16) -> u8 {
+        0
+    }
+    fn fill_vram(&mut self, _offset: u16, _count: u16, _value: u8) {}
+}
+
+/// Mean time per frame of one run of `FRAMES` spinning frames.
+fn run(renderer: &mut Renderer, commands: &[SceneCommand]) -> Duration {
+    renderer.reset();
+    let mut scene = Scene::new();
+    for &command in commands {
+        scene.apply(command);
+    }
+    let mut vga = ModeX::new(NoBus);
+    let start = Instant::now();
+    for _ in 0..FRAMES {
+        scene.tick();
+        black_box(renderer.draw(&mut vga, &mut scene));
+    }
+    start.elapsed() / FRAMES
+}
+
+fn main() {
+    let scenes: [(&str, &str, &[SceneCommand]); 4] = [
+        ("the starting cube", "cube", &[]),
+        (
+            "three lit solids",
+            "three",
+            &[SceneCommand::ToggleSeveral, SceneCommand::ToggleLighting],
+        ),
+        ("the letter L", "letter_l", &[SceneCommand::NextSolid; 5]),
+        ("the crowd", "crowd", &[SceneCommand::ToggleCrowd]),
+    ];
+    let mut renderer = Box::new(Renderer::new());
+    println!("CPU time per frame of Renderer::draw on this host, no bus ({RUNS} runs of {FRAMES} frames):");
+    println!("{:<20} {:>12} {:>12}", "scene", "fastest µs", "median µs");
+    let mut summary = Vec::new();
+    for (name, key, commands) in scenes {
+        let mut runs: Vec<Duration> = (0..RUNS).map(|_| run(&mut renderer, commands)).collect();
+        runs.sort();
+        let micros = |d: Duration| d.as_secs_f64() * 1e6;
+        let (fastest, median) = (micros(runs[0]), micros(runs[RUNS / 2]));
+        println!("{name:<20} {fastest:>12.2} {median:>12.2}");
+        summary.push(format!("{key}={fastest:.2}/{median:.2}"));
+    }
+    println!("SUMMARY fastest/median_us {}", summary.join(" "));
+}
