@@ -10,6 +10,11 @@
 //! work on the machine, and the median shows the spread. Host figures only:
 //! they compare two versions of the code on one machine, not what a PC takes.
 //! The last line is machine-readable.
+//!
+//! Timings on a busy machine wander; instruction counts do not.
+//! `demo/benches/frame_instructions.sh` runs one scene at a time under
+//! Valgrind (`FRAME_COST_SCENE` names it, `FRAME_COST_FRAMES` sets the frames
+//! of its single run) and reports the instructions per frame.
 
 use demo::frame::{FrameDrawer, Renderer};
 use demo::scene::{Scene, SceneCommand};
@@ -38,8 +43,8 @@ impl VgaBus for NoBus {
     fn fill_vram(&mut self, _offset: u16, _count: u16, _value: u8) {}
 }
 
-/// Mean time per frame of one run of `FRAMES` spinning frames.
-fn run(renderer: &mut Renderer, commands: &[SceneCommand]) -> Duration {
+/// Mean time per frame of one run of `frames` spinning frames.
+fn run(renderer: &mut Renderer, commands: &[SceneCommand], frames: u32) -> Duration {
     renderer.reset();
     let mut scene = Scene::new();
     for &command in commands {
@@ -47,11 +52,11 @@ fn run(renderer: &mut Renderer, commands: &[SceneCommand]) -> Duration {
     }
     let mut vga = ModeX::new(NoBus);
     let start = Instant::now();
-    for _ in 0..FRAMES {
+    for _ in 0..frames {
         scene.tick();
         black_box(renderer.draw(&mut vga, &mut scene));
     }
-    start.elapsed() / FRAMES
+    start.elapsed() / frames.max(1)
 }
 
 fn main() {
@@ -66,11 +71,27 @@ fn main() {
         ("the crowd", "crowd", &[SceneCommand::ToggleCrowd]),
     ];
     let mut renderer = Box::new(Renderer::new());
+    if let Ok(only) = std::env::var("FRAME_COST_SCENE") {
+        let frames = match std::env::var("FRAME_COST_FRAMES") {
+            Ok(frames) => frames
+                .parse()
+                .unwrap_or_else(|_| panic!("FRAME_COST_FRAMES={frames:?} is not a count")),
+            Err(_) => FRAMES,
+        };
+        let Some((_, _, commands)) = scenes.iter().find(|(_, key, _)| *key == only) else {
+            let keys: Vec<&str> = scenes.iter().map(|(_, key, _)| *key).collect();
+            panic!("FRAME_COST_SCENE={only:?} is none of {keys:?}");
+        };
+        run(&mut renderer, commands, frames);
+        return;
+    }
     println!("CPU time per frame of Renderer::draw on this host, no bus ({RUNS} runs of {FRAMES} frames):");
     println!("{:<20} {:>12} {:>12}", "scene", "fastest µs", "median µs");
     let mut summary = Vec::new();
     for (name, key, commands) in scenes {
-        let mut runs: Vec<Duration> = (0..RUNS).map(|_| run(&mut renderer, commands)).collect();
+        let mut runs: Vec<Duration> = (0..RUNS)
+            .map(|_| run(&mut renderer, commands, FRAMES))
+            .collect();
         runs.sort();
         let micros = |d: Duration| d.as_secs_f64() * 1e6;
         let (fastest, median) = (micros(runs[0]), micros(runs[RUNS / 2]));
