@@ -278,7 +278,7 @@ fn where_objects_overlap_the_nearer_one_shows() {
             continue;
         }
         let mut frame_picture = std::vec![0u8; 320 * 240];
-        let clip = crate::frame::SCREEN_CLIP;
+        let clip = crate::screen::SCREEN_CLIP;
         scene.visible_faces(|polygon, colour| {
             engine::fill_convex_polygon(polygon, clip, |y, x0, x1| {
                 let row = y as usize * 320;
