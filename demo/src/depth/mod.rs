@@ -189,3 +189,89 @@ fn painter_rows(faces: Faces<'_>, image: &mut PageImage, rows: Range<i32>) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::faces::FaceList;
+    use crate::solids::{CUBE, LETTER_L};
+    use engine::{Model, Object, Xform};
+    use modex::PAGE_PIXELS;
+    use std::boxed::Box;
+    use std::vec::Vec;
+
+    /// `objects` (model, x, z, convex), each turned a little, and their face
+    /// list, painted in the order given.
+    fn listed(objects: &[(&'static Model, f64, f64, bool)]) -> (Vec<Object>, Box<FaceList<4, 64>>) {
+        let mut placed: Vec<Object> = objects
+            .iter()
+            .map(|&(model, x, z, _)| {
+                let mut object = Object::new(model, Xform::translation(x, 0.0, z));
+                object.object_to_world_mut().append_rotation_y(0.4);
+                object.object_to_world_mut().append_rotation_x(0.3);
+                object
+            })
+            .collect();
+        let mut list = Box::new(FaceList::new());
+        list.begin_frame(false);
+        for (object, &(_, _, _, convex)) in placed.iter_mut().zip(objects) {
+            list.push_object(object, convex, |visible| visible.face.colour);
+        }
+        let order: [usize; 4] = core::array::from_fn(|index| index);
+        list.set_far_to_near(&order[..objects.len()]);
+        (placed, list)
+    }
+
+    #[test]
+    fn the_test_is_needed_only_where_rectangles_meet_or_a_solid_is_not_convex() {
+        let (_, apart) = listed(&[(&CUBE, -60.0, -150.0, true), (&CUBE, 60.0, -150.0, true)]);
+        assert_eq!(rows_needing_depth_test(apart.faces()), None);
+        assert!(!needs_depth_test(apart.faces()));
+        let (_, meeting) = listed(&[(&CUBE, -10.0, -150.0, true), (&CUBE, 10.0, -160.0, true)]);
+        let objects = meeting.faces().objects();
+        let (a, b) = (objects[0].bounds.unwrap(), objects[1].bounds.unwrap());
+        assert!(a.overlap_rows(&b).is_some());
+        assert_eq!(rows_needing_depth_test(meeting.faces()), a.overlap_rows(&b));
+        let (_, l_shape) = listed(&[(&LETTER_L, 0.0, -150.0, false)]);
+        let bounds = l_shape.faces().objects()[0].bounds.unwrap();
+        assert_eq!(
+            rows_needing_depth_test(l_shape.faces()),
+            Some(bounds.rows())
+        );
+        let (_, mut small) = listed(&[(&CUBE, -60.0, -150.0, true)]);
+        small.begin_frame(true);
+        assert_eq!(
+            rows_needing_depth_test(small.faces()),
+            Some(i32::MIN..i32::MAX)
+        );
+    }
+
+    /// Drawn with the test only where it is needed, and far to near
+    /// elsewhere, the picture is the one drawn with the test everywhere.
+    #[test]
+    fn the_rows_drawn_without_the_test_match_the_test_everywhere() {
+        let mut everywhere = Box::new([0u8; PAGE_PIXELS]);
+        let mut mixed = Box::new([0u8; PAGE_PIXELS]);
+        let mut band = Box::new(DepthBand::new());
+        for (mut objects, list) in [
+            listed(&[(&CUBE, -12.0, -150.0, true), (&CUBE, 12.0, -150.0, true)]),
+            listed(&[(&LETTER_L, 0.0, -150.0, false)]),
+        ] {
+            let faces = list.faces();
+            let rows = rows_needing_depth_test(faces).expect("the test somewhere");
+            assert!(rows.start > 0 && rows.end < SCREEN_HEIGHT, "{rows:?}");
+            let counts = render_faces_with_depth(&mut everywhere, &mut band, |_, draw| {
+                let mut counts = FaceCounts::default();
+                for object in &mut objects {
+                    counts +=
+                        object.each_visible_face(|visible| draw(visible, visible.face.colour));
+                }
+                counts
+            });
+            assert_eq!(counts, faces.counts());
+            assert_eq!(render_with_depth(faces, &mut mixed, &mut band), counts);
+            assert!(mixed.iter().any(|&pixel| pixel != BACKGROUND));
+            assert!(everywhere == mixed);
+        }
+    }
+}

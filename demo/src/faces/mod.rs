@@ -258,3 +258,111 @@ impl<'list> Faces<'list> {
         self.small_solids
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solids::{CUBE, TETRAHEDRON};
+    use engine::Xform;
+    use std::vec::Vec;
+
+    fn cube_at(x: f64, z: f64) -> Object {
+        Object::new(&CUBE, Xform::translation(x, 0.0, z))
+    }
+
+    #[test]
+    fn each_object_keeps_its_own_faces_bounds_and_convexity() {
+        let mut list: FaceList<3, 20> = FaceList::new();
+        let (mut near, mut far) = (cube_at(-40.0, -100.0), cube_at(40.0, -300.0));
+        let mut turned = Object::new(&TETRAHEDRON, Xform::translation(0.0, 0.0, -200.0));
+        turned.object_to_world_mut().append_rotation_y(0.5);
+        list.begin_frame(true);
+        list.push_object(&mut near, true, |_| 7);
+        list.push_object(&mut far, false, |visible| visible.face.colour);
+        list.push_object(&mut turned, true, |_| 9);
+        list.set_far_to_near(&[1, 2, 0]);
+        let faces = list.faces();
+        assert!(faces.small_solids());
+        let objects = faces.objects();
+        assert_eq!(objects.len(), 3);
+        let mut counts = FaceCounts::default();
+        for (object, (mut engine_object, convex)) in
+            objects
+                .iter()
+                .zip([(near, true), (far, false), (turned, true)])
+        {
+            let mut expected = Vec::new();
+            counts += engine_object.each_visible_face(|v| expected.push(v.polygon.to_vec()));
+            let listed: Vec<_> = faces
+                .of(object)
+                .iter()
+                .map(|f| f.polygon().to_vec())
+                .collect();
+            assert_eq!(listed, expected);
+            assert_eq!(object.convex, convex);
+            assert_eq!(
+                object.bounds,
+                ScreenBox::around(engine_object.screen_vertices())
+            );
+        }
+        assert_eq!(faces.counts(), counts);
+        assert!(faces.of(&objects[0]).iter().all(|face| face.colour == 7));
+        assert!(faces.of(&objects[2]).iter().all(|face| face.colour == 9));
+        let all: usize = objects.iter().map(|object| faces.of(object).len()).sum();
+        assert_eq!(faces.all().len(), all);
+        let order: Vec<_> = faces.far_to_near().collect();
+        assert_eq!(
+            order,
+            [
+                faces.of(&objects[1]),
+                faces.of(&objects[2]),
+                faces.of(&objects[0])
+            ]
+        );
+        // A new frame starts empty.
+        list.begin_frame(false);
+        let faces = list.faces();
+        assert!(faces.all().is_empty() && faces.objects().is_empty());
+        assert_eq!(faces.counts(), FaceCounts::default());
+        assert!(!faces.small_solids());
+    }
+
+    #[test]
+    fn a_face_meets_the_rows_its_fill_can_reach() {
+        let mut object = cube_at(0.0, -100.0);
+        let mut face = None;
+        object.each_visible_face(|visible| face = Some(ScreenFace::new(visible, 3)));
+        let face = face.expect("the front face");
+        let top = face.polygon().iter().map(|p| p.y).min().unwrap();
+        let bottom = face.polygon().iter().map(|p| p.y).max().unwrap();
+        assert!(face.meets_rows(&(top..top + 1)));
+        assert!(face.meets_rows(&(bottom - 1..bottom)));
+        assert!(!face.meets_rows(&(bottom..bottom + 40)));
+        assert!(!face.meets_rows(&(top - 40..top)));
+        assert!(face.depth_plane.is_some());
+    }
+
+    #[test]
+    #[should_panic(expected = "the face list holds at most 5 faces")]
+    fn a_list_too_small_says_so() {
+        let mut list: FaceList<2, 5> = FaceList::new();
+        list.begin_frame(false);
+        // Three faces of a cube seen from a corner, twice.
+        for _ in 0..2 {
+            let mut cube = cube_at(30.0, -100.0);
+            cube.object_to_world_mut().append_rotation_y(0.6);
+            cube.object_to_world_mut().append_rotation_x(0.6);
+            list.push_object(&mut cube, true, |_| 1);
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "named twice or missing")]
+    fn an_order_must_name_each_object_once() {
+        let mut list: FaceList<2, 12> = FaceList::new();
+        list.begin_frame(false);
+        list.push_object(&mut cube_at(0.0, -100.0), true, |_| 1);
+        list.push_object(&mut cube_at(0.0, -200.0), true, |_| 1);
+        list.set_far_to_near(&[1, 1]);
+    }
+}
