@@ -114,7 +114,7 @@ pub fn render_faces_with_depth(
     mut faces: impl FnMut(ClipRect, &mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
 ) -> FaceCounts {
     depth_test_bands(image, band, 0..BANDS, |image, band, clip| {
-        faces(clip, &mut |visible, colour| {
+        faces(clip, &mut move |visible, colour| {
             if let Some(plane) = visible.depth_plane() {
                 fill_nearer(image, band, clip, visible.polygon, &plane, colour);
             }
@@ -145,7 +145,10 @@ fn depth_test_bands(
 }
 
 /// Fills `polygon`, within `clip` (rows of the current band), with `colour`
-/// where its plane is nearer than anything drawn there yet.
+/// where its plane is nearer than anything drawn there yet. Always inlined:
+/// it holds the inner loop, and left out of line it cost the grid's frame
+/// (`cpu_cost`'s workload) 3% more instructions.
+#[inline(always)]
 fn fill_nearer(
     image: &mut PageImage,
     band: &mut DepthBand,
