@@ -188,7 +188,7 @@ struct Phases {
 }
 
 /// The frame, the two pages' shadows, a copy of a shadow for the dry run,
-/// the depth band and the scene's faces: ~435 KiB, kept off the stack.
+/// the depth band and the scene's faces: ~430 KiB, kept off the stack.
 struct Images {
     next: PageImage,
     shadows: [PageImage; 2],

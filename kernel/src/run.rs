@@ -12,8 +12,9 @@ use modex::{ModeX, VgaBus};
 use protocol::line;
 use spin::Mutex;
 
-/// The renderer's three 75 KiB frame images and its depth band, in static
-/// memory rather than on the stack; the demo and the bench take turns.
+/// The renderer's three 75 KiB frame images, its depth band and the scene's
+/// faces (353 KiB), in static memory rather than on the stack; the demo and
+/// the bench take turns.
 pub static RENDERER: Mutex<Renderer> = Mutex::new(Renderer::new());
 
 /// A pacing report every this many flips (about ten seconds).

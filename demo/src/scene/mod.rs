@@ -72,7 +72,7 @@ pub const MAX_FACES: usize = {
     total
 };
 
-/// Room for a frame of the scene's faces (about 75 KiB), for [`Scene::faces`].
+/// Room for a frame of the scene's faces (78 KiB), for [`Scene::faces`].
 pub type SceneFaces = FaceList<MAX_OBJECTS, MAX_FACES>;
 
 /// What is drawn: the objects, the light, and the switches the keys flip.
