@@ -33,6 +33,14 @@ pub const HUB_CONFIGURATION: [u8; 25] = [
     9, 2, 25, 0, 1, 1, 0, 0xE0, 0, 9, 4, 0, 0, 1, 9, 0, 0, 0, 7, 5, 0x81, 3, 1, 0, 12,
 ];
 pub const HUB_DESCRIPTOR: [u8; 9] = [9, 0x29, 4, 0, 0, 50, 0, 0, 0xFF];
+/// QEMU's usb-kbd report descriptor: the boot report (HID 1.11 appendix
+/// E.6): modifier bits, a constant byte, LED outputs, six key bytes.
+pub const KEYBOARD_REPORT_DESCRIPTOR: [u8; 63] = [
+    0x05, 0x01, 0x09, 0x06, 0xA1, 0x01, 0x75, 0x01, 0x95, 0x08, 0x05, 0x07, 0x19, 0xE0, 0x29, 0xE7,
+    0x15, 0x00, 0x25, 0x01, 0x81, 0x02, 0x95, 0x01, 0x75, 0x08, 0x81, 0x01, 0x95, 0x05, 0x75, 0x01,
+    0x05, 0x08, 0x19, 0x01, 0x29, 0x05, 0x91, 0x02, 0x95, 0x01, 0x75, 0x03, 0x91, 0x01, 0x95, 0x06,
+    0x75, 0x08, 0x15, 0x00, 0x25, 0xFF, 0x05, 0x07, 0x19, 0x00, 0x29, 0xFF, 0x81, 0x00, 0xC0,
+];
 pub const KEYBOARD_CONFIGURATION: [u8; 34] = [
     9, 2, 34, 0, 1, 1, 0, 0xA0, 50, 9, 4, 0, 0, 1, 3, 1, 1, 0, 9, 0x21, 0x11, 0x01, 0, 1, 0x22, 63,
     0, 7, 5, 0x81, 3, 8, 0, 10,
@@ -65,7 +73,11 @@ struct Slot {
 #[derive(Clone, Debug, Default)]
 pub struct KeyboardState {
     pub configuration: Option<u8>,
-    pub boot_protocol: bool,
+    /// The protocol the keyboard is in: 1 (report) after a reset, 0 (boot)
+    /// once told, unless it ignores SET_PROTOCOL.
+    pub protocol: u16,
+    /// SET_PROTOCOL requests received.
+    pub set_protocols: u32,
     pub idle_set: bool,
     pub slot: u8,
 }
@@ -94,6 +106,10 @@ pub struct Model {
     pub commands_answered: bool,
     pub device_descriptor: Vec<u8>,
     pub configuration: Vec<u8>,
+    /// The report descriptor (None: the request stalls).
+    pub report_descriptor: Option<Vec<u8>>,
+    /// The keyboard stays in the report protocol whatever it is told.
+    pub ignores_set_protocol: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
     // Registers.
@@ -136,6 +152,8 @@ impl Model {
             commands_answered: true,
             device_descriptor: KEYBOARD_DEVICE.to_vec(),
             configuration: KEYBOARD_CONFIGURATION.to_vec(),
+            report_descriptor: Some(KEYBOARD_REPORT_DESCRIPTOR.to_vec()),
+            ignores_set_protocol: false,
             hub: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
@@ -155,7 +173,10 @@ impl Model {
             event_cycle: true,
             slots: Default::default(),
             next_slot: 1,
-            keyboard: KeyboardState::default(),
+            keyboard: KeyboardState {
+                protocol: 1,
+                ..KeyboardState::default()
+            },
             hub_state: HubState::default(),
             events_dropped: 0,
             events_posted: 0,
@@ -383,6 +404,9 @@ impl Model {
                     let reply = match (hub, request_type, request, value >> 8) {
                         (false, 0x80, 6, 1) => self.device_descriptor.clone(),
                         (false, 0x80, 6, 2) => self.configuration.clone(),
+                        (false, 0x81, 6, 0x22) => {
+                            self.report_descriptor.clone().unwrap_or_default()
+                        }
                         (true, 0x80, 6, 1) => HUB_DEVICE.to_vec(),
                         (true, 0x80, 6, 2) => HUB_CONFIGURATION.to_vec(),
                         (true, 0xA0, 6, 0x29) => HUB_DESCRIPTOR.to_vec(),
@@ -416,12 +440,16 @@ impl Model {
                     }
                     let known = match (request_type, request) {
                         (0x80, 6) => true,
+                        (0x81, 6) => self.report_descriptor.is_some(),
                         (0x00, 9) => {
                             self.keyboard.configuration = Some(value as u8);
                             true
                         }
                         (0x21, 0x0B) => {
-                            self.keyboard.boot_protocol = value == 0;
+                            self.keyboard.set_protocols += 1;
+                            if !self.ignores_set_protocol {
+                                self.keyboard.protocol = value;
+                            }
                             true
                         }
                         (0x21, 0x0A) => {
@@ -480,6 +508,12 @@ impl Model {
     /// The keyboard sends a report (if a Normal TRB waits for one); returns
     /// whether it could.
     pub fn send_report(&mut self, report: [u8; 8]) -> bool {
+        self.send_bytes(&report)
+    }
+
+    /// The keyboard sends a report of any length (at most the TRB's: a
+    /// longer one is cut, as a babble would be).
+    pub fn send_bytes(&mut self, report: &[u8]) -> bool {
         let slot = self.keyboard.slot;
         let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
             return false;
@@ -489,15 +523,13 @@ impl Model {
         };
         self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
         let buffer = trb.parameter();
-        self.mem_write(
-            buffer,
-            u32::from_le_bytes([report[0], report[1], report[2], report[3]]),
-        );
-        self.mem_write(
-            buffer + 4,
-            u32::from_le_bytes([report[4], report[5], report[6], report[7]]),
-        );
-        let residual = trb.0[2].saturating_sub(8);
+        let length = report.len().min(trb.0[2] as usize & 0x1_FFFF);
+        for (i, chunk) in report[..length].chunks(4).enumerate() {
+            let mut word = [0u8; 4];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.mem_write(buffer + 4 * i as u64, u32::from_le_bytes(word));
+        }
+        let residual = trb.0[2].saturating_sub(length as u32);
         self.transfer_event(
             address,
             if residual > 0 { 13 } else { 1 },

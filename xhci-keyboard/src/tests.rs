@@ -125,12 +125,15 @@ fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
         let model = xhci.hardware();
         assert!(model.errors.is_empty(), "csz {csz}: {:?}", model.errors);
         assert_eq!(model.keyboard.configuration, Some(1));
-        assert!(model.keyboard.boot_protocol && model.keyboard.idle_set);
+        // Its report descriptor describes it: kept in the report protocol.
+        assert_eq!(model.keyboard.protocol, 1);
+        assert!(model.keyboard.idle_set);
         assert_eq!(model.keyboard_slot_state(), 3, "configured");
         assert!(model
             .log
             .iter()
-            .any(|l| l == "keyboard: USB boot keyboard on port 1"));
+            .any(|l| l
+                == "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on port 1"));
         assert_eq!(
             xhci.keyboards().collect::<Vec<_>>(),
             [Location {
@@ -298,10 +301,132 @@ fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
         0b11,
         "connected, enabled, change cleared"
     );
-    assert!(model
-        .log
-        .iter()
-        .any(|l| l == "keyboard: USB boot keyboard on port 1.2"));
+    assert!(model.log.iter().any(|l| l
+        .starts_with("keyboard: USB keyboard, read by its report descriptor")
+        && l.ends_with(" on port 1.2")));
     assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
     assert_eq!(poll(&mut xhci), [0x01]);
+}
+
+/// A keyboard whose configuration announces `report_descriptor` (its HID
+/// descriptor's length fixed to match).
+fn keyboard_described_by(report_descriptor: &[u8]) -> Model {
+    let mut model = Model::new();
+    let length = (report_descriptor.len() as u16).to_le_bytes();
+    model.configuration[25..27].copy_from_slice(&length);
+    model.report_descriptor = Some(report_descriptor.to_vec());
+    model
+}
+
+#[test]
+fn an_nkro_keyboard_that_ignores_set_protocol_is_read_through_its_descriptor() {
+    use super::hid::tests::NKRO;
+    let mut model = keyboard_described_by(&NKRO);
+    model.ignores_set_protocol = true;
+    let mut xhci = with_keyboard(model);
+    let bitmap = |usages: &[u8]| {
+        let mut report = [0u8; 21];
+        report[0] = 1;
+        for &usage in usages {
+            match usage {
+                0xE0.. => report[1] |= 1 << (usage - 0xE0),
+                _ => report[2 + usize::from(usage / 8)] |= 1 << (usage % 8),
+            }
+        }
+        report
+    };
+    assert!(xhci.hardware().log.iter().any(|l| l.contains(
+        "read by its report descriptor (2 key fields, 21-byte reports, numbered), on port 1"
+    )));
+    // Left Shift and A, then Left too: eight bytes of a boot decoder would
+    // have read the bitmap as phantom usages.
+    assert!(xhci.hardware().send_bytes(&bitmap(&[0xE1, 0x04])));
+    assert_eq!(poll(&mut xhci), [0x2A, 0x1E]);
+    assert!(xhci.hardware().send_bytes(&bitmap(&[0xE1, 0x04, 0x50])));
+    assert_eq!(poll(&mut xhci), [0xE0, 0x4B]);
+    // Seven letters at once (past the boot report's six) all act.
+    let letters = [0x04, 0x05, 0x06, 0x07, 0x08, 0x09, 0x0A];
+    assert!(xhci.hardware().send_bytes(&bitmap(&letters)));
+    assert_eq!(
+        poll(&mut xhci),
+        [0xAA, 0xE0, 0xCB, 0x30, 0x2E, 0x20, 0x12, 0x21, 0x22]
+    );
+    // A report it cannot read (a boot report, a report cut short) is
+    // dropped and counted, and changes nothing.
+    assert!(xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert!(xhci.hardware().send_bytes(&bitmap(&[])[..12]));
+    assert_eq!(poll(&mut xhci), []);
+    assert_eq!(xhci.dropped_reports(), 2);
+    assert!(xhci.hardware().send_bytes(&bitmap(&[])));
+    assert_eq!(poll(&mut xhci), [0x9E, 0xB0, 0xAE, 0xA0, 0x92, 0xA1, 0xA2]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.keyboard.protocol, 1);
+}
+
+#[test]
+fn a_keyboard_with_report_ids_is_kept_in_the_report_protocol() {
+    use super::hid::tests::NUMBERED;
+    let mut xhci = with_keyboard(keyboard_described_by(&NUMBERED));
+    assert_eq!(xhci.hardware().keyboard.protocol, 1, "report protocol");
+    assert_eq!(xhci.hardware().keyboard.set_protocols, 1);
+    // Esc in report 1; a media key in report 2 types nothing; an unknown
+    // report ID is dropped.
+    assert!(xhci.hardware().send_bytes(&[1, 0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert!(xhci.hardware().send_bytes(&[2, 0xE9, 0x00]));
+    assert!(xhci.hardware().send_bytes(&[9, 0, 0, 0x04, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x01]);
+    assert_eq!(xhci.dropped_reports(), 1);
+    assert!(xhci.hardware().send_bytes(&[1, 0, 0, 0, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x81]);
+}
+
+#[test]
+fn a_boot_keyboard_without_a_report_descriptor_is_put_in_the_boot_protocol() {
+    let mut model = Model::new();
+    model.report_descriptor = None;
+    let mut xhci = with_keyboard(model);
+    assert_eq!(xhci.hardware().keyboard.protocol, 0, "boot protocol");
+    assert!(xhci
+        .hardware()
+        .log
+        .iter()
+        .any(|l| l == "keyboard: USB keyboard, boot protocol, on port 1"));
+    assert!(xhci.hardware().send_report([0, 0, 0x15, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x13]);
+    // Only eight bytes are a boot report.
+    assert!(xhci.hardware().send_bytes(&[0, 0, 0x16, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), []);
+    assert_eq!(xhci.dropped_reports(), 1);
+}
+
+#[test]
+fn a_lying_report_descriptor_refuses_the_device_and_a_tablet_is_left_alone() {
+    use super::hid::tests::{BOOT, TABLET};
+    for (what, descriptor, line) in [
+        (
+            "unclosed",
+            BOOT[..BOOT.len() - 1].to_vec(),
+            "usb: port 1: report descriptor refused (1 collections never closed); device left alone",
+        ),
+        (
+            "tablet",
+            TABLET.to_vec(),
+            "usb: port 1: device 0627:0001 is a HID device without keys; left alone",
+        ),
+    ] {
+        let mut model = keyboard_described_by(&descriptor);
+        if what == "tablet" {
+            model.configuration[15] = 0; // no boot subclass
+            model.configuration[16] = 0;
+        }
+        let mut xhci = controller(model);
+        xhci.take_ownership();
+        xhci.reset_and_start().unwrap();
+        assert_eq!(xhci.enumerate(), 0, "{what}");
+        let model = xhci.hardware();
+        assert!(model.log.iter().any(|l| l == line), "{what}: {:?}", model.log);
+        assert!(!model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]), "{what}: no endpoint");
+        assert_eq!(poll(&mut xhci), [], "{what}");
+    }
 }

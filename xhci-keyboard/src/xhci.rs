@@ -7,7 +7,8 @@ use super::context::{
     endpoint_type, interrupt_interval, speed, ContextLayout, EndpointContext, SlotContext,
 };
 use super::descriptor::{self, Function, InterruptIn};
-use super::report::BootKeyboard;
+use super::hid::{self, Decoded, KeySet, KeyboardLayout};
+use super::report::{self, BootKeyboard};
 use super::ring::{trb_type, EventRing, ProducerRing, Trb};
 use super::Hardware;
 // TRBs are built with the `xhci` crate's layouts; the rings here own the
@@ -214,15 +215,72 @@ struct Device {
     keyboard: Option<Keyboard>,
 }
 
-/// A configured boot keyboard's interrupt endpoint.
+/// How a keyboard's reports are read.
+// The layout lives in the keyboard itself: the driver has no allocator to
+// box it in, and a keyboard is a few of these at most.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug)]
+enum ReportFormat {
+    /// The boot report, exactly 8 bytes (the keyboard was put in the boot
+    /// protocol because its report descriptor could not be read).
+    Boot,
+    /// As its report descriptor lays them out (report protocol).
+    Described(KeyboardLayout),
+}
+
+/// Report IDs whose keys are kept apart (a keyboard may split its keys over
+/// several numbered reports; the keys down are the union).
+const KEY_REPORTS: usize = 4;
+
+/// A configured keyboard's interrupt endpoint.
 #[derive(Clone, Debug)]
 struct Keyboard {
     dci: u8,
     ring: ProducerRing,
     reports: u64,
     report_bytes: u32,
+    format: ReportFormat,
+    /// The keys each report ID last said are down.
+    keys_by_report: [(u8, KeySet); KEY_REPORTS],
     state: BootKeyboard,
+    /// Reports that could not be read, dropped.
+    dropped: u32,
     failed: bool,
+}
+
+impl Keyboard {
+    /// Takes one report: gives the keys now down, or why it changes nothing.
+    fn keys(&mut self, report: &[u8]) -> core::result::Result<KeySet, Decoded> {
+        match &self.format {
+            ReportFormat::Boot if report.len() == report::REPORT_BYTES => {
+                report::boot_report_keys(report).ok_or(Decoded::Rollover)
+            }
+            ReportFormat::Boot => Err(Decoded::Unreadable),
+            ReportFormat::Described(layout) => match layout.decode(report) {
+                Decoded::Keys { report_id, keys } => {
+                    let slot = match self
+                        .keys_by_report
+                        .iter()
+                        .position(|&(id, _)| id == report_id)
+                    {
+                        Some(slot) => slot,
+                        None => self
+                            .keys_by_report
+                            .iter()
+                            .position(|&(id, _)| id == u8::MAX)
+                            .ok_or(Decoded::Unreadable)?,
+                    };
+                    self.keys_by_report[slot] = (report_id, keys);
+                    Ok(self
+                        .keys_by_report
+                        .iter()
+                        .filter(|&&(id, _)| id != u8::MAX)
+                        .fold(KeySet::default(), |all, (_, keys)| all.union(keys)))
+                }
+                other => Err(other),
+            },
+        }
+    }
 }
 
 /// A bump allocator of zeroed pages in the DMA region.
@@ -282,6 +340,8 @@ const GET_DESCRIPTOR: u8 = 6;
 const SET_CONFIGURATION: u8 = 9;
 const HID_SET_IDLE: u8 = 0x0A;
 const HID_SET_PROTOCOL: u8 = 0x0B;
+const PROTOCOL_BOOT: u16 = 0;
+const PROTOCOL_REPORT: u16 = 1;
 const HUB_PORT_RESET: u16 = 4;
 const HUB_PORT_POWER: u16 = 8;
 const HUB_C_PORT_RESET: u16 = 20;
@@ -939,14 +999,26 @@ impl<H: Hardware> Xhci<H> {
         self.get_descriptor(index, descriptor::kind::CONFIGURATION, config_bytes)?;
         let configuration = descriptor::configuration(config_bytes)?;
         match configuration.function {
-            Some(Function::BootKeyboard {
+            Some(Function::Keyboard {
                 interface,
                 endpoint,
+                boot,
+                report_descriptor_bytes,
             }) => {
-                self.set_up_keyboard(index, configuration.value, interface, endpoint)?;
-                self.hw.log(format_args!(
-                    "keyboard: USB boot keyboard on port {location}"
-                ));
+                let found = self.set_up_keyboard(
+                    index,
+                    configuration.value,
+                    interface,
+                    endpoint,
+                    boot,
+                    report_descriptor_bytes,
+                )?;
+                if !found {
+                    self.hw.log(format_args!(
+                        "usb: port {location}: device {:04x}:{:04x} is a HID device without keys; left alone",
+                        device.vendor, device.product
+                    ));
+                }
                 Ok(())
             }
             Some(Function::Hub) if location.hub_port == 0 => {
@@ -971,13 +1043,80 @@ impl<H: Hardware> Xhci<H> {
         }
     }
 
+    /// Reads a HID interface's report descriptor (at most
+    /// [`hid::MAX_DESCRIPTOR_BYTES`]): where its keys lie, or why not.
+    fn report_layout(
+        &mut self,
+        index: usize,
+        interface: u8,
+        bytes: u16,
+    ) -> Result<core::result::Result<KeyboardLayout, hid::HidError>> {
+        let length = usize::from(bytes).min(hid::MAX_DESCRIPTOR_BYTES);
+        self.control(
+            index,
+            Setup {
+                request_type: 0x81,
+                request: GET_DESCRIPTOR,
+                value: u16::from(descriptor::kind::REPORT) << 8,
+                index: u16::from(interface),
+                length: length as u16,
+            },
+        )?;
+        let mut descriptor = [0u8; hid::MAX_DESCRIPTOR_BYTES];
+        self.read_buffer(index, &mut descriptor[..length]);
+        Ok(hid::parse(&descriptor[..length]))
+    }
+
+    /// Configures a HID interface that is or may be a keyboard and starts
+    /// its reports. The report descriptor decides how reports are read: a
+    /// keyboard it describes is kept in the report protocol (whatever it
+    /// would do with SET_PROTOCOL(boot)); a boot keyboard whose descriptor
+    /// cannot be read is put in the boot protocol; a descriptor that lies
+    /// is refused, and so is the keyboard. Returns whether it is a keyboard.
     fn set_up_keyboard(
         &mut self,
         index: usize,
         configuration: u8,
         interface: u8,
         endpoint: InterruptIn,
-    ) -> Result<()> {
+        boot: bool,
+        report_descriptor_bytes: u16,
+    ) -> Result<bool> {
+        let Some(location) = self.devices[index].as_ref().map(|d| d.location) else {
+            return Err(XhciError::TooManyDevices);
+        };
+        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
+        let layout = if report_descriptor_bytes == 0 {
+            Err(None)
+        } else {
+            match self.report_layout(index, interface, report_descriptor_bytes) {
+                Ok(Ok(layout)) => Ok(layout),
+                Ok(Err(lie)) => {
+                    self.hw.log(format_args!(
+                        "usb: port {location}: report descriptor refused ({lie}); device left alone"
+                    ));
+                    return Ok(false);
+                }
+                Err(e) => Err(Some(e)),
+            }
+        };
+        let format = match layout {
+            Ok(layout) if layout.has_keys() => ReportFormat::Described(layout),
+            Ok(_) => return Ok(false),
+            Err(why) if boot => {
+                if let Some(e) = why {
+                    self.hw.log(format_args!(
+                        "usb: keyboard on port {location}: no report descriptor ({e}); boot protocol"
+                    ));
+                }
+                ReportFormat::Boot
+            }
+            Err(_) => return Ok(false),
+        };
+        let longest_report = match &format {
+            ReportFormat::Boot => report::REPORT_BYTES,
+            ReportFormat::Described(layout) => layout.longest_key_report(),
+        };
         let (ring_page, reports) = (self.page()?, self.page()?);
         let layout = self.capabilities.layout;
         let Some(device) = self.devices[index].as_mut() else {
@@ -989,6 +1128,15 @@ impl<H: Hardware> Xhci<H> {
         let (slot, input, speed_id, slot_context) =
             (device.slot, device.input, device.speed, device.slot_context);
         let max_packet = endpoint.max_packet.clamp(1, REPORT_BUFFER_BYTES as u16);
+        // A transfer ends with a short packet or when its length is reached:
+        // one packet's worth, unless a report needs more (then whole packets,
+        // so that a report of exactly that length still ends it).
+        let report_bytes = if longest_report <= usize::from(max_packet) {
+            u32::from(max_packet)
+        } else {
+            (longest_report as u32).next_multiple_of(u32::from(max_packet))
+        }
+        .min(REPORT_BUFFER_BYTES as u32);
         layout.start_input(&mut self.hw, input, 1 | 1 << dci);
         layout.write_slot(&mut self.hw, input, &slot_context);
         layout.write_endpoint(
@@ -1004,25 +1152,45 @@ impl<H: Hardware> Xhci<H> {
             },
         );
         self.command(configure_endpoint(input, slot))?;
-        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
-        // Boot protocol: the 8-byte report this driver reads.
-        self.request(index, 0x21, HID_SET_PROTOCOL, 0, u16::from(interface))?;
+        // SET_PROTOCOL exists only on boot interfaces; the others are
+        // always in the report protocol.
+        if boot {
+            let protocol = match format {
+                ReportFormat::Boot => PROTOCOL_BOOT,
+                ReportFormat::Described(_) => PROTOCOL_REPORT,
+            };
+            let result = self.request(
+                index,
+                0x21,
+                HID_SET_PROTOCOL,
+                protocol,
+                u16::from(interface),
+            );
+            match (result, format) {
+                (Ok(()), _) => {}
+                // Reports are read by the descriptor whatever it answers.
+                (Err(e), ReportFormat::Described(_)) => self.hw.log(format_args!(
+                    "usb: keyboard on port {location}: SET_PROTOCOL refused ({e})"
+                )),
+                (Err(e), ReportFormat::Boot) => return Err(e),
+            }
+        }
         // Reports only when something changes; repeat is ours. Some
         // keyboards refuse SET_IDLE; that costs nothing but reports.
         if let Err(e) = self.request(index, 0x21, HID_SET_IDLE, 0, u16::from(interface)) {
-            let location = self.devices[index].as_ref().map(|d| d.location);
-            if let Some(location) = location {
-                self.hw.log(format_args!(
-                    "usb: keyboard on port {location}: SET_IDLE refused ({e})"
-                ));
-            }
+            self.hw.log(format_args!(
+                "usb: keyboard on port {location}: SET_IDLE refused ({e})"
+            ));
         }
         let mut keyboard = Keyboard {
             dci,
             ring,
             reports,
-            report_bytes: u32::from(max_packet),
+            report_bytes,
+            format,
+            keys_by_report: [(u8::MAX, KeySet::default()); KEY_REPORTS],
             state: BootKeyboard::new(),
+            dropped: 0,
             failed: false,
         };
         for _ in 0..QUEUED_REPORTS {
@@ -1032,7 +1200,18 @@ impl<H: Hardware> Xhci<H> {
             device.keyboard = Some(keyboard);
         }
         self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
-        Ok(())
+        match format {
+            ReportFormat::Boot => self.hw.log(format_args!(
+                "keyboard: USB keyboard, boot protocol, on port {location}"
+            )),
+            ReportFormat::Described(layout) => self.hw.log(format_args!(
+                "keyboard: USB keyboard, read by its report descriptor ({} key fields, {}-byte reports{}), on port {location}",
+                layout.fields().count(),
+                layout.longest_key_report(),
+                if layout.numbered { ", numbered" } else { "" }
+            )),
+        }
+        Ok(true)
     }
 
     fn set_up_hub(&mut self, index: usize, configuration: u8) -> Result<()> {
@@ -1213,7 +1392,20 @@ impl<H: Hardware> Xhci<H> {
             let value = self.hw.mem_read(buffer + word as u64 * 4).to_le_bytes();
             chunk.copy_from_slice(&value[..chunk.len()]);
         }
-        keyboard.state.report(&report[..length], now, out);
+        match keyboard.keys(&report[..length]) {
+            Ok(keys) => keyboard.state.keys(&keys, now, out),
+            Err(Decoded::Unreadable) => {
+                keyboard.dropped = keyboard.dropped.saturating_add(1);
+                // The first says what happened; a count says how often.
+                if keyboard.dropped.is_power_of_two() {
+                    self.hw.log(format_args!(
+                        "usb: keyboard on port {location}: {} unreadable reports dropped (the last {length} bytes)",
+                        keyboard.dropped
+                    ));
+                }
+            }
+            Err(_) => {} // rollover, or a report without keys
+        }
         queue_report(&mut self.hw, keyboard);
         let dci = keyboard.dci;
         self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
@@ -1226,6 +1418,15 @@ impl<H: Hardware> Xhci<H> {
             .flatten()
             .filter(|d| d.keyboard.as_ref().is_some_and(|k| !k.failed))
             .map(|d| d.location)
+    }
+
+    /// Reports dropped because they could not be read, over all keyboards.
+    pub fn dropped_reports(&self) -> u32 {
+        self.devices
+            .iter()
+            .flatten()
+            .filter_map(|d| d.keyboard.as_ref())
+            .fold(0, |sum, k| sum.saturating_add(k.dropped))
     }
 
     /// The slot state of every device with a slot (for the host tests).
