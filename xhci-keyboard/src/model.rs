@@ -12,6 +12,9 @@ use std::string::String;
 use std::vec;
 use std::vec::Vec;
 
+const RESET_ENDPOINT: u32 = 14;
+const SET_TR_DEQUEUE: u32 = 16;
+
 pub const DMA_BASE: u64 = 0x10_0000;
 pub const DMA_BYTES: u64 = 1 << 20;
 pub const BAR_BYTES: u32 = 0x2000;
@@ -67,6 +70,8 @@ struct Slot {
     output: u64,
     ep0: Cursor,
     interrupt: Option<(u8, Cursor)>,
+    /// The controller halted the interrupt endpoint after an error.
+    interrupt_halted: bool,
 }
 
 /// What the keyboard was told.
@@ -79,6 +84,10 @@ pub struct KeyboardState {
     /// SET_PROTOCOL requests received.
     pub set_protocols: u32,
     pub idle_set: bool,
+    /// The keyboard's own endpoint is halted (after a stall) until
+    /// CLEAR_FEATURE(ENDPOINT_HALT).
+    pub device_halted: bool,
+    pub halts_cleared: u32,
     pub slot: u8,
 }
 
@@ -112,6 +121,8 @@ pub struct Model {
     pub ignores_set_protocol: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
+    /// The keyboard's interrupt endpoint was reset and awaits its dequeue pointer.
+    endpoint_stopped: bool,
     // Registers.
     legacy: u32,
     legacy_control: u32,
@@ -155,6 +166,7 @@ impl Model {
             report_descriptor: Some(KEYBOARD_REPORT_DESCRIPTOR.to_vec()),
             ignores_set_protocol: false,
             hub: false,
+            endpoint_stopped: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
             os_asked_at: None,
@@ -344,6 +356,46 @@ impl Model {
                     self.complete_command(address, 1, slot);
                 }
                 trb_type::EVALUATE_CONTEXT => self.complete_command(address, 1, slot),
+                RESET_ENDPOINT | SET_TR_DEQUEUE => {
+                    let dci = ((trb.0[3] >> 16) & 0x1F) as u8;
+                    let state = &mut self.slots[usize::from(slot)];
+                    let Some((endpoint, cursor)) = state.interrupt.as_mut() else {
+                        self.complete_command(address, 19, slot);
+                        continue;
+                    };
+                    if *endpoint != dci {
+                        self.errors.push(std::format!("command for endpoint {dci}"));
+                        self.complete_command(address, 19, slot);
+                        continue;
+                    }
+                    // Reset Endpoint: Halted -> Stopped; Set TR Dequeue
+                    // Pointer: only while Stopped.
+                    let code = if trb.kind() == RESET_ENDPOINT {
+                        if state.interrupt_halted {
+                            state.interrupt_halted = false;
+                            self.endpoint_stopped = true;
+                            1
+                        } else {
+                            19
+                        }
+                    } else if state.interrupt_halted || !self.endpoint_stopped {
+                        19
+                    } else {
+                        *cursor = Cursor {
+                            dequeue: trb.parameter() & !0xF,
+                            cycle: trb.parameter() & 1 != 0,
+                        };
+                        self.endpoint_stopped = false;
+                        1
+                    };
+                    if code != 1 {
+                        self.errors.push(std::format!(
+                            "command {} in the wrong endpoint state",
+                            trb.kind()
+                        ));
+                    }
+                    self.complete_command(address, code, slot);
+                }
                 trb_type::CONFIGURE_ENDPOINT => {
                     let input = trb.parameter();
                     let add = self.mem_read(input + 4);
@@ -452,6 +504,11 @@ impl Model {
                             }
                             true
                         }
+                        (0x02, 1) if value == 0 && (setup >> 32) as u16 == 0x81 => {
+                            self.keyboard.device_halted = false;
+                            self.keyboard.halts_cleared += 1;
+                            true
+                        }
                         (0x21, 0x0A) => {
                             self.keyboard.idle_set = true;
                             true
@@ -514,10 +571,18 @@ impl Model {
     /// The keyboard sends a report of any length (at most the TRB's: a
     /// longer one is cut, as a babble would be).
     pub fn send_bytes(&mut self, report: &[u8]) -> bool {
+        if self.keyboard.device_halted {
+            // Still halted on the device's side: the next try stalls again.
+            self.fail_transfer(6);
+            return false;
+        }
         let slot = self.keyboard.slot;
         let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
             return false;
         };
+        if self.slots[usize::from(slot)].interrupt_halted || self.endpoint_stopped {
+            return false;
+        }
         let Some((address, trb)) = self.next_trb(&mut cursor) else {
             return false;
         };
@@ -537,6 +602,29 @@ impl Model {
             slot,
             dci,
         );
+        true
+    }
+
+    /// The keyboard's next report transfer fails with `code` (6: a stall,
+    /// which halts the device's endpoint too; 4: a transaction error) and
+    /// the controller halts the endpoint; returns whether a TRB was there.
+    pub fn fail_transfer(&mut self, code: u8) -> bool {
+        let slot = self.keyboard.slot;
+        let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
+            return false;
+        };
+        if self.slots[usize::from(slot)].interrupt_halted || self.endpoint_stopped {
+            return false;
+        }
+        let Some((address, trb)) = self.next_trb(&mut cursor) else {
+            return false;
+        };
+        self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
+        self.slots[usize::from(slot)].interrupt_halted = true;
+        if code == 6 {
+            self.keyboard.device_halted = true;
+        }
+        self.transfer_event(address, code, trb.0[2] & 0x1_FFFF, slot, dci);
         true
     }
 

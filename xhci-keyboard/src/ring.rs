@@ -155,6 +155,13 @@ impl ProducerRing {
         Some((offset / TRB_BYTES) as u16)
     }
 
+    /// Where the next TRB will go, with the producer's cycle state: the
+    /// dequeue pointer that makes the consumer skip everything queued so
+    /// far (for Set TR Dequeue Pointer).
+    pub fn enqueue_pointer(&self) -> u64 {
+        self.enqueue_address() | u64::from(self.cycle)
+    }
+
     /// Where the next TRB will go.
     pub fn enqueue_address(&self) -> u64 {
         self.base + u64::from(self.enqueue) * TRB_BYTES

@@ -430,3 +430,86 @@ fn a_lying_report_descriptor_refuses_the_device_and_a_tablet_is_left_alone() {
         assert_eq!(poll(&mut xhci), [], "{what}");
     }
 }
+
+#[test]
+fn a_stall_mid_run_is_recovered_and_the_keyboard_comes_back_by_itself() {
+    let mut xhci = with_keyboard(Model::new());
+    assert!(xhci.hardware().send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
+    assert_eq!(poll(&mut xhci), [0x2A, 0x1E]);
+    // The keyboard stalls: what was held is let go (its releases may be
+    // lost), and the recovery runs a step per event.
+    assert!(xhci.hardware().fail_transfer(6));
+    assert_eq!(poll(&mut xhci), [0xAA, 0x9E]);
+    for _ in 0..4 {
+        poll(&mut xhci);
+    }
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(
+        model.keyboard.halts_cleared, 1,
+        "CLEAR_FEATURE(ENDPOINT_HALT)"
+    );
+    assert!(
+        model
+            .log
+            .iter()
+            .any(|l| l == "usb: keyboard on port 1: recovered"),
+        "{:?}",
+        model.log
+    );
+    // Keys act again, the one still held among them.
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0x05, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x1E, 0x30]);
+    assert!(xhci.hardware().send_report([0; 8]));
+    assert_eq!(poll(&mut xhci), [0x9E, 0xB0]);
+    // A transaction error (no stall on the device's side): recovered
+    // without CLEAR_FEATURE, and again many times over.
+    for round in 0..20 {
+        assert!(xhci.hardware().fail_transfer(4), "round {round}");
+        poll(&mut xhci);
+        assert!(
+            xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0]),
+            "round {round}"
+        );
+        assert!(xhci.hardware().send_report([0; 8]));
+        assert_eq!(poll(&mut xhci), [0x01, 0x81], "round {round}");
+    }
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.keyboard.halts_cleared, 1);
+    assert_eq!(xhci.keyboards().count(), 1);
+}
+
+#[test]
+fn a_keyboard_that_fails_every_transfer_is_given_up_in_bounded_time() {
+    let mut xhci = with_keyboard(Model::new());
+    let mut rounds = 0;
+    while xhci.keyboards().count() == 1 {
+        rounds += 1;
+        assert!(rounds <= 20, "never given up");
+        xhci.hardware().fail_transfer(4);
+        poll(&mut xhci);
+    }
+    assert_eq!(rounds, 9, "eight recoveries, then given up");
+    assert!(xhci
+        .hardware()
+        .log
+        .iter()
+        .any(|l| l.ends_with("keyboard given up")));
+}
+
+#[test]
+fn a_recovery_the_controller_never_answers_gives_the_keyboard_up() {
+    let mut xhci = with_keyboard(Model::new());
+    xhci.hardware().commands_answered = false;
+    assert!(xhci.hardware().fail_transfer(4));
+    let start = xhci.hardware().now;
+    while xhci.keyboards().count() == 1 {
+        let before = xhci.hardware().now;
+        poll(&mut xhci);
+        // A poll never waits for the controller.
+        assert!(xhci.hardware().now - before < 1_000);
+        xhci.hardware().now += 10_000;
+        assert!(xhci.hardware().now - start < 1_000_000, "never given up");
+    }
+}

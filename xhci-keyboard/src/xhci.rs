@@ -99,6 +99,8 @@ const LEGACY_SMI_STATUS: u32 = (1 << 29) | (1 << 30) | (1 << 31);
 
 const COMPLETION_SUCCESS: u8 = 1;
 const COMPLETION_SHORT_PACKET: u8 = 13;
+const COMPLETION_STALL: u8 = 6;
+const COMPLETION_CONTEXT_STATE: u8 = 19;
 
 /// Why a step failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -228,6 +230,51 @@ enum ReportFormat {
     Described(KeyboardLayout),
 }
 
+/// Where a keyboard's report endpoint stands: running, or a step of its
+/// recovery after a failed transfer (each with the TRB whose event ends the
+/// step, and when it began).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Recovery {
+    Running,
+    ResettingEndpoint {
+        command: u64,
+        since: u64,
+        stalled: bool,
+    },
+    SettingDequeue {
+        command: u64,
+        since: u64,
+        stalled: bool,
+    },
+    ClearingHalt {
+        status: u64,
+        since: u64,
+    },
+}
+
+impl Recovery {
+    fn command(&self) -> Option<u64> {
+        match *self {
+            Recovery::ResettingEndpoint { command, .. }
+            | Recovery::SettingDequeue { command, .. } => Some(command),
+            _ => None,
+        }
+    }
+
+    fn since(&self) -> Option<u64> {
+        match *self {
+            Recovery::Running => None,
+            Recovery::ResettingEndpoint { since, .. }
+            | Recovery::SettingDequeue { since, .. }
+            | Recovery::ClearingHalt { since, .. } => Some(since),
+        }
+    }
+}
+
+/// Failed reports in a row after which a keyboard is given up (a device
+/// that fails every transfer is gone or broken; hot-plug finds it again).
+const MAX_RECOVERIES: u32 = 8;
+
 /// Report IDs whose keys are kept apart (a keyboard may split its keys over
 /// several numbered reports; the keys down are the union).
 const KEY_REPORTS: usize = 4;
@@ -245,6 +292,9 @@ struct Keyboard {
     state: BootKeyboard,
     /// Reports that could not be read, dropped.
     dropped: u32,
+    recovery: Recovery,
+    /// Failed transfers since the last good report.
+    failures_in_a_row: u32,
     failed: bool,
 }
 
@@ -342,6 +392,7 @@ const HID_SET_IDLE: u8 = 0x0A;
 const HID_SET_PROTOCOL: u8 = 0x0B;
 const PROTOCOL_BOOT: u16 = 0;
 const PROTOCOL_REPORT: u16 = 1;
+const ENDPOINT_HALT: u16 = 0;
 const HUB_PORT_RESET: u16 = 4;
 const HUB_PORT_POWER: u16 = 8;
 const HUB_C_PORT_RESET: u16 = 20;
@@ -707,7 +758,10 @@ impl<H: Hardware> Xhci<H> {
             .map(|_| ())
     }
 
-    fn control(&mut self, index: usize, setup: Setup) -> Result<()> {
+    /// Queues a control transfer on device `index`'s endpoint 0 and rings
+    /// its doorbell; gives the slot and the Status TRB's address, whose
+    /// event ends the transfer.
+    fn queue_control(&mut self, index: usize, setup: Setup) -> Result<(u8, u64)> {
         let Some(device) = self.devices[index].as_mut() else {
             return Err(XhciError::TransferTimeout);
         };
@@ -749,6 +803,11 @@ impl<H: Hardware> Xhci<H> {
         }
         let status = ring.push(&mut self.hw, Trb(status_stage.into_raw()));
         self.write(self.doorbells + 4 * u32::from(slot), 1);
+        Ok((slot, status))
+    }
+
+    fn control(&mut self, index: usize, setup: Setup) -> Result<()> {
+        let (slot, status) = self.queue_control(index, setup)?;
         let event = self
             .wait_event(TRANSFER_MICROS, |e| {
                 e.kind() == trb_type::TRANSFER_EVENT && e.slot() == slot && e.endpoint() == 1
@@ -1191,6 +1250,8 @@ impl<H: Hardware> Xhci<H> {
             keys_by_report: [(u8::MAX, KeySet::default()); KEY_REPORTS],
             state: BootKeyboard::new(),
             dropped: 0,
+            recovery: Recovery::Running,
+            failures_in_a_row: 0,
             failed: false,
         };
         for _ in 0..QUEUED_REPORTS {
@@ -1341,24 +1402,42 @@ impl<H: Hardware> Xhci<H> {
             self.other_event(&event, out);
         }
         let now = self.hw.now_micros();
-        for device in self.devices.iter_mut().flatten() {
-            if let Some(keyboard) = device.keyboard.as_mut() {
-                keyboard.state.tick(now, out);
+        for index in 0..MAX_DEVICES {
+            let Some(keyboard) = self.devices[index]
+                .as_mut()
+                .and_then(|d| d.keyboard.as_mut())
+            else {
+                continue;
+            };
+            keyboard.state.tick(now, out);
+            if keyboard
+                .recovery
+                .since()
+                .is_some_and(|since| now.saturating_sub(since) > COMMAND_MICROS)
+            {
+                self.give_up(index, 0, out);
             }
         }
     }
 
     fn other_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
-        if event.kind() != trb_type::TRANSFER_EVENT {
-            return;
+        match event.kind() {
+            trb_type::TRANSFER_EVENT => self.transfer_event(event, out),
+            trb_type::COMMAND_COMPLETION => self.recovery_command_done(event),
+            _ => {}
         }
+    }
+
+    fn transfer_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
         let now = self.hw.now_micros();
-        let Some(device) = self
+        let Some(index) = self
             .devices
-            .iter_mut()
-            .flatten()
-            .find(|d| d.slot == event.slot())
+            .iter()
+            .position(|d| d.as_ref().is_some_and(|d| d.slot == event.slot()))
         else {
+            return;
+        };
+        let Some(device) = self.devices[index].as_mut() else {
             return;
         };
         let location = device.location;
@@ -1366,7 +1445,24 @@ impl<H: Hardware> Xhci<H> {
         let Some(keyboard) = device.keyboard.as_mut() else {
             return;
         };
-        if event.endpoint() != keyboard.dci || keyboard.failed {
+        if keyboard.failed {
+            return;
+        }
+        if event.endpoint() == 1 {
+            // Endpoint 0: the end of a recovery's CLEAR_FEATURE(ENDPOINT_HALT).
+            if let Recovery::ClearingHalt { status, .. } = keyboard.recovery {
+                if event.parameter() == status {
+                    let code = event.completion_code();
+                    if code == COMPLETION_SUCCESS || code == COMPLETION_SHORT_PACKET {
+                        self.resume_reports(index);
+                    } else {
+                        self.give_up(index, code, out);
+                    }
+                }
+            }
+            return;
+        }
+        if event.endpoint() != keyboard.dci || keyboard.recovery != Recovery::Running {
             return;
         }
         let code = event.completion_code();
@@ -1377,13 +1473,10 @@ impl<H: Hardware> Xhci<H> {
             return;
         };
         if code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET {
-            keyboard.failed = true;
-            keyboard.state.release_all(out);
-            self.hw.log(format_args!(
-                "usb: keyboard on port {location}: report failed (completion code {code}); keyboard given up"
-            ));
+            self.recover(index, code, out);
             return;
         }
+        keyboard.failures_in_a_row = 0;
         let mut report = [0u8; REPORT_BUFFER_BYTES as usize];
         let length =
             (keyboard.report_bytes.saturating_sub(event.residual()) as usize).min(report.len());
@@ -1409,6 +1502,172 @@ impl<H: Hardware> Xhci<H> {
         queue_report(&mut self.hw, keyboard);
         let dci = keyboard.dci;
         self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
+    }
+
+    /// A report transfer failed and the endpoint halted: lets go of the
+    /// keys (their releases may be lost) and starts the recovery, a step
+    /// per event: Reset Endpoint, Set TR Dequeue Pointer past the TRBs
+    /// queued, CLEAR_FEATURE(ENDPOINT_HALT) after a stall, then the
+    /// reports queued again.
+    fn recover(&mut self, index: usize, code: u8, out: &mut impl FnMut(u8)) {
+        let now = self.hw.now_micros();
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let (slot, location) = (device.slot, device.location);
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        keyboard.failures_in_a_row += 1;
+        if keyboard.failures_in_a_row > MAX_RECOVERIES {
+            self.give_up(index, code, out);
+            return;
+        }
+        keyboard.state.release_all(out);
+        keyboard.keys_by_report = [(u8::MAX, KeySet::default()); KEY_REPORTS];
+        let dci = keyboard.dci;
+        self.hw.log(format_args!(
+            "usb: keyboard on port {location}: report failed (completion code {code}); recovering"
+        ));
+        let mut reset = command::ResetEndpoint::new();
+        reset.set_slot_id(slot).set_endpoint_id(dci);
+        let Some(command) = self.queue_command(Trb(reset.into_raw())) else {
+            self.give_up(index, code, out);
+            return;
+        };
+        if let Some(keyboard) = self.devices[index]
+            .as_mut()
+            .and_then(|d| d.keyboard.as_mut())
+        {
+            keyboard.recovery = Recovery::ResettingEndpoint {
+                command,
+                since: now,
+                stalled: code == COMPLETION_STALL,
+            };
+        }
+    }
+
+    /// A command completed: the next step of the recovery it belongs to.
+    fn recovery_command_done(&mut self, event: &Trb) {
+        let now = self.hw.now_micros();
+        let Some(index) = self.devices.iter().position(|d| {
+            d.as_ref()
+                .and_then(|d| d.keyboard.as_ref())
+                .is_some_and(|k| k.recovery.command() == Some(event.parameter()))
+        }) else {
+            return;
+        };
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let slot = device.slot;
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        let code = event.completion_code();
+        match keyboard.recovery {
+            // Context State Error: the endpoint was not halted after all;
+            // the dequeue pointer still has to move past the failed TRB.
+            Recovery::ResettingEndpoint { stalled, .. }
+                if code == COMPLETION_SUCCESS || code == COMPLETION_CONTEXT_STATE =>
+            {
+                let mut dequeue = command::SetTrDequeuePointer::new();
+                let pointer = keyboard.ring.enqueue_pointer();
+                dequeue
+                    .set_slot_id(slot)
+                    .set_endpoint_id(keyboard.dci)
+                    .set_new_tr_dequeue_pointer(pointer & !0xF);
+                if pointer & 1 != 0 {
+                    dequeue.set_dequeue_cycle_state();
+                }
+                match self.queue_command(Trb(dequeue.into_raw())) {
+                    Some(command) => {
+                        if let Some(k) = self.devices[index]
+                            .as_mut()
+                            .and_then(|d| d.keyboard.as_mut())
+                        {
+                            k.recovery = Recovery::SettingDequeue {
+                                command,
+                                since: now,
+                                stalled,
+                            };
+                        }
+                    }
+                    None => self.give_up(index, code, &mut |_| {}),
+                }
+            }
+            Recovery::SettingDequeue { stalled: true, .. } if code == COMPLETION_SUCCESS => {
+                // The device halted its endpoint too: clear it there.
+                let endpoint = 0x80 | ((keyboard.dci - 1) / 2);
+                let setup = Setup {
+                    request_type: 0x02,
+                    request: CLEAR_FEATURE,
+                    value: ENDPOINT_HALT,
+                    index: u16::from(endpoint),
+                    length: 0,
+                };
+                match self.queue_control(index, setup) {
+                    Ok((_, status)) => {
+                        if let Some(k) = self.devices[index]
+                            .as_mut()
+                            .and_then(|d| d.keyboard.as_mut())
+                        {
+                            k.recovery = Recovery::ClearingHalt { status, since: now };
+                        }
+                    }
+                    Err(_) => self.give_up(index, code, &mut |_| {}),
+                }
+            }
+            Recovery::SettingDequeue { .. } if code == COMPLETION_SUCCESS => {
+                self.resume_reports(index)
+            }
+            _ => self.give_up(index, code, &mut |_| {}),
+        }
+    }
+
+    /// The recovery is done: the reports are queued again.
+    fn resume_reports(&mut self, index: usize) {
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let (slot, location) = (device.slot, device.location);
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        keyboard.recovery = Recovery::Running;
+        for _ in 0..QUEUED_REPORTS {
+            queue_report(&mut self.hw, keyboard);
+        }
+        let dci = keyboard.dci;
+        self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
+        self.hw
+            .log(format_args!("usb: keyboard on port {location}: recovered"));
+    }
+
+    /// The keyboard failed past recovery: its keys are let go and it is
+    /// no longer read.
+    fn give_up(&mut self, index: usize, code: u8, out: &mut impl FnMut(u8)) {
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let location = device.location;
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        keyboard.failed = true;
+        keyboard.recovery = Recovery::Running;
+        keyboard.state.release_all(out);
+        self.hw.log(format_args!(
+            "usb: keyboard on port {location}: not recovered (completion code {code}); keyboard given up"
+        ));
+    }
+
+    /// Pushes a command and rings the command doorbell, without waiting:
+    /// gives the command TRB's address, whose completion event says how it went.
+    fn queue_command(&mut self, trb: Trb) -> Option<u64> {
+        let address = self.commands.as_mut()?.push(&mut self.hw, trb);
+        self.write(self.doorbells, 0);
+        Some(address)
     }
 
     /// The keyboards set up, by where they hang.
