@@ -72,6 +72,14 @@ struct Slot {
     interrupt: Option<(u8, Cursor)>,
     /// The controller halted the interrupt endpoint after an error.
     interrupt_halted: bool,
+    /// Address Device with BSR=1 done: the device is at the default address.
+    default_address: bool,
+    /// Endpoint 0's packet size in the device's context (8 until evaluated).
+    ep0_max_packet: u16,
+    /// The device descriptor was read (at whatever address).
+    descriptor_read: bool,
+    /// A transfer on endpoint 0 babbled (a packet larger than its size).
+    babble: bool,
 }
 
 /// What the keyboard was told.
@@ -119,6 +127,9 @@ pub struct Model {
     pub report_descriptor: Option<Vec<u8>>,
     /// The keyboard stays in the report protocol whatever it is told.
     pub ignores_set_protocol: bool,
+    /// The keyboard answers SET_ADDRESS only once its device descriptor
+    /// has been read (the two-step address).
+    pub needs_two_step: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
     /// The keyboard's interrupt endpoint was reset and awaits its dequeue pointer.
@@ -165,6 +176,7 @@ impl Model {
             configuration: KEYBOARD_CONFIGURATION.to_vec(),
             report_descriptor: Some(KEYBOARD_REPORT_DESCRIPTOR.to_vec()),
             ignores_set_protocol: false,
+            needs_two_step: false,
             hub: false,
             endpoint_stopped: false,
             legacy: 1 << 16,
@@ -330,9 +342,11 @@ impl Model {
                         && slot_dw0 >> 27 == 1
                         && root_port == 1
                         && (ep0_dw1 >> 3) & 7 == 4
-                        && ep0_dw1 >> 16 == 8
+                        && ep0_dw1 >> 16
+                            == u32::from(self.slots[usize::from(slot)].ep0_max_packet.max(8))
                         && ep0_dequeue != 0
                         && self.slots[usize::from(slot)].enabled;
+                    let block_set_address = trb.0[3] & (1 << 9) != 0;
                     if !valid {
                         self.errors.push(std::format!(
                             "Address Device: input context wrong (add {add:#x}, slot {slot_dw0:#x}, port {root_port}, ep0 {ep0_dw1:#x})"
@@ -340,22 +354,53 @@ impl Model {
                         self.complete_command(address, 17, slot);
                         continue;
                     }
-                    let output = self.output_context(slot);
-                    self.mem_write(output + 12, 2 << 27 | u32::from(slot));
-                    let state = &mut self.slots[usize::from(slot)];
-                    state.kind = kind.unwrap_or_default();
-                    state.output = output;
-                    state.ep0 = Cursor {
+                    let kind_now = kind.unwrap_or_default();
+                    let state = &self.slots[usize::from(slot)];
+                    if !block_set_address
+                        && kind_now == Kind::Keyboard
+                        && self.needs_two_step
+                        && !state.descriptor_read
+                    {
+                        // SET_ADDRESS before its descriptor was read: this
+                        // device does not answer it.
+                        self.complete_command(address, 4, slot);
+                        continue;
+                    }
+                    let new_ep0 = Cursor {
                         dequeue: ep0_dequeue & !0xF,
                         cycle: ep0_dequeue & 1 != 0,
                     };
+                    // The ring may have been padded (with No Ops), never rewound.
+                    if state.default_address
+                        && (new_ep0.dequeue < state.ep0.dequeue || new_ep0.cycle != state.ep0.cycle)
+                    {
+                        self.errors.push(std::format!(
+                            "second Address Device: endpoint 0 dequeue {ep0_dequeue:#x} is not where the ring stands"
+                        ));
+                    }
+                    let output = self.output_context(slot);
+                    let slot_state = if block_set_address { 1 } else { 2 };
+                    self.mem_write(output + 12, slot_state << 27 | u32::from(slot));
+                    let state = &mut self.slots[usize::from(slot)];
+                    state.kind = kind_now;
+                    state.output = output;
+                    state.default_address = block_set_address;
+                    state.ep0 = new_ep0;
                     match kind {
                         Some(Kind::Hub) => self.hub_state.slot = slot,
                         _ => self.keyboard.slot = slot,
                     }
                     self.complete_command(address, 1, slot);
                 }
-                trb_type::EVALUATE_CONTEXT => self.complete_command(address, 1, slot),
+                trb_type::EVALUATE_CONTEXT => {
+                    let input = trb.parameter();
+                    let add = self.mem_read(input + 4);
+                    if add & 0b10 != 0 {
+                        let ep0_dw1 = self.mem_read(input + 2 * ctx + 4);
+                        self.slots[usize::from(slot)].ep0_max_packet = (ep0_dw1 >> 16) as u16;
+                    }
+                    self.complete_command(address, 1, slot)
+                }
                 RESET_ENDPOINT | SET_TR_DEQUEUE => {
                     let dci = ((trb.0[3] >> 16) & 0x1F) as u8;
                     let state = &mut self.slots[usize::from(slot)];
@@ -454,7 +499,19 @@ impl Model {
                     let length = (setup >> 48) as usize;
                     let hub = self.slots[usize::from(slot)].kind == Kind::Hub;
                     let reply = match (hub, request_type, request, value >> 8) {
-                        (false, 0x80, 6, 1) => self.device_descriptor.clone(),
+                        (false, 0x80, 6, 1) => {
+                            let packet =
+                                usize::from(self.slots[usize::from(slot)].ep0_max_packet.max(8));
+                            let device_packet =
+                                usize::from(self.device_descriptor.get(7).copied().unwrap_or(8));
+                            // A reply longer than one packet of the wrong
+                            // size babbles.
+                            if length > packet && packet != device_packet {
+                                self.slots[usize::from(slot)].babble = true;
+                            }
+                            self.slots[usize::from(slot)].descriptor_read = true;
+                            self.device_descriptor.clone()
+                        }
                         (false, 0x80, 6, 2) => self.configuration.clone(),
                         (false, 0x81, 6, 0x22) => {
                             self.report_descriptor.clone().unwrap_or_default()
@@ -488,6 +545,10 @@ impl Model {
                     if self.slots[usize::from(slot)].kind == Kind::Hub {
                         let known = self.hub_request(setup);
                         self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
+                        continue;
+                    }
+                    if std::mem::take(&mut self.slots[usize::from(slot)].babble) {
+                        self.transfer_event(address, 3, 0, slot, 1);
                         continue;
                     }
                     let known = match (request_type, request) {

@@ -182,6 +182,14 @@ impl ProducerRing {
         address
     }
 
+    /// Fills the ring with No Op TRBs until the next TRB's address is a
+    /// multiple of `bytes` (a power of two, at most the ring's size).
+    pub fn align_enqueue(&mut self, memory: &mut impl Memory, bytes: u64) {
+        while !self.enqueue_address().is_multiple_of(bytes) {
+            self.push(memory, Trb::new(trb_type::NO_OP_TRANSFER, 0, 0, 0));
+        }
+    }
+
     /// Makes the next `count` TRBs contiguous (a control transfer must not
     /// be split by the Link), filling the rest of the segment with No Ops.
     pub fn reserve_contiguous(&mut self, memory: &mut impl Memory, count: u16) {

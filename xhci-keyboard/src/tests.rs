@@ -513,3 +513,16 @@ fn a_recovery_the_controller_never_answers_gives_the_keyboard_up() {
         assert!(xhci.hardware().now - start < 1_000_000, "never given up");
     }
 }
+
+#[test]
+fn a_full_speed_device_that_needs_the_two_step_address_is_set_up() {
+    let mut model = Model::new();
+    model.needs_two_step = true;
+    model.device_descriptor[7] = 64; // endpoint 0 takes 64-byte packets
+    let mut xhci = with_keyboard(model);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.keyboard_slot_state(), 3, "configured");
+    assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x01]);
+}

@@ -1023,11 +1023,23 @@ impl<H: Hardware> Xhci<H> {
             None => return Err(XhciError::TooManyDevices),
         };
         let layout = self.capabilities.layout;
+        // Full- and low-speed devices are addressed in two steps, as the
+        // specification (4.6.5) and Linux do: first without SET_ADDRESS
+        // (BSR=1), so that the device descriptor's first 8 bytes are read at
+        // the default address with an 8-byte packet size; endpoint 0 then
+        // gets its real packet size; only then is the address set. Some
+        // devices take no address before their descriptor has been read.
+        let two_step = matches!(speed_id, speed::LOW | speed::FULL);
         let mut address = command::AddressDevice::new();
         address.set_input_context_pointer(input).set_slot_id(slot);
+        if two_step {
+            address.set_block_set_address_request();
+        }
         self.command(Trb(address.into_raw()))?;
-        // SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
-        self.pause(2_000);
+        if !two_step {
+            // SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
+            self.pause(2_000);
+        }
         let mut header = [0u8; 8];
         self.get_descriptor(index, descriptor::kind::DEVICE, &mut header)?;
         let first = descriptor::device(&header)?;
@@ -1045,6 +1057,30 @@ impl<H: Hardware> Xhci<H> {
             evaluate.set_input_context_pointer(input).set_slot_id(slot);
             self.command(Trb(evaluate.into_raw()))?;
             *max_packet_0 = announced;
+        }
+        if two_step {
+            // The second Address Device reads the input context again:
+            // the slot and endpoint 0 whole, endpoint 0's ring from where
+            // it now stands.
+            let Some(device) = self.devices[index].as_mut() else {
+                return Err(XhciError::TooManyDevices);
+            };
+            // The `xhci` crate takes only 64-byte aligned dequeue pointers:
+            // No Ops fill up to one, and are skipped.
+            device.ep0.align_enqueue(&mut self.hw, 64);
+            let (slot_context, ep0_dequeue) = (device.slot_context, device.ep0.enqueue_pointer());
+            layout.start_input(&mut self.hw, input, 0b11);
+            layout.write_slot(&mut self.hw, input, &slot_context);
+            layout.write_endpoint(
+                &mut self.hw,
+                input,
+                1,
+                &ep0_context(ep0_dequeue, *max_packet_0),
+            );
+            let mut address = command::AddressDevice::new();
+            address.set_input_context_pointer(input).set_slot_id(slot);
+            self.command(Trb(address.into_raw()))?;
+            self.pause(2_000);
         }
         let mut device_bytes = [0u8; 18];
         self.get_descriptor(index, descriptor::kind::DEVICE, &mut device_bytes)?;
