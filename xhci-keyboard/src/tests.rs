@@ -526,3 +526,69 @@ fn a_full_speed_device_that_needs_the_two_step_address_is_set_up() {
     assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
     assert_eq!(poll(&mut xhci), [0x01]);
 }
+
+/// The model, with the driver's register and DMA accesses counted.
+struct Counting {
+    model: Model,
+    mmio: u64,
+    dma: u64,
+}
+
+impl super::Memory for Counting {
+    fn mem_read(&mut self, address: u64) -> u32 {
+        self.dma += 1;
+        self.model.mem_read(address)
+    }
+    fn mem_write(&mut self, address: u64, value: u32) {
+        self.dma += 1;
+        self.model.mem_write(address, value)
+    }
+}
+
+impl super::Hardware for Counting {
+    fn mmio_read(&mut self, offset: u32) -> u32 {
+        self.mmio += 1;
+        self.model.mmio_read(offset)
+    }
+    fn mmio_write(&mut self, offset: u32, value: u32) {
+        self.mmio += 1;
+        self.model.mmio_write(offset, value)
+    }
+    fn now_micros(&mut self) -> u64 {
+        self.model.now_micros()
+    }
+    fn log(&mut self, message: core::fmt::Arguments<'_>) {
+        self.model.log(message)
+    }
+}
+
+/// Polls with no key changing: the cost the frame loop pays every frame.
+const IDLE_POLLS: u64 = 100_000;
+
+#[test]
+fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
+    let counting = Counting {
+        model: Model::new(),
+        mmio: 0,
+        dma: 0,
+    };
+    let mut xhci = Xhci::new(counting, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 1);
+    // A key held (repeat due later) is the usual state mid-spin too.
+    assert!(xhci
+        .hardware()
+        .model
+        .send_report([0, 0, 0x50, 0, 0, 0, 0, 0]));
+    let mut bytes = Vec::new();
+    xhci.poll(&mut |b| bytes.push(b));
+    let (mmio, dma) = (xhci.hardware().mmio, xhci.hardware().dma);
+    for _ in 0..IDLE_POLLS {
+        xhci.poll(&mut |b| bytes.push(b));
+        xhci.hardware().model.now = 1_000; // no repeat falls due
+    }
+    let hardware = xhci.hardware();
+    assert_eq!(hardware.mmio - mmio, 0, "register accesses");
+    assert_eq!(hardware.dma - dma, IDLE_POLLS, "one event ring word a poll");
+}
