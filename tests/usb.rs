@@ -309,3 +309,48 @@ fn on_a_bios_boot_usb_keys_act_once_and_ps2_keys_act_too() {
     }
     assert_eq!(commands_done(&console), last, "{console}");
 }
+
+/// Esc on a machine without isa-debug-exit (a real PC's way out): before
+/// ACPI S5, the kernel halts and resets the xHCI and switches its ports off,
+/// as Linux's shutdown path does, and the log says so before SLP_EN.
+#[test]
+fn esc_powers_off_with_the_xhci_halted_first() {
+    let board = Board {
+        chipset: Chipset::Q35,
+        pit: false,
+        i8042: false,
+        hpet: true,
+    };
+    let images = boot::images::publish().expect("the build script made the images");
+    let mut options = QemuOptions::new(images.uefi);
+    options.firmware = Firmware::Uefi;
+    options.board = board;
+    options.graphics = Graphics::BochsDisplay;
+    options.debug_exit = false;
+    options.devices = vec![
+        "qemu-xhci,id=xhci".to_string(),
+        usb_keyboard("bus=xhci.0,port=1"),
+    ];
+    let mut qemu = Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"));
+    qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    qemu.press_key_on(DISPLAY_ID, "esc").unwrap();
+    let status = qemu
+        .wait_exit(UEFI_BOOT_TIMEOUT)
+        .unwrap()
+        .unwrap_or_else(|| panic!("still running after Esc:\n{}", qemu.serial()));
+    let console = qemu.serial();
+    let halted = console
+        .find("usb: xHCI 1b36:000d at ")
+        .and_then(|_| console.find(" halted and reset, ports switched off"))
+        .unwrap_or_else(|| panic!("the xHCI was not shut down:\n{console}"));
+    let switching_off = console
+        .find("power: switching off (ACPI S5")
+        .unwrap_or_else(|| panic!("no ACPI S5:\n{console}"));
+    assert!(
+        halted < switching_off,
+        "the xHCI is shut down before SLP_EN:\n{console}"
+    );
+    assert!(console.contains(line::GOODBYE), "{console}");
+    assert_eq!(status.code(), Some(0), "{console}");
+}

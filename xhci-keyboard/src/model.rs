@@ -12,6 +12,7 @@ use std::string::String;
 use std::vec;
 use std::vec::Vec;
 
+const DISABLE_SLOT: u32 = 10;
 const RESET_ENDPOINT: u32 = 14;
 const SET_TR_DEQUEUE: u32 = 16;
 
@@ -157,6 +158,8 @@ pub struct Model {
     pub keyboard: KeyboardState,
     pub hub_state: HubState,
     pub events_dropped: u32,
+    /// Slots the driver disabled, in order.
+    pub slots_disabled: Vec<u8>,
     pub events_posted: u32,
     pub log: Vec<String>,
     pub errors: Vec<String>,
@@ -203,6 +206,7 @@ impl Model {
             },
             hub_state: HubState::default(),
             events_dropped: 0,
+            slots_disabled: Vec::new(),
             events_posted: 0,
             log: Vec::new(),
             errors: Vec::new(),
@@ -317,6 +321,16 @@ impl Model {
             let ctx = self.context_bytes();
             match trb.kind() {
                 trb_type::NO_OP_COMMAND => self.complete_command(address, 1, 0),
+                DISABLE_SLOT => {
+                    let state = &mut self.slots[usize::from(slot)];
+                    if !state.enabled {
+                        self.errors
+                            .push(std::format!("Disable Slot {slot}: not enabled"));
+                    }
+                    *state = Slot::default();
+                    self.slots_disabled.push(slot);
+                    self.complete_command(address, 1, slot);
+                }
                 trb_type::ENABLE_SLOT => {
                     let slot = self.next_slot;
                     self.next_slot += 1;
@@ -666,6 +680,26 @@ impl Model {
         true
     }
 
+    /// The device on root port 1 is pulled out: the port loses its
+    /// connection and the controller says so with a Port Status Change event.
+    pub fn unplug(&mut self) {
+        const CONNECT_CHANGE: u32 = 1 << 17;
+        const ENABLE_CHANGE: u32 = 1 << 18;
+        self.portsc[0] &= !0b11;
+        self.portsc[0] |= CONNECT_CHANGE | ENABLE_CHANGE;
+        self.post_event(Trb([
+            1 << 24,
+            0,
+            1 << 24,
+            trb_type::PORT_STATUS_CHANGE << 10,
+        ]));
+    }
+
+    /// The root port's status change bits still set.
+    pub fn root_port_changes(&self) -> u32 {
+        self.portsc[0] & (0x7F << 17)
+    }
+
     /// The keyboard's next report transfer fails with `code` (6: a stall,
     /// which halts the device's endpoint too; 4: a transaction error) and
     /// the controller halts the endpoint; returns whether a TRB was there.
@@ -708,6 +742,16 @@ impl Model {
 
     pub fn read_u64(&mut self, address: u64) -> u64 {
         self.read64(address)
+    }
+
+    /// Whether the controller is halted and its reset done, and each root
+    /// port's power.
+    pub fn shut_down_state(&self) -> (bool, bool, Vec<bool>) {
+        (
+            self.usbsts & 1 != 0,
+            self.usbcmd & 2 == 0,
+            self.portsc.iter().map(|p| p & (1 << 9) != 0).collect(),
+        )
     }
 
     pub fn legacy_registers(&self) -> (u32, u32) {
@@ -815,6 +859,10 @@ impl Hardware for Model {
                 }
                 let status = &mut self.portsc[port];
                 *status &= !(value & (0x7F << 17));
+                if value & (1 << 9) == 0 {
+                    // Port power off: the device is gone from the port.
+                    *status &= !(1 << 9 | 0b11);
+                }
                 if value & (1 << 4) != 0 && *status & 1 != 0 {
                     *status |= 1 << 21 | 0b10;
                 }

@@ -592,3 +592,50 @@ fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
     assert_eq!(hardware.mmio - mmio, 0, "register accesses");
     assert_eq!(hardware.dma - dma, IDLE_POLLS, "one event ring word a poll");
 }
+
+#[test]
+fn shut_down_switches_the_ports_off_then_halts_and_resets() {
+    let mut xhci = with_keyboard(Model::new());
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+    poll(&mut xhci);
+    assert_eq!(
+        xhci.hardware().shut_down_state(),
+        (false, true, std::vec![true, true])
+    );
+    let start = xhci.hardware().now;
+    xhci.shut_down().unwrap();
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(
+        model.shut_down_state(),
+        (true, true, std::vec![false, false]),
+        "halted, reset, every port unpowered"
+    );
+    assert!(model.now - start < 100_000);
+    // Nothing of the old controller is touched afterwards.
+    assert_eq!(poll(&mut xhci), []);
+    assert_eq!(xhci.keyboards().count(), 0);
+}
+
+#[test]
+fn a_keyboard_pulled_out_lets_go_of_its_keys_and_its_slot() {
+    for hub in [false, true] {
+        let mut model = Model::new();
+        model.hub = hub;
+        let mut xhci = with_keyboard(model);
+        assert!(xhci.hardware().send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
+        assert_eq!(poll(&mut xhci), [0x2A, 0x1E]);
+        xhci.hardware().unplug();
+        // The held keys are released at once, nothing repeats afterwards.
+        assert_eq!(poll(&mut xhci), [0xAA, 0x9E], "hub {hub}");
+        xhci.hardware().now += 2_000_000;
+        assert_eq!(poll(&mut xhci), []);
+        assert_eq!(xhci.keyboards().count(), 0);
+        let model = xhci.hardware();
+        assert!(model.errors.is_empty(), "{:?}", model.errors);
+        let disabled = if hub { 2 } else { 1 };
+        assert_eq!(model.slots_disabled.len(), disabled, "hub {hub}");
+        assert_eq!(model.root_port_changes(), 0, "changes acknowledged");
+        assert!(!model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    }
+}

@@ -1460,6 +1460,7 @@ impl<H: Hardware> Xhci<H> {
         match event.kind() {
             trb_type::TRANSFER_EVENT => self.transfer_event(event, out),
             trb_type::COMMAND_COMPLETION => self.recovery_command_done(event),
+            trb_type::PORT_STATUS_CHANGE => self.root_port_changed(event.port(), out),
             _ => {}
         }
     }
@@ -1538,6 +1539,42 @@ impl<H: Hardware> Xhci<H> {
         queue_report(&mut self.hw, keyboard);
         let dci = keyboard.dci;
         self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
+    }
+
+    /// A root port's status changed. A device pulled out (or switched away
+    /// by a KVM) is let go of: its held keys released, its slot disabled
+    /// (queued, not waited for), everything behind it forgotten.
+    fn root_port_changed(&mut self, port: u8, out: &mut impl FnMut(u8)) {
+        if port == 0 || port > self.capabilities.ports {
+            return;
+        }
+        let register = self.portsc(port);
+        let status = self.read(register);
+        if status == u32::MAX || status & PORT_CONNECTED != 0 {
+            return;
+        }
+        // Acknowledge the changes (write-1-to-clear), keeping the power,
+        // never writing PED (write-1-to-disable).
+        self.write(register, PORT_POWER | (status & PORT_CHANGES));
+        for index in 0..MAX_DEVICES {
+            let Some(device) = self.devices[index].as_mut() else {
+                continue;
+            };
+            if device.location.root_port != port {
+                continue;
+            }
+            let (slot, location) = (device.slot, device.location);
+            if let Some(keyboard) = device.keyboard.as_mut() {
+                keyboard.state.release_all(out);
+            }
+            self.devices[index] = None;
+            let mut disable = command::DisableSlot::new();
+            disable.set_slot_id(slot);
+            let _ = self.queue_command(Trb(disable.into_raw()));
+            self.hw.log(format_args!(
+                "usb: port {location}: device gone; its keys released and slot {slot} disabled"
+            ));
+        }
     }
 
     /// A report transfer failed and the endpoint halted: lets go of the
@@ -1704,6 +1741,41 @@ impl<H: Hardware> Xhci<H> {
         let address = self.commands.as_mut()?.push(&mut self.hw, trb);
         self.write(self.doorbells, 0);
         Some(address)
+    }
+
+    /// Leaves the controller as Linux's shutdown path does before power-off
+    /// or reset: the controller halted, then reset, then every root port's
+    /// power switched off. Some Intel boards power straight back on, or
+    /// wake, from S5 with a controller still running (Linux's
+    /// `XHCI_SPURIOUS_REBOOT` and `XHCI_SPURIOUS_WAKEUP`). Every wait is
+    /// bounded; a step that fails is said, and the next still runs.
+    pub fn shut_down(&mut self) -> Result<()> {
+        let command = self.op_read(USBCMD);
+        self.op_write(USBCMD, command & !CMD_RUN);
+        let usbsts = self.operational + USBSTS;
+        let halted = self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED != 0);
+        self.commands = None;
+        self.events = None;
+        self.devices = Default::default();
+        let reset = halted && {
+            self.op_write(USBCMD, CMD_RESET);
+            self.pause(1_000);
+            let usbcmd = self.operational + USBCMD;
+            self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0)
+                && self.wait_for(usbsts, RESET_MICROS, |s| s & STS_NOT_READY == 0)
+        };
+        // Last, as a reset may power the ports again: PP written 0, and PED
+        // and the change bits (write-1-to-clear) 0 too, so nothing else
+        // changes by accident.
+        for port in 1..=self.capabilities.ports {
+            let register = self.portsc(port);
+            self.write(register, 0);
+        }
+        match (halted, reset) {
+            (false, _) => Err(XhciError::NotHalted),
+            (true, false) => Err(XhciError::NotReady),
+            (true, true) => Ok(()),
+        }
     }
 
     /// The keyboards set up, by where they hang.
