@@ -164,7 +164,16 @@ impl Display {
             placement.scale
         );
         let pixels = framebuffer.buffer_mut();
-        crate::pat::map_write_combining(pixels, physical_memory_offset);
+        let write_combining = crate::pat::map_write_combining(pixels, physical_memory_offset);
+        crate::facts::record(|facts| {
+            facts.display = demo::facts::Display::Framebuffer {
+                width: layout.width as u32,
+                height: layout.height as u32,
+                bytes_per_pixel: layout.bytes_per_pixel as u8,
+                scale: placement.scale as u32,
+                write_combining: Some(write_combining),
+            }
+        });
         Display {
             pixels,
             layout,
@@ -184,8 +193,8 @@ impl Display {
         self.wait_for_next_frame();
     }
 
-    /// Present costs on serial now and then: the kernel's own figure for the
-    /// README (time includes the scan-out and the diff).
+    /// Present costs on serial now and then: the kernel's own figure for
+    /// `docs/performance.md` (time includes the scan-out and the diff).
     fn count(&mut self, micros: u64, bytes: usize) {
         let cost = &mut self.cost;
         cost.presents += 1;

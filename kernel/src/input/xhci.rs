@@ -190,6 +190,7 @@ fn start(
     if xhci.enumerate() == 0 {
         serial_println!("usb: no USB keyboard on the xHCI {}", function);
     }
+    crate::facts::record(|facts| facts.usb_controllers += 1);
     Some(xhci)
 }
 
