@@ -227,7 +227,7 @@ where
         let frame = frame_allocator
             .allocate_frame()
             .expect("frame allocation failed when mapping a kernel stack");
-        let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | PageTableFlags::NO_EXECUTE;
+        let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | no_execute(); // Patched
         match unsafe { kernel_page_table.map_to(page, frame, flags, frame_allocator) } {
             Ok(tlb) => tlb.flush(),
             Err(err) => panic!("failed to map page {:?}: {:?}", page, err),
@@ -300,8 +300,7 @@ where
             PhysFrame::range_inclusive(framebuffer_start_frame, framebuffer_end_frame).enumerate()
         {
             let page = start_page + u64::from_usize(i);
-            let flags =
-                PageTableFlags::PRESENT | PageTableFlags::WRITABLE | PageTableFlags::NO_EXECUTE;
+            let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | no_execute(); // Patched
             match unsafe { kernel_page_table.map_to(page, frame, flags, frame_allocator) } {
                 Ok(tlb) => tlb.flush(),
                 Err(err) => panic!(
@@ -329,7 +328,7 @@ where
         let ramdisk_page_count = (system_info.ramdisk_len - 1) / Size4KiB::SIZE;
         let ramdisk_physical_end_page = ramdisk_physical_start_page + ramdisk_page_count;
 
-        let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | PageTableFlags::NO_EXECUTE;
+        let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | no_execute(); // Patched
         for (i, frame) in
             PhysFrame::range_inclusive(ramdisk_physical_start_page, ramdisk_physical_end_page)
                 .enumerate()
@@ -362,8 +361,7 @@ where
 
         for frame in PhysFrame::range_inclusive(start_frame, end_frame) {
             let page = Page::containing_address(offset + frame.start_address().as_u64());
-            let flags =
-                PageTableFlags::PRESENT | PageTableFlags::WRITABLE | PageTableFlags::NO_EXECUTE;
+            let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | no_execute(); // Patched
             match unsafe { kernel_page_table.map_to(page, frame, flags, frame_allocator) } {
                 Ok(tlb) => tlb.ignore(),
                 Err(err) => panic!(
@@ -404,7 +402,7 @@ where
                 u16::from(index)
             );
         }
-        let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | PageTableFlags::NO_EXECUTE;
+        let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | no_execute(); // Patched
         entry.set_frame(page_tables.kernel_level_4_frame, flags);
 
         Some(index)
@@ -507,8 +505,7 @@ where
         let start_page = Page::containing_address(boot_info_addr);
         let end_page = Page::containing_address(memory_map_regions_end - 1u64);
         for page in Page::range_inclusive(start_page, end_page) {
-            let flags =
-                PageTableFlags::PRESENT | PageTableFlags::WRITABLE | PageTableFlags::NO_EXECUTE;
+            let flags = PageTableFlags::PRESENT | PageTableFlags::WRITABLE | no_execute(); // Patched
             let frame = frame_allocator
                 .allocate_frame()
                 .expect("frame allocation for boot info failed");
@@ -688,7 +685,32 @@ fn mapping_addr(
 
 fn enable_nxe_bit() {
     use x86_64::registers::control::{Efer, EferFlags};
+    // Patched: EFER.NXE is reserved on a CPU without NX (setting it faults),
+    // and the page tables then carry no NX bits (`no_execute`).
+    if !cpu_has_no_execute() {
+        log::info!("The CPU has no NX bit: EFER.NXE stays clear"); // Patched
+        return; // Patched
+    }
     unsafe { Efer::update(|efer| *efer |= EferFlags::NO_EXECUTE_ENABLE) }
+}
+
+/// Patched: whether the CPU has the no-execute page bit (CPUID 0x80000001
+/// EDX bit 20). Without it, bit 63 of a page-table entry is reserved and a
+/// set one faults every access through it.
+pub fn cpu_has_no_execute() -> bool {
+    raw_cpuid::CpuId::new()
+        .get_extended_processor_and_feature_identifiers()
+        .is_some_and(|features| features.has_execute_disable())
+}
+
+/// Patched: `NO_EXECUTE` where the CPU has NX, else no flag (every NX bit the
+/// loaders set goes through here).
+pub fn no_execute() -> PageTableFlags {
+    if cpu_has_no_execute() {
+        PageTableFlags::NO_EXECUTE
+    } else {
+        PageTableFlags::empty()
+    }
 }
 
 fn enable_write_protect_bit() {

@@ -175,7 +175,7 @@ where
 
         let mut segment_flags = Flags::PRESENT;
         if !segment.flags().is_execute() {
-            segment_flags |= Flags::NO_EXECUTE;
+            segment_flags |= crate::no_execute(); // Patched: none without NX
         }
         if segment.flags().is_write() {
             segment_flags |= Flags::WRITABLE;

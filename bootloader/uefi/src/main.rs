@@ -55,6 +55,9 @@ const RAMDISK_FILE: BootFile = BootFile {
 fn main() -> Status {
     let mut boot_mode = BootMode::Disk;
 
+    // Patched: the loader's first line on COM1 (the logger is not set up
+    // yet), so a slow load is no hang and tests can time a boot from it.
+    write_com1(format_args!("loader: loading kernel (UEFI)\n"));
     let mut kernel = load_kernel(boot_mode);
     if kernel.is_none() {
         // Try TFTP boot
@@ -345,12 +348,38 @@ fn create_page_tables(
     }
 }
 
+/// Patched: sets up the logger on the chosen GOP's framebuffer, or on serial
+/// alone when no GOP can be drawn on (the boot info then has no framebuffer).
 fn init_logger(config: &BootConfig) -> Option<RawFrameBufferInfo> {
-    let gop_handle = boot::get_handle_for_protocol::<GraphicsOutput>().ok()?;
+    let chosen = choose_gop(); // Patched
+    let Some((gop_handle, _)) = chosen else {
+        // Patched: no usable GOP: log to serial only, boot without a
+        // framebuffer, never panic.
+        let info = FrameBufferInfo {
+            byte_len: 0,
+            width: 0,
+            height: 0,
+            pixel_format: bootloader_api::info::PixelFormat::Rgb,
+            bytes_per_pixel: 4,
+            stride: 0,
+        };
+        bootloader_x86_64_common::init_logger(
+            &mut [],
+            info,
+            config.log_level,
+            false,
+            config.serial_logging,
+        );
+        log::warn!("No usable GOP (see the lines above): booting without a framebuffer");
+        return None;
+    };
     let mut gop = boot::open_protocol_exclusive::<GraphicsOutput>(gop_handle).ok()?;
 
     let mode = {
-        let modes = gop.modes();
+        // Patched: only modes whose format the kernel can take.
+        let modes = gop
+            .modes()
+            .filter(|m| loader_logic::gop::usable_format(gop_format(&m.info())).is_ok());
         match (
             config
                 .frame_buffer
@@ -373,24 +402,23 @@ fn init_logger(config: &BootConfig) -> Option<RawFrameBufferInfo> {
         }
     };
     if let Some(mode) = mode {
-        gop.set_mode(&mode)
-            .expect("Failed to apply the desired display mode");
+        // Patched: a mode that will not set keeps the current one.
+        let _ = gop.set_mode(&mode);
     }
 
     let mode_info = gop.current_mode_info();
+    // Patched: the current mode is judged again (a set mode may differ).
+    let pixel_format = match loader_logic::gop::usable_format(gop_format(&mode_info)) {
+        Ok(format) => bootloader_pixel_format(format),
+        Err(_) => return None,
+    };
     let mut framebuffer = gop.frame_buffer();
     let slice = unsafe { slice::from_raw_parts_mut(framebuffer.as_mut_ptr(), framebuffer.size()) };
     let info = FrameBufferInfo {
         byte_len: framebuffer.size(),
         width: mode_info.resolution().0,
         height: mode_info.resolution().1,
-        pixel_format: match mode_info.pixel_format() {
-            PixelFormat::Rgb => bootloader_api::info::PixelFormat::Rgb,
-            PixelFormat::Bgr => bootloader_api::info::PixelFormat::Bgr,
-            PixelFormat::Bitmask | PixelFormat::BltOnly => {
-                panic!("Bitmask and BltOnly framebuffers are not supported")
-            }
-        },
+        pixel_format, // Patched
         bytes_per_pixel: 4,
         stride: mode_info.stride(),
     };
@@ -407,6 +435,131 @@ fn init_logger(config: &BootConfig) -> Option<RawFrameBufferInfo> {
         addr: PhysAddr::new(framebuffer.as_mut_ptr() as u64),
         info,
     })
+}
+
+/// Patched: a GOP mode's format in `loader_logic`'s terms.
+fn gop_format(info: &uefi::proto::console::gop::ModeInfo) -> loader_logic::gop::GopFormat {
+    use loader_logic::gop::GopFormat;
+    match info.pixel_format() {
+        PixelFormat::Rgb => GopFormat::Rgb,
+        PixelFormat::Bgr => GopFormat::Bgr,
+        PixelFormat::Bitmask => match info.pixel_bitmask() {
+            Some(mask) => GopFormat::Bitmask {
+                red: mask.red,
+                green: mask.green,
+                blue: mask.blue,
+            },
+            None => GopFormat::BltOnly,
+        },
+        PixelFormat::BltOnly => GopFormat::BltOnly,
+    }
+}
+
+/// Patched: the format handed to the kernel.
+fn bootloader_pixel_format(
+    format: loader_logic::gop::UsableFormat,
+) -> bootloader_api::info::PixelFormat {
+    use bootloader_api::info::PixelFormat as Format;
+    use loader_logic::gop::UsableFormat;
+    match format {
+        UsableFormat::Rgb => Format::Rgb,
+        UsableFormat::Bgr => Format::Bgr,
+        UsableFormat::BitPositions { red, green, blue } => Format::Unknown {
+            red_position: red,
+            green_position: green,
+            blue_position: blue,
+        },
+    }
+}
+
+/// Patched: every GOP handle judged by its current mode, the choice made by
+/// `loader_logic::gop::choose` (host-tested): the usable one on the
+/// console-output handle, else the largest usable. Written to the UEFI
+/// console (which OVMF copies to serial), since the logger is not set up yet.
+fn choose_gop() -> Option<(uefi::Handle, loader_logic::gop::GopCandidate)> {
+    use loader_logic::gop::{GopCandidate, choose, judge};
+    const MAX_GOPS: usize = 16;
+    let handles =
+        boot::locate_handle_buffer(boot::SearchType::from_proto::<GraphicsOutput>()).ok()?;
+    let console = uefi::table::system_table_raw().map(|st| {
+        // SAFETY: set by the entry macro before `main`; boot services are up.
+        unsafe { st.as_ref().stdout_handle }
+    });
+    let mut found: [Option<(uefi::Handle, GopCandidate)>; MAX_GOPS] = [None; MAX_GOPS];
+    let mut candidates = [GopCandidate {
+        format: loader_logic::gop::GopFormat::BltOnly,
+        width: 0,
+        height: 0,
+        on_console: false,
+    }; MAX_GOPS];
+    let mut count = 0;
+    for &handle in handles.iter().take(MAX_GOPS) {
+        // Non-exclusive: looking must not disconnect the console from it.
+        let params = boot::OpenProtocolParams {
+            handle,
+            agent: boot::image_handle(),
+            controller: None,
+        };
+        // SAFETY: GetProtocol opens without taking the protocol from its
+        // driver; only the mode is read, while boot services still run.
+        let Ok(gop) = (unsafe {
+            boot::open_protocol::<GraphicsOutput>(params, boot::OpenProtocolAttributes::GetProtocol)
+        }) else {
+            continue;
+        };
+        let info = gop.current_mode_info();
+        let candidate = GopCandidate {
+            format: gop_format(&info),
+            width: info.resolution().0,
+            height: info.resolution().1,
+            on_console: console.is_some_and(|c| c == handle.as_ptr()),
+        };
+        uefi_print(format_args!(
+            "loader: GOP {}: {}x{} {:?}{}: {}\r\n",
+            count,
+            candidate.width,
+            candidate.height,
+            info.pixel_format(),
+            if candidate.on_console {
+                " (console)"
+            } else {
+                ""
+            },
+            match judge(&candidate) {
+                Ok(_) => "usable",
+                Err(why) => why.as_str(),
+            }
+        ));
+        found[count] = Some((handle, candidate));
+        candidates[count] = candidate;
+        count += 1;
+    }
+    let chosen = choose(&candidates[..count]);
+    match chosen {
+        Some(index) => uefi_print(format_args!("loader: drawing on GOP {index}\r\n")),
+        None => uefi_print(format_args!(
+            "loader: no usable GOP of {count}: booting without a framebuffer\r\n"
+        )),
+    }
+    found[chosen?]
+}
+
+/// Patched: a line on COM1, through the common crate's serial port.
+fn write_com1(args: core::fmt::Arguments) {
+    use core::fmt::Write;
+    // SAFETY: COM1's ports; the logger that later shares them is not set up.
+    let mut port = unsafe { bootloader_x86_64_common::serial::SerialPort::init() };
+    let _ = port.write_fmt(args);
+}
+
+/// Patched: a line on the UEFI console (screen and, under OVMF, serial).
+fn uefi_print(args: core::fmt::Arguments) {
+    use core::fmt::Write;
+    if uefi_stdout_available() {
+        uefi::system::with_stdout(|stdout| {
+            let _ = stdout.write_fmt(args);
+        });
+    }
 }
 
 #[cfg(target_os = "uefi")]
