@@ -586,6 +586,9 @@ fn panic(info: &core::panic::PanicInfo) -> ! {
             let _ = writeln!(stdout, "{}", info);
         });
     }
+    // Patched: on COM1 too (firmware need not copy its console to serial),
+    // so a stop such as no memory for the kernel is never silent there.
+    write_com1(format_args!("loader: PANIC: {info}\n"));
 
     unsafe {
         bootloader_x86_64_common::logger::LOGGER
