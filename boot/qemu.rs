@@ -84,7 +84,7 @@ pub enum Graphics {
 }
 
 impl Graphics {
-    /// Every adapter, in the order the README's hardware table lists them.
+    /// Every adapter, in the order `docs/hardware.md`'s table lists them.
     pub const ALL: [Graphics; 8] = [
         Graphics::StdVga,
         Graphics::Cirrus,

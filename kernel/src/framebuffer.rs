@@ -199,8 +199,8 @@ impl Display {
         self.wait_for_next_frame();
     }
 
-    /// Present costs on serial now and then: the kernel's own figure for the
-    /// README (time includes the scan-out and the diff).
+    /// Present costs on serial now and then: the kernel's own figure for
+    /// `docs/performance.md` (time includes the scan-out and the diff).
     fn count(&mut self, micros: u64, bytes: usize) {
         let cost = &mut self.cost;
         cost.presents += 1;

@@ -4,7 +4,7 @@
 #![no_std]
 #![no_main]
 #![feature(abi_x86_interrupt)]
-// Every `unsafe` block says why it is sound (DEVELOPERS.md); clippy checks it.
+// Every `unsafe` block says why it is sound (docs/contributing.md); clippy checks it.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
 mod bench;
