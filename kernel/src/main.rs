@@ -158,7 +158,23 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
     }
     let Some(framebuffer) = boot_info.framebuffer.as_mut() else {
-        panic!("no display: neither a legacy VGA nor a framebuffer from the bootloader");
+        // No picture anywhere (e.g. UEFI with only a Blt-only virtio-gpu GOP):
+        // the demo runs on the software VGA unseen; serial and keys work.
+        serial_println!(
+            "display: none: no legacy VGA and no framebuffer from the bootloader \
+             (its log says why: no usable GOP, or no VESA linear mode); \
+             running without a picture"
+        );
+        run::NO_DISPLAY.store(true, core::sync::atomic::Ordering::Relaxed);
+        facts::record(|facts| {
+            facts.display = demo::facts::Display::Nothing("no legacy VGA, no framebuffer")
+        });
+        let mut vga = modex::ModeX::new(modex::MirroredVga::new(
+            framebuffer::soft_vga_alone(),
+            |_| {},
+        ));
+        vga.set_mode();
+        run_screen(&mut vga, option)
     };
     let (soft, display) = framebuffer::take_over(framebuffer, physical_memory_offset);
     let mirror = modex::MirroredVga::new(soft, move |soft| display.present(soft));

@@ -267,6 +267,12 @@ pub mod line {
     pub const KERNEL_BANNER: &str = "modex-cube kernel v";
     /// The first picture is on screen and keys are read.
     pub const READY: &str = "screen: ready";
+    /// There is no display at all (no legacy VGA, no framebuffer): the demo
+    /// runs unseen and keys are read.
+    pub const READY_NO_DISPLAY: &str = "screen: none, ready (no display)";
+    /// The bootloader's first line on serial (BIOS stage 2 and the UEFI
+    /// loader), written before it loads the kernel.
+    pub const LOADER_START: &str = "loader: loading kernel";
     /// The start of the goodbye line after Esc.
     pub const GOODBYE: &str = "demo: goodbye";
     /// The last line before a fault or panic halts the CPU.
