@@ -45,6 +45,7 @@ pub mod baseline;
 pub mod command;
 pub mod depth;
 pub mod faces;
+pub mod facts;
 pub mod frame;
 pub mod grid;
 pub mod keymap;
