@@ -37,6 +37,7 @@ use bootloader_api::{entry_point, BootInfo};
 use firmware::acpi::Presence;
 use firmware::boot_firmware::Firmware;
 use input::{ps2, xhci};
+use keyboard::i8042::FirmwareSays;
 use platform::{acpi, boot_firmware, qemu};
 use protocol::{BootOption, BootRequest};
 use time::pit;
@@ -72,13 +73,12 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         physical_memory_offset,
         mapped_physical_memory_end(&boot_info.memory_regions),
     );
-    if acpi.legacy.i8042 == Presence::Absent {
-        serial_println!(
-            "keyboard: the ACPI tables say there is no PS/2 controller (8042); not set up"
-        );
-    } else if let Err(problem) = ps2::init() {
-        serial_println!("keyboard: {}", problem);
-    }
+    // The FADT's word is a hint (firmware gets it wrong): the probe decides.
+    ps2::init(match acpi.legacy.i8042 {
+        Presence::Present => FirmwareSays::Present,
+        Presence::Absent => FirmwareSays::Absent,
+        Presence::Unknown => FirmwareSays::Nothing,
+    });
     x86_64::instructions::interrupts::enable();
 
     let mut option_buffer = [0u8; 64];
@@ -94,6 +94,16 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         }
     };
     let (force_true_mode_x, option) = (request.true_mode_x, request.option);
+    if request.irq1_masked {
+        interrupts::mask_keyboard_irq();
+        serial_println!(
+            "keyboard: IRQ 1 masked at the PIC for the whole run; PS/2 keys are polled"
+        );
+    }
+    run::ECHO_SCANCODES.store(
+        request.echo_scancodes,
+        core::sync::atomic::Ordering::Relaxed,
+    );
     time::init(acpi, physical_memory_offset, request.clock);
     xhci::init(&boot_info.memory_regions, physical_memory_offset);
     serial_println!("kernel: initialised");

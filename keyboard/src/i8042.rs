@@ -185,7 +185,7 @@ pub fn init(
         return Err(Failure::Absent);
     }
     log(format_args!(
-        "keyboard: PS/2 controller answers at port 0x64 (status {status:#04x})"
+        "keyboard: an 8042 answers at port 0x64 (status {status:#04x})"
     ));
     let mut controller = Controller { ports };
     let found_config = controller.configure()?;
