@@ -24,7 +24,7 @@ use demo::app::App;
 use demo::command::{Command, SceneCommand};
 use keyboard::reset_keys::ResetChord;
 use modex::ModeX;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// QEMU key names the flood taps; Esc is left out (it ends the demo, as it
 /// should).
@@ -135,6 +135,9 @@ const KEYS: &[&str] = &[
 const MODIFIERS: &[&str] = &["shift", "shift_r", "ctrl", "ctrl_r", "alt", "alt_r"];
 /// Keys in the flood (taps, holds, releases and near misses).
 const FLOOD_KEYS: usize = 2000;
+/// A boot on a machine shared with busy loops and other emulators can take
+/// minutes; this only bounds a failure.
+const FLOOD_BOOT_TIMEOUT: Duration = Duration::from_secs(300);
 /// QEMU's PS/2 keyboard queues 16 bytes and drops an event that does not
 /// fit (`hw/input/ps2.c`, `PS2_QUEUE_SIZE`).
 const PS2_QUEUE_BYTES: usize = 16;
@@ -364,7 +367,7 @@ fn boot_echoing() -> Qemu {
         ..BootRequest::default()
     };
     let mut qemu = Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"));
-    qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+    qemu.wait_for_serial(boot::READY_LINE, FLOOD_BOOT_TIMEOUT)
         .unwrap();
     qemu
 }
