@@ -144,16 +144,23 @@ pub enum Failure {
     OutputStuck,
 }
 
-impl fmt::Display for Failure {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
+impl Failure {
+    /// What went wrong, in a sentence.
+    pub const fn message(self) -> &'static str {
+        match self {
             Failure::Absent => "nothing at port 0x64 (status reads 0xff): no PS/2 controller",
             Failure::InputNeverEmpty => {
                 "PS/2 controller did not answer (input buffer never empties)"
             }
             Failure::NoAnswer => "PS/2 controller did not answer a command",
             Failure::OutputStuck => "PS/2 controller's output buffer never empties",
-        })
+        }
+    }
+}
+
+impl fmt::Display for Failure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.message())
     }
 }
 
