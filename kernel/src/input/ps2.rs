@@ -11,7 +11,8 @@
 
 use crate::serial_println;
 use core::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use keyboard::i8042::{self, FirmwareSays, Taken};
+use demo::facts::Ps2;
+use keyboard::i8042::{self, Failure, FirmwareSays, Taken};
 use keyboard::scancode_queue::ScancodeQueue;
 use x86_64::instructions::port::Port;
 
@@ -66,14 +67,24 @@ impl i8042::Ports for RealPorts {
 }
 
 /// Probes and sets the controller up, whatever the firmware said (logged as
-/// a hint, with what the probe found). Runs before interrupts are enabled.
-pub fn init(firmware: FirmwareSays) {
+/// a hint, with what the probe found), and says how it went for the report.
+/// Runs before interrupts are enabled.
+pub fn init(firmware: FirmwareSays) -> Ps2 {
     let result = i8042::init_with_firmware_hint(firmware, &mut RealPorts, &mut |line| {
         serial_println!("{}", line)
     });
     match result {
-        Ok(_) => PRESENT.store(true, Ordering::Release),
-        Err(problem) => serial_println!("keyboard: {}; PS/2 not used", problem),
+        Ok(_) => {
+            PRESENT.store(true, Ordering::Release);
+            Ps2::Ready
+        }
+        Err(problem) => {
+            serial_println!("keyboard: {}; PS/2 not used", problem);
+            match problem {
+                Failure::Absent => Ps2::Absent,
+                other => Ps2::Failed(other.message()),
+            }
+        }
     }
 }
 
