@@ -543,6 +543,20 @@ impl Qemu {
     /// Sends key presses and releases, in order, in one QMP command to the
     /// keyboards bound to `display` (see [`Qemu::key_event_on`]).
     pub fn key_events_on(&mut self, display: &str, keys: &[(&str, bool)]) -> Result<()> {
+        self.send_key_events(Some(display), keys)
+    }
+
+    /// Sends key presses and releases, in order, in one QMP command to the
+    /// keyboard bound to no display: the PS/2 one. Unlike `sendkey` this
+    /// bypasses QEMU's delayed-key queue (which drops events when full) and
+    /// lets a key stay down across others. QEMU's PS/2 keyboard queues 16
+    /// bytes and drops what does not fit, so a caller sends no more than
+    /// that before the guest has read them.
+    pub fn key_events(&mut self, keys: &[(&str, bool)]) -> Result<()> {
+        self.send_key_events(None, keys)
+    }
+
+    fn send_key_events(&mut self, display: Option<&str>, keys: &[(&str, bool)]) -> Result<()> {
         let is_name = |c: char| c.is_ascii_alphanumeric() || c == '_';
         if let Some((key, _)) = keys
             .iter()
@@ -561,9 +575,13 @@ impl Qemu {
                 })
             })
             .collect();
+        let arguments = match display {
+            Some(display) => json!({ "device": display, "events": events }),
+            None => json!({ "events": events }),
+        };
         self.execute(json!({
             "execute": "input-send-event",
-            "arguments": { "device": display, "events": events },
+            "arguments": arguments,
         }))?;
         Ok(())
     }

@@ -90,8 +90,28 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
             phases.bus_writes
         );
     }
+    ps2_poll_cost();
     largest_grid_at_60_fps(vga);
     vga.set_mode();
+}
+
+/// Calls of the PS/2 poll timed together.
+const POLL_CALLS: u64 = 100_000;
+
+/// What the frame loop's poll of the 8042 costs when no key is waiting (one
+/// call a frame, and one an idle step): timed over many calls.
+fn ps2_poll_cost() {
+    let start = time::micros();
+    for _ in 0..POLL_CALLS {
+        crate::input::ps2::poll();
+    }
+    let micros = time::micros() - start;
+    serial_println!(
+        "bench: PS/2 poll with no key waiting: {} ns per call ({} calls in {} us)",
+        micros * 1000 / POLL_CALLS,
+        POLL_CALLS,
+        micros
+    );
 }
 
 /// Grows the grid until a frame (motion, transform, scan conversion with the

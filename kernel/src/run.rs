@@ -5,6 +5,7 @@
 
 use crate::{goodbye, idle, input::ps2, input::xhci, platform::power, serial_println, stack, time};
 use clock::pacing::Pacing;
+use core::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use demo::app::App;
 use demo::frame::Renderer;
 use keyboard::reset_keys::ResetChord;
@@ -16,6 +17,26 @@ use spin::Mutex;
 /// faces (353 KiB), in static memory rather than on the stack; the demo and
 /// the bench take turns.
 pub static RENDERER: Mutex<Renderer> = Mutex::new(Renderer::new());
+
+/// Say on serial every scancode byte taken (boot word `scancodes=echo`), so
+/// that a test can pace its keys by what the kernel has received.
+pub static ECHO_SCANCODES: AtomicBool = AtomicBool::new(false);
+
+/// Bytes said per `scancodes:` line at most.
+const ECHO_LINE_BYTES: usize = 32;
+
+/// Scancode bytes taken from the queue since boot, for the echo.
+static SCANCODES_TAKEN: AtomicU64 = AtomicU64::new(0);
+
+/// Says `bytes` on serial as a `scancodes: taken ...` line.
+fn echo(bytes: &[u8]) {
+    if bytes.is_empty() {
+        return;
+    }
+    let total =
+        SCANCODES_TAKEN.fetch_add(bytes.len() as u64, Ordering::Relaxed) + bytes.len() as u64;
+    serial_println!("{}", line::ScancodesTaken { bytes, total });
+}
 
 /// A pacing report every this many flips (about ten seconds).
 const PACING_REPORT_FLIPS: u64 = 600;
@@ -55,12 +76,26 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut reset_chord = ResetChord::new();
     loop {
         xhci::poll();
+        ps2::poll();
+        let echoing = ECHO_SCANCODES.load(Ordering::Relaxed);
+        let mut echoed = [0u8; ECHO_LINE_BYTES];
+        let mut waiting = 0;
         while let Some(byte) = ps2::SCANCODES.pop() {
+            if echoing {
+                echoed[waiting] = byte;
+                waiting += 1;
+                if waiting == ECHO_LINE_BYTES {
+                    echo(&echoed);
+                    waiting = 0;
+                }
+            }
             if reset_chord.feed(byte) {
+                echo(&echoed[..waiting]);
                 power::reset();
             }
             app.feed_scancode(byte);
         }
+        echo(&echoed[..waiting]);
         if app.quit_requested() {
             stack::report();
             goodbye::goodbye(vga);
