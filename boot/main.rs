@@ -277,9 +277,9 @@ fn secure_boot_vars(image: &Path) -> anyhow::Result<PathBuf> {
     let cert = boot::secure_boot::cert_of_image(image)?;
     if !sb::is_enrolled(&std::fs::read(&vars)?, &cert) {
         println!(
-            "Your key is not enrolled in {} yet. Shim will say \"Verification failed\" \
-             and start MokManager: press a key, choose \"Enroll key from disk\", the disk, \
-             then {}, \"Continue\", \"Yes\" and \"Reboot\"; run this again and it boots.",
+            "Your key is not enrolled in {} yet. Shim will say \"Verification failed\": press \
+             Enter, then any key for MokManager; choose \"Enroll key from disk\", the disk, \
+             {}, \"Continue\", \"Yes\" and \"Reboot\". From then on it boots.",
             vars.display(),
             sb::ENROLL_FILE_NAME
         );
