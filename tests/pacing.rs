@@ -1,7 +1,7 @@
 //! Frame pacing under QEMU's timed retrace: the spinning cube flips in step
 //! with vertical retrace for ten seconds, and the kernel's account of it adds
 //! up. How many retraces a busy host makes QEMU miss is a figure for the soak
-//! command in the README, not something a test can promise.
+//! command in `docs/performance.md`, not something a test can promise.
 
 mod common;
 

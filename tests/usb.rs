@@ -154,7 +154,7 @@ fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
     assert!(console.contains("usb: xHCI 1b36:000d at "), "{console}");
     let keyboard_line = console
         .lines()
-        .find(|l| l.starts_with("keyboard: USB boot keyboard on port "))
+        .find(|l| l.starts_with("keyboard: USB keyboard, read by its report descriptor "))
         .unwrap_or_else(|| panic!("no USB keyboard found:\n{console}"));
     assert!(
         keyboard_line.ends_with(".1"),
@@ -266,11 +266,13 @@ fn on_a_bios_boot_usb_keys_act_once_and_ps2_keys_act_too() {
         .wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
         .unwrap();
     assert!(
-        console.contains("keyboard: USB boot keyboard on port "),
+        console.contains("keyboard: USB keyboard, read by its report descriptor "),
         "{console}"
     );
+    // The kernel's own "keyboard: PS/2 ..." lines are its problems; the
+    // summary's "facts: keyboard: PS/2 ready" is not one.
     assert!(
-        !console.contains("keyboard: PS/2"),
+        !console.lines().any(|l| l.starts_with("keyboard: PS/2")),
         "the PS/2 keyboard is there: {console}"
     );
     // USB and PS/2 keys in turn; each must act exactly once, in order.
@@ -308,4 +310,49 @@ fn on_a_bios_boot_usb_keys_act_once_and_ps2_keys_act_too() {
         assert_eq!(count, 1, "command {n} reported {count} times:\n{console}");
     }
     assert_eq!(commands_done(&console), last, "{console}");
+}
+
+/// Esc on a machine without isa-debug-exit (a real PC's way out): before
+/// ACPI S5, the kernel halts and resets the xHCI and switches its ports off,
+/// as Linux's shutdown path does, and the log says so before SLP_EN.
+#[test]
+fn esc_powers_off_with_the_xhci_halted_first() {
+    let board = Board {
+        chipset: Chipset::Q35,
+        pit: false,
+        i8042: false,
+        hpet: true,
+    };
+    let images = boot::images::publish().expect("the build script made the images");
+    let mut options = QemuOptions::new(images.uefi);
+    options.firmware = Firmware::Uefi;
+    options.board = board;
+    options.graphics = Graphics::BochsDisplay;
+    options.debug_exit = false;
+    options.devices = vec![
+        "qemu-xhci,id=xhci".to_string(),
+        usb_keyboard("bus=xhci.0,port=1"),
+    ];
+    let mut qemu = Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"));
+    qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    qemu.press_key_on(DISPLAY_ID, "esc").unwrap();
+    let status = qemu
+        .wait_exit(UEFI_BOOT_TIMEOUT)
+        .unwrap()
+        .unwrap_or_else(|| panic!("still running after Esc:\n{}", qemu.serial()));
+    let console = qemu.serial();
+    let halted = console
+        .find("usb: xHCI 1b36:000d at ")
+        .and_then(|_| console.find(" halted and reset, ports switched off"))
+        .unwrap_or_else(|| panic!("the xHCI was not shut down:\n{console}"));
+    let switching_off = console
+        .find("power: switching off (ACPI S5")
+        .unwrap_or_else(|| panic!("no ACPI S5:\n{console}"));
+    assert!(
+        halted < switching_off,
+        "the xHCI is shut down before SLP_EN:\n{console}"
+    );
+    assert!(console.contains(line::GOODBYE), "{console}");
+    assert_eq!(status.code(), Some(0), "{console}");
 }

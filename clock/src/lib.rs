@@ -3,7 +3,7 @@
 //! reference counter ([`calibration`]), and the bookkeeping that counts
 //! missed vertical retraces ([`pacing`]).
 //!
-//! The kernel's shell, `kernel/src/clock/`, reads the counters (`rdtsc`,
+//! The kernel's shell, `kernel/src/time/`, reads the counters (`rdtsc`,
 //! the PM timer, the HPET, PIT channel 2) and hands the readings here.
 //!
 //! # Example

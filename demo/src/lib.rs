@@ -39,6 +39,7 @@ pub mod app;
 pub mod baseline;
 pub mod command;
 pub mod depth;
+pub mod facts;
 pub mod frame;
 pub mod grid;
 pub mod keymap;

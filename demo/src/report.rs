@@ -131,6 +131,38 @@ pub fn pci_name(vendor: u16, device: u16) -> &'static str {
     }
 }
 
+/// Columns a fact's continuation rows are indented by.
+pub const WRAP_INDENT: usize = 2;
+
+/// Splits `text` into rows of at most `columns` characters at spaces, and
+/// hands each to `row` with its indent: 0 for the first, [`WRAP_INDENT`] for
+/// the rest (which then hold `columns - WRAP_INDENT`). A word longer than a
+/// row, which has no space to break at, is cut where the row ends. Spaces at
+/// a break are dropped; no other character is lost.
+pub fn wrap(text: &str, columns: usize, mut row: impl FnMut(usize, &str)) {
+    let mut rest = text;
+    let mut indent = 0;
+    loop {
+        let room = columns.saturating_sub(indent).max(1);
+        if rest.chars().count() <= room {
+            row(indent, rest);
+            return;
+        }
+        let end = fit(rest, room).len();
+        // Break at the last space within the row; else cut the word.
+        let cut = match rest[..end].rfind(' ') {
+            Some(space) if space > 0 => space,
+            _ => end,
+        };
+        row(indent, rest[..cut].trim_end());
+        rest = rest[cut..].trim_start();
+        if rest.is_empty() {
+            return;
+        }
+        indent = WRAP_INDENT;
+    }
+}
+
 /// The prefix of `text` that fits in `columns` characters.
 pub fn fit(text: &str, columns: usize) -> &str {
     match text.char_indices().nth(columns) {
@@ -187,13 +219,13 @@ pub fn hint_line(position: LogPosition, out: &mut impl core::fmt::Write) {
 
 /// The report as text, for the QR code: the facts, one a line, then the log
 /// window's lines, newest last. Log lines are left out, oldest first, until
-/// the whole fits [`QR_TEXT_BYTES`]; facts are cut to [`FACT_COLUMNS`] as on
-/// the screen, log lines are whole. Returns the bytes written.
+/// the whole fits [`QR_TEXT_BYTES`]; facts and log lines are whole (the
+/// screen wraps facts and cuts log lines). Returns the bytes written.
 pub fn qr_text(report: &Report, out: &mut [u8]) -> usize {
     let facts = &report.facts[..report.facts.len().min(FACT_ROWS)];
     let log = &report.log[report.log.len().saturating_sub(LOG_ROWS)..];
     let limit = out.len().min(QR_TEXT_BYTES);
-    let facts_bytes: usize = facts.iter().map(|f| fit(f, FACT_COLUMNS).len() + 1).sum();
+    let facts_bytes: usize = facts.iter().map(|f| f.len() + 1).sum();
     // The most recent log lines that fit after the facts.
     let mut room = limit.saturating_sub(facts_bytes);
     let mut first_log = log.len();
@@ -211,7 +243,7 @@ pub fn qr_text(report: &Report, out: &mut [u8]) -> usize {
         }
     };
     for fact in facts {
-        put(fit(fact, FACT_COLUMNS));
+        put(fact);
     }
     for line in &log[first_log..] {
         put(line);
@@ -268,6 +300,21 @@ pub fn qr_origin(size: i32) -> Point {
     )
 }
 
+/// The fact rows as drawn: each fact wrapped at [`FACT_COLUMNS`] ([`wrap`]),
+/// one after the other, up to [`FACT_ROWS`] rows; `row` gets the row, the
+/// indent and the text.
+pub fn each_fact_row(facts: &[&str], mut row: impl FnMut(usize, usize, &str)) {
+    let mut next = 0;
+    for fact in facts {
+        wrap(fact, FACT_COLUMNS, |indent, text| {
+            if next < FACT_ROWS {
+                row(next, indent, text);
+            }
+            next += 1;
+        });
+    }
+}
+
 /// Draws the report into `image` (a RAM image of a page).
 pub fn draw(image: &mut PageImage, report: &Report) {
     image.fill(BLACK);
@@ -276,11 +323,10 @@ pub fn draw(image: &mut PageImage, report: &Report) {
     let log_style = MonoTextStyle::new(LOG_FONT, PaletteIndex(WHITE));
     {
         let mut facts = canvas.clipped(&FACTS_AREA);
-        for (row, fact) in report.facts.iter().take(FACT_ROWS).enumerate() {
-            let at = Point::new(1, FACTS_TOP + row as i32 * 10);
-            let _ = Text::with_baseline(fit(fact, FACT_COLUMNS), at, fact_style, Baseline::Top)
-                .draw(&mut facts);
-        }
+        each_fact_row(report.facts, |row, indent, text| {
+            let at = Point::new(1 + indent as i32 * 6, FACTS_TOP + row as i32 * 10);
+            let _ = Text::with_baseline(text, at, fact_style, Baseline::Top).draw(&mut facts);
+        });
     }
     {
         let mut log = canvas.clipped(&LOG_AREA);
@@ -434,8 +480,55 @@ mod tests {
             assert_eq!(shown[index], colour, "at {point:?}");
         }
         // Every text row stays inside its columns.
-        for fact in &facts {
-            assert!(fit(fact, FACT_COLUMNS).len() <= FACT_COLUMNS);
+        each_fact_row(&facts, |_, indent, text| {
+            assert!(indent + text.chars().count() <= FACT_COLUMNS, "{text:?}");
+        });
+    }
+
+    #[test]
+    fn facts_wrap_at_spaces_and_lose_no_word() {
+        let columns = 20;
+        let texts = [
+            "short",
+            "clock: TSC 1992.000 MHz by the PM timer, within 20 ppm",
+            "a-word-longer-than-any-row-of-twenty and more",
+            "exactly twenty chars",
+            "   leading spaces and  double  spaces",
+        ];
+        for text in texts {
+            let mut rows = std::vec::Vec::new();
+            wrap(text, columns, |indent, row| {
+                rows.push((indent, std::string::String::from(row)))
+            });
+            for (number, (indent, row)) in rows.iter().enumerate() {
+                assert_eq!(*indent, if number == 0 { 0 } else { WRAP_INDENT });
+                assert!(
+                    indent + row.chars().count() <= columns,
+                    "{row:?} of {text:?}"
+                );
+            }
+            let words: std::vec::Vec<&str> = text.split_whitespace().collect();
+            let joined = rows
+                .iter()
+                .map(|(_, row)| row.as_str())
+                .collect::<std::vec::Vec<_>>()
+                .join(" ");
+            let rejoined: std::vec::Vec<&str> = joined.split_whitespace().collect();
+            if text
+                .split_whitespace()
+                .all(|word| word.len() <= columns - WRAP_INDENT)
+            {
+                // No word cut: the rows hold exactly the words, in order.
+                assert_eq!(rejoined, words, "{text:?}");
+                // And no row ends mid-word.
+                for (_, row) in &rows {
+                    for word in row.split_whitespace() {
+                        assert!(words.contains(&word), "{word:?} of {text:?}");
+                    }
+                }
+            } else {
+                assert_eq!(rejoined.concat(), words.concat(), "{text:?}");
+            }
         }
     }
 

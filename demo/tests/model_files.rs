@@ -1,7 +1,7 @@
 //! The model-file reader that `demo/build.rs` runs at build time: every kind
 //! of malformed or degenerate model is an error naming its line or a face
 //! dropped with a warning; the models in `models/` are closed and turned
-//! outward. (`tests/fuzz_models.rs` attacks it with proptest.)
+//! outward. (`fuzz_models.rs` beside it attacks it with proptest.)
 
 #[path = "../build/model_file.rs"]
 mod model_file;

@@ -4,7 +4,7 @@
 //! by the memory map ([`boot_firmware`]), and QEMU's fw_cfg file directory,
 //! where the test harness leaves the boot option ([`fw_cfg`]).
 //!
-//! The kernel's shell, `kernel/src/firmware/`, maps the tables and does the
+//! The kernel's shell, `kernel/src/platform/`, maps the tables and does the
 //! port writes.
 
 #![no_std]

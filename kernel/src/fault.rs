@@ -99,24 +99,23 @@ fn report(lines: &[Line]) -> ! {
     let mut tail = [""; PANEL_LOG_LINES];
     let mut shown = 0;
     // The facts a report needs most, for the QR code: the build, the CPU,
-    // and what the firmware and display code said.
-    let mut build = Line::new();
-    crate::report::write_build_fact(&mut build);
-    let mut cpu = FactLine::new();
-    crate::report::write_cpu_fact(&mut cpu);
-    let mut facts = [build.as_str(), cpu.as_str(), "", "", ""];
+    // NX, the firmware and the display (rows 0, 1, 2, 3 and 5 of
+    // `MachineFacts::rows`). The record may be locked by the interrupted
+    // code; then the QR code goes without them.
+    let mut rows = [const { FactLine::new() }; demo::facts::FACT_COUNT];
+    if let Some(facts) = crate::facts::try_get() {
+        let mut next = rows.iter_mut();
+        facts.rows(|row| {
+            if let Some(line) = next.next() {
+                let _ = write!(line, "{row}");
+            }
+        });
+    }
+    let facts = [0, 1, 2, 3, 5].map(|row| rows[row].as_str());
     if let Some(ring) = ring.as_deref() {
         shown = ring.len().min(PANEL_LOG_LINES);
         for (slot, back) in tail[..shown].iter_mut().zip((0..shown).rev()) {
             *slot = ring.newest(back).unwrap_or("");
-        }
-        let said = [
-            ring.latest_with_any_prefix(&["firmware:"], 0),
-            ring.earliest_with_any_prefix(&["display:"], 0),
-            ring.earliest_with_any_prefix(&["display:"], 1),
-        ];
-        for (fact, text) in facts[2..].iter_mut().zip(said) {
-            *fact = text.unwrap_or("");
         }
     }
     let mut text = [""; REPORT_LINES];

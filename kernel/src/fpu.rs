@@ -7,7 +7,7 @@
 //! says it saves their state (CR4.OSFXSR). UEFI firmware hands over with that
 //! set; a BIOS boot through the bootloader's stages does not, and the compiler
 //! may use SSE registers anywhere, even to copy a struct. So the ELF entry
-//! point is [`kernel_entry`] below (the linker is told so in `build.rs`), not
+//! point is `kernel_entry` below (the linker is told so in `build.rs`), not
 //! bootloader_api's `_start`: it turns SSE on, gives x87 and MXCSR their reset
 //! state (round to nearest, every exception masked: the same IEEE results as
 //! the host's software VGA), and jumps to `_start` with the boot-info pointer

@@ -90,6 +90,12 @@ pub fn layout_of(info: &FrameBufferInfo) -> FramebufferLayout {
     }
 }
 
+/// The software VGA alone, once, when there is no framebuffer to present it
+/// into: the demo runs on it unseen.
+pub fn soft_vga_alone() -> &'static mut SoftVga {
+    MutexGuard::leak(SOFT_VGA.try_lock().expect("the software VGA is taken once"))
+}
+
 /// Takes over the framebuffer and the software VGA, once: returns the model
 /// for the mirror to drive and the display it presents to.
 pub fn take_over(
@@ -164,7 +170,16 @@ impl Display {
             placement.scale
         );
         let pixels = framebuffer.buffer_mut();
-        crate::pat::map_write_combining(pixels, physical_memory_offset);
+        let write_combining = crate::pat::map_write_combining(pixels, physical_memory_offset);
+        crate::facts::record(|facts| {
+            facts.display = demo::facts::Display::Framebuffer {
+                width: layout.width as u32,
+                height: layout.height as u32,
+                bytes_per_pixel: layout.bytes_per_pixel as u8,
+                scale: placement.scale as u32,
+                write_combining: Some(write_combining),
+            }
+        });
         Display {
             pixels,
             layout,
@@ -184,8 +199,8 @@ impl Display {
         self.wait_for_next_frame();
     }
 
-    /// Present costs on serial now and then: the kernel's own figure for the
-    /// README (time includes the scan-out and the diff).
+    /// Present costs on serial now and then: the kernel's own figure for
+    /// `docs/performance.md` (time includes the scan-out and the diff).
     fn count(&mut self, micros: u64, bytes: usize) {
         let cost = &mut self.cost;
         cost.presents += 1;

@@ -82,6 +82,12 @@ pub fn set_mode_x(
             mismatch.expected
         ),
     }
+    crate::facts::record(|facts| {
+        facts.display = demo::facts::Display::ModeX {
+            by_video_bios: report.route == Route::VideoBios,
+            verified: Some(report.verified.is_ok()),
+        }
+    });
     *VIDEO_BIOS.lock() = bios;
     vga
 }

@@ -4,13 +4,14 @@
 #![no_std]
 #![no_main]
 #![feature(abi_x86_interrupt)]
-// Every `unsafe` block says why it is sound (DEVELOPERS.md); clippy checks it.
+// Every `unsafe` block says why it is sound (docs/contributing.md); clippy checks it.
 #![deny(clippy::undocumented_unsafe_blocks)]
 
 mod bench;
 mod bios;
 mod diagnostics;
 mod dma;
+mod facts;
 mod fault;
 mod fpu;
 mod framebuffer;
@@ -34,6 +35,7 @@ mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
+use demo::facts::Ps2;
 use firmware::acpi::Presence;
 use firmware::boot_firmware::Firmware;
 use input::{ps2, xhci};
@@ -61,6 +63,7 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         protocol::line::KERNEL_BANNER,
         env!("CARGO_PKG_VERSION")
     );
+    facts::record_cpu();
     gdt::init();
     interrupts::init();
     pit::init();
@@ -72,13 +75,18 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         physical_memory_offset,
         mapped_physical_memory_end(&boot_info.memory_regions),
     );
-    if acpi.legacy.i8042 == Presence::Absent {
+    let ps2_state = if acpi.legacy.i8042 == Presence::Absent {
         serial_println!(
             "keyboard: the ACPI tables say there is no PS/2 controller (8042); not set up"
         );
+        Ps2::Absent
     } else if let Err(problem) = ps2::init() {
         serial_println!("keyboard: {}", problem);
-    }
+        Ps2::Failed(problem)
+    } else {
+        Ps2::Ready
+    };
+    facts::record(|facts| facts.ps2 = ps2_state);
     x86_64::instructions::interrupts::enable();
 
     let mut option_buffer = [0u8; 64];
@@ -94,12 +102,18 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         }
     };
     let (force_true_mode_x, option) = (request.true_mode_x, request.option);
-    time::init(acpi, physical_memory_offset, request.clock);
+    let rate = time::init(acpi, physical_memory_offset, request.clock);
+    facts::record(|facts| facts.clock = Some(rate));
     xhci::init(&boot_info.memory_regions, physical_memory_offset);
     serial_println!("kernel: initialised");
 
     let booted_by = boot_firmware::firmware(&boot_info.memory_regions);
     serial_println!("firmware: {:?} (told by the memory map)", booted_by);
+    let adapter = pci::display_controller();
+    facts::record(|facts| {
+        facts.firmware = Some(booted_by);
+        facts.adapter = adapter;
+    });
 
     // SAFETY: the bootloader maps all physical memory at this offset (asked for
     // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
@@ -144,7 +158,23 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
     }
     let Some(framebuffer) = boot_info.framebuffer.as_mut() else {
-        panic!("no display: neither a legacy VGA nor a framebuffer from the bootloader");
+        // No picture anywhere (e.g. UEFI with only a Blt-only virtio-gpu GOP):
+        // the demo runs on the software VGA unseen; serial and keys work.
+        serial_println!(
+            "display: none: no legacy VGA and no framebuffer from the bootloader \
+             (its log says why: no usable GOP, or no VESA linear mode); \
+             running without a picture"
+        );
+        run::NO_DISPLAY.store(true, core::sync::atomic::Ordering::Relaxed);
+        facts::record(|facts| {
+            facts.display = demo::facts::Display::Nothing("no legacy VGA, no framebuffer")
+        });
+        let mut vga = modex::ModeX::new(modex::MirroredVga::new(
+            framebuffer::soft_vga_alone(),
+            |_| {},
+        ));
+        vga.set_mode();
+        run_screen(&mut vga, option)
     };
     let (soft, display) = framebuffer::take_over(framebuffer, physical_memory_offset);
     let mirror = modex::MirroredVga::new(soft, move |soft| display.present(soft));
@@ -167,6 +197,7 @@ fn mapped_physical_memory_end(regions: &bootloader_api::info::MemoryRegions) -> 
 
 /// What the screen shows: the cube, or a diagnostic asked for by a boot option.
 fn run_screen<B: modex::VgaBus>(vga: &mut modex::ModeX<B>, option: Option<BootOption>) -> ! {
+    facts::log();
     match option {
         Some(BootOption::TestPattern) => diagnostics::test_pattern(vga),
         Some(BootOption::Bench) => bench::run(vga),

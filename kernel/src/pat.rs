@@ -64,20 +64,21 @@ fn leaf(virt: u64, offset: u64) -> Option<Leaf> {
 }
 
 /// Maps `buffer` write-combining if the CPU has a PAT, logging the mapping
-/// the bootloader made and what was done.
-pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
+/// the bootloader made and what was done. True if write-combining read back
+/// in effect.
+pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) -> bool {
     let start = buffer.as_ptr() as u64;
     let end = start + buffer.len() as u64;
     let has_pat = core::arch::x86_64::__cpuid(1).edx & CPUID_PAT != 0;
     let Some(first) = leaf(start, physical_memory_offset) else {
         serial_println!("display: framebuffer at {:#x} is not mapped?", start);
-        return;
+        return false;
     };
     if !has_pat {
         serial_println!(
             "display: no PAT (CPUID), framebuffer mapping left as the bootloader made it"
         );
-        return;
+        return false;
     }
     // SAFETY: the CPU has the PAT (CPUID above), so the MSR exists.
     let pat = unsafe { Msr::new(IA32_PAT).read() };
@@ -124,7 +125,8 @@ pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
         let pat_now = unsafe { Msr::new(IA32_PAT).read() };
         let entry_now = leaf(start, physical_memory_offset).map(|page| page.pat_index());
         let wc = MemoryType::WriteCombining as u8;
-        if entry_encoding(pat_now, WC_ENTRY) == wc && entry_now == Some(WC_ENTRY) {
+        let in_effect = entry_encoding(pat_now, WC_ENTRY) == wc && entry_now == Some(WC_ENTRY);
+        if in_effect {
             serial_println!(
                 "display: framebuffer now write-combining (PAT entry {} = WC, {} pages, read back)",
                 WC_ENTRY,
@@ -137,5 +139,6 @@ pub fn map_write_combining(buffer: &mut [u8], physical_memory_offset: u64) {
                 entry_now
             );
         }
-    });
+        in_effect
+    })
 }

@@ -198,3 +198,19 @@ pub fn route_intel_ports_to_xhci(f: Function) -> Option<u32> {
     write(f.bus, f.device, f.function, XUSB2PR, usb2);
     Some(read(f.bus, f.device, f.function, XUSB2PR))
 }
+
+/// On those PCHs, hands every port back to the EHCI (USB 2 routing and
+/// SuperSpeed both cleared), as Linux's `usb_disable_xhci_ports` does before
+/// power-off: some 7-series boards otherwise power straight back on. Returns
+/// what the two registers read afterwards, or `None` for other controllers.
+pub fn hand_intel_ports_back_to_ehci(f: Function) -> Option<(u32, u32)> {
+    if f.vendor != 0x8086 || !INTEL_SWITCHABLE_XHCI.contains(&f.id) {
+        return None;
+    }
+    write(f.bus, f.device, f.function, USB3_PSSEN, 0);
+    write(f.bus, f.device, f.function, XUSB2PR, 0);
+    Some((
+        read(f.bus, f.device, f.function, XUSB2PR),
+        read(f.bus, f.device, f.function, USB3_PSSEN),
+    ))
+}

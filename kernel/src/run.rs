@@ -33,11 +33,22 @@ fn count_flip(pacing: &mut Pacing, timed_out: bool) {
     }
 }
 
+/// Set when there is no display at all: the demo runs unseen, and the ready
+/// line says so.
+pub static NO_DISPLAY: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
 pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut renderer = RENDERER.lock();
     let mut app = App::with_renderer(&mut *renderer);
     app.step(vga, &time::micros);
-    serial_println!("{}", line::READY);
+    serial_println!(
+        "{}",
+        if NO_DISPLAY.load(core::sync::atomic::Ordering::Relaxed) {
+            line::READY_NO_DISPLAY
+        } else {
+            line::READY
+        }
+    );
     let mut reported_commands = 0;
     let mut pacing = Pacing::default();
     let mut reset_chord = ResetChord::new();

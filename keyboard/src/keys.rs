@@ -5,7 +5,7 @@
 //!
 //! One table serves the runner (which checks names before QEMU sees them),
 //! the simulator (which turns names and host keys into scan codes) and the
-//! README's list of names (which a test compares with it).
+//! list of names in `docs/runner.md` (which `tests/docs.rs` compares with it).
 
 use crate::scancode::{BREAK_BIT, EXTENDED_PREFIX};
 
@@ -185,7 +185,7 @@ pub fn scancode_for_name(name: &str) -> Option<Scancode> {
         .map(|&(_, scancode)| scancode)
 }
 
-/// The names, space-separated, as error messages and the README list them.
+/// The names, in the order error messages and `docs/runner.md` list them.
 pub fn names() -> impl Iterator<Item = &'static str> {
     KEYS.iter().map(|&(name, _)| name)
 }

@@ -10,7 +10,7 @@
 //!   keyboard interrupt (or a poll) to the frame loop;
 //! - [`reset_keys`]: Ctrl+Alt+Del, recognised from the byte stream.
 //!
-//! The kernel's PS/2 shell is `kernel/src/keyboard/`.
+//! The kernel's shells are `kernel/src/input/ps2.rs` and `kernel/src/input/xhci.rs`.
 
 #![no_std]
 #![forbid(unsafe_code)]

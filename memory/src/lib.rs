@@ -4,8 +4,8 @@
 //! mode that calls the video BIOS ([`trampoline`]), and the stack's
 //! high-water mark ([`stack`]).
 //!
-//! The kernel's shell is `kernel/src/memory/` (the MSRs, page tables and
-//! stack) and `kernel/src/bios/` (the trampoline's assembly).
+//! The kernel's shells are `kernel/src/pat.rs` (the MSR and page tables),
+//! `kernel/src/stack.rs` and `kernel/src/bios/` (the trampoline's assembly).
 
 #![no_std]
 #![forbid(unsafe_code)]

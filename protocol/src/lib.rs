@@ -267,20 +267,32 @@ pub mod line {
     pub const KERNEL_BANNER: &str = "modex-cube kernel v";
     /// The first picture is on screen and keys are read.
     pub const READY: &str = "screen: ready";
+    /// There is no display at all (no legacy VGA, no framebuffer): the demo
+    /// runs unseen and keys are read.
+    pub const READY_NO_DISPLAY: &str = "screen: none, ready (no display)";
+    /// The bootloader's first line on serial (BIOS stage 2 and the UEFI
+    /// loader), written before it loads the kernel.
+    pub const LOADER_START: &str = "loader: loading kernel";
     /// The start of the goodbye line after Esc.
     pub const GOODBYE: &str = "demo: goodbye";
     /// The last line before a fault or panic halts the CPU.
     pub const HALTED: &str = "HALTED";
+
+    /// Before each of the machine's facts, logged once when boot has found
+    /// them all (`demo::facts::MachineFacts::rows`).
+    pub const MACHINE_FACT: &str = "facts: ";
 
     /// Before each fact the report screen shows, when it is drawn.
     pub const REPORT_FACT: &str = "report fact: ";
     /// Before each log line the report screen shows, when it is drawn.
     pub const REPORT_LOG: &str = "report log: ";
 
-    /// A line the kernel printed about its report screen (which the
-    /// report's own log window leaves out).
+    /// A line the kernel printed about its report screen, or one of the
+    /// machine's facts the report shows above its log (which the report's
+    /// own log window leaves out).
     pub fn is_report_line(line: &str) -> bool {
-        line.starts_with(REPORT_FACT)
+        line.starts_with(MACHINE_FACT)
+            || line.starts_with(REPORT_FACT)
             || line.starts_with(REPORT_LOG)
             || line.starts_with(ReportShown::PREFIX)
     }
@@ -638,6 +650,7 @@ mod tests {
         assert!(line::is_report_line(&text));
         assert!(line::is_report_line("report log: clock: TSC"));
         assert!(!line::is_report_line("clock: TSC"));
+        assert!(line::is_report_line("facts: clock: TSC 2000.000 MHz"));
     }
 
     fn every_kind_of_fault_line() -> [line::FaultLine<'static>; 7] {

@@ -13,6 +13,11 @@ use modex::soft::SoftVga;
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
 
+#[path = "../../demo/tests/common/fuzzing.rs"]
+mod fuzzing;
+#[allow(unused_imports)] // each test binary uses its own part of this
+pub use fuzzing::{proptest_config, soft_vga_in_mode_x};
+
 /// A key's command that turns the object: key tables stay one line a key.
 pub const fn turn(axis: Axis, sense: Sense) -> Command {
     Command::Scene(SceneCommand::Rotate(axis, sense))
@@ -29,22 +34,6 @@ pub const TURNED: [(&str, Command); 7] = [
     ("8", turn(Axis::X, Sense::Negative)),
     ("8", turn(Axis::X, Sense::Negative)),
 ];
-
-/// Proptest's settings: `default_cases` cases, or as many as the
-/// `PROPTEST_CASES` environment variable asks for, from a fixed seed so that
-/// every run tries the same cases (a longer hunt with more cases still finds
-/// new ones, and reproduces them).
-pub fn proptest_config(default_cases: u32) -> proptest::prelude::ProptestConfig {
-    let cases = std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(default_cases);
-    proptest::prelude::ProptestConfig {
-        cases,
-        rng_seed: proptest::test_runner::RngSeed::Fixed(0x5EED_CA5E),
-        ..proptest::prelude::ProptestConfig::default()
-    }
-}
 
 /// The cube test's keys: from the starting scene, turns about Y and X, away,
 /// a turn about Z, a move left.
@@ -85,13 +74,6 @@ pub fn boot_bios_on_board(board: Board, graphics: Graphics, option: Option<BootO
     options.graphics = graphics;
     options.boot.option = option;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// A software VGA already in Mode X, boxed (it holds 256 KiB of planes).
-pub fn soft_vga_in_mode_x() -> Box<SoftVga> {
-    let mut soft = Box::new(SoftVga::new());
-    ModeX::new(&mut *soft).set_mode();
-    soft
 }
 
 /// The model's displayed picture, as RGB.

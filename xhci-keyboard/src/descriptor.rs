@@ -12,6 +12,10 @@ pub mod kind {
     pub const INTERFACE: u8 = 4;
     /// Endpoint descriptor.
     pub const ENDPOINT: u8 = 5;
+    /// HID class descriptor (in a configuration, after its interface).
+    pub const HID: u8 = 0x21;
+    /// HID report descriptor (read from the interface).
+    pub const REPORT: u8 = 0x22;
     /// Hub descriptor (USB 2.0).
     pub const HUB: u8 = 0x29;
 }
@@ -24,6 +28,9 @@ pub const CLASS_HUB: u8 = 9;
 pub const SUBCLASS_BOOT: u8 = 1;
 /// HID boot protocol: keyboard.
 pub const PROTOCOL_KEYBOARD: u8 = 1;
+/// HID subclass and protocol of an interface with no boot protocol (a
+/// keyboard may still be one, if its report descriptor says so).
+const NO_BOOT: u8 = 0;
 
 /// What a descriptor failed on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -132,12 +139,19 @@ pub struct InterruptIn {
 /// What a configuration offers this driver.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Function {
-    /// A boot keyboard interface and its interrupt IN endpoint.
-    BootKeyboard {
+    /// A HID interface that is or may be a keyboard, and its interrupt IN
+    /// endpoint: a boot keyboard, or (when there is none) a HID interface
+    /// without the boot protocol, which is a keyboard only if its report
+    /// descriptor says so.
+    Keyboard {
         /// `bInterfaceNumber`.
         interface: u8,
         /// The report endpoint.
         endpoint: InterruptIn,
+        /// The interface does the boot protocol (subclass 1, protocol 1).
+        boot: bool,
+        /// The report descriptor's length its HID descriptor announces (0: none).
+        report_descriptor_bytes: u16,
     },
     /// A hub.
     Hub,
@@ -148,21 +162,49 @@ pub enum Function {
 pub struct Configuration {
     /// `bConfigurationValue`.
     pub value: u8,
-    /// The first boot keyboard (or a hub), if any.
+    /// The first boot keyboard, else the first other HID interface that
+    /// may be a keyboard (or a hub), if any.
     pub function: Option<Function>,
 }
 
+/// A HID interface being walked: its number, whether it is a boot
+/// keyboard, and its report descriptor's length once its HID descriptor
+/// has been seen.
+#[derive(Clone, Copy, Debug)]
+struct HidInterface {
+    number: u8,
+    boot: bool,
+    report_descriptor_bytes: u16,
+}
+
+/// The report descriptor's length a HID class descriptor announces
+/// (bNumDescriptors entries of type and length, from byte 6), or 0.
+fn report_descriptor_length(hid: &[u8]) -> u16 {
+    let count = usize::from(hid.get(5).copied().unwrap_or(0));
+    hid.get(6..)
+        .unwrap_or(&[])
+        .as_chunks::<3>()
+        .0
+        .iter()
+        .take(count)
+        .find(|entry| entry[0] == kind::REPORT)
+        .map_or(0, |entry| u16::from_le_bytes([entry[1], entry[2]]))
+}
+
 /// Walks a whole configuration (header, interfaces, endpoints, class
-/// descriptors) for a boot keyboard interface with an interrupt IN endpoint,
-/// or a hub interface. Stops at the first descriptor whose length is wrong.
+/// descriptors) for a HID interface with an interrupt IN endpoint that is or
+/// may be a keyboard (a boot keyboard first), or a hub interface. Stops at
+/// the first descriptor whose length is wrong.
 pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
     let total = usize::from(configuration_total_length(bytes)?);
     let bytes = &bytes[..total.min(bytes.len())];
     need(bytes, 9)?;
     let value = bytes[5];
     let mut offset = usize::from(bytes[0]);
-    let mut keyboard_interface = None;
-    let mut function = None;
+    let mut interface: Option<HidInterface> = None;
+    let mut boot_keyboard = None;
+    let mut other_hid = None;
+    let mut hub = false;
     while offset + 2 <= bytes.len() {
         let length = usize::from(bytes[offset]);
         if length < 2 || offset + length > bytes.len() {
@@ -172,38 +214,52 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
         match descriptor[1] {
             kind::INTERFACE if length >= 9 => {
                 let (class, subclass, protocol) = (descriptor[5], descriptor[6], descriptor[7]);
-                keyboard_interface = (class == CLASS_HID
-                    && subclass == SUBCLASS_BOOT
-                    && protocol == PROTOCOL_KEYBOARD
-                    && function.is_none())
-                .then_some(descriptor[2]);
-                if class == CLASS_HUB && function.is_none() {
-                    function = Some(Function::Hub);
+                let boot = subclass == SUBCLASS_BOOT && protocol == PROTOCOL_KEYBOARD;
+                let maybe = subclass == NO_BOOT && protocol == NO_BOOT;
+                interface = (class == CLASS_HID && (boot || maybe)).then_some(HidInterface {
+                    number: descriptor[2],
+                    boot,
+                    report_descriptor_bytes: 0,
+                });
+                hub |= class == CLASS_HUB;
+            }
+            kind::HID => {
+                if let Some(interface) = interface.as_mut() {
+                    interface.report_descriptor_bytes = report_descriptor_length(descriptor);
                 }
             }
             kind::ENDPOINT if length >= 7 => {
                 let address = descriptor[2];
                 let is_interrupt_in = address & 0x80 != 0 && descriptor[3] & 0x03 == 0x03;
-                if let (Some(interface), true) = (keyboard_interface, is_interrupt_in) {
-                    let number = address & 0x0F;
-                    if number != 0 {
-                        function = Some(Function::BootKeyboard {
-                            interface,
-                            endpoint: InterruptIn {
-                                number,
-                                max_packet: u16::from_le_bytes([descriptor[4], descriptor[5]])
-                                    & 0x7FF,
-                                interval: descriptor[6],
-                            },
-                        });
-                        keyboard_interface = None;
+                let number = address & 0x0F;
+                if let (Some(found), true, true) = (interface, is_interrupt_in, number != 0) {
+                    let function = Function::Keyboard {
+                        interface: found.number,
+                        endpoint: InterruptIn {
+                            number,
+                            max_packet: u16::from_le_bytes([descriptor[4], descriptor[5]]) & 0x7FF,
+                            interval: descriptor[6],
+                        },
+                        boot: found.boot,
+                        report_descriptor_bytes: found.report_descriptor_bytes,
+                    };
+                    if found.boot {
+                        boot_keyboard = boot_keyboard.or(Some(function));
+                    } else {
+                        other_hid = other_hid.or(Some(function));
                     }
+                    interface = None;
                 }
             }
             _ => {}
         }
         offset += length;
     }
+    let function = if hub {
+        Some(Function::Hub)
+    } else {
+        boot_keyboard.or(other_hid)
+    };
     Ok(Configuration { value, function })
 }
 
@@ -253,13 +309,15 @@ mod tests {
         assert_eq!(configuration.value, 1);
         assert_eq!(
             configuration.function,
-            Some(Function::BootKeyboard {
+            Some(Function::Keyboard {
                 interface: 0,
                 endpoint: InterruptIn {
                     number: 1,
                     max_packet: 8,
                     interval: 10
-                }
+                },
+                boot: true,
+                report_descriptor_bytes: 63,
             })
         );
     }
@@ -272,6 +330,43 @@ mod tests {
         let mut hub = KEYBOARD_CONFIGURATION;
         hub[14] = CLASS_HUB;
         assert_eq!(configuration(&hub).unwrap().function, Some(Function::Hub));
+    }
+
+    #[test]
+    fn a_hid_interface_without_boot_protocol_may_be_a_keyboard_but_boot_comes_first() {
+        // A tablet or an N-key rollover interface: subclass 0, protocol 0.
+        let mut other = KEYBOARD_CONFIGURATION;
+        other[15] = 0;
+        other[16] = 0;
+        let Some(Function::Keyboard {
+            boot,
+            report_descriptor_bytes,
+            ..
+        }) = configuration(&other).unwrap().function
+        else {
+            panic!("not a candidate");
+        };
+        assert!(!boot);
+        assert_eq!(report_descriptor_bytes, 63);
+        // Both: the boot interface (the second here) is the one taken.
+        let mut both = std::vec::Vec::from(other);
+        both.extend_from_slice(&KEYBOARD_CONFIGURATION[9..]);
+        both[2] = both.len() as u8;
+        both[9 + 25 + 2] = 1; // the second interface's number
+        both[9 + 25 + 18 + 2] = 0x82; // and its endpoint
+        let function = configuration(&both).unwrap().function;
+        assert!(
+            matches!(
+                function,
+                Some(Function::Keyboard {
+                    interface: 1,
+                    boot: true,
+                    endpoint: InterruptIn { number: 2, .. },
+                    ..
+                })
+            ),
+            "{function:?}"
+        );
     }
 
     #[test]

@@ -5,6 +5,8 @@
 //!
 //! - [`report`]: boot reports become PS/2 set-1 scancodes, with typematic repeat;
 //! - [`descriptor`]: USB descriptors, every length checked;
+//! - [`hid`]: HID report descriptors, for keyboards that do not keep to
+//!   the boot report (N-key rollover bitmaps, report IDs);
 //! - [`ring`]: the command, transfer and event rings and their cycle bits;
 //! - [`context`]: slot and endpoint contexts, 32- or 64-byte (CSZ);
 //! - [`xhci`]: the controller: taking it from the firmware, resetting it,
@@ -21,6 +23,7 @@ extern crate std;
 
 pub mod context;
 pub mod descriptor;
+pub mod hid;
 pub mod report;
 pub mod ring;
 pub mod xhci;

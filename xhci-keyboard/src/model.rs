@@ -12,6 +12,10 @@ use std::string::String;
 use std::vec;
 use std::vec::Vec;
 
+const DISABLE_SLOT: u32 = 10;
+const RESET_ENDPOINT: u32 = 14;
+const SET_TR_DEQUEUE: u32 = 16;
+
 pub const DMA_BASE: u64 = 0x10_0000;
 pub const DMA_BYTES: u64 = 1 << 20;
 pub const BAR_BYTES: u32 = 0x2000;
@@ -33,6 +37,14 @@ pub const HUB_CONFIGURATION: [u8; 25] = [
     9, 2, 25, 0, 1, 1, 0, 0xE0, 0, 9, 4, 0, 0, 1, 9, 0, 0, 0, 7, 5, 0x81, 3, 1, 0, 12,
 ];
 pub const HUB_DESCRIPTOR: [u8; 9] = [9, 0x29, 4, 0, 0, 50, 0, 0, 0xFF];
+/// QEMU's usb-kbd report descriptor: the boot report (HID 1.11 appendix
+/// E.6): modifier bits, a constant byte, LED outputs, six key bytes.
+pub const KEYBOARD_REPORT_DESCRIPTOR: [u8; 63] = [
+    0x05, 0x01, 0x09, 0x06, 0xA1, 0x01, 0x75, 0x01, 0x95, 0x08, 0x05, 0x07, 0x19, 0xE0, 0x29, 0xE7,
+    0x15, 0x00, 0x25, 0x01, 0x81, 0x02, 0x95, 0x01, 0x75, 0x08, 0x81, 0x01, 0x95, 0x05, 0x75, 0x01,
+    0x05, 0x08, 0x19, 0x01, 0x29, 0x05, 0x91, 0x02, 0x95, 0x01, 0x75, 0x03, 0x91, 0x01, 0x95, 0x06,
+    0x75, 0x08, 0x15, 0x00, 0x25, 0xFF, 0x05, 0x07, 0x19, 0x00, 0x29, 0xFF, 0x81, 0x00, 0xC0,
+];
 pub const KEYBOARD_CONFIGURATION: [u8; 34] = [
     9, 2, 34, 0, 1, 1, 0, 0xA0, 50, 9, 4, 0, 0, 1, 3, 1, 1, 0, 9, 0x21, 0x11, 0x01, 0, 1, 0x22, 63,
     0, 7, 5, 0x81, 3, 8, 0, 10,
@@ -59,14 +71,32 @@ struct Slot {
     output: u64,
     ep0: Cursor,
     interrupt: Option<(u8, Cursor)>,
+    /// The controller halted the interrupt endpoint after an error.
+    interrupt_halted: bool,
+    /// Address Device with BSR=1 done: the device is at the default address.
+    default_address: bool,
+    /// Endpoint 0's packet size in the device's context (8 until evaluated).
+    ep0_max_packet: u16,
+    /// The device descriptor was read (at whatever address).
+    descriptor_read: bool,
+    /// A transfer on endpoint 0 babbled (a packet larger than its size).
+    babble: bool,
 }
 
 /// What the keyboard was told.
 #[derive(Clone, Debug, Default)]
 pub struct KeyboardState {
     pub configuration: Option<u8>,
-    pub boot_protocol: bool,
+    /// The protocol the keyboard is in: 1 (report) after a reset, 0 (boot)
+    /// once told, unless it ignores SET_PROTOCOL.
+    pub protocol: u16,
+    /// SET_PROTOCOL requests received.
+    pub set_protocols: u32,
     pub idle_set: bool,
+    /// The keyboard's own endpoint is halted (after a stall) until
+    /// CLEAR_FEATURE(ENDPOINT_HALT).
+    pub device_halted: bool,
+    pub halts_cleared: u32,
     pub slot: u8,
 }
 
@@ -94,8 +124,17 @@ pub struct Model {
     pub commands_answered: bool,
     pub device_descriptor: Vec<u8>,
     pub configuration: Vec<u8>,
+    /// The report descriptor (None: the request stalls).
+    pub report_descriptor: Option<Vec<u8>>,
+    /// The keyboard stays in the report protocol whatever it is told.
+    pub ignores_set_protocol: bool,
+    /// The keyboard answers SET_ADDRESS only once its device descriptor
+    /// has been read (the two-step address).
+    pub needs_two_step: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
+    /// The keyboard's interrupt endpoint was reset and awaits its dequeue pointer.
+    endpoint_stopped: bool,
     // Registers.
     legacy: u32,
     legacy_control: u32,
@@ -119,6 +158,8 @@ pub struct Model {
     pub keyboard: KeyboardState,
     pub hub_state: HubState,
     pub events_dropped: u32,
+    /// Slots the driver disabled, in order.
+    pub slots_disabled: Vec<u8>,
     pub events_posted: u32,
     pub log: Vec<String>,
     pub errors: Vec<String>,
@@ -136,7 +177,11 @@ impl Model {
             commands_answered: true,
             device_descriptor: KEYBOARD_DEVICE.to_vec(),
             configuration: KEYBOARD_CONFIGURATION.to_vec(),
+            report_descriptor: Some(KEYBOARD_REPORT_DESCRIPTOR.to_vec()),
+            ignores_set_protocol: false,
+            needs_two_step: false,
             hub: false,
+            endpoint_stopped: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
             os_asked_at: None,
@@ -155,9 +200,13 @@ impl Model {
             event_cycle: true,
             slots: Default::default(),
             next_slot: 1,
-            keyboard: KeyboardState::default(),
+            keyboard: KeyboardState {
+                protocol: 1,
+                ..KeyboardState::default()
+            },
             hub_state: HubState::default(),
             events_dropped: 0,
+            slots_disabled: Vec::new(),
             events_posted: 0,
             log: Vec::new(),
             errors: Vec::new(),
@@ -272,6 +321,16 @@ impl Model {
             let ctx = self.context_bytes();
             match trb.kind() {
                 trb_type::NO_OP_COMMAND => self.complete_command(address, 1, 0),
+                DISABLE_SLOT => {
+                    let state = &mut self.slots[usize::from(slot)];
+                    if !state.enabled {
+                        self.errors
+                            .push(std::format!("Disable Slot {slot}: not enabled"));
+                    }
+                    *state = Slot::default();
+                    self.slots_disabled.push(slot);
+                    self.complete_command(address, 1, slot);
+                }
                 trb_type::ENABLE_SLOT => {
                     let slot = self.next_slot;
                     self.next_slot += 1;
@@ -297,9 +356,11 @@ impl Model {
                         && slot_dw0 >> 27 == 1
                         && root_port == 1
                         && (ep0_dw1 >> 3) & 7 == 4
-                        && ep0_dw1 >> 16 == 8
+                        && ep0_dw1 >> 16
+                            == u32::from(self.slots[usize::from(slot)].ep0_max_packet.max(8))
                         && ep0_dequeue != 0
                         && self.slots[usize::from(slot)].enabled;
+                    let block_set_address = trb.0[3] & (1 << 9) != 0;
                     if !valid {
                         self.errors.push(std::format!(
                             "Address Device: input context wrong (add {add:#x}, slot {slot_dw0:#x}, port {root_port}, ep0 {ep0_dw1:#x})"
@@ -307,22 +368,93 @@ impl Model {
                         self.complete_command(address, 17, slot);
                         continue;
                     }
-                    let output = self.output_context(slot);
-                    self.mem_write(output + 12, 2 << 27 | u32::from(slot));
-                    let state = &mut self.slots[usize::from(slot)];
-                    state.kind = kind.unwrap_or_default();
-                    state.output = output;
-                    state.ep0 = Cursor {
+                    let kind_now = kind.unwrap_or_default();
+                    let state = &self.slots[usize::from(slot)];
+                    if !block_set_address
+                        && kind_now == Kind::Keyboard
+                        && self.needs_two_step
+                        && !state.descriptor_read
+                    {
+                        // SET_ADDRESS before its descriptor was read: this
+                        // device does not answer it.
+                        self.complete_command(address, 4, slot);
+                        continue;
+                    }
+                    let new_ep0 = Cursor {
                         dequeue: ep0_dequeue & !0xF,
                         cycle: ep0_dequeue & 1 != 0,
                     };
+                    // The ring may have been padded (with No Ops), never rewound.
+                    if state.default_address
+                        && (new_ep0.dequeue < state.ep0.dequeue || new_ep0.cycle != state.ep0.cycle)
+                    {
+                        self.errors.push(std::format!(
+                            "second Address Device: endpoint 0 dequeue {ep0_dequeue:#x} is not where the ring stands"
+                        ));
+                    }
+                    let output = self.output_context(slot);
+                    let slot_state = if block_set_address { 1 } else { 2 };
+                    self.mem_write(output + 12, slot_state << 27 | u32::from(slot));
+                    let state = &mut self.slots[usize::from(slot)];
+                    state.kind = kind_now;
+                    state.output = output;
+                    state.default_address = block_set_address;
+                    state.ep0 = new_ep0;
                     match kind {
                         Some(Kind::Hub) => self.hub_state.slot = slot,
                         _ => self.keyboard.slot = slot,
                     }
                     self.complete_command(address, 1, slot);
                 }
-                trb_type::EVALUATE_CONTEXT => self.complete_command(address, 1, slot),
+                trb_type::EVALUATE_CONTEXT => {
+                    let input = trb.parameter();
+                    let add = self.mem_read(input + 4);
+                    if add & 0b10 != 0 {
+                        let ep0_dw1 = self.mem_read(input + 2 * ctx + 4);
+                        self.slots[usize::from(slot)].ep0_max_packet = (ep0_dw1 >> 16) as u16;
+                    }
+                    self.complete_command(address, 1, slot)
+                }
+                RESET_ENDPOINT | SET_TR_DEQUEUE => {
+                    let dci = ((trb.0[3] >> 16) & 0x1F) as u8;
+                    let state = &mut self.slots[usize::from(slot)];
+                    let Some((endpoint, cursor)) = state.interrupt.as_mut() else {
+                        self.complete_command(address, 19, slot);
+                        continue;
+                    };
+                    if *endpoint != dci {
+                        self.errors.push(std::format!("command for endpoint {dci}"));
+                        self.complete_command(address, 19, slot);
+                        continue;
+                    }
+                    // Reset Endpoint: Halted -> Stopped; Set TR Dequeue
+                    // Pointer: only while Stopped.
+                    let code = if trb.kind() == RESET_ENDPOINT {
+                        if state.interrupt_halted {
+                            state.interrupt_halted = false;
+                            self.endpoint_stopped = true;
+                            1
+                        } else {
+                            19
+                        }
+                    } else if state.interrupt_halted || !self.endpoint_stopped {
+                        19
+                    } else {
+                        *cursor = Cursor {
+                            dequeue: trb.parameter() & !0xF,
+                            cycle: trb.parameter() & 1 != 0,
+                        };
+                        self.endpoint_stopped = false;
+                        1
+                    };
+                    if code != 1 {
+                        self.errors.push(std::format!(
+                            "command {} in the wrong endpoint state",
+                            trb.kind()
+                        ));
+                    }
+                    self.complete_command(address, code, slot);
+                }
                 trb_type::CONFIGURE_ENDPOINT => {
                     let input = trb.parameter();
                     let add = self.mem_read(input + 4);
@@ -381,8 +513,23 @@ impl Model {
                     let length = (setup >> 48) as usize;
                     let hub = self.slots[usize::from(slot)].kind == Kind::Hub;
                     let reply = match (hub, request_type, request, value >> 8) {
-                        (false, 0x80, 6, 1) => self.device_descriptor.clone(),
+                        (false, 0x80, 6, 1) => {
+                            let packet =
+                                usize::from(self.slots[usize::from(slot)].ep0_max_packet.max(8));
+                            let device_packet =
+                                usize::from(self.device_descriptor.get(7).copied().unwrap_or(8));
+                            // A reply longer than one packet of the wrong
+                            // size babbles.
+                            if length > packet && packet != device_packet {
+                                self.slots[usize::from(slot)].babble = true;
+                            }
+                            self.slots[usize::from(slot)].descriptor_read = true;
+                            self.device_descriptor.clone()
+                        }
                         (false, 0x80, 6, 2) => self.configuration.clone(),
+                        (false, 0x81, 6, 0x22) => {
+                            self.report_descriptor.clone().unwrap_or_default()
+                        }
                         (true, 0x80, 6, 1) => HUB_DEVICE.to_vec(),
                         (true, 0x80, 6, 2) => HUB_CONFIGURATION.to_vec(),
                         (true, 0xA0, 6, 0x29) => HUB_DESCRIPTOR.to_vec(),
@@ -414,14 +561,27 @@ impl Model {
                         self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
                         continue;
                     }
+                    if std::mem::take(&mut self.slots[usize::from(slot)].babble) {
+                        self.transfer_event(address, 3, 0, slot, 1);
+                        continue;
+                    }
                     let known = match (request_type, request) {
                         (0x80, 6) => true,
+                        (0x81, 6) => self.report_descriptor.is_some(),
                         (0x00, 9) => {
                             self.keyboard.configuration = Some(value as u8);
                             true
                         }
                         (0x21, 0x0B) => {
-                            self.keyboard.boot_protocol = value == 0;
+                            self.keyboard.set_protocols += 1;
+                            if !self.ignores_set_protocol {
+                                self.keyboard.protocol = value;
+                            }
+                            true
+                        }
+                        (0x02, 1) if value == 0 && (setup >> 32) as u16 == 0x81 => {
+                            self.keyboard.device_halted = false;
+                            self.keyboard.halts_cleared += 1;
                             true
                         }
                         (0x21, 0x0A) => {
@@ -480,24 +640,36 @@ impl Model {
     /// The keyboard sends a report (if a Normal TRB waits for one); returns
     /// whether it could.
     pub fn send_report(&mut self, report: [u8; 8]) -> bool {
+        self.send_bytes(&report)
+    }
+
+    /// The keyboard sends a report of any length (at most the TRB's: a
+    /// longer one is cut, as a babble would be).
+    pub fn send_bytes(&mut self, report: &[u8]) -> bool {
+        if self.keyboard.device_halted {
+            // Still halted on the device's side: the next try stalls again.
+            self.fail_transfer(6);
+            return false;
+        }
         let slot = self.keyboard.slot;
         let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
             return false;
         };
+        if self.slots[usize::from(slot)].interrupt_halted || self.endpoint_stopped {
+            return false;
+        }
         let Some((address, trb)) = self.next_trb(&mut cursor) else {
             return false;
         };
         self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
         let buffer = trb.parameter();
-        self.mem_write(
-            buffer,
-            u32::from_le_bytes([report[0], report[1], report[2], report[3]]),
-        );
-        self.mem_write(
-            buffer + 4,
-            u32::from_le_bytes([report[4], report[5], report[6], report[7]]),
-        );
-        let residual = trb.0[2].saturating_sub(8);
+        let length = report.len().min(trb.0[2] as usize & 0x1_FFFF);
+        for (i, chunk) in report[..length].chunks(4).enumerate() {
+            let mut word = [0u8; 4];
+            word[..chunk.len()].copy_from_slice(chunk);
+            self.mem_write(buffer + 4 * i as u64, u32::from_le_bytes(word));
+        }
+        let residual = trb.0[2].saturating_sub(length as u32);
         self.transfer_event(
             address,
             if residual > 0 { 13 } else { 1 },
@@ -505,6 +677,49 @@ impl Model {
             slot,
             dci,
         );
+        true
+    }
+
+    /// The device on root port 1 is pulled out: the port loses its
+    /// connection and the controller says so with a Port Status Change event.
+    pub fn unplug(&mut self) {
+        const CONNECT_CHANGE: u32 = 1 << 17;
+        const ENABLE_CHANGE: u32 = 1 << 18;
+        self.portsc[0] &= !0b11;
+        self.portsc[0] |= CONNECT_CHANGE | ENABLE_CHANGE;
+        self.post_event(Trb([
+            1 << 24,
+            0,
+            1 << 24,
+            trb_type::PORT_STATUS_CHANGE << 10,
+        ]));
+    }
+
+    /// The root port's status change bits still set.
+    pub fn root_port_changes(&self) -> u32 {
+        self.portsc[0] & (0x7F << 17)
+    }
+
+    /// The keyboard's next report transfer fails with `code` (6: a stall,
+    /// which halts the device's endpoint too; 4: a transaction error) and
+    /// the controller halts the endpoint; returns whether a TRB was there.
+    pub fn fail_transfer(&mut self, code: u8) -> bool {
+        let slot = self.keyboard.slot;
+        let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
+            return false;
+        };
+        if self.slots[usize::from(slot)].interrupt_halted || self.endpoint_stopped {
+            return false;
+        }
+        let Some((address, trb)) = self.next_trb(&mut cursor) else {
+            return false;
+        };
+        self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
+        self.slots[usize::from(slot)].interrupt_halted = true;
+        if code == 6 {
+            self.keyboard.device_halted = true;
+        }
+        self.transfer_event(address, code, trb.0[2] & 0x1_FFFF, slot, dci);
         true
     }
 
@@ -527,6 +742,16 @@ impl Model {
 
     pub fn read_u64(&mut self, address: u64) -> u64 {
         self.read64(address)
+    }
+
+    /// Whether the controller is halted and its reset done, and each root
+    /// port's power.
+    pub fn shut_down_state(&self) -> (bool, bool, Vec<bool>) {
+        (
+            self.usbsts & 1 != 0,
+            self.usbcmd & 2 == 0,
+            self.portsc.iter().map(|p| p & (1 << 9) != 0).collect(),
+        )
     }
 
     pub fn legacy_registers(&self) -> (u32, u32) {
@@ -634,6 +859,10 @@ impl Hardware for Model {
                 }
                 let status = &mut self.portsc[port];
                 *status &= !(value & (0x7F << 17));
+                if value & (1 << 9) == 0 {
+                    // Port power off: the device is gone from the port.
+                    *status &= !(1 << 9 | 0b11);
+                }
                 if value & (1 << 4) != 0 && *status & 1 != 0 {
                     *status |= 1 << 21 | 0b10;
                 }

@@ -6,6 +6,7 @@
 //! repeats here at the PS/2 defaults (500 ms, then about 10.9 a second),
 //! driven by the caller's clock.
 
+use crate::hid::KeySet;
 use keyboard::scancode::{BREAK_BIT as BREAK, EXTENDED_PREFIX as PREFIX_E0};
 
 /// The eight bytes of a boot-protocol keyboard report: modifier bits, a
@@ -149,11 +150,15 @@ pub fn set1_key(usage: u8) -> Option<Set1Key> {
 const PAUSE_USAGE: u8 = 0x48;
 const PAUSE_BYTES: [u8; 6] = [0xE1, 0x1D, 0x45, 0xE1, 0x9D, 0xC5];
 
+/// The first modifier usage (left Ctrl); the eight run to right GUI, in
+/// the boot report's modifier bit order.
+const FIRST_MODIFIER_USAGE: u8 = 0xE0;
+
 /// What is held down and repeating; fed reports, gives scancode bytes.
 #[derive(Clone, Debug, Default)]
 pub struct BootKeyboard {
-    modifiers: u8,
-    keys: [u8; 6],
+    /// The usages held down (modifiers as 0xE0-0xE7).
+    held: KeySet,
     /// The key that repeats (the last pressed, while it is held) and when it
     /// next does.
     repeating: Option<(Set1Key, u64)>,
@@ -166,64 +171,79 @@ fn emit(key: Set1Key, released: bool, out: &mut impl FnMut(u8)) {
     out(if released { key.code | BREAK } else { key.code });
 }
 
+/// The set-1 key of a usage, modifiers included.
+fn key_of(usage: u8) -> Option<Set1Key> {
+    match usage.checked_sub(FIRST_MODIFIER_USAGE) {
+        Some(bit) if bit < 8 => Some(MODIFIERS[usize::from(bit)]),
+        _ => set1_key(usage),
+    }
+}
+
+/// Usages in the order their codes go out: modifiers first (so that Shift
+/// or Ctrl is down before the key it changes), then the rest by usage.
+fn usages_in_order() -> impl Iterator<Item = u8> {
+    (FIRST_MODIFIER_USAGE..=FIRST_MODIFIER_USAGE + 7).chain(0..FIRST_MODIFIER_USAGE)
+}
+
+/// A boot report's keys as a key set, or None for a short or
+/// rollover-error report (whose keys are unknown).
+pub fn boot_report_keys(bytes: &[u8]) -> Option<KeySet> {
+    let report = bytes.get(..REPORT_BYTES)?;
+    let mut keys = KeySet::default();
+    for bit in 0..8 {
+        if report[0] & (1 << bit) != 0 {
+            keys.insert(FIRST_MODIFIER_USAGE + bit);
+        }
+    }
+    for &usage in &report[2..] {
+        match usage {
+            0 => {}
+            1..FIRST_REAL_USAGE => return None,
+            _ => keys.insert(usage),
+        }
+    }
+    Some(keys)
+}
+
 impl BootKeyboard {
     /// A keyboard with nothing held.
     pub fn new() -> Self {
         Self::default()
     }
 
-    /// Takes one report (`bytes`, as many as the device sent) received at
-    /// `now_micros`, giving the scancode bytes for what changed. Short
+    /// Takes one boot report (`bytes`, as many as the device sent) received
+    /// at `now_micros`, giving the scancode bytes for what changed. Short
     /// reports and rollover-error reports change nothing.
     pub fn report(&mut self, bytes: &[u8], now_micros: u64, out: &mut impl FnMut(u8)) {
-        let Some(report) = bytes.get(..REPORT_BYTES) else {
-            return;
-        };
-        let keys: [u8; 6] = [
-            report[2], report[3], report[4], report[5], report[6], report[7],
-        ];
-        if keys
-            .iter()
-            .any(|&usage| usage != 0 && usage < FIRST_REAL_USAGE)
-        {
-            return;
+        if let Some(keys) = boot_report_keys(bytes) {
+            self.keys(&keys, now_micros, out);
         }
-        let modifiers = report[0];
+    }
+
+    /// Takes the set of keys now down (however the report said it), giving
+    /// the scancode bytes for what changed since the last set.
+    pub fn keys(&mut self, keys: &KeySet, now_micros: u64, out: &mut impl FnMut(u8)) {
         // Breaks first, so that a key moving between slots never looks released.
-        for (bit, key) in MODIFIERS.iter().enumerate() {
-            let mask = 1u8 << bit;
-            if self.modifiers & mask != 0 && modifiers & mask == 0 {
-                self.released(*key, out);
-            }
-        }
-        for usage in self.keys {
-            if usage != 0 && !keys.contains(&usage) && usage != PAUSE_USAGE {
-                if let Some(key) = set1_key(usage) {
+        for usage in usages_in_order() {
+            if self.held.contains(usage) && !keys.contains(usage) && usage != PAUSE_USAGE {
+                if let Some(key) = key_of(usage) {
                     self.released(key, out);
                 }
             }
         }
-        for (bit, key) in MODIFIERS.iter().enumerate() {
-            let mask = 1u8 << bit;
-            if self.modifiers & mask == 0 && modifiers & mask != 0 {
-                self.pressed(*key, now_micros, out);
-            }
-        }
-        for (slot, &usage) in keys.iter().enumerate() {
-            // A usage listed twice in one report is one key.
-            if usage == 0 || self.keys.contains(&usage) || keys[..slot].contains(&usage) {
+        for usage in usages_in_order() {
+            if !keys.contains(usage) || self.held.contains(usage) {
                 continue;
             }
             if usage == PAUSE_USAGE {
                 PAUSE_BYTES.iter().for_each(|&b| out(b));
                 // Pause does not repeat, and stops whatever did (as on PS/2).
                 self.repeating = None;
-            } else if let Some(key) = set1_key(usage) {
+            } else if let Some(key) = key_of(usage) {
                 self.pressed(key, now_micros, out);
             }
         }
-        self.modifiers = modifiers;
-        self.keys = keys;
+        self.held = *keys;
     }
 
     fn pressed(&mut self, key: Set1Key, now_micros: u64, out: &mut impl FnMut(u8)) {
@@ -262,7 +282,7 @@ impl BootKeyboard {
     /// Forgets every key (the device went away): gives break codes for what
     /// was held, so nothing stays pressed.
     pub fn release_all(&mut self, out: &mut impl FnMut(u8)) {
-        self.report(&[0; REPORT_BYTES], 0, out);
+        self.keys(&KeySet::default(), 0, out);
         self.repeating = None;
     }
 }

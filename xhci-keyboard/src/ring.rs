@@ -155,6 +155,13 @@ impl ProducerRing {
         Some((offset / TRB_BYTES) as u16)
     }
 
+    /// Where the next TRB will go, with the producer's cycle state: the
+    /// dequeue pointer that makes the consumer skip everything queued so
+    /// far (for Set TR Dequeue Pointer).
+    pub fn enqueue_pointer(&self) -> u64 {
+        self.enqueue_address() | u64::from(self.cycle)
+    }
+
     /// Where the next TRB will go.
     pub fn enqueue_address(&self) -> u64 {
         self.base + u64::from(self.enqueue) * TRB_BYTES
@@ -173,6 +180,14 @@ impl ProducerRing {
             self.cycle = !self.cycle;
         }
         address
+    }
+
+    /// Fills the ring with No Op TRBs until the next TRB's address is a
+    /// multiple of `bytes` (a power of two, at most the ring's size).
+    pub fn align_enqueue(&mut self, memory: &mut impl Memory, bytes: u64) {
+        while !self.enqueue_address().is_multiple_of(bytes) {
+            self.push(memory, Trb::new(trb_type::NO_OP_TRANSFER, 0, 0, 0));
+        }
     }
 
     /// Makes the next `count` TRBs contiguous (a control transfer must not

@@ -125,12 +125,15 @@ fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
         let model = xhci.hardware();
         assert!(model.errors.is_empty(), "csz {csz}: {:?}", model.errors);
         assert_eq!(model.keyboard.configuration, Some(1));
-        assert!(model.keyboard.boot_protocol && model.keyboard.idle_set);
+        // Its report descriptor describes it: kept in the report protocol.
+        assert_eq!(model.keyboard.protocol, 1);
+        assert!(model.keyboard.idle_set);
         assert_eq!(model.keyboard_slot_state(), 3, "configured");
         assert!(model
             .log
             .iter()
-            .any(|l| l == "keyboard: USB boot keyboard on port 1"));
+            .any(|l| l
+                == "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on port 1"));
         assert_eq!(
             xhci.keyboards().collect::<Vec<_>>(),
             [Location {
@@ -298,10 +301,341 @@ fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
         0b11,
         "connected, enabled, change cleared"
     );
-    assert!(model
-        .log
-        .iter()
-        .any(|l| l == "keyboard: USB boot keyboard on port 1.2"));
+    assert!(model.log.iter().any(|l| l
+        .starts_with("keyboard: USB keyboard, read by its report descriptor")
+        && l.ends_with(" on port 1.2")));
     assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
     assert_eq!(poll(&mut xhci), [0x01]);
+}
+
+/// A keyboard whose configuration announces `report_descriptor` (its HID
+/// descriptor's length fixed to match).
+fn keyboard_described_by(report_descriptor: &[u8]) -> Model {
+    let mut model = Model::new();
+    let length = (report_descriptor.len() as u16).to_le_bytes();
+    model.configuration[25..27].copy_from_slice(&length);
+    model.report_descriptor = Some(report_descriptor.to_vec());
+    model
+}
+
+#[test]
+fn an_nkro_keyboard_that_ignores_set_protocol_is_read_through_its_descriptor() {
+    use super::hid::tests::NKRO;
+    let mut model = keyboard_described_by(&NKRO);
+    model.ignores_set_protocol = true;
+    let mut xhci = with_keyboard(model);
+    let bitmap = |usages: &[u8]| {
+        let mut report = [0u8; 21];
+        report[0] = 1;
+        for &usage in usages {
+            match usage {
+                0xE0.. => report[1] |= 1 << (usage - 0xE0),
+                _ => report[2 + usize::from(usage / 8)] |= 1 << (usage % 8),
+            }
+        }
+        report
+    };
+    assert!(xhci.hardware().log.iter().any(|l| l.contains(
+        "read by its report descriptor (2 key fields, 21-byte reports, numbered), on port 1"
+    )));
+    // Left Shift and A, then Left too: eight bytes of a boot decoder would
+    // have read the bitmap as phantom usages.
+    assert!(xhci.hardware().send_bytes(&bitmap(&[0xE1, 0x04])));
+    assert_eq!(poll(&mut xhci), [0x2A, 0x1E]);
+    assert!(xhci.hardware().send_bytes(&bitmap(&[0xE1, 0x04, 0x50])));
+    assert_eq!(poll(&mut xhci), [0xE0, 0x4B]);
+    // Seven letters at once (past the boot report's six) all act.
+    let letters = [0x04, 0x05, 0x06, 0x07, 0x08, 0x09, 0x0A];
+    assert!(xhci.hardware().send_bytes(&bitmap(&letters)));
+    assert_eq!(
+        poll(&mut xhci),
+        [0xAA, 0xE0, 0xCB, 0x30, 0x2E, 0x20, 0x12, 0x21, 0x22]
+    );
+    // A report it cannot read (a boot report, a report cut short) is
+    // dropped and counted, and changes nothing.
+    assert!(xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert!(xhci.hardware().send_bytes(&bitmap(&[])[..12]));
+    assert_eq!(poll(&mut xhci), []);
+    assert_eq!(xhci.dropped_reports(), 2);
+    assert!(xhci.hardware().send_bytes(&bitmap(&[])));
+    assert_eq!(poll(&mut xhci), [0x9E, 0xB0, 0xAE, 0xA0, 0x92, 0xA1, 0xA2]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.keyboard.protocol, 1);
+}
+
+#[test]
+fn a_keyboard_with_report_ids_is_kept_in_the_report_protocol() {
+    use super::hid::tests::NUMBERED;
+    let mut xhci = with_keyboard(keyboard_described_by(&NUMBERED));
+    assert_eq!(xhci.hardware().keyboard.protocol, 1, "report protocol");
+    assert_eq!(xhci.hardware().keyboard.set_protocols, 1);
+    // Esc in report 1; a media key in report 2 types nothing; an unknown
+    // report ID is dropped.
+    assert!(xhci.hardware().send_bytes(&[1, 0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert!(xhci.hardware().send_bytes(&[2, 0xE9, 0x00]));
+    assert!(xhci.hardware().send_bytes(&[9, 0, 0, 0x04, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x01]);
+    assert_eq!(xhci.dropped_reports(), 1);
+    assert!(xhci.hardware().send_bytes(&[1, 0, 0, 0, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x81]);
+}
+
+#[test]
+fn a_boot_keyboard_without_a_report_descriptor_is_put_in_the_boot_protocol() {
+    let mut model = Model::new();
+    model.report_descriptor = None;
+    let mut xhci = with_keyboard(model);
+    assert_eq!(xhci.hardware().keyboard.protocol, 0, "boot protocol");
+    assert!(xhci
+        .hardware()
+        .log
+        .iter()
+        .any(|l| l == "keyboard: USB keyboard, boot protocol, on port 1"));
+    assert!(xhci.hardware().send_report([0, 0, 0x15, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x13]);
+    // Only eight bytes are a boot report.
+    assert!(xhci.hardware().send_bytes(&[0, 0, 0x16, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), []);
+    assert_eq!(xhci.dropped_reports(), 1);
+}
+
+#[test]
+fn a_lying_report_descriptor_refuses_the_device_and_a_tablet_is_left_alone() {
+    use super::hid::tests::{BOOT, TABLET};
+    for (what, descriptor, line) in [
+        (
+            "unclosed",
+            BOOT[..BOOT.len() - 1].to_vec(),
+            "usb: port 1: report descriptor refused (1 collections never closed); device left alone",
+        ),
+        (
+            "tablet",
+            TABLET.to_vec(),
+            "usb: port 1: device 0627:0001 is a HID device without keys; left alone",
+        ),
+    ] {
+        let mut model = keyboard_described_by(&descriptor);
+        if what == "tablet" {
+            model.configuration[15] = 0; // no boot subclass
+            model.configuration[16] = 0;
+        }
+        let mut xhci = controller(model);
+        xhci.take_ownership();
+        xhci.reset_and_start().unwrap();
+        assert_eq!(xhci.enumerate(), 0, "{what}");
+        let model = xhci.hardware();
+        assert!(model.log.iter().any(|l| l == line), "{what}: {:?}", model.log);
+        assert!(!model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]), "{what}: no endpoint");
+        assert_eq!(poll(&mut xhci), [], "{what}");
+    }
+}
+
+#[test]
+fn a_stall_mid_run_is_recovered_and_the_keyboard_comes_back_by_itself() {
+    let mut xhci = with_keyboard(Model::new());
+    assert!(xhci.hardware().send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
+    assert_eq!(poll(&mut xhci), [0x2A, 0x1E]);
+    // The keyboard stalls: what was held is let go (its releases may be
+    // lost), and the recovery runs a step per event.
+    assert!(xhci.hardware().fail_transfer(6));
+    assert_eq!(poll(&mut xhci), [0xAA, 0x9E]);
+    for _ in 0..4 {
+        poll(&mut xhci);
+    }
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(
+        model.keyboard.halts_cleared, 1,
+        "CLEAR_FEATURE(ENDPOINT_HALT)"
+    );
+    assert!(
+        model
+            .log
+            .iter()
+            .any(|l| l == "usb: keyboard on port 1: recovered"),
+        "{:?}",
+        model.log
+    );
+    // Keys act again, the one still held among them.
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0x05, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x1E, 0x30]);
+    assert!(xhci.hardware().send_report([0; 8]));
+    assert_eq!(poll(&mut xhci), [0x9E, 0xB0]);
+    // A transaction error (no stall on the device's side): recovered
+    // without CLEAR_FEATURE, and again many times over.
+    for round in 0..20 {
+        assert!(xhci.hardware().fail_transfer(4), "round {round}");
+        poll(&mut xhci);
+        assert!(
+            xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0]),
+            "round {round}"
+        );
+        assert!(xhci.hardware().send_report([0; 8]));
+        assert_eq!(poll(&mut xhci), [0x01, 0x81], "round {round}");
+    }
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.keyboard.halts_cleared, 1);
+    assert_eq!(xhci.keyboards().count(), 1);
+}
+
+#[test]
+fn a_keyboard_that_fails_every_transfer_is_given_up_in_bounded_time() {
+    let mut xhci = with_keyboard(Model::new());
+    let mut rounds = 0;
+    while xhci.keyboards().count() == 1 {
+        rounds += 1;
+        assert!(rounds <= 20, "never given up");
+        xhci.hardware().fail_transfer(4);
+        poll(&mut xhci);
+    }
+    assert_eq!(rounds, 9, "eight recoveries, then given up");
+    assert!(xhci
+        .hardware()
+        .log
+        .iter()
+        .any(|l| l.ends_with("keyboard given up")));
+}
+
+#[test]
+fn a_recovery_the_controller_never_answers_gives_the_keyboard_up() {
+    let mut xhci = with_keyboard(Model::new());
+    xhci.hardware().commands_answered = false;
+    assert!(xhci.hardware().fail_transfer(4));
+    let start = xhci.hardware().now;
+    while xhci.keyboards().count() == 1 {
+        let before = xhci.hardware().now;
+        poll(&mut xhci);
+        // A poll never waits for the controller.
+        assert!(xhci.hardware().now - before < 1_000);
+        xhci.hardware().now += 10_000;
+        assert!(xhci.hardware().now - start < 1_000_000, "never given up");
+    }
+}
+
+#[test]
+fn a_full_speed_device_that_needs_the_two_step_address_is_set_up() {
+    let mut model = Model::new();
+    model.needs_two_step = true;
+    model.device_descriptor[7] = 64; // endpoint 0 takes 64-byte packets
+    let mut xhci = with_keyboard(model);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.keyboard_slot_state(), 3, "configured");
+    assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x01]);
+}
+
+/// The model, with the driver's register and DMA accesses counted.
+struct Counting {
+    model: Model,
+    mmio: u64,
+    dma: u64,
+}
+
+impl super::Memory for Counting {
+    fn mem_read(&mut self, address: u64) -> u32 {
+        self.dma += 1;
+        self.model.mem_read(address)
+    }
+    fn mem_write(&mut self, address: u64, value: u32) {
+        self.dma += 1;
+        self.model.mem_write(address, value)
+    }
+}
+
+impl super::Hardware for Counting {
+    fn mmio_read(&mut self, offset: u32) -> u32 {
+        self.mmio += 1;
+        self.model.mmio_read(offset)
+    }
+    fn mmio_write(&mut self, offset: u32, value: u32) {
+        self.mmio += 1;
+        self.model.mmio_write(offset, value)
+    }
+    fn now_micros(&mut self) -> u64 {
+        self.model.now_micros()
+    }
+    fn log(&mut self, message: core::fmt::Arguments<'_>) {
+        self.model.log(message)
+    }
+}
+
+/// Polls with no key changing: the cost the frame loop pays every frame.
+const IDLE_POLLS: u64 = 100_000;
+
+#[test]
+fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
+    let counting = Counting {
+        model: Model::new(),
+        mmio: 0,
+        dma: 0,
+    };
+    let mut xhci = Xhci::new(counting, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 1);
+    // A key held (repeat due later) is the usual state mid-spin too.
+    assert!(xhci
+        .hardware()
+        .model
+        .send_report([0, 0, 0x50, 0, 0, 0, 0, 0]));
+    let mut bytes = Vec::new();
+    xhci.poll(&mut |b| bytes.push(b));
+    let (mmio, dma) = (xhci.hardware().mmio, xhci.hardware().dma);
+    for _ in 0..IDLE_POLLS {
+        xhci.poll(&mut |b| bytes.push(b));
+        xhci.hardware().model.now = 1_000; // no repeat falls due
+    }
+    let hardware = xhci.hardware();
+    assert_eq!(hardware.mmio - mmio, 0, "register accesses");
+    assert_eq!(hardware.dma - dma, IDLE_POLLS, "one event ring word a poll");
+}
+
+#[test]
+fn shut_down_switches_the_ports_off_then_halts_and_resets() {
+    let mut xhci = with_keyboard(Model::new());
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+    poll(&mut xhci);
+    assert_eq!(
+        xhci.hardware().shut_down_state(),
+        (false, true, std::vec![true, true])
+    );
+    let start = xhci.hardware().now;
+    xhci.shut_down().unwrap();
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(
+        model.shut_down_state(),
+        (true, true, std::vec![false, false]),
+        "halted, reset, every port unpowered"
+    );
+    assert!(model.now - start < 100_000);
+    // Nothing of the old controller is touched afterwards.
+    assert_eq!(poll(&mut xhci), []);
+    assert_eq!(xhci.keyboards().count(), 0);
+}
+
+#[test]
+fn a_keyboard_pulled_out_lets_go_of_its_keys_and_its_slot() {
+    for hub in [false, true] {
+        let mut model = Model::new();
+        model.hub = hub;
+        let mut xhci = with_keyboard(model);
+        assert!(xhci.hardware().send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
+        assert_eq!(poll(&mut xhci), [0x2A, 0x1E]);
+        xhci.hardware().unplug();
+        // The held keys are released at once, nothing repeats afterwards.
+        assert_eq!(poll(&mut xhci), [0xAA, 0x9E], "hub {hub}");
+        xhci.hardware().now += 2_000_000;
+        assert_eq!(poll(&mut xhci), []);
+        assert_eq!(xhci.keyboards().count(), 0);
+        let model = xhci.hardware();
+        assert!(model.errors.is_empty(), "{:?}", model.errors);
+        let disabled = if hub { 2 } else { 1 };
+        assert_eq!(model.slots_disabled.len(), disabled, "hub {hub}");
+        assert_eq!(model.root_port_changes(), 0, "changes acknowledged");
+        assert!(!model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    }
 }

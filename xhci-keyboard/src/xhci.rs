@@ -7,7 +7,8 @@ use super::context::{
     endpoint_type, interrupt_interval, speed, ContextLayout, EndpointContext, SlotContext,
 };
 use super::descriptor::{self, Function, InterruptIn};
-use super::report::BootKeyboard;
+use super::hid::{self, Decoded, KeySet, KeyboardLayout};
+use super::report::{self, BootKeyboard};
 use super::ring::{trb_type, EventRing, ProducerRing, Trb};
 use super::Hardware;
 // TRBs are built with the `xhci` crate's layouts; the rings here own the
@@ -98,6 +99,8 @@ const LEGACY_SMI_STATUS: u32 = (1 << 29) | (1 << 30) | (1 << 31);
 
 const COMPLETION_SUCCESS: u8 = 1;
 const COMPLETION_SHORT_PACKET: u8 = 13;
+const COMPLETION_STALL: u8 = 6;
+const COMPLETION_CONTEXT_STATE: u8 = 19;
 
 /// Why a step failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -214,15 +217,120 @@ struct Device {
     keyboard: Option<Keyboard>,
 }
 
-/// A configured boot keyboard's interrupt endpoint.
+/// How a keyboard's reports are read.
+// The layout lives in the keyboard itself: the driver has no allocator to
+// box it in, and a keyboard is a few of these at most.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug)]
+enum ReportFormat {
+    /// The boot report, exactly 8 bytes (the keyboard was put in the boot
+    /// protocol because its report descriptor could not be read).
+    Boot,
+    /// As its report descriptor lays them out (report protocol).
+    Described(KeyboardLayout),
+}
+
+/// Where a keyboard's report endpoint stands: running, or a step of its
+/// recovery after a failed transfer (each with the TRB whose event ends the
+/// step, and when it began).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Recovery {
+    Running,
+    ResettingEndpoint {
+        command: u64,
+        since: u64,
+        stalled: bool,
+    },
+    SettingDequeue {
+        command: u64,
+        since: u64,
+        stalled: bool,
+    },
+    ClearingHalt {
+        status: u64,
+        since: u64,
+    },
+}
+
+impl Recovery {
+    fn command(&self) -> Option<u64> {
+        match *self {
+            Recovery::ResettingEndpoint { command, .. }
+            | Recovery::SettingDequeue { command, .. } => Some(command),
+            _ => None,
+        }
+    }
+
+    fn since(&self) -> Option<u64> {
+        match *self {
+            Recovery::Running => None,
+            Recovery::ResettingEndpoint { since, .. }
+            | Recovery::SettingDequeue { since, .. }
+            | Recovery::ClearingHalt { since, .. } => Some(since),
+        }
+    }
+}
+
+/// Failed reports in a row after which a keyboard is given up (a device
+/// that fails every transfer is gone or broken; hot-plug finds it again).
+const MAX_RECOVERIES: u32 = 8;
+
+/// Report IDs whose keys are kept apart (a keyboard may split its keys over
+/// several numbered reports; the keys down are the union).
+const KEY_REPORTS: usize = 4;
+
+/// A configured keyboard's interrupt endpoint.
 #[derive(Clone, Debug)]
 struct Keyboard {
     dci: u8,
     ring: ProducerRing,
     reports: u64,
     report_bytes: u32,
+    format: ReportFormat,
+    /// The keys each report ID last said are down.
+    keys_by_report: [(u8, KeySet); KEY_REPORTS],
     state: BootKeyboard,
+    /// Reports that could not be read, dropped.
+    dropped: u32,
+    recovery: Recovery,
+    /// Failed transfers since the last good report.
+    failures_in_a_row: u32,
     failed: bool,
+}
+
+impl Keyboard {
+    /// Takes one report: gives the keys now down, or why it changes nothing.
+    fn keys(&mut self, report: &[u8]) -> core::result::Result<KeySet, Decoded> {
+        match &self.format {
+            ReportFormat::Boot if report.len() == report::REPORT_BYTES => {
+                report::boot_report_keys(report).ok_or(Decoded::Rollover)
+            }
+            ReportFormat::Boot => Err(Decoded::Unreadable),
+            ReportFormat::Described(layout) => match layout.decode(report) {
+                Decoded::Keys { report_id, keys } => {
+                    let slot = match self
+                        .keys_by_report
+                        .iter()
+                        .position(|&(id, _)| id == report_id)
+                    {
+                        Some(slot) => slot,
+                        None => self
+                            .keys_by_report
+                            .iter()
+                            .position(|&(id, _)| id == u8::MAX)
+                            .ok_or(Decoded::Unreadable)?,
+                    };
+                    self.keys_by_report[slot] = (report_id, keys);
+                    Ok(self
+                        .keys_by_report
+                        .iter()
+                        .filter(|&&(id, _)| id != u8::MAX)
+                        .fold(KeySet::default(), |all, (_, keys)| all.union(keys)))
+                }
+                other => Err(other),
+            },
+        }
+    }
 }
 
 /// A bump allocator of zeroed pages in the DMA region.
@@ -282,6 +390,9 @@ const GET_DESCRIPTOR: u8 = 6;
 const SET_CONFIGURATION: u8 = 9;
 const HID_SET_IDLE: u8 = 0x0A;
 const HID_SET_PROTOCOL: u8 = 0x0B;
+const PROTOCOL_BOOT: u16 = 0;
+const PROTOCOL_REPORT: u16 = 1;
+const ENDPOINT_HALT: u16 = 0;
 const HUB_PORT_RESET: u16 = 4;
 const HUB_PORT_POWER: u16 = 8;
 const HUB_C_PORT_RESET: u16 = 20;
@@ -647,7 +758,10 @@ impl<H: Hardware> Xhci<H> {
             .map(|_| ())
     }
 
-    fn control(&mut self, index: usize, setup: Setup) -> Result<()> {
+    /// Queues a control transfer on device `index`'s endpoint 0 and rings
+    /// its doorbell; gives the slot and the Status TRB's address, whose
+    /// event ends the transfer.
+    fn queue_control(&mut self, index: usize, setup: Setup) -> Result<(u8, u64)> {
         let Some(device) = self.devices[index].as_mut() else {
             return Err(XhciError::TransferTimeout);
         };
@@ -689,6 +803,11 @@ impl<H: Hardware> Xhci<H> {
         }
         let status = ring.push(&mut self.hw, Trb(status_stage.into_raw()));
         self.write(self.doorbells + 4 * u32::from(slot), 1);
+        Ok((slot, status))
+    }
+
+    fn control(&mut self, index: usize, setup: Setup) -> Result<()> {
+        let (slot, status) = self.queue_control(index, setup)?;
         let event = self
             .wait_event(TRANSFER_MICROS, |e| {
                 e.kind() == trb_type::TRANSFER_EVENT && e.slot() == slot && e.endpoint() == 1
@@ -904,11 +1023,23 @@ impl<H: Hardware> Xhci<H> {
             None => return Err(XhciError::TooManyDevices),
         };
         let layout = self.capabilities.layout;
+        // Full- and low-speed devices are addressed in two steps, as the
+        // specification (4.6.5) and Linux do: first without SET_ADDRESS
+        // (BSR=1), so that the device descriptor's first 8 bytes are read at
+        // the default address with an 8-byte packet size; endpoint 0 then
+        // gets its real packet size; only then is the address set. Some
+        // devices take no address before their descriptor has been read.
+        let two_step = matches!(speed_id, speed::LOW | speed::FULL);
         let mut address = command::AddressDevice::new();
         address.set_input_context_pointer(input).set_slot_id(slot);
+        if two_step {
+            address.set_block_set_address_request();
+        }
         self.command(Trb(address.into_raw()))?;
-        // SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
-        self.pause(2_000);
+        if !two_step {
+            // SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
+            self.pause(2_000);
+        }
         let mut header = [0u8; 8];
         self.get_descriptor(index, descriptor::kind::DEVICE, &mut header)?;
         let first = descriptor::device(&header)?;
@@ -927,6 +1058,30 @@ impl<H: Hardware> Xhci<H> {
             self.command(Trb(evaluate.into_raw()))?;
             *max_packet_0 = announced;
         }
+        if two_step {
+            // The second Address Device reads the input context again:
+            // the slot and endpoint 0 whole, endpoint 0's ring from where
+            // it now stands.
+            let Some(device) = self.devices[index].as_mut() else {
+                return Err(XhciError::TooManyDevices);
+            };
+            // The `xhci` crate takes only 64-byte aligned dequeue pointers:
+            // No Ops fill up to one, and are skipped.
+            device.ep0.align_enqueue(&mut self.hw, 64);
+            let (slot_context, ep0_dequeue) = (device.slot_context, device.ep0.enqueue_pointer());
+            layout.start_input(&mut self.hw, input, 0b11);
+            layout.write_slot(&mut self.hw, input, &slot_context);
+            layout.write_endpoint(
+                &mut self.hw,
+                input,
+                1,
+                &ep0_context(ep0_dequeue, *max_packet_0),
+            );
+            let mut address = command::AddressDevice::new();
+            address.set_input_context_pointer(input).set_slot_id(slot);
+            self.command(Trb(address.into_raw()))?;
+            self.pause(2_000);
+        }
         let mut device_bytes = [0u8; 18];
         self.get_descriptor(index, descriptor::kind::DEVICE, &mut device_bytes)?;
         let device = descriptor::device(&device_bytes)?;
@@ -939,14 +1094,26 @@ impl<H: Hardware> Xhci<H> {
         self.get_descriptor(index, descriptor::kind::CONFIGURATION, config_bytes)?;
         let configuration = descriptor::configuration(config_bytes)?;
         match configuration.function {
-            Some(Function::BootKeyboard {
+            Some(Function::Keyboard {
                 interface,
                 endpoint,
+                boot,
+                report_descriptor_bytes,
             }) => {
-                self.set_up_keyboard(index, configuration.value, interface, endpoint)?;
-                self.hw.log(format_args!(
-                    "keyboard: USB boot keyboard on port {location}"
-                ));
+                let found = self.set_up_keyboard(
+                    index,
+                    configuration.value,
+                    interface,
+                    endpoint,
+                    boot,
+                    report_descriptor_bytes,
+                )?;
+                if !found {
+                    self.hw.log(format_args!(
+                        "usb: port {location}: device {:04x}:{:04x} is a HID device without keys; left alone",
+                        device.vendor, device.product
+                    ));
+                }
                 Ok(())
             }
             Some(Function::Hub) if location.hub_port == 0 => {
@@ -971,13 +1138,80 @@ impl<H: Hardware> Xhci<H> {
         }
     }
 
+    /// Reads a HID interface's report descriptor (at most
+    /// [`hid::MAX_DESCRIPTOR_BYTES`]): where its keys lie, or why not.
+    fn report_layout(
+        &mut self,
+        index: usize,
+        interface: u8,
+        bytes: u16,
+    ) -> Result<core::result::Result<KeyboardLayout, hid::HidError>> {
+        let length = usize::from(bytes).min(hid::MAX_DESCRIPTOR_BYTES);
+        self.control(
+            index,
+            Setup {
+                request_type: 0x81,
+                request: GET_DESCRIPTOR,
+                value: u16::from(descriptor::kind::REPORT) << 8,
+                index: u16::from(interface),
+                length: length as u16,
+            },
+        )?;
+        let mut descriptor = [0u8; hid::MAX_DESCRIPTOR_BYTES];
+        self.read_buffer(index, &mut descriptor[..length]);
+        Ok(hid::parse(&descriptor[..length]))
+    }
+
+    /// Configures a HID interface that is or may be a keyboard and starts
+    /// its reports. The report descriptor decides how reports are read: a
+    /// keyboard it describes is kept in the report protocol (whatever it
+    /// would do with SET_PROTOCOL(boot)); a boot keyboard whose descriptor
+    /// cannot be read is put in the boot protocol; a descriptor that lies
+    /// is refused, and so is the keyboard. Returns whether it is a keyboard.
     fn set_up_keyboard(
         &mut self,
         index: usize,
         configuration: u8,
         interface: u8,
         endpoint: InterruptIn,
-    ) -> Result<()> {
+        boot: bool,
+        report_descriptor_bytes: u16,
+    ) -> Result<bool> {
+        let Some(location) = self.devices[index].as_ref().map(|d| d.location) else {
+            return Err(XhciError::TooManyDevices);
+        };
+        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
+        let layout = if report_descriptor_bytes == 0 {
+            Err(None)
+        } else {
+            match self.report_layout(index, interface, report_descriptor_bytes) {
+                Ok(Ok(layout)) => Ok(layout),
+                Ok(Err(lie)) => {
+                    self.hw.log(format_args!(
+                        "usb: port {location}: report descriptor refused ({lie}); device left alone"
+                    ));
+                    return Ok(false);
+                }
+                Err(e) => Err(Some(e)),
+            }
+        };
+        let format = match layout {
+            Ok(layout) if layout.has_keys() => ReportFormat::Described(layout),
+            Ok(_) => return Ok(false),
+            Err(why) if boot => {
+                if let Some(e) = why {
+                    self.hw.log(format_args!(
+                        "usb: keyboard on port {location}: no report descriptor ({e}); boot protocol"
+                    ));
+                }
+                ReportFormat::Boot
+            }
+            Err(_) => return Ok(false),
+        };
+        let longest_report = match &format {
+            ReportFormat::Boot => report::REPORT_BYTES,
+            ReportFormat::Described(layout) => layout.longest_key_report(),
+        };
         let (ring_page, reports) = (self.page()?, self.page()?);
         let layout = self.capabilities.layout;
         let Some(device) = self.devices[index].as_mut() else {
@@ -989,6 +1223,15 @@ impl<H: Hardware> Xhci<H> {
         let (slot, input, speed_id, slot_context) =
             (device.slot, device.input, device.speed, device.slot_context);
         let max_packet = endpoint.max_packet.clamp(1, REPORT_BUFFER_BYTES as u16);
+        // A transfer ends with a short packet or when its length is reached:
+        // one packet's worth, unless a report needs more (then whole packets,
+        // so that a report of exactly that length still ends it).
+        let report_bytes = if longest_report <= usize::from(max_packet) {
+            u32::from(max_packet)
+        } else {
+            (longest_report as u32).next_multiple_of(u32::from(max_packet))
+        }
+        .min(REPORT_BUFFER_BYTES as u32);
         layout.start_input(&mut self.hw, input, 1 | 1 << dci);
         layout.write_slot(&mut self.hw, input, &slot_context);
         layout.write_endpoint(
@@ -1004,25 +1247,47 @@ impl<H: Hardware> Xhci<H> {
             },
         );
         self.command(configure_endpoint(input, slot))?;
-        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
-        // Boot protocol: the 8-byte report this driver reads.
-        self.request(index, 0x21, HID_SET_PROTOCOL, 0, u16::from(interface))?;
+        // SET_PROTOCOL exists only on boot interfaces; the others are
+        // always in the report protocol.
+        if boot {
+            let protocol = match format {
+                ReportFormat::Boot => PROTOCOL_BOOT,
+                ReportFormat::Described(_) => PROTOCOL_REPORT,
+            };
+            let result = self.request(
+                index,
+                0x21,
+                HID_SET_PROTOCOL,
+                protocol,
+                u16::from(interface),
+            );
+            match (result, format) {
+                (Ok(()), _) => {}
+                // Reports are read by the descriptor whatever it answers.
+                (Err(e), ReportFormat::Described(_)) => self.hw.log(format_args!(
+                    "usb: keyboard on port {location}: SET_PROTOCOL refused ({e})"
+                )),
+                (Err(e), ReportFormat::Boot) => return Err(e),
+            }
+        }
         // Reports only when something changes; repeat is ours. Some
         // keyboards refuse SET_IDLE; that costs nothing but reports.
         if let Err(e) = self.request(index, 0x21, HID_SET_IDLE, 0, u16::from(interface)) {
-            let location = self.devices[index].as_ref().map(|d| d.location);
-            if let Some(location) = location {
-                self.hw.log(format_args!(
-                    "usb: keyboard on port {location}: SET_IDLE refused ({e})"
-                ));
-            }
+            self.hw.log(format_args!(
+                "usb: keyboard on port {location}: SET_IDLE refused ({e})"
+            ));
         }
         let mut keyboard = Keyboard {
             dci,
             ring,
             reports,
-            report_bytes: u32::from(max_packet),
+            report_bytes,
+            format,
+            keys_by_report: [(u8::MAX, KeySet::default()); KEY_REPORTS],
             state: BootKeyboard::new(),
+            dropped: 0,
+            recovery: Recovery::Running,
+            failures_in_a_row: 0,
             failed: false,
         };
         for _ in 0..QUEUED_REPORTS {
@@ -1032,7 +1297,18 @@ impl<H: Hardware> Xhci<H> {
             device.keyboard = Some(keyboard);
         }
         self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
-        Ok(())
+        match format {
+            ReportFormat::Boot => self.hw.log(format_args!(
+                "keyboard: USB keyboard, boot protocol, on port {location}"
+            )),
+            ReportFormat::Described(layout) => self.hw.log(format_args!(
+                "keyboard: USB keyboard, read by its report descriptor ({} key fields, {}-byte reports{}), on port {location}",
+                layout.fields().count(),
+                layout.longest_key_report(),
+                if layout.numbered { ", numbered" } else { "" }
+            )),
+        }
+        Ok(true)
     }
 
     fn set_up_hub(&mut self, index: usize, configuration: u8) -> Result<()> {
@@ -1162,24 +1438,43 @@ impl<H: Hardware> Xhci<H> {
             self.other_event(&event, out);
         }
         let now = self.hw.now_micros();
-        for device in self.devices.iter_mut().flatten() {
-            if let Some(keyboard) = device.keyboard.as_mut() {
-                keyboard.state.tick(now, out);
+        for index in 0..MAX_DEVICES {
+            let Some(keyboard) = self.devices[index]
+                .as_mut()
+                .and_then(|d| d.keyboard.as_mut())
+            else {
+                continue;
+            };
+            keyboard.state.tick(now, out);
+            if keyboard
+                .recovery
+                .since()
+                .is_some_and(|since| now.saturating_sub(since) > COMMAND_MICROS)
+            {
+                self.give_up(index, 0, out);
             }
         }
     }
 
     fn other_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
-        if event.kind() != trb_type::TRANSFER_EVENT {
-            return;
+        match event.kind() {
+            trb_type::TRANSFER_EVENT => self.transfer_event(event, out),
+            trb_type::COMMAND_COMPLETION => self.recovery_command_done(event),
+            trb_type::PORT_STATUS_CHANGE => self.root_port_changed(event.port(), out),
+            _ => {}
         }
+    }
+
+    fn transfer_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
         let now = self.hw.now_micros();
-        let Some(device) = self
+        let Some(index) = self
             .devices
-            .iter_mut()
-            .flatten()
-            .find(|d| d.slot == event.slot())
+            .iter()
+            .position(|d| d.as_ref().is_some_and(|d| d.slot == event.slot()))
         else {
+            return;
+        };
+        let Some(device) = self.devices[index].as_mut() else {
             return;
         };
         let location = device.location;
@@ -1187,7 +1482,24 @@ impl<H: Hardware> Xhci<H> {
         let Some(keyboard) = device.keyboard.as_mut() else {
             return;
         };
-        if event.endpoint() != keyboard.dci || keyboard.failed {
+        if keyboard.failed {
+            return;
+        }
+        if event.endpoint() == 1 {
+            // Endpoint 0: the end of a recovery's CLEAR_FEATURE(ENDPOINT_HALT).
+            if let Recovery::ClearingHalt { status, .. } = keyboard.recovery {
+                if event.parameter() == status {
+                    let code = event.completion_code();
+                    if code == COMPLETION_SUCCESS || code == COMPLETION_SHORT_PACKET {
+                        self.resume_reports(index);
+                    } else {
+                        self.give_up(index, code, out);
+                    }
+                }
+            }
+            return;
+        }
+        if event.endpoint() != keyboard.dci || keyboard.recovery != Recovery::Running {
             return;
         }
         let code = event.completion_code();
@@ -1198,13 +1510,10 @@ impl<H: Hardware> Xhci<H> {
             return;
         };
         if code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET {
-            keyboard.failed = true;
-            keyboard.state.release_all(out);
-            self.hw.log(format_args!(
-                "usb: keyboard on port {location}: report failed (completion code {code}); keyboard given up"
-            ));
+            self.recover(index, code, out);
             return;
         }
+        keyboard.failures_in_a_row = 0;
         let mut report = [0u8; REPORT_BUFFER_BYTES as usize];
         let length =
             (keyboard.report_bytes.saturating_sub(event.residual()) as usize).min(report.len());
@@ -1213,10 +1522,260 @@ impl<H: Hardware> Xhci<H> {
             let value = self.hw.mem_read(buffer + word as u64 * 4).to_le_bytes();
             chunk.copy_from_slice(&value[..chunk.len()]);
         }
-        keyboard.state.report(&report[..length], now, out);
+        match keyboard.keys(&report[..length]) {
+            Ok(keys) => keyboard.state.keys(&keys, now, out),
+            Err(Decoded::Unreadable) => {
+                keyboard.dropped = keyboard.dropped.saturating_add(1);
+                // The first says what happened; a count says how often.
+                if keyboard.dropped.is_power_of_two() {
+                    self.hw.log(format_args!(
+                        "usb: keyboard on port {location}: {} unreadable reports dropped (the last {length} bytes)",
+                        keyboard.dropped
+                    ));
+                }
+            }
+            Err(_) => {} // rollover, or a report without keys
+        }
         queue_report(&mut self.hw, keyboard);
         let dci = keyboard.dci;
         self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
+    }
+
+    /// A root port's status changed. A device pulled out (or switched away
+    /// by a KVM) is let go of: its held keys released, its slot disabled
+    /// (queued, not waited for), everything behind it forgotten.
+    fn root_port_changed(&mut self, port: u8, out: &mut impl FnMut(u8)) {
+        if port == 0 || port > self.capabilities.ports {
+            return;
+        }
+        let register = self.portsc(port);
+        let status = self.read(register);
+        if status == u32::MAX || status & PORT_CONNECTED != 0 {
+            return;
+        }
+        // Acknowledge the changes (write-1-to-clear), keeping the power,
+        // never writing PED (write-1-to-disable).
+        self.write(register, PORT_POWER | (status & PORT_CHANGES));
+        for index in 0..MAX_DEVICES {
+            let Some(device) = self.devices[index].as_mut() else {
+                continue;
+            };
+            if device.location.root_port != port {
+                continue;
+            }
+            let (slot, location) = (device.slot, device.location);
+            if let Some(keyboard) = device.keyboard.as_mut() {
+                keyboard.state.release_all(out);
+            }
+            self.devices[index] = None;
+            let mut disable = command::DisableSlot::new();
+            disable.set_slot_id(slot);
+            let _ = self.queue_command(Trb(disable.into_raw()));
+            self.hw.log(format_args!(
+                "usb: port {location}: device gone; its keys released and slot {slot} disabled"
+            ));
+        }
+    }
+
+    /// A report transfer failed and the endpoint halted: lets go of the
+    /// keys (their releases may be lost) and starts the recovery, a step
+    /// per event: Reset Endpoint, Set TR Dequeue Pointer past the TRBs
+    /// queued, CLEAR_FEATURE(ENDPOINT_HALT) after a stall, then the
+    /// reports queued again.
+    fn recover(&mut self, index: usize, code: u8, out: &mut impl FnMut(u8)) {
+        let now = self.hw.now_micros();
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let (slot, location) = (device.slot, device.location);
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        keyboard.failures_in_a_row += 1;
+        if keyboard.failures_in_a_row > MAX_RECOVERIES {
+            self.give_up(index, code, out);
+            return;
+        }
+        keyboard.state.release_all(out);
+        keyboard.keys_by_report = [(u8::MAX, KeySet::default()); KEY_REPORTS];
+        let dci = keyboard.dci;
+        self.hw.log(format_args!(
+            "usb: keyboard on port {location}: report failed (completion code {code}); recovering"
+        ));
+        let mut reset = command::ResetEndpoint::new();
+        reset.set_slot_id(slot).set_endpoint_id(dci);
+        let Some(command) = self.queue_command(Trb(reset.into_raw())) else {
+            self.give_up(index, code, out);
+            return;
+        };
+        if let Some(keyboard) = self.devices[index]
+            .as_mut()
+            .and_then(|d| d.keyboard.as_mut())
+        {
+            keyboard.recovery = Recovery::ResettingEndpoint {
+                command,
+                since: now,
+                stalled: code == COMPLETION_STALL,
+            };
+        }
+    }
+
+    /// A command completed: the next step of the recovery it belongs to.
+    fn recovery_command_done(&mut self, event: &Trb) {
+        let now = self.hw.now_micros();
+        let Some(index) = self.devices.iter().position(|d| {
+            d.as_ref()
+                .and_then(|d| d.keyboard.as_ref())
+                .is_some_and(|k| k.recovery.command() == Some(event.parameter()))
+        }) else {
+            return;
+        };
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let slot = device.slot;
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        let code = event.completion_code();
+        match keyboard.recovery {
+            // Context State Error: the endpoint was not halted after all;
+            // the dequeue pointer still has to move past the failed TRB.
+            Recovery::ResettingEndpoint { stalled, .. }
+                if code == COMPLETION_SUCCESS || code == COMPLETION_CONTEXT_STATE =>
+            {
+                let mut dequeue = command::SetTrDequeuePointer::new();
+                let pointer = keyboard.ring.enqueue_pointer();
+                dequeue
+                    .set_slot_id(slot)
+                    .set_endpoint_id(keyboard.dci)
+                    .set_new_tr_dequeue_pointer(pointer & !0xF);
+                if pointer & 1 != 0 {
+                    dequeue.set_dequeue_cycle_state();
+                }
+                match self.queue_command(Trb(dequeue.into_raw())) {
+                    Some(command) => {
+                        if let Some(k) = self.devices[index]
+                            .as_mut()
+                            .and_then(|d| d.keyboard.as_mut())
+                        {
+                            k.recovery = Recovery::SettingDequeue {
+                                command,
+                                since: now,
+                                stalled,
+                            };
+                        }
+                    }
+                    None => self.give_up(index, code, &mut |_| {}),
+                }
+            }
+            Recovery::SettingDequeue { stalled: true, .. } if code == COMPLETION_SUCCESS => {
+                // The device halted its endpoint too: clear it there.
+                let endpoint = 0x80 | ((keyboard.dci - 1) / 2);
+                let setup = Setup {
+                    request_type: 0x02,
+                    request: CLEAR_FEATURE,
+                    value: ENDPOINT_HALT,
+                    index: u16::from(endpoint),
+                    length: 0,
+                };
+                match self.queue_control(index, setup) {
+                    Ok((_, status)) => {
+                        if let Some(k) = self.devices[index]
+                            .as_mut()
+                            .and_then(|d| d.keyboard.as_mut())
+                        {
+                            k.recovery = Recovery::ClearingHalt { status, since: now };
+                        }
+                    }
+                    Err(_) => self.give_up(index, code, &mut |_| {}),
+                }
+            }
+            Recovery::SettingDequeue { .. } if code == COMPLETION_SUCCESS => {
+                self.resume_reports(index)
+            }
+            _ => self.give_up(index, code, &mut |_| {}),
+        }
+    }
+
+    /// The recovery is done: the reports are queued again.
+    fn resume_reports(&mut self, index: usize) {
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let (slot, location) = (device.slot, device.location);
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        keyboard.recovery = Recovery::Running;
+        for _ in 0..QUEUED_REPORTS {
+            queue_report(&mut self.hw, keyboard);
+        }
+        let dci = keyboard.dci;
+        self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
+        self.hw
+            .log(format_args!("usb: keyboard on port {location}: recovered"));
+    }
+
+    /// The keyboard failed past recovery: its keys are let go and it is
+    /// no longer read.
+    fn give_up(&mut self, index: usize, code: u8, out: &mut impl FnMut(u8)) {
+        let Some(device) = self.devices[index].as_mut() else {
+            return;
+        };
+        let location = device.location;
+        let Some(keyboard) = device.keyboard.as_mut() else {
+            return;
+        };
+        keyboard.failed = true;
+        keyboard.recovery = Recovery::Running;
+        keyboard.state.release_all(out);
+        self.hw.log(format_args!(
+            "usb: keyboard on port {location}: not recovered (completion code {code}); keyboard given up"
+        ));
+    }
+
+    /// Pushes a command and rings the command doorbell, without waiting:
+    /// gives the command TRB's address, whose completion event says how it went.
+    fn queue_command(&mut self, trb: Trb) -> Option<u64> {
+        let address = self.commands.as_mut()?.push(&mut self.hw, trb);
+        self.write(self.doorbells, 0);
+        Some(address)
+    }
+
+    /// Leaves the controller as Linux's shutdown path does before power-off
+    /// or reset: the controller halted, then reset, then every root port's
+    /// power switched off. Some Intel boards power straight back on, or
+    /// wake, from S5 with a controller still running (Linux's
+    /// `XHCI_SPURIOUS_REBOOT` and `XHCI_SPURIOUS_WAKEUP`). Every wait is
+    /// bounded; a step that fails is said, and the next still runs.
+    pub fn shut_down(&mut self) -> Result<()> {
+        let command = self.op_read(USBCMD);
+        self.op_write(USBCMD, command & !CMD_RUN);
+        let usbsts = self.operational + USBSTS;
+        let halted = self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED != 0);
+        self.commands = None;
+        self.events = None;
+        self.devices = Default::default();
+        let reset = halted && {
+            self.op_write(USBCMD, CMD_RESET);
+            self.pause(1_000);
+            let usbcmd = self.operational + USBCMD;
+            self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0)
+                && self.wait_for(usbsts, RESET_MICROS, |s| s & STS_NOT_READY == 0)
+        };
+        // Last, as a reset may power the ports again: PP written 0, and PED
+        // and the change bits (write-1-to-clear) 0 too, so nothing else
+        // changes by accident.
+        for port in 1..=self.capabilities.ports {
+            let register = self.portsc(port);
+            self.write(register, 0);
+        }
+        match (halted, reset) {
+            (false, _) => Err(XhciError::NotHalted),
+            (true, false) => Err(XhciError::NotReady),
+            (true, true) => Ok(()),
+        }
     }
 
     /// The keyboards set up, by where they hang.
@@ -1226,6 +1785,15 @@ impl<H: Hardware> Xhci<H> {
             .flatten()
             .filter(|d| d.keyboard.as_ref().is_some_and(|k| !k.failed))
             .map(|d| d.location)
+    }
+
+    /// Reports dropped because they could not be read, over all keyboards.
+    pub fn dropped_reports(&self) -> u32 {
+        self.devices
+            .iter()
+            .flatten()
+            .filter_map(|d| d.keyboard.as_ref())
+            .fold(0, |sum, k| sum.saturating_add(k.dropped))
     }
 
     /// The slot state of every device with a slot (for the host tests).

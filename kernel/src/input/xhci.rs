@@ -23,6 +23,8 @@ pub struct Mmio {
     physical_memory_offset: u64,
     /// The DMA pages this controller owns: the only memory it may touch.
     dma: dma::Pages,
+    /// Where the controller is on PCI.
+    function: pci::Function,
 }
 
 impl Memory for Mmio {
@@ -137,6 +139,7 @@ fn start(
         registers,
         physical_memory_offset,
         dma,
+        function,
     };
     let mut xhci = match Xhci::new(hardware, bar.bytes as u32, dma.next, dma.end - dma.next) {
         Ok(xhci) => xhci,
@@ -187,7 +190,40 @@ fn start(
     if xhci.enumerate() == 0 {
         serial_println!("usb: no USB keyboard on the xHCI {}", function);
     }
+    crate::facts::record(|facts| facts.usb_controllers += 1);
     Some(xhci)
+}
+
+/// Before power-off or reset: every controller halted and reset, its ports'
+/// power switched off, and Intel's switched ports handed back to the EHCI,
+/// as Linux's shutdown path does. Each controller is then forgotten.
+pub fn shut_down() {
+    // Nothing else runs now; a lock held means a poll was interrupted, and
+    // its controller is left as it is rather than waited for.
+    let Some(mut controllers) = CONTROLLERS.try_lock() else {
+        serial_println!("usb: controllers busy; not shut down");
+        return;
+    };
+    for slot in controllers.iter_mut() {
+        let Some(mut xhci) = slot.take() else {
+            continue;
+        };
+        let function = xhci.hardware().function;
+        match xhci.shut_down() {
+            Ok(()) => serial_println!(
+                "usb: xHCI {} halted and reset, ports switched off",
+                function
+            ),
+            Err(problem) => serial_println!("usb: xHCI {}: shut down: {}", function, problem),
+        }
+        if let Some((usb2, superspeed)) = pci::hand_intel_ports_back_to_ehci(function) {
+            serial_println!(
+                "usb: Intel PCH ports handed back to the EHCI (XUSB2PR {:#x}, USB3_PSSEN {:#x})",
+                usb2,
+                superspeed
+            );
+        }
+    }
 }
 
 /// Takes the keyboards' reports and repeats; their scancodes join the PS/2

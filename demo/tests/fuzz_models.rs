@@ -5,10 +5,11 @@
 //!
 //! The case count is PROPTEST_CASES, as in `fuzz_raster.rs`.
 
-#[path = "../demo/build/model_file.rs"]
+#[path = "../build/model_file.rs"]
 mod model_file;
 
-mod common;
+#[path = "common/fuzzing.rs"]
+mod fuzzing;
 
 use demo::frame::{render_faces_with_depth, BACKGROUND};
 use engine::{DepthBand, Face, Model, Object, Vec3, Xform};
@@ -20,7 +21,7 @@ use proptest::prelude::*;
 const DEFAULT_CASES: u32 = 1000;
 
 fn config() -> ProptestConfig {
-    common::proptest_config(DEFAULT_CASES)
+    fuzzing::proptest_config(DEFAULT_CASES)
 }
 
 fn coordinate() -> impl Strategy<Value = f64> {

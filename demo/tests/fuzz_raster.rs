@@ -7,17 +7,18 @@
 //! The case count is PROPTEST_CASES (CI runs the default below; raise it for a
 //! longer hunt: `PROPTEST_CASES=100000 cargo test --test fuzz_raster`).
 
-mod common;
+#[path = "common/fuzzing.rs"]
+mod fuzzing;
 
-use common::soft_vga_in_mode_x;
 use engine::{fill_convex_polygon, reference, ClipRect, Point};
+use fuzzing::soft_vga_in_mode_x;
 use modex::{ModeX, Page, PAGE_BYTES};
 use proptest::prelude::*;
 
 const DEFAULT_CASES: u32 = 2000;
 
 fn config() -> ProptestConfig {
-    common::proptest_config(DEFAULT_CASES)
+    fuzzing::proptest_config(DEFAULT_CASES)
 }
 
 fn any_coordinate() -> impl Strategy<Value = i32> {
