@@ -27,6 +27,8 @@ pub const ENROLL_FILE_NAME: &str = "ENROLL_THIS_KEY_IN_MOKMANAGER.cer";
 pub const SECOND_STAGE_PATH: &str = "EFI/BOOT/grubx64.efi";
 /// Where shim looks for MokManager, beside itself.
 pub const MOK_MANAGER_PATH: &str = "EFI/BOOT/mmx64.efi";
+/// The kernel file the loaders read from the ESP.
+pub const KERNEL_FILE_NAME: &str = "kernel-x86_64";
 /// What UEFI firmware starts from a removable disk.
 pub const REMOVABLE_BOOT_PATH: &str = "EFI/BOOT/BOOTX64.EFI";
 
@@ -410,6 +412,38 @@ pub fn pe_image_end(pe: &[u8]) -> Option<u64> {
 /// The named PE section's raw bytes (its size in the file, trimmed to its
 /// virtual size).
 pub fn pe_section<'a>(pe: &'a [u8], name: &str) -> Option<&'a [u8]> {
+    pe.get(pe_section_range(pe, name)?)
+}
+
+/// The section the UEFI loader keeps the kernel file's SHA-256 in
+/// (bootloader/uefi/src/main.rs, `KERNEL_SHA256`).
+pub const KERNEL_HASH_SECTION: &str = ".khash";
+
+/// The SHA-256 of `bytes`.
+pub fn sha256(bytes: &[u8]) -> [u8; 32] {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes).into()
+}
+
+/// The loader with `kernel_sha256` in its [`KERNEL_HASH_SECTION`]: written
+/// before the loader is signed, so the signature covers it, and no rebuild
+/// of the loader is needed for a new kernel.
+pub fn with_kernel_hash(loader: &[u8], kernel_sha256: &[u8; 32]) -> Result<Vec<u8>> {
+    let range = pe_section_range(loader, KERNEL_HASH_SECTION)
+        .filter(|range| range.len() >= kernel_sha256.len())
+        .ok_or_else(|| {
+            SecureBootError::Esp(format!(
+                "the UEFI loader has no {KERNEL_HASH_SECTION} section of 32 bytes \
+                 (it is not this project's patched loader)"
+            ))
+        })?;
+    let mut patched = loader.to_vec();
+    patched[range.start..range.start + 32].copy_from_slice(kernel_sha256);
+    Ok(patched)
+}
+
+/// Where the named PE section's raw bytes are in the file.
+pub fn pe_section_range(pe: &[u8], name: &str) -> Option<std::ops::Range<usize>> {
     let u16_at = |at: usize| Some(u16::from_le_bytes(pe.get(at..at + 2)?.try_into().ok()?));
     let u32_at = |at: usize| Some(u32::from_le_bytes(pe.get(at..at + 4)?.try_into().ok()?));
     let header = u32_at(0x3C)? as usize;
@@ -426,7 +460,8 @@ pub fn pe_section<'a>(pe: &'a [u8], name: &str) -> Option<&'a [u8]> {
         let virtual_size = u32_at(entry + 8)? as usize;
         let raw_size = u32_at(entry + 16)? as usize;
         let raw_at = u32_at(entry + 20)? as usize;
-        pe.get(raw_at..raw_at + raw_size.min(virtual_size))
+        let range = raw_at..raw_at + raw_size.min(virtual_size);
+        pe.get(range.clone()).map(|_| range)
     })
 }
 
@@ -581,6 +616,11 @@ pub fn signed_disk(
             SecureBootError::Esp(format!("the built ESP has no {REMOVABLE_BOOT_PATH}"))
         })?;
     let (_, loader) = files.remove(loader_at);
+    let kernel = files
+        .iter()
+        .find(|(path, _)| path == KERNEL_FILE_NAME)
+        .ok_or_else(|| SecureBootError::Esp(format!("the built ESP has no {KERNEL_FILE_NAME}")))?;
+    let loader = with_kernel_hash(&loader, &sha256(&kernel.1))?;
     let signed = sign(&with_sbat(&loader)?, key)?;
     match (route, shim) {
         (Route::Shim, Some(shim)) => {

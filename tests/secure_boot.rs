@@ -351,6 +351,10 @@ fn microsoft_keys_only_mokmanager_enrolls_the_key_then_the_cube_boots() {
         .wait_for_serial(boot::READY_LINE, SECURE_BOOT_TIMEOUT)
         .unwrap();
     assert!(!console.contains("Verification failed"), "{console}");
+    assert!(
+        console.contains("loader: kernel SHA-256 matches the signed loader's"),
+        "{console}"
+    );
     save_screen(&mut qemu, "9-the-cube.png");
     common::after_each_key_on(
         &mut qemu,
@@ -394,5 +398,103 @@ fn a_loader_signed_by_another_key_is_refused_by_shim() {
     save_screen(&mut qemu, "refused-another-key.png");
     qemu.send_key("ret").unwrap();
     wait_text(&mut qemu, "Press any key to perform MOK management", 1);
+    assert!(!qemu.serial().contains(boot::READY_LINE));
+}
+
+/// The hash the runner writes into the loader before signing it is the
+/// SHA-256 of the kernel file on the same stick; the unsigned images' loader
+/// carries none (all zeros).
+#[test]
+fn the_signed_loader_carries_the_sha256_of_the_kernel_on_the_stick() {
+    let scratch = tempfile::tempdir().unwrap();
+    let key = test_key(&scratch.path().join("key"));
+    let disk = std::fs::read(signed_stick(scratch.path(), &key, Route::Shim)).unwrap();
+    let loader = file_on_disk(&disk, sb::SECOND_STAGE_PATH);
+    let kernel = file_on_disk(&disk, sb::KERNEL_FILE_NAME);
+    let embedded = sb::pe_section(&loader, sb::KERNEL_HASH_SECTION).expect("a .khash section");
+    assert_eq!(embedded[..32], sb::sha256(&kernel));
+    // And as the field's tool computes it.
+    std::fs::write(scratch.path().join("kernel"), &kernel).unwrap();
+    let output = std::process::Command::new("sha256sum")
+        .arg(scratch.path().join("kernel"))
+        .output()
+        .unwrap();
+    let hex: String = embedded[..32].iter().map(|b| format!("{b:02x}")).collect();
+    assert!(String::from_utf8_lossy(&output.stdout).starts_with(&hex));
+    let built = pieces();
+    let unsigned = sb::fat_files(&built.esp)
+        .unwrap()
+        .into_iter()
+        .find(|(path, _)| path.eq_ignore_ascii_case(sb::REMOVABLE_BOOT_PATH))
+        .unwrap()
+        .1;
+    assert_eq!(
+        sb::pe_section(&unsigned, sb::KERNEL_HASH_SECTION).map(|s| s[..32].to_vec()),
+        Some(vec![0u8; 32])
+    );
+}
+
+/// One byte of the kernel file changed on the stick's FAT: the signed
+/// loader refuses it before it runs, with the reason on the screen (the
+/// UEFI console, which OVMF also copies to serial) and on COM1.
+#[test]
+fn a_tampered_kernel_is_refused_by_the_signed_loader() {
+    use std::io::{Read, Seek, SeekFrom, Write};
+    let scratch = tempfile::tempdir().unwrap();
+    let key = test_key(&scratch.path().join("key"));
+    let stick = signed_stick(scratch.path(), &key, Route::Direct);
+    let mut disk = std::fs::read(&stick).unwrap();
+    let esp_range = {
+        let esp = sb::esp_of_disk(&disk).unwrap();
+        let start = esp.as_ptr() as usize - disk.as_ptr() as usize;
+        start..start + esp.len()
+    };
+    let mut esp = std::io::Cursor::new(disk[esp_range.clone()].to_vec());
+    {
+        let fs = fatfs::FileSystem::new(&mut esp, fatfs::FsOptions::new()).unwrap();
+        let mut file = fs.root_dir().open_file(sb::KERNEL_FILE_NAME).unwrap();
+        let middle = file.seek(SeekFrom::End(0)).unwrap() / 2;
+        file.seek(SeekFrom::Start(middle)).unwrap();
+        let mut byte = [0u8];
+        file.read_exact(&mut byte).unwrap();
+        file.seek(SeekFrom::Start(middle)).unwrap();
+        file.write_all(&[byte[0] ^ 0x01]).unwrap();
+        file.flush().unwrap();
+    }
+    disk[esp_range].copy_from_slice(&esp.into_inner());
+    let tampered = scratch.path().join("tampered.img");
+    std::fs::write(&tampered, &disk).unwrap();
+    assert_ne!(
+        sb::sha256(&file_on_disk(&disk, sb::KERNEL_FILE_NAME)),
+        sb::pe_section(
+            &file_on_disk(&disk, sb::REMOVABLE_BOOT_PATH),
+            sb::KERNEL_HASH_SECTION
+        )
+        .unwrap()[..32]
+    );
+
+    let vars = scratch.path().join("vars-with-db.fd");
+    let tool =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
+    let status = std::process::Command::new(&tool)
+        .args(["--input", sb::OVMF_MICROSOFT_VARS, "--output"])
+        .arg(&vars)
+        .args(["--add-db", "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d"])
+        .arg(&key.cert)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let mut qemu = secure_boot(&tampered, &vars);
+    // Once on COM1, once through the UEFI console (the screen, copied to serial).
+    let refused = "kernel refused: kernel-x86_64 is not the kernel this loader was signed for";
+    wait_text(&mut qemu, refused, 2);
+    let screen = qemu.screendump().unwrap();
+    screen
+        .write_png(&docs_picture("refused-tampered-kernel.png"))
+        .unwrap();
+    assert!(
+        screen.pixels.iter().any(|&p| p != screen.pixels[0]),
+        "a blank screen"
+    );
     assert!(!qemu.serial().contains(boot::READY_LINE));
 }
