@@ -54,6 +54,8 @@ fetch_shim() {
     local work
     work=$(mktemp -d)
     trap 'rm -rf "$work"' RETURN
+    # The package lists may be absent when nothing else needed installing.
+    apt-cache show shim-signed shim-helpers-amd64-signed >/dev/null 2>&1 || as_root apt-get update -qq
     ( cd "$work" && chmod 755 . && apt-get download -q shim-signed shim-helpers-amd64-signed >/dev/null ) \
         || die "apt-get download shim-signed shim-helpers-amd64-signed failed (run 'apt-get update' first?)"
     local deb package
