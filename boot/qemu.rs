@@ -253,6 +253,10 @@ pub struct QemuOptions {
     /// timing reports (boot option `bench`, `present:`) repeat exactly. The
     /// guest then runs slower than real time.
     pub instruction_clock: bool,
+    /// With UEFI: boot OVMF's Secure Boot build
+    /// ([`crate::secure_boot::OVMF_SECURE_BOOT_CODE`]) on a Q35 with SMM,
+    /// its variables in this file (read and written: enrolled keys stay).
+    pub secure_boot_vars: Option<PathBuf>,
     /// QEMU's `-cpu` value, when not the board's default (for example
     /// `qemu64,-nx`: a CPU without the no-execute bit).
     pub cpu: Option<String>,
@@ -275,6 +279,7 @@ impl QemuOptions {
             debug_exit: true,
             keep_after_power_off: false,
             instruction_clock: false,
+            secure_boot_vars: None,
             cpu: None,
         }
     }
@@ -334,6 +339,10 @@ pub fn check_installed(firmware: Firmware) -> Result<()> {
 #[derive(Default)]
 struct SerialLog {
     text: Mutex<String>,
+    /// What has come after the last newline: firmware screens (shim's,
+    /// MokManager's) are drawn with cursor moves and may end no line for a
+    /// long time. Waits look at it; [`Qemu::serial`] leaves it out.
+    partial: Mutex<String>,
     grew: Condvar,
 }
 
@@ -379,7 +388,13 @@ impl Qemu {
                 "unix:{},server=on,wait=off",
                 monitor_path.display()
             ));
-        command.args(options.board.qemu_machine(options.graphics));
+        let mut machine = options.board.qemu_machine(options.graphics);
+        if options.secure_boot_vars.is_some() {
+            // OVMF's Secure Boot build keeps its variables safe in SMM: Q35
+            // with SMM on, and the flash writable only from SMM.
+            machine[1] = machine[1].replacen("pc,", "q35,", 1) + ",smm=on";
+        }
+        command.args(machine);
         command.args(options.graphics.qemu_args(options.precise_retrace));
         if let Some(cpu) = &options.cpu {
             // After the board's own `-cpu`, if any: QEMU takes the last.
@@ -388,8 +403,25 @@ impl Qemu {
         for device in &options.devices {
             command.arg("-device").arg(device);
         }
-        if options.firmware == Firmware::Uefi {
-            command.args(["-bios", OVMF_CODE]);
+        match (&options.secure_boot_vars, options.firmware) {
+            (Some(vars), Firmware::Uefi) => {
+                command
+                    .arg("-drive")
+                    .arg(format!(
+                        "if=pflash,format=raw,unit=0,readonly=on,file={}",
+                        crate::secure_boot::OVMF_SECURE_BOOT_CODE
+                    ))
+                    .arg("-drive")
+                    .arg(format!(
+                        "if=pflash,format=raw,unit=1,file={}",
+                        vars.display()
+                    ))
+                    .args(["-global", "driver=cfi.pflash01,property=secure,value=on"]);
+            }
+            (None, Firmware::Uefi) => {
+                command.args(["-bios", OVMF_CODE]);
+            }
+            (_, Firmware::Bios) => {}
         }
         if options.debug_exit {
             command.args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"]);
@@ -462,6 +494,11 @@ impl Qemu {
         loop {
             if text.matches(needle).count() >= count {
                 return Ok(text.clone());
+            }
+            let partial = self.serial.partial.lock().unwrap().clone();
+            let with_partial = format!("{text}{partial}");
+            if !partial.is_empty() && with_partial.matches(needle).count() >= count {
+                return Ok(with_partial);
             }
             let now = Instant::now();
             if now >= deadline {
@@ -703,16 +740,25 @@ impl Drop for Qemu {
 fn spawn_reader(stream: impl Read + Send + 'static, log: Arc<SerialLog>, echo: bool) {
     std::thread::spawn(move || {
         let mut reader = BufReader::new(stream);
-        let mut line = Vec::new();
-        while reader.read_until(b'\n', &mut line).is_ok_and(|n| n > 0) {
-            let text = String::from_utf8_lossy(&line).replace('\r', "");
-            if echo {
-                print!("{text}");
-                let _ = std::io::stdout().flush();
+        let mut pending = Vec::new();
+        loop {
+            let chunk = match reader.fill_buf() {
+                Ok(bytes) if !bytes.is_empty() => bytes.to_vec(),
+                _ => break,
+            };
+            reader.consume(chunk.len());
+            pending.extend_from_slice(&chunk);
+            while let Some(end) = pending.iter().position(|&byte| byte == b'\n') {
+                let line: Vec<u8> = pending.drain(..=end).collect();
+                let text = String::from_utf8_lossy(&line).replace('\r', "");
+                if echo {
+                    print!("{text}");
+                    let _ = std::io::stdout().flush();
+                }
+                log.text.lock().unwrap().push_str(&text);
             }
-            log.text.lock().unwrap().push_str(&text);
+            *log.partial.lock().unwrap() = String::from_utf8_lossy(&pending).replace('\r', "");
             log.grew.notify_all();
-            line.clear();
         }
     });
 }
