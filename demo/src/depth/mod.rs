@@ -107,8 +107,8 @@ pub fn render_with_depth(
 /// leaving out (while still counting) the faces whose corners all lie above
 /// or all below `rows`: a band's faces, without paying for the depth plane of
 /// a face that misses the band.
-pub fn each_visible_face_in_rows(
-    objects: &mut [Object],
+pub fn each_visible_face_in_rows<'a>(
+    objects: impl IntoIterator<Item = &'a mut Object>,
     rows: Range<i32>,
     mut draw: impl FnMut(&VisibleFace),
 ) -> FaceCounts {
