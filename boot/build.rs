@@ -24,7 +24,7 @@ fn main() {
     println!("cargo:rerun-if-changed=boot/disk_layout.rs");
     let out_dir = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let kernel_with_debug = build_kernel(&out_dir);
-    let kernel = strip_debug(&kernel_with_debug, &out_dir);
+    let kernel = strip(&kernel_with_debug, &out_dir);
     let kernel_bytes = match std::fs::metadata(&kernel) {
         Ok(meta) => meta.len(),
         Err(error) => fail(&format!(
@@ -240,7 +240,7 @@ fn build_kernel(out_dir: &Path) -> PathBuf {
         .arg(&target_dir)
         .args(["--profile", if release { "release" } else { "dev" }])
         // Line tables are enough to turn a fault's rip into a source line
-        // (with the full ELF; the image's copy is stripped, `strip_debug`).
+        // (with the full ELF; the image's copy is stripped, `strip`).
         .env("CARGO_PROFILE_DEV_DEBUG", "line-tables-only")
         .env("CARGO_PROFILE_RELEASE_DEBUG", "line-tables-only")
         // `core` and `compiler_builtins` as optimised as the prebuilt ones
@@ -276,24 +276,25 @@ fn build_kernel(out_dir: &Path) -> PathBuf {
 }
 
 /// The kernel file the images carry: `kernel` without its debug sections
-/// (`llvm-objcopy --strip-debug`, from the toolchain's llvm-tools), written
-/// to `out_dir/kernel`. Its symbol table stays, and the full ELF stays where
-/// cargo built it (`target/kernel/x86_64-modex-kernel/<profile>/kernel`), for
-/// turning a fault's addresses into source lines. The debug sections were
-/// three fifths of the file, and every BIOS boot reads the whole file through
-/// INT 13h.
-fn strip_debug(kernel: &Path, out_dir: &Path) -> PathBuf {
+/// and symbol table (`llvm-objcopy --strip-all`, from the toolchain's
+/// llvm-tools), written to `out_dir/kernel`; what is loaded (code, data, the
+/// dynamic relocations) is unchanged. The full ELF stays where cargo built
+/// it (`target/kernel/x86_64-modex-kernel/<profile>/kernel`), for turning a
+/// fault's addresses into functions and source lines. Debug sections were
+/// three fifths of the file, the symbols a fifth of the rest, and every BIOS
+/// boot reads the whole file through INT 13h.
+fn strip(kernel: &Path, out_dir: &Path) -> PathBuf {
     let objcopy = llvm_tool("llvm-objcopy");
     let stripped = out_dir.join("kernel");
     let status = std::process::Command::new(&objcopy)
-        .arg("--strip-debug")
+        .arg("--strip-all")
         .arg(kernel)
         .arg(&stripped)
         .status();
     match status {
         Ok(status) if status.success() => stripped,
         Ok(status) => fail(&format!(
-            "{} --strip-debug {} failed ({status})",
+            "{} --strip-all {} failed ({status})",
             objcopy.display(),
             kernel.display()
         )),
