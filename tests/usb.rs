@@ -245,9 +245,8 @@ fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
     // Esc says goodbye.
     qemu.press_key_on(DISPLAY_ID, "esc").unwrap();
     let status = qemu
-        .wait_exit(BOOT_TIMEOUT)
-        .unwrap()
-        .expect("QEMU powered off after Esc");
+        .wait_for_exit(BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("QEMU powered off after Esc: {e}"));
     assert_eq!(status.code(), Some(EXIT_SUCCESS));
     assert!(qemu.serial().contains(line::GOODBYE));
 }
