@@ -138,6 +138,9 @@ impl<const N: usize> Grid<N> {
 /// `None` with a spare value (2) of one of the object's `bool`s.
 #[derive(Debug)]
 #[repr(u8)]
+// The place is the object's storage, in the grid itself (no heap): an empty
+// place's unused bytes are the point.
+#[allow(clippy::large_enum_variant)]
 enum Place {
     Empty,
     Solid(Object),
