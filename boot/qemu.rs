@@ -424,7 +424,8 @@ impl Watchdog {
         } else if waited >= WALL_CLOCK_CEILING {
             Some(format!(
                 "{waited:.1?} of wall-clock time passed, the ceiling of any wait \
-                 (QEMU ran {quiet:.1?} of CPU time since serial last grew: a hung guest?)"
+                 (QEMU ran {quiet:.1?} of CPU time since serial last grew: a guest \
+                 hung without using the CPU, or printing on and on without it)"
             ))
         } else {
             None
@@ -593,22 +594,34 @@ impl Qemu {
         count: usize,
         budget: Duration,
     ) -> Result<String> {
+        let what = format!("{needle:?} (x{count})");
+        self.wait_for_console(&what, budget, |text| text.matches(needle).count() >= count)
+    }
+
+    /// Waits until `done` holds for the serial console (`what` names it in
+    /// an error); `budget` as for [`Qemu::wait_for_serial`].
+    pub fn wait_for_console(
+        &mut self,
+        what: &str,
+        budget: Duration,
+        done: impl Fn(&str) -> bool,
+    ) -> Result<String> {
         let pid = self.child.id();
         let mut console = self.serial.console.lock().unwrap();
         let mut watchdog = Watchdog::new(pid, budget, console.text.len());
         loop {
-            if console.text.matches(needle).count() >= count {
+            if done(&console.text) {
                 return Ok(console.text.clone());
             }
             if let Ok(Some(status)) = self.child.try_wait() {
                 return Err(QemuError::Exited(format!(
-                    "QEMU exited ({status}) before {needle:?} appeared; console:\n{}",
+                    "QEMU exited ({status}) before {what} appeared; console:\n{}",
                     console.text
                 )));
             }
             if let Some(why) = watchdog.expired(pid, console.text.len()) {
                 return Err(QemuError::Timeout(format!(
-                    "gave up waiting for {needle:?} (x{count}) on serial: {why}; console so far:\n{}",
+                    "gave up waiting for {what} on serial: {why}; console so far:\n{}",
                     console.text
                 )));
             }
