@@ -23,7 +23,8 @@ fn main() {
     println!("cargo:rerun-if-changed=boot/build.rs");
     println!("cargo:rerun-if-changed=boot/disk_layout.rs");
     let out_dir = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    let kernel = build_kernel(&out_dir);
+    let kernel_with_debug = build_kernel(&out_dir);
+    let kernel = strip(&kernel_with_debug, &out_dir);
     let kernel_bytes = match std::fs::metadata(&kernel) {
         Ok(meta) => meta.len(),
         Err(error) => fail(&format!(
@@ -63,6 +64,7 @@ fn main() {
             .map_err(|e| format!("the EFI system partition: {e:#}"))?;
         let esp = std::fs::read(&esp_path).map_err(|e| format!("reading the ESP back: {e}"))?;
         let _ = std::fs::remove_file(&esp_path);
+        let esp = fitted_fat(&esp).map_err(|e| format!("refitting the ESP: {e}"))?;
         // The pieces again, for the runner's signed stick (boot/secure_boot.rs),
         // which lays out the same disk around an ESP with shim in it.
         for (name, bytes) in [
@@ -86,6 +88,10 @@ fn main() {
     println!("cargo:rustc-env=BIOS_IMAGE={}", bios.display());
     println!("cargo:rustc-env=UEFI_IMAGE={}", uefi.display());
     println!("cargo:rustc-env=KERNEL_ELF={}", kernel.display());
+    println!(
+        "cargo:rustc-env=KERNEL_DEBUG_ELF={}",
+        kernel_with_debug.display()
+    );
     for (variable, name) in [
         ("HYBRID_ESP", "hybrid-esp.fat"),
         ("BIOS_BOOT_SECTOR", "bios-boot-sector.bin"),
@@ -101,6 +107,81 @@ fn main() {
     // the tests compare with this, not with whatever HEAD is when they run.
     let commit = git(&["rev-parse", "--short=12", "HEAD"]).unwrap_or_else(|| "unknown".to_owned());
     println!("cargo:rustc-env=KERNEL_COMMIT={commit}");
+}
+
+/// The same files in a FAT just big enough for them. The bootloader sizes
+/// its FAT at the files rounded up to a MiB, plus another MiB: 3 MiB for
+/// about 1 MiB of files, which made the one image 5.3 MB. The one image is
+/// what a BIOS boot reads and a USB stick is written with; nothing is added
+/// to its FAT later.
+fn fitted_fat(esp: &[u8]) -> std::io::Result<Vec<u8>> {
+    use std::io::{Cursor, Read, Write};
+    let old = fatfs::FileSystem::new(Cursor::new(esp.to_vec()), fatfs::FsOptions::new())?;
+    let mut label = [b' '; 11];
+    for (slot, byte) in label.iter_mut().zip(old.volume_label_as_bytes()) {
+        *slot = *byte;
+    }
+    // Every file with its path, directories first (a walk in order).
+    let mut directories = Vec::new();
+    let mut files = Vec::new();
+    let mut pending = vec![(String::new(), old.root_dir())];
+    while let Some((prefix, directory)) = pending.pop() {
+        for entry in directory.iter() {
+            let entry = entry?;
+            let name = entry.file_name();
+            if name == "." || name == ".." {
+                continue;
+            }
+            let path = format!("{prefix}{name}");
+            if entry.is_dir() {
+                directories.push(path.clone());
+                pending.push((format!("{path}/"), entry.to_dir()));
+            } else {
+                let mut bytes = Vec::new();
+                entry.to_file().read_to_end(&mut bytes)?;
+                files.push((path, bytes));
+            }
+        }
+    }
+    // Room for each file in whole 4 KiB clusters (the largest fatfs picks at
+    // this size), plus 64 KiB for the boot sector, the FATs and directories;
+    // checked by writing, and grown if ever short.
+    const ROOM: usize = 64 * 1024;
+    let mut bytes = files
+        .iter()
+        .map(|(_, data)| data.len().next_multiple_of(4096))
+        .sum::<usize>()
+        + ROOM;
+    for _attempt in 0..8 {
+        let mut volume = vec![0u8; bytes];
+        fatfs::format_volume(
+            Cursor::new(&mut volume[..]),
+            fatfs::FormatVolumeOptions::new().volume_label(label),
+        )?;
+        let written = (|| {
+            let fs = fatfs::FileSystem::new(Cursor::new(&mut volume[..]), fatfs::FsOptions::new())?;
+            let root = fs.root_dir();
+            for directory in &directories {
+                root.create_dir(directory)?;
+            }
+            for (path, data) in &files {
+                let mut file = root.create_file(path)?;
+                file.truncate()?;
+                file.write_all(data)?;
+            }
+            drop(root);
+            fs.unmount()
+        })();
+        match written {
+            Ok(()) => return Ok(volume),
+            // fatfs's only word for a full volume.
+            Err(error) if error.to_string().contains("No space left") => bytes += ROOM,
+            Err(error) => return Err(error),
+        }
+    }
+    Err(std::io::Error::other(format!(
+        "the files did not fit in {bytes} bytes"
+    )))
 }
 
 /// The kernel's target, beside its manifest.
@@ -178,9 +259,8 @@ fn build_kernel(out_dir: &Path) -> PathBuf {
         .arg("--target-dir")
         .arg(&target_dir)
         .args(["--profile", if release { "release" } else { "dev" }])
-        // Line tables are enough to turn a fault's rip into a source line;
-        // full debug info would more than double the kernel in the image,
-        // and every BIOS boot reads the whole file through INT 13h.
+        // Line tables are enough to turn a fault's rip into a source line
+        // (with the full ELF; the image's copy is stripped, `strip`).
         .env("CARGO_PROFILE_DEV_DEBUG", "line-tables-only")
         .env("CARGO_PROFILE_RELEASE_DEBUG", "line-tables-only")
         // `core` and `compiler_builtins` as optimised as the prebuilt ones
@@ -213,6 +293,56 @@ fn build_kernel(out_dir: &Path) -> PathBuf {
         .join(target_name)
         .join(if release { "release" } else { "debug" })
         .join("kernel")
+}
+
+/// The kernel file the images carry: `kernel` without its debug sections
+/// and symbol table (`llvm-objcopy --strip-all`, from the toolchain's
+/// llvm-tools), written to `out_dir/kernel`; what is loaded (code, data, the
+/// dynamic relocations) is unchanged. The full ELF stays where cargo built
+/// it (`target/kernel/x86_64-modex-kernel/<profile>/kernel`), for turning a
+/// fault's addresses into functions and source lines. Debug sections were
+/// three fifths of the file, the symbols a fifth of the rest, and every BIOS
+/// boot reads the whole file through INT 13h.
+fn strip(kernel: &Path, out_dir: &Path) -> PathBuf {
+    let objcopy = llvm_tool("llvm-objcopy");
+    let stripped = out_dir.join("kernel");
+    let status = std::process::Command::new(&objcopy)
+        .arg("--strip-all")
+        .arg(kernel)
+        .arg(&stripped)
+        .status();
+    match status {
+        Ok(status) if status.success() => stripped,
+        Ok(status) => fail(&format!(
+            "{} --strip-all {} failed ({status})",
+            objcopy.display(),
+            kernel.display()
+        )),
+        Err(error) => fail(&format!(
+            "cannot run {}: {error}; install the llvm-tools-preview component \
+             (rust-toolchain.toml names it; boot/setup.sh installs it)",
+            objcopy.display()
+        )),
+    }
+}
+
+/// A tool of the toolchain's `llvm-tools-preview` component, in the
+/// sysroot's host directory.
+fn llvm_tool(name: &str) -> PathBuf {
+    let rustc = std::env::var_os("RUSTC").unwrap_or_else(|| "rustc".into());
+    let sysroot = std::process::Command::new(rustc)
+        .args(["--print", "sysroot"])
+        .output()
+        .ok()
+        .filter(|output| output.status.success())
+        .and_then(|output| String::from_utf8(output.stdout).ok())
+        .unwrap_or_else(|| fail("cannot ask rustc for its sysroot"));
+    let host = std::env::var("HOST").expect("cargo sets HOST");
+    Path::new(sysroot.trim())
+        .join("lib/rustlib")
+        .join(host)
+        .join("bin")
+        .join(name)
 }
 
 fn git(args: &[&str]) -> Option<String> {

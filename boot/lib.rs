@@ -35,7 +35,10 @@ pub mod secure_boot;
 pub mod usb;
 
 pub use image::{ImageError, RgbImage};
-pub use qemu::{Board, Chipset, Display, Firmware, Graphics, Qemu, QemuError, QemuOptions};
+pub use qemu::{
+    Board, Chipset, DiskAttachment, Display, Firmware, Graphics, Qemu, QemuError, QemuOptions,
+    UsbHost,
+};
 
 /// The line the kernel prints on serial once its first picture is on screen
 /// and it is reading keys.

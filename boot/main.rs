@@ -4,6 +4,7 @@
 use boot::qemu::{self, Display, Firmware, Graphics, Qemu, QemuOptions};
 use boot::usb::UsbError;
 use boot::BootRequest;
+use boot::{Chipset, DiskAttachment, UsbHost};
 use clap::Parser;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -75,6 +76,22 @@ struct Args {
     /// The certificate (PEM) of --sign-key.
     #[arg(long, value_name = "FILE", requires = "sign_key")]
     sign_cert: Option<PathBuf>,
+    /// Boot (or write) this disk image file instead of the one just built,
+    /// e.g. an older build's, to compare.
+    #[arg(long, value_name = "FILE", conflicts_with = "image")]
+    disk: Option<PathBuf>,
+    /// Attach the image as a USB stick on this USB host controller (xhci or
+    /// ehci) instead of as the hard disk: the firmware boots from USB.
+    #[arg(long, value_name = "HOST", value_parser = usb_host)]
+    usb_stick: Option<UsbHost>,
+    /// Boot headless, wait for the kernel's ready line, print how long after
+    /// QEMU's start the first serial output, the kernel's banner and the
+    /// ready line arrived, then stop.
+    #[arg(long)]
+    boot_time: bool,
+    /// The chipset: pc (i440FX, QEMU's default) or q35.
+    #[arg(long, value_name = "CHIPSET", value_parser = chipset, default_value = "pc")]
+    machine: Chipset,
 }
 
 /// The runner's `--image` names.
@@ -124,6 +141,22 @@ fn adapter(name: &str) -> Result<Graphics, String> {
     })
 }
 
+fn usb_host(name: &str) -> Result<UsbHost, String> {
+    match name {
+        "xhci" => Ok(UsbHost::Xhci),
+        "ehci" => Ok(UsbHost::Ehci),
+        _ => Err(format!("unknown USB host {name:?}; one of: xhci, ehci")),
+    }
+}
+
+fn chipset(name: &str) -> Result<Chipset, String> {
+    match name {
+        "pc" => Ok(Chipset::I440fx),
+        "q35" => Ok(Chipset::Q35),
+        _ => Err(format!("unknown chipset {name:?}; one of: pc, q35")),
+    }
+}
+
 fn has_display() -> bool {
     ["DISPLAY", "WAYLAND_DISPLAY"]
         .iter()
@@ -138,13 +171,14 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let images = boot::images::publish()?;
     // The one image boots under both firmwares.
-    let image = match args.image {
+    let image = match (&args.disk, args.image) {
         _ if args.secure_boot || args.sign_key.is_some() => {
             signed_stick(args.sign_key.as_deref(), args.sign_cert.as_deref())?
         }
-        ImageChoice::One => images.hybrid,
-        ImageChoice::Bios => images.bios,
-        ImageChoice::Uefi => images.uefi,
+        (Some(file), _) => file.clone(),
+        (None, ImageChoice::One) => images.hybrid,
+        (None, ImageChoice::Bios) => images.bios,
+        (None, ImageChoice::Uefi) => images.uefi,
     };
     let firmware = if args.secure_boot {
         Firmware::Uefi
@@ -162,11 +196,11 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     if let Some(device) = &args.write_usb {
         return write_usb(&image, device);
     }
-    let headless = args.headless || args.screenshot.is_some() || !has_display();
+    let headless = args.headless || args.screenshot.is_some() || args.boot_time || !has_display();
     if !args.headless && headless && args.screenshot.is_none() {
         println!("No display found ($DISPLAY and $WAYLAND_DISPLAY are unset): running headless.");
     }
-    if headless {
+    if headless && !args.boot_time {
         println!("Serial console follows. Ctrl-C stops QEMU.");
     }
     let mut options = QemuOptions::new(&image);
@@ -178,13 +212,20 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     options.boot = args.boot_option;
     options.graphics = args.graphics;
-    options.echo_serial = true;
+    options.echo_serial = !args.boot_time;
     options.instruction_clock = args.icount;
+    options.board.chipset = args.machine;
+    if let Some(host) = args.usb_stick {
+        options.disk = DiskAttachment::UsbStick(host);
+    }
     if args.secure_boot {
         options.secure_boot_vars = Some(secure_boot_vars(&image)?);
     }
     println!("Booting {} ({:?})", image.display(), firmware);
     let mut qemu = Qemu::start(&options)?;
+    if args.boot_time {
+        return boot_time(&mut qemu);
+    }
 
     if !args.keys.0.is_empty() || args.screenshot.is_some() {
         let boot_time = if firmware == Firmware::Uefi { 120 } else { 60 };
@@ -285,6 +326,22 @@ fn secure_boot_vars(image: &Path) -> anyhow::Result<PathBuf> {
         );
     }
     Ok(vars)
+}
+
+/// Waits for the ready line and prints when the first output, the banner
+/// and the ready line arrived, counted from QEMU's start.
+fn boot_time(qemu: &mut Qemu) -> anyhow::Result<ExitCode> {
+    qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(120))?;
+    let seconds = |arrival: Option<Duration>| {
+        arrival.map_or_else(|| "-".to_owned(), |d| format!("{:.2}", d.as_secs_f64()))
+    };
+    println!(
+        "boot time (s from QEMU's start): first output {}, banner {}, ready {}",
+        seconds(qemu.first_output()),
+        seconds(qemu.arrival(boot::line::KERNEL_BANNER)),
+        seconds(qemu.arrival(boot::READY_LINE)),
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 /// Writes the image to a USB stick after the checks in `boot::usb` and the

@@ -47,6 +47,39 @@ pub enum Firmware {
     Uefi,
 }
 
+/// How the disk image is attached to the emulated PC.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DiskAttachment {
+    /// The first hard disk (QEMU's default: IDE on `pc`, AHCI on `q35`).
+    HardDisk,
+    /// A USB stick (`usb-storage`) on its own USB host controller, and no
+    /// hard disk: the firmware must boot from USB, as a PC booted from a
+    /// stick does.
+    UsbStick(UsbHost),
+}
+
+/// A USB host controller QEMU emulates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UsbHost {
+    /// `qemu-xhci`: USB 3 (xHCI), what a PC of today has.
+    Xhci,
+    /// `usb-ehci`: USB 2 (EHCI), what a PC of the 2000s has.
+    Ehci,
+}
+
+impl UsbHost {
+    /// QEMU's device name.
+    pub fn device(self) -> &'static str {
+        match self {
+            UsbHost::Xhci => "qemu-xhci",
+            UsbHost::Ehci => "usb-ehci",
+        }
+    }
+}
+
+/// QEMU's id of the USB stick's own host controller.
+const STICK_HOST_ID: &str = "stickhost";
+
 /// Whether QEMU shows a window; tests look at the screen through QMP either way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Display {
@@ -223,6 +256,8 @@ impl Default for Board {
 pub struct QemuOptions {
     /// The disk image, attached raw in snapshot mode (the file is never written).
     pub image: PathBuf,
+    /// How the image is attached: as the hard disk, or as a USB stick.
+    pub disk: DiskAttachment,
     /// Must match the image: BIOS or UEFI.
     pub firmware: Firmware,
     /// Headless for tests, a window for a person.
@@ -268,6 +303,7 @@ impl QemuOptions {
     pub fn new(image: impl Into<PathBuf>) -> Self {
         QemuOptions {
             image: image.into(),
+            disk: DiskAttachment::HardDisk,
             firmware: Firmware::Bios,
             display: Display::Headless,
             graphics: Graphics::StdVga,
@@ -338,18 +374,104 @@ pub fn check_installed(firmware: Firmware) -> Result<()> {
 /// The serial console so far, and a signal for each new chunk of it.
 #[derive(Default)]
 struct SerialLog {
-    text: Mutex<String>,
+    console: Mutex<Console>,
+    grew: Condvar,
+}
+
+/// The text QEMU has printed, and when each line arrived.
+#[derive(Default)]
+struct Console {
+    text: String,
+    /// For each line: where it ends in `text`, and when it arrived.
+    arrivals: Vec<(usize, Instant)>,
     /// What has come after the last newline: firmware screens (shim's,
     /// MokManager's) are drawn with cursor moves and may end no line for a
     /// long time. Waits look at it; [`Qemu::serial`] leaves it out.
-    partial: Mutex<String>,
-    grew: Condvar,
+    partial: String,
+}
+
+/// However the guest progresses, a wait gives up after this much wall-clock
+/// time: the bound for a guest that hangs without using the CPU (halted
+/// with interrupts off), which no progress budget would catch.
+pub const WALL_CLOCK_CEILING: Duration = Duration::from_secs(600);
+
+/// The CPU time process `pid` has used so far, all its threads together:
+/// `/proc/PID/stat`'s utime and stime, in USER_HZ ticks, which Linux fixes at
+/// 100 a second for user space. For QEMU under TCG this is the emulated
+/// machine's progress, whatever else the host is running; `None` once the
+/// process is gone.
+fn process_cpu_time(pid: u32) -> Option<Duration> {
+    const USER_HZ: u64 = 100;
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+    // The command name, in parentheses, may hold spaces: fields after it.
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    // utime and stime are the 14th and 15th fields; the 3rd is the first
+    // after the name.
+    let ticks = fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?;
+    Some(Duration::from_millis(ticks * 1000 / USER_HZ))
+}
+
+/// A wait's bound by the guest's progress rather than the host's speed: the
+/// wait may go on while QEMU has used less than `budget` of CPU time since
+/// the serial console last grew (on a busy host QEMU gets less of the CPU,
+/// and the budget stretches with it), and for at most
+/// [`WALL_CLOCK_CEILING`] in all.
+struct Watchdog {
+    budget: Duration,
+    started: Instant,
+    /// QEMU's CPU time when the console last grew (or the wait began).
+    cpu_at_progress: Duration,
+    cpu_now: Duration,
+    console_bytes: usize,
+}
+
+impl Watchdog {
+    fn new(pid: u32, budget: Duration, console_bytes: usize) -> Watchdog {
+        let cpu = process_cpu_time(pid).unwrap_or_default();
+        Watchdog {
+            budget,
+            started: Instant::now(),
+            cpu_at_progress: cpu,
+            cpu_now: cpu,
+            console_bytes,
+        }
+    }
+
+    /// `None` while the wait may go on, else why it may not.
+    fn expired(&mut self, pid: u32, console_bytes: usize) -> Option<String> {
+        if let Some(cpu) = process_cpu_time(pid) {
+            self.cpu_now = cpu;
+        }
+        if console_bytes != self.console_bytes {
+            self.console_bytes = console_bytes;
+            self.cpu_at_progress = self.cpu_now;
+        }
+        let quiet = self.cpu_now.saturating_sub(self.cpu_at_progress);
+        let waited = self.started.elapsed();
+        if quiet >= self.budget {
+            Some(format!(
+                "QEMU ran {quiet:.1?} of CPU time (its budget: {:?}) without a new line on \
+                 serial ({waited:.1?} of wall-clock time into the wait)",
+                self.budget
+            ))
+        } else if waited >= WALL_CLOCK_CEILING {
+            Some(format!(
+                "{waited:.1?} of wall-clock time passed, the ceiling of any wait \
+                 (QEMU ran {quiet:.1?} of CPU time since serial last grew: a guest \
+                 hung without using the CPU, or printing on and on without it)"
+            ))
+        } else {
+            None
+        }
+    }
 }
 
 /// A running QEMU: its serial console (read on a thread as it arrives) and
 /// its QMP monitor for keys and screendumps. Dropping it kills QEMU.
 pub struct Qemu {
     child: Child,
+    /// Just before QEMU was started.
+    started: Instant,
     serial: Arc<SerialLog>,
     monitor: BufReader<UnixStream>,
     scratch: tempfile::TempDir,
@@ -376,12 +498,24 @@ impl Qemu {
         let monitor_path = scratch.path().join("monitor.sock");
 
         let mut command = Command::new(QEMU_BINARY);
+        let image = format!("format=raw,file={},snapshot=on", options.image.display());
+        match options.disk {
+            DiskAttachment::HardDisk => {
+                command.arg("-drive").arg(image);
+            }
+            DiskAttachment::UsbStick(host) => {
+                command
+                    .arg("-drive")
+                    .arg(format!("if=none,id=stick,{image}"))
+                    .arg("-device")
+                    .arg(format!("{},id={STICK_HOST_ID}", host.device()))
+                    .arg("-device")
+                    .arg(format!(
+                        "usb-storage,bus={STICK_HOST_ID}.0,drive=stick,bootindex=0"
+                    ));
+            }
+        }
         command
-            .arg("-drive")
-            .arg(format!(
-                "format=raw,file={},snapshot=on",
-                options.image.display()
-            ))
             .args(["-m", "256M", "-no-reboot", "-serial", "stdio"])
             .arg("-qmp")
             .arg(format!(
@@ -445,6 +579,7 @@ impl Qemu {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped());
 
+        let started = Instant::now();
         let mut child = command
             .spawn()
             .map_err(|e| QemuError::NotInstalled(format!("cannot start {QEMU_BINARY}: {e}")))?;
@@ -463,6 +598,7 @@ impl Qemu {
         let monitor = connect_monitor(&monitor_path, &mut child, &serial)?;
         let mut qemu = Qemu {
             child,
+            started,
             serial,
             monitor: BufReader::new(monitor),
             scratch,
@@ -474,45 +610,95 @@ impl Qemu {
 
     /// Everything the kernel has printed on serial so far.
     pub fn serial(&self) -> String {
-        self.serial.text.lock().unwrap().clone()
+        self.serial.console.lock().unwrap().text.clone()
+    }
+
+    /// The CPU time QEMU has used so far (all its threads): how far the
+    /// emulated machine has got, whatever else the host runs; `None` once
+    /// QEMU has exited. For a test's own bound by the guest's progress.
+    pub fn cpu_time(&self) -> Option<Duration> {
+        process_cpu_time(self.child.id())
+    }
+
+    /// When the line holding the first `needle` on serial arrived, counted
+    /// from just before QEMU started; `None` if it has not.
+    pub fn arrival(&self, needle: &str) -> Option<Duration> {
+        let console = self.serial.console.lock().unwrap();
+        let at = console.text.find(needle)?;
+        let (_, arrived) = console.arrivals.iter().find(|(end, _)| *end > at)?;
+        Some(arrived.duration_since(self.started))
+    }
+
+    /// When QEMU's first output arrived (the guest's first line on serial,
+    /// unless QEMU warned on stderr first), counted from just before QEMU
+    /// started; `None` before any.
+    pub fn first_output(&self) -> Option<Duration> {
+        let console = self.serial.console.lock().unwrap();
+        let (_, arrived) = console.arrivals.first()?;
+        Some(arrived.duration_since(self.started))
     }
 
     /// Waits until the serial console contains `needle`; returns the console.
-    pub fn wait_for_serial(&mut self, needle: &str, timeout: Duration) -> Result<String> {
-        self.wait_for_serial_count(needle, 1, timeout)
+    /// `budget` bounds the wait by the guest's progress: it fails once QEMU
+    /// has used that much CPU time with nothing new on serial (see
+    /// [`WALL_CLOCK_CEILING`] for the wall-clock bound).
+    pub fn wait_for_serial(&mut self, needle: &str, budget: Duration) -> Result<String> {
+        self.wait_for_serial_count(needle, 1, budget)
     }
 
-    /// Waits until `needle` has appeared `count` times on the serial console.
+    /// Waits until `needle` has appeared `count` times on the serial
+    /// console; `budget` as for [`Qemu::wait_for_serial`].
     pub fn wait_for_serial_count(
         &mut self,
         needle: &str,
         count: usize,
-        timeout: Duration,
+        budget: Duration,
     ) -> Result<String> {
-        let deadline = Instant::now() + timeout;
-        let mut text = self.serial.text.lock().unwrap();
+        let what = format!("{needle:?} (x{count})");
+        self.wait_for_console(&what, budget, |text| text.matches(needle).count() >= count)
+    }
+
+    /// Waits until `done` holds for the serial console (`what` names it in
+    /// an error); `budget` as for [`Qemu::wait_for_serial`].
+    pub fn wait_for_console(
+        &mut self,
+        what: &str,
+        budget: Duration,
+        done: impl Fn(&str) -> bool,
+    ) -> Result<String> {
+        let pid = self.child.id();
+        let mut console = self.serial.console.lock().unwrap();
+        // Firmware screens with no newline yet are progress too.
+        let seen = |console: &Console| console.text.len() + console.partial.len();
+        let mut watchdog = Watchdog::new(pid, budget, seen(&console));
         loop {
-            if text.matches(needle).count() >= count {
-                return Ok(text.clone());
+            if done(&console.text) {
+                return Ok(console.text.clone());
             }
-            let partial = self.serial.partial.lock().unwrap().clone();
-            let with_partial = format!("{text}{partial}");
-            if !partial.is_empty() && with_partial.matches(needle).count() >= count {
-                return Ok(with_partial);
-            }
-            let now = Instant::now();
-            if now >= deadline {
-                return Err(QemuError::Timeout(format!(
-                    "timed out after {timeout:?} waiting for {needle:?} (x{count}) on serial; console so far:\n{text}"
-                )));
+            if !console.partial.is_empty() {
+                let with_partial = format!("{}{}", console.text, console.partial);
+                if done(&with_partial) {
+                    return Ok(with_partial);
+                }
             }
             if let Ok(Some(status)) = self.child.try_wait() {
                 return Err(QemuError::Exited(format!(
-                    "QEMU exited ({status}) before {needle:?} appeared; console:\n{text}"
+                    "QEMU exited ({status}) before {what} appeared; console:\n{}",
+                    console.text
                 )));
             }
-            let wait = (deadline - now).min(Duration::from_millis(100));
-            text = self.serial.grew.wait_timeout(text, wait).unwrap().0;
+            if let Some(why) = watchdog.expired(pid, seen(&console)) {
+                return Err(QemuError::Timeout(format!(
+                    "gave up waiting for {what} on serial: {why}; console so far:\n{}",
+                    console.text
+                )));
+            }
+            console = self
+                .serial
+                .grew
+                .wait_timeout(console, Duration::from_millis(100))
+                .unwrap()
+                .0;
         }
     }
 
@@ -657,7 +843,36 @@ impl Qemu {
         RgbImage::from_ppm(&bytes).map_err(QemuError::Screendump)
     }
 
-    /// Waits for QEMU to exit by itself; `None` if it is still running.
+    /// Waits for QEMU to exit by itself, `budget` bounding the wait as for
+    /// [`Qemu::wait_for_serial`]; an error if it has not.
+    pub fn wait_for_exit(&mut self, budget: Duration) -> Result<ExitStatus> {
+        let pid = self.child.id();
+        let mut watchdog = Watchdog::new(pid, budget, self.serial_bytes());
+        loop {
+            if let Some(status) = self
+                .child
+                .try_wait()
+                .map_err(|e| QemuError::Io(e.to_string()))?
+            {
+                return Ok(status);
+            }
+            if let Some(why) = watchdog.expired(pid, self.serial_bytes()) {
+                return Err(QemuError::Timeout(format!(
+                    "QEMU did not exit: {why}; console:\n{}",
+                    self.serial()
+                )));
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+
+    fn serial_bytes(&self) -> usize {
+        self.serial.console.lock().unwrap().text.len()
+    }
+
+    /// Waits up to `timeout` of wall-clock time for QEMU to exit by itself;
+    /// `None` if it is still running. For a check that QEMU stays up, and a
+    /// person's time limit; to wait for an exit, [`Qemu::wait_for_exit`].
     pub fn wait_exit(&mut self, timeout: Duration) -> Result<Option<ExitStatus>> {
         let deadline = Instant::now() + timeout;
         loop {
@@ -677,17 +892,19 @@ impl Qemu {
 
     /// Waits until the guest has powered the machine off, with QEMU kept
     /// running by [`QemuOptions::keep_after_power_off`]: QMP's `query-status`
-    /// then says `shutdown`.
-    pub fn wait_powered_off(&mut self, timeout: Duration) -> Result<()> {
-        let deadline = Instant::now() + timeout;
+    /// then says `shutdown`. `budget` bounds the wait as for
+    /// [`Qemu::wait_for_serial`].
+    pub fn wait_powered_off(&mut self, budget: Duration) -> Result<()> {
+        let pid = self.child.id();
+        let mut watchdog = Watchdog::new(pid, budget, self.serial_bytes());
         loop {
             let status = self.execute(json!({ "execute": "query-status" }))?;
             if status["status"] == "shutdown" {
                 return Ok(());
             }
-            if Instant::now() >= deadline {
+            if let Some(why) = watchdog.expired(pid, self.serial_bytes()) {
                 return Err(QemuError::Timeout(format!(
-                    "the machine was not powered off after {timeout:?} (QEMU says {status}); console:\n{}",
+                    "the machine was not powered off (QEMU says {status}): {why}; console:\n{}",
                     self.serial()
                 )));
             }
@@ -747,7 +964,9 @@ fn spawn_reader(stream: impl Read + Send + 'static, log: Arc<SerialLog>, echo: b
                 _ => break,
             };
             reader.consume(chunk.len());
+            let arrived = Instant::now();
             pending.extend_from_slice(&chunk);
+            let mut console = log.console.lock().unwrap();
             while let Some(end) = pending.iter().position(|&byte| byte == b'\n') {
                 let line: Vec<u8> = pending.drain(..=end).collect();
                 let text = String::from_utf8_lossy(&line).replace('\r', "");
@@ -755,33 +974,43 @@ fn spawn_reader(stream: impl Read + Send + 'static, log: Arc<SerialLog>, echo: b
                     print!("{text}");
                     let _ = std::io::stdout().flush();
                 }
-                log.text.lock().unwrap().push_str(&text);
+                console.text.push_str(&text);
+                let end = console.text.len();
+                console.arrivals.push((end, arrived));
             }
-            *log.partial.lock().unwrap() = String::from_utf8_lossy(&pending).replace('\r', "");
+            console.partial = String::from_utf8_lossy(&pending).replace('\r', "");
+            drop(console);
             log.grew.notify_all();
         }
     });
 }
 
+/// QEMU's CPU time to open its monitor socket: QEMU sets the machine up
+/// first, in well under a second.
+const MONITOR_BUDGET: Duration = Duration::from_secs(10);
+
 fn connect_monitor(path: &Path, child: &mut Child, log: &SerialLog) -> Result<UnixStream> {
-    let deadline = Instant::now() + Duration::from_secs(10);
+    let pid = child.id();
+    let mut watchdog = Watchdog::new(pid, MONITOR_BUDGET, 0);
     loop {
         match UnixStream::connect(path) {
             Ok(stream) => {
-                stream.set_read_timeout(Some(Duration::from_secs(60))).ok();
+                // A reply (a screendump's, a key's) is bounded only by the
+                // ceiling: on a busy host it may take a while.
+                stream.set_read_timeout(Some(WALL_CLOCK_CEILING)).ok();
                 return Ok(stream);
             }
             Err(e) => {
                 if let Ok(Some(status)) = child.try_wait() {
                     std::thread::sleep(Duration::from_millis(100)); // let the reader collect stderr
-                    let output = log.text.lock().unwrap().clone();
+                    let output = log.console.lock().unwrap().text.clone();
                     return Err(QemuError::Exited(format!(
                         "QEMU exited at start ({status}): {output}"
                     )));
                 }
-                if Instant::now() >= deadline {
+                if let Some(why) = watchdog.expired(pid, 0) {
                     return Err(QemuError::Timeout(format!(
-                        "QEMU's monitor socket never opened: {e}"
+                        "QEMU's monitor socket never opened ({e}): {why}"
                     )));
                 }
                 std::thread::sleep(Duration::from_millis(20));

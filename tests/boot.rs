@@ -140,9 +140,8 @@ fn the_host_sees_the_debug_exit_codes() {
         let option = BootOption::Exit(exit);
         let mut qemu = boot(Some(option));
         let status = qemu
-            .wait_exit(BOOT_TIMEOUT)
-            .unwrap()
-            .expect("the kernel ended QEMU");
+            .wait_for_exit(BOOT_TIMEOUT)
+            .unwrap_or_else(|e| panic!("the kernel did not end QEMU: {e}"));
         assert_eq!(status.code(), Some(code), "{option}");
     }
 }

@@ -151,9 +151,8 @@ fn the_report_key_shows_the_report_and_escape_says_goodbye() {
     common::report_round_trip(&mut qemu, 1, "Bios", |model, _| common::doubled(model));
     qemu.send_key("esc").unwrap();
     let status = qemu
-        .wait_exit(BOOT_TIMEOUT)
-        .unwrap()
-        .expect("QEMU powered off");
+        .wait_for_exit(BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("QEMU powered off: {e}"));
     assert_eq!(status.code(), Some(boot::qemu::EXIT_SUCCESS));
     assert!(qemu.serial().contains(boot::line::GOODBYE));
 }

@@ -15,7 +15,6 @@ mod common;
 use boot::{Board, Graphics, Qemu};
 use common::{after_each_key_on, assert_same_picture, boot_bios_on_board, BOOT_TIMEOUT};
 use demo::command::{Axis, Command, SceneCommand, Sense};
-use std::time::Duration;
 
 /// A reset (the spin stops), moves, turns and lighting: every kind of frame.
 const KEYS: [(&str, Command); 5] = [
@@ -59,9 +58,8 @@ fn leaves_through_bios_text_mode(qemu: &mut Qemu, graphics: Graphics) {
         "{graphics:?}: goodbye did not use the BIOS's text mode:\n{console}"
     );
     let status = qemu
-        .wait_exit(Duration::from_secs(30))
-        .unwrap()
-        .expect("QEMU powers off after the goodbye");
+        .wait_for_exit(BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("QEMU powers off after the goodbye: {e}"));
     assert_eq!(status.code(), Some(33), "{graphics:?}: {status}");
 }
 

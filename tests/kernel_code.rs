@@ -1,6 +1,7 @@
-//! Checks on the kernel's machine code, read back from the ELF file the
-//! images carry (the toolchain's `llvm-objdump`): the two things hardware
-//! floating point depends on (`kernel/src/fpu.rs`).
+//! Checks on the kernel's machine code, read back from the full kernel ELF
+//! (the toolchain's `llvm-objdump`; the file the images carry is the same
+//! code without symbols): the two things hardware floating point depends on
+//! (`kernel/src/fpu.rs`).
 //!
 //! - The ELF entry point is `kernel_entry`, which sets CR4.OSFXSR and
 //!   CR4.OSXMMEXCPT before it jumps to bootloader_api's `_start`: without it
@@ -54,7 +55,7 @@ fn kernel_functions() -> BTreeMap<String, Vec<String>> {
             "--x86-asm-syntax=intel",
             "--demangle",
         ])
-        .arg(env!("KERNEL_ELF"))
+        .arg(env!("KERNEL_DEBUG_ELF"))
         .output()
         .expect("llvm-objdump runs");
     assert!(output.status.success(), "llvm-objdump failed");
@@ -84,7 +85,7 @@ fn kernel_functions() -> BTreeMap<String, Vec<String>> {
 }
 
 fn elf_entry() -> u64 {
-    let elf = std::fs::read(env!("KERNEL_ELF")).expect("the kernel ELF is there");
+    let elf = std::fs::read(env!("KERNEL_DEBUG_ELF")).expect("the kernel ELF is there");
     assert_eq!(&elf[..4], b"\x7fELF");
     u64::from_le_bytes(elf[24..32].try_into().unwrap())
 }
@@ -92,7 +93,7 @@ fn elf_entry() -> u64 {
 fn symbol_address(name: &str) -> Option<u64> {
     let output = Command::new(llvm_objdump())
         .args(["--syms", "--demangle"])
-        .arg(env!("KERNEL_ELF"))
+        .arg(env!("KERNEL_DEBUG_ELF"))
         .output()
         .expect("llvm-objdump runs");
     String::from_utf8_lossy(&output.stdout)

@@ -5,7 +5,10 @@
 //! and scan-converted each frame: the crowd's worst case, at any size.
 //!
 //! `N` is the most it can hold; the objects live inside it (about 1.1 KiB
-//! each), so a large grid belongs in a static: [`Grid::new`] is `const`.
+//! each), so a large grid belongs in a static: [`Grid::new`] is `const`, and
+//! an empty grid is all zero bytes (its places are empty until
+//! [`Grid::reset`] fills them), so such a static costs the kernel file
+//! nothing (it lands in `.bss`).
 //!
 //! # Example
 //!
@@ -23,7 +26,7 @@
 //! ```
 
 use crate::depth::render_faces_with_depth;
-use crate::solids::{CUBE, SHAPES};
+use crate::solids::SHAPES;
 use core::f64::consts::PI;
 use core::ops::Range;
 use engine::{DepthBand, FaceCounts, Object, VisibleFace, Xform, PROJECTION_RATIO};
@@ -44,7 +47,8 @@ const TURNS_PER_REORTHONORMALIZATION: u32 = 64;
 /// Up to `N` solids in a grid; see the module.
 #[derive(Debug)]
 pub struct Grid<const N: usize> {
-    objects: [Object; N],
+    /// The first `count` hold solids.
+    objects: [Place; N],
     count: usize,
     turns: u32,
 }
@@ -59,7 +63,7 @@ impl<const N: usize> Grid<N> {
     /// An empty grid (`reset` places the solids).
     pub const fn new() -> Self {
         Grid {
-            objects: [const { Object::new(&CUBE, Xform::identity()) }; N],
+            objects: [const { Place::Empty }; N],
             count: 0,
             turns: 0,
         }
@@ -84,12 +88,19 @@ impl<const N: usize> Grid<N> {
         let columns = columns_for(self.count);
         let rows = self.count.div_ceil(columns).max(1);
         let depth = depth_to_fit(columns, rows);
-        for (index, object) in self.objects[..self.count].iter_mut().enumerate() {
+        for (index, place) in self.objects[..self.count].iter_mut().enumerate() {
             let (column, row) = ((index % columns) as f64, (index / columns) as f64);
             let x = (column - (columns as f64 - 1.0) / 2.0) * SPACING;
             let y = ((rows as f64 - 1.0) / 2.0 - row) * SPACING;
-            object.set_model(SHAPES[index % SHAPES.len()].model);
-            *object.object_to_world_mut() = Xform::translation(x, y, depth);
+            let model = SHAPES[index % SHAPES.len()].model;
+            let object_to_world = Xform::translation(x, y, depth);
+            match place {
+                Place::Solid(object) => {
+                    object.set_model(model);
+                    *object.object_to_world_mut() = object_to_world;
+                }
+                Place::Empty => *place = Place::Solid(Object::new(model, object_to_world)),
+            }
         }
     }
 
@@ -97,7 +108,7 @@ impl<const N: usize> Grid<N> {
     pub fn tick(&mut self) {
         self.turns += 1;
         let reorthonormalize = self.turns.is_multiple_of(TURNS_PER_REORTHONORMALIZATION);
-        for (index, object) in self.objects[..self.count].iter_mut().enumerate() {
+        for (index, object) in solids(&mut self.objects[..self.count]).enumerate() {
             let angle = TURN * (1.0 + (index % 5) as f64 / 4.0);
             let xform = object.object_to_world_mut();
             if index % 2 == 0 {
@@ -116,7 +127,7 @@ impl<const N: usize> Grid<N> {
     pub fn render(&mut self, image: &mut PageImage, band: &mut DepthBand) -> FaceCounts {
         let objects = &mut self.objects[..self.count];
         render_faces_with_depth(image, band, |clip, draw| {
-            each_visible_face_in_rows(objects, clip.y0..clip.y1, |visible| {
+            each_visible_face_in_rows(solids(objects), clip.y0..clip.y1, |visible| {
                 draw(visible, visible.face.colour)
             })
         })
@@ -127,8 +138,8 @@ impl<const N: usize> Grid<N> {
 /// leaving out (while still counting) the faces whose corners all lie above
 /// or all below `rows`: a band's faces, without paying for the depth plane of
 /// a face that misses the band.
-fn each_visible_face_in_rows(
-    objects: &mut [Object],
+fn each_visible_face_in_rows<'a>(
+    objects: impl IntoIterator<Item = &'a mut Object>,
     rows: Range<i32>,
     mut draw: impl FnMut(&VisibleFace),
 ) -> FaceCounts {
@@ -144,6 +155,27 @@ fn each_visible_face_in_rows(
         });
     }
     counts
+}
+
+/// A place in the grid. `repr(u8)`, so that an empty place is a zero tag
+/// and undefined bytes, and an empty grid all zero: `Option<Object>` marks
+/// `None` with a spare value (2) of one of the object's `bool`s.
+#[derive(Debug)]
+#[repr(u8)]
+// The place is the object's storage, in the grid itself (no heap): an empty
+// place's unused bytes are the point.
+#[allow(clippy::large_enum_variant)]
+enum Place {
+    Empty,
+    Solid(Object),
+}
+
+/// The solids in `places`, in order.
+fn solids(places: &mut [Place]) -> impl Iterator<Item = &mut Object> {
+    places.iter_mut().filter_map(|place| match place {
+        Place::Solid(object) => Some(object),
+        Place::Empty => None,
+    })
 }
 
 /// Columns for `count` solids in a grid about as wide, for its height, as

@@ -27,8 +27,8 @@ use core::fmt;
 /// The kernel's ring: 256 lines of up to 120 bytes (about 31 KiB).
 pub type KernelLog = LogRing<256, 120>;
 
-/// One line of text built without a heap: its bytes, all printable ASCII
-/// (anything else becomes `?`), text past `BYTES` cut. The log's lines, the
+/// One line of text built without a heap: its first `len` bytes, all
+/// printable ASCII (anything else becomes `?`), text past `BYTES` cut. The log's lines, the
 /// statistics lines of the on-screen display and the fault panel's lines are
 /// all this one type.
 #[derive(Clone, Copy)]
@@ -41,7 +41,9 @@ impl<const BYTES: usize> LogLine<BYTES> {
     /// An empty line.
     pub const fn new() -> Self {
         LogLine {
-            bytes: [b' '; BYTES],
+            // Never read past `len`; zeros keep an empty log's static in
+            // .bss, out of the kernel file.
+            bytes: [0; BYTES],
             len: 0,
         }
     }

@@ -26,7 +26,8 @@ const GRID_FRAMES: u64 = 30;
 const GRID_START: usize = 16;
 const GRID_LIMIT: usize = 1024;
 
-/// The grid's solids (about 1.1 KiB each: 1.1 MiB, so a static).
+/// The grid's solids (about 1.1 KiB each: 1.1 MiB, so a static; empty, it
+/// is all zero, so in .bss and not in the kernel file).
 static GRID: Mutex<Grid<GRID_LIMIT>> = Mutex::new(Grid::new());
 
 /// Mean microseconds per frame for `drawer` over the spinning scene, with

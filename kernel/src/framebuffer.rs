@@ -26,9 +26,10 @@ use modex::soft::SoftVga;
 use modex::{ModeX, SCREEN_HEIGHT, SCREEN_WIDTH};
 use spin::{Mutex, MutexGuard};
 
-/// The software VGA standing in for the missing one, powered on at compile
-/// time: at ~300 KiB it must never pass through the stack.
-static SOFT_VGA: Mutex<SoftVga> = Mutex::new(SoftVga::new());
+/// The software VGA standing in for the missing one: ~300 KiB of zeros
+/// (.bss, nothing in the kernel file), powered on in place when taken; it
+/// must never pass through the stack.
+static SOFT_VGA: Mutex<SoftVga> = Mutex::new(SoftVga::unpowered());
 
 /// The last presented picture, the new one and what the last four presents
 /// changed, ~880 KiB of zeros (.bss).
@@ -104,6 +105,7 @@ pub fn take_over(
 ) -> (&'static mut SoftVga, &'static mut Display) {
     static DISPLAY: Mutex<Option<Display>> = Mutex::new(None);
     let soft = MutexGuard::leak(SOFT_VGA.try_lock().expect("the software VGA is taken once"));
+    soft.power_on();
     let presenter = MutexGuard::leak(PRESENTER.try_lock().expect("the presenter is taken once"));
     let slot = MutexGuard::leak(DISPLAY.try_lock().expect("the display is made once"));
     let soft: *mut SoftVga = soft;

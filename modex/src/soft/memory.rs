@@ -78,6 +78,14 @@ impl VideoMemory {
         }
     }
 
+    /// Every byte, latch and write stamp back to zero, in place.
+    pub(super) fn clear(&mut self) {
+        self.planes.as_flattened_mut().fill(0);
+        self.latches = [0; PLANE_COUNT];
+        self.writes = 0;
+        self.block_written.fill(0);
+    }
+
     /// Notes a write at plane offset `offset` (in any plane): one store, as
     /// it runs on every CPU write. Reads (which load the latches) never call it.
     fn note_write(&mut self, offset: usize) {

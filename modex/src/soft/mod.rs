@@ -144,6 +144,59 @@ impl SoftVga {
         }
     }
 
+    /// Every register, counter and byte of video memory zero: no state a VGA
+    /// is ever in, only storage for one. [`SoftVga::power_on`] makes it what
+    /// [`SoftVga::new`] gives. For a kernel's static: an all-zero static
+    /// lands in `.bss` and costs the kernel file nothing, where `new`'s few
+    /// non-zero registers put all ~300 KiB in `.data`.
+    pub const fn unpowered() -> Self {
+        Self {
+            registers: Registers::unpowered(),
+            memory: VideoMemory::new(),
+            timing: CrtTiming {
+                dot_clock_hz: 0,
+                dots_per_character: 0,
+                characters_per_line: 0,
+                display_characters: 0,
+                lines_per_frame: 0,
+                display_lines: 0,
+                retrace_start_line: 0,
+                retrace_lines: 0,
+            },
+            now_ns: 0,
+            displayed_start: 0,
+            frame_count: 0,
+            // `None` is the byte 2; power-on sets it.
+            retrace_stuck: Some(false),
+            register_writes: 0,
+            colour_writes: 0,
+            counts: BusCounts {
+                port_writes: 0,
+                port_reads: 0,
+                vram_writes: 0,
+                vram_reads: 0,
+            },
+            guard: WriteGuard::new(),
+        }
+    }
+
+    /// Power-on in place: the state [`SoftVga::new`] gives, whatever the
+    /// state before, without building a second ~300 KiB model on the stack.
+    pub fn power_on(&mut self) {
+        let registers = Registers::with_mode(&TEXT_80X25, &EGA_PALETTE);
+        self.timing = CrtTiming::from_registers(&registers);
+        self.displayed_start = registers.start_address();
+        self.registers = registers;
+        self.memory.clear();
+        self.now_ns = 0;
+        self.frame_count = 0;
+        self.retrace_stuck = None;
+        self.register_writes = 0;
+        self.colour_writes = 0;
+        self.counts = BusCounts::default();
+        self.guard = WriteGuard::new();
+    }
+
     // --- Registers, as the hardware holds them.
 
     /// Miscellaneous Output.
@@ -392,5 +445,48 @@ impl VgaBus for SoftVga {
     /// still scan out from the old page's address.
     fn flush(&mut self) {
         self.let_a_frame_pass();
+    }
+}
+
+#[cfg(test)]
+mod power_on_tests {
+    use super::*;
+    extern crate std;
+    use std::boxed::Box;
+    use std::format;
+
+    /// Every field, compared: `power_on` must give exactly what `new` does.
+    fn assert_same_state(a: &SoftVga, b: &SoftVga) {
+        assert_eq!(format!("{:?}", a.registers), format!("{:?}", b.registers));
+        assert_eq!(a.memory.planes, b.memory.planes);
+        assert_eq!(a.memory.latches, b.memory.latches);
+        assert_eq!(a.memory.writes, b.memory.writes);
+        assert_eq!(a.memory.block_written, b.memory.block_written);
+        assert_eq!(a.timing, b.timing);
+        assert_eq!(
+            (a.now_ns, a.displayed_start, a.frame_count, a.retrace_stuck),
+            (b.now_ns, b.displayed_start, b.frame_count, b.retrace_stuck)
+        );
+        assert_eq!(
+            (a.register_writes, a.colour_writes, a.counts),
+            (b.register_writes, b.colour_writes, b.counts)
+        );
+        assert_eq!(format!("{:?}", a.guard), format!("{:?}", b.guard));
+    }
+
+    #[test]
+    fn power_on_gives_what_new_gives_from_unpowered_and_from_a_used_model() {
+        let new = Box::new(SoftVga::new());
+        let mut vga = Box::new(SoftVga::unpowered());
+        vga.power_on();
+        assert_same_state(&vga, &new);
+
+        // Used: registers, memory, clock, counts and guard all changed.
+        crate::ModeX::new(&mut *vga).set_mode();
+        vga.write_vram8(0x10, 0xAB);
+        vga.advance_ns(1_000_000);
+        vga.set_retrace_stuck(Some(true));
+        vga.power_on();
+        assert_same_state(&vga, &new);
     }
 }

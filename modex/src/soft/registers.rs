@@ -84,6 +84,36 @@ pub(super) struct Registers {
 }
 
 impl Registers {
+    /// Every register zero (see [`super::SoftVga::unpowered`]).
+    pub(super) const fn unpowered() -> Self {
+        Self {
+            misc_output: 0,
+            feature_control: 0,
+            sequencer_index: 0,
+            sequencer: [0; Sequencer::COUNT],
+            crtc_index: 0,
+            crtc: [0; Crtc::COUNT],
+            graphics_index: 0,
+            graphics: [0; Graphics::COUNT],
+            attribute_index: 0,
+            attribute_expects_data: false,
+            attribute: [0; Attribute::COUNT],
+            dac: Dac {
+                palette: [[0; 3]; 256],
+                pixel_mask: 0,
+                write_index: 0,
+                read_index: 0,
+                component: 0,
+                pending: [0; 3],
+                state: 0,
+            },
+            dispi: Dispi {
+                index: 0,
+                enable: 0,
+            },
+        }
+    }
+
     /// The registers as `mode` programs them, the DAC loaded with `palette`
     /// from entry 0 and the rest black.
     pub(super) const fn with_mode(mode: &ModeRegisters, palette: &[Rgb6]) -> Self {
