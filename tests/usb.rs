@@ -1,4 +1,4 @@
-//! A USB keyboard through the xHCI controller, in QEMU. Two boots:
+//! A USB keyboard through the xHCI controller, in QEMU. Three boots:
 //!
 //! - OVMF on a Q35 without an i8042 or a PIT (a UEFI-only desktop), the keyboard
 //!   behind a `usb-hub`: the cube test's key sequence gives the software
@@ -9,6 +9,9 @@
 //!   USB keyboard alone act exactly once each (the firmware's own USB
 //!   keyboard support is gone once the kernel has the controller), and PS/2
 //!   keys act too.
+//! - OVMF with no keyboard at boot: one plugged in with QMP `device_add`
+//!   after `screen: ready` is found and its keys act; pulled out
+//!   (`device_del`) it is let go of; plugged in again its keys act again.
 //!
 //! Keys reach the USB keyboard alone because it is bound to the display
 //! (`display=video0`) and sent there (`Qemu::press_key_on`); `sendkey`
@@ -355,4 +358,48 @@ fn esc_powers_off_with_the_xhci_halted_first() {
     );
     assert!(console.contains(line::GOODBYE), "{console}");
     assert_eq!(status.code(), Some(0), "{console}");
+}
+
+#[test]
+fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_acts_again() {
+    let board = Board {
+        chipset: Chipset::Q35,
+        pit: false,
+        i8042: false,
+        hpet: true,
+    };
+    let devices = vec!["qemu-xhci,id=xhci".to_string()];
+    let mut qemu = start(Firmware::Uefi, Graphics::BochsDisplay, board, devices);
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(
+        console.contains("usb: no USB keyboard on the xHCI"),
+        "{console}"
+    );
+    const FOUND: &str = "keyboard: USB keyboard, read by its report descriptor";
+    // QEMU's bus port 1 is the xHCI's first USB 2 port, after its USB 3 ones.
+    const PLUGGED: &str = ": device plugged in";
+    const GONE: &str = ": device gone";
+    let keyboard = [
+        ("id", "kbd2"),
+        ("bus", "xhci.0"),
+        ("port", "1"),
+        ("display", DISPLAY_ID),
+    ];
+    let mut done = 0;
+    for round in 1..=2 {
+        qemu.device_add("usb-kbd", &keyboard).unwrap();
+        qemu.wait_for_serial_count(FOUND, round, BOOT_TIMEOUT)
+            .unwrap();
+        // Each key acts once: two keys, two commands.
+        done = send_and_wait(&mut qemu, &[("6", true), ("6", false)], done, 1);
+        done = send_and_wait(&mut qemu, &[("4", true), ("4", false)], done, 1);
+        qemu.device_del("kbd2").unwrap();
+        qemu.wait_for_serial_count(GONE, round, BOOT_TIMEOUT)
+            .unwrap();
+    }
+    let console = qemu.serial();
+    assert_eq!(console.matches(PLUGGED).count(), 2, "{console}");
+    assert_eq!(commands_done(&console), 4, "{console}");
 }

@@ -133,6 +133,8 @@ pub struct Model {
     pub needs_two_step: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
+    /// Root port 1 is empty after the controller's reset (plugged later).
+    pub empty_at_start: bool,
     /// The keyboard's interrupt endpoint was reset and awaits its dequeue pointer.
     endpoint_stopped: bool,
     // Registers.
@@ -181,6 +183,7 @@ impl Model {
             ignores_set_protocol: false,
             needs_two_step: false,
             hub: false,
+            empty_at_start: false,
             endpoint_stopped: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
@@ -695,6 +698,26 @@ impl Model {
         ]));
     }
 
+    /// A keyboard (or the hub, with `hub`) is plugged into root port 1, in
+    /// the state a device has after power-on: the port connects and the
+    /// controller says so with a Port Status Change event.
+    pub fn plug(&mut self) {
+        const CONNECT_CHANGE: u32 = 1 << 17;
+        self.keyboard = KeyboardState {
+            protocol: 1,
+            ..KeyboardState::default()
+        };
+        self.hub_state = HubState::default();
+        self.endpoint_stopped = false;
+        self.portsc[0] = 1 | 1 << 9 | 1 << 10 | CONNECT_CHANGE;
+        self.post_event(Trb([
+            1 << 24,
+            0,
+            1 << 24,
+            trb_type::PORT_STATUS_CHANGE << 10,
+        ]));
+    }
+
     /// The root port's status change bits still set.
     pub fn root_port_changes(&self) -> u32 {
         self.portsc[0] & (0x7F << 17)
@@ -827,7 +850,11 @@ impl Hardware for Model {
                     self.usbcmd = 0;
                     self.usbsts = 1 | if self.cnr_stuck { 1 << 11 } else { 0 };
                     self.portsc = [0; PORTS];
-                    self.portsc[0] = 1 | 1 << 9 | 1 << 10; // connected, powered, full speed
+                    self.portsc[0] = if self.empty_at_start {
+                        1 << 9
+                    } else {
+                        1 | 1 << 9 | 1 << 10 // connected, powered, full speed
+                    };
                     self.portsc[1] = 1 << 9;
                 } else {
                     self.usbcmd = value;

@@ -639,3 +639,41 @@ fn a_keyboard_pulled_out_lets_go_of_its_keys_and_its_slot() {
         assert!(!model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
     }
 }
+
+#[test]
+fn a_keyboard_plugged_in_after_start_is_found_and_found_again_after_an_unplug() {
+    for hub in [false, true] {
+        let mut model = Model::new();
+        model.hub = hub;
+        model.empty_at_start = true;
+        let mut xhci = controller(model);
+        xhci.take_ownership();
+        xhci.reset_and_start().unwrap();
+        assert_eq!(xhci.enumerate(), 0);
+        for round in 0..3 {
+            xhci.hardware().plug();
+            // The connection settles first: nothing is asked of the device
+            // on the poll that sees the change.
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 0, "hub {hub} round {round}");
+            xhci.hardware().now += 100_000;
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 1, "hub {hub} round {round}");
+            assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+            assert_eq!(poll(&mut xhci), [0x1E], "hub {hub} round {round}");
+            assert!(xhci.hardware().send_report([0; 8]));
+            assert_eq!(poll(&mut xhci), [0x9E]);
+            xhci.hardware().unplug();
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 0);
+            xhci.hardware().now += 1_000_000;
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 0);
+        }
+        let model = xhci.hardware();
+        assert!(model.errors.is_empty(), "hub {hub}: {:?}", model.errors);
+        assert_eq!(model.root_port_changes(), 0, "changes acknowledged");
+        let devices = if hub { 6 } else { 3 };
+        assert_eq!(model.slots_disabled.len(), devices, "hub {hub}");
+    }
+}

@@ -83,6 +83,10 @@ const PORT_ENABLED: u32 = 1 << 1;
 const PORT_RESET: u32 = 1 << 4;
 const PORT_POWER: u32 = 1 << 9;
 const PORT_RESET_CHANGE: u32 = 1 << 21;
+const PORT_CONNECT_CHANGE: u32 = 1 << 17;
+/// How long a new connection must stay before it is enumerated (Linux's
+/// `HUB_DEBOUNCE_STABLE`): a plug bounces as it goes in.
+const DEBOUNCE_MICROS: u64 = 100_000;
 /// The write-1-to-clear change bits (CSC, PEC, WRC, OCC, PRC, PLC, CEC).
 const PORT_CHANGES: u32 = 0x7F << 17;
 
@@ -413,6 +417,11 @@ pub struct Xhci<H: Hardware> {
     events: Option<EventRing>,
     protocols: PortProtocols,
     devices: [Option<Device>; MAX_DEVICES],
+    /// Root ports connected since start, a bit each, waiting for their
+    /// connection to settle before they are enumerated.
+    connected_ports: [u64; 4],
+    /// When the last of them connected.
+    connected_since: u64,
 }
 
 impl<H: Hardware> Xhci<H> {
@@ -473,6 +482,8 @@ impl<H: Hardware> Xhci<H> {
             events: None,
             protocols: PortProtocols::default(),
             devices: Default::default(),
+            connected_ports: [0; 4],
+            connected_since: 0,
         })
     }
 
@@ -1437,6 +1448,7 @@ impl<H: Hardware> Xhci<H> {
             };
             self.other_event(&event, out);
         }
+        self.enumerate_connected_ports();
         let now = self.hw.now_micros();
         for index in 0..MAX_DEVICES {
             let Some(keyboard) = self.devices[index]
@@ -1543,14 +1555,21 @@ impl<H: Hardware> Xhci<H> {
 
     /// A root port's status changed. A device pulled out (or switched away
     /// by a KVM) is let go of: its held keys released, its slot disabled
-    /// (queued, not waited for), everything behind it forgotten.
+    /// (queued, not waited for), everything behind it forgotten. A device
+    /// plugged in (or switched back) is enumerated from `poll` once its
+    /// connection has settled.
     fn root_port_changed(&mut self, port: u8, out: &mut impl FnMut(u8)) {
         if port == 0 || port > self.capabilities.ports {
             return;
         }
         let register = self.portsc(port);
         let status = self.read(register);
-        if status == u32::MAX || status & PORT_CONNECTED != 0 {
+        if status == u32::MAX {
+            return;
+        }
+        let connected = status & PORT_CONNECTED != 0;
+        // A reset's own change, acknowledged where the reset is waited for.
+        if connected && status & PORT_CONNECT_CHANGE == 0 {
             return;
         }
         // Acknowledge the changes (write-1-to-clear), keeping the power,
@@ -1574,6 +1593,47 @@ impl<H: Hardware> Xhci<H> {
             self.hw.log(format_args!(
                 "usb: port {location}: device gone; its keys released and slot {slot} disabled"
             ));
+        }
+        let (word, bit) = (usize::from(port / 64), port % 64);
+        if connected {
+            self.connected_ports[word] |= 1 << bit;
+            self.connected_since = self.hw.now_micros();
+            self.hw
+                .log(format_args!("usb: port {port}: device plugged in"));
+        } else {
+            self.connected_ports[word] &= !(1 << bit);
+        }
+    }
+
+    /// Enumerates the root ports whose new connection has settled.
+    fn enumerate_connected_ports(&mut self) {
+        if self.connected_ports == [0; 4]
+            || self.hw.now_micros().saturating_sub(self.connected_since) < DEBOUNCE_MICROS
+        {
+            return;
+        }
+        let ports = core::mem::take(&mut self.connected_ports);
+        for port in 1..=self.capabilities.ports {
+            if ports[usize::from(port / 64)] & (1 << (port % 64)) == 0 {
+                continue;
+            }
+            let register = self.portsc(port);
+            let status = self.read(register);
+            if status == u32::MAX || status & PORT_CONNECTED == 0 {
+                continue;
+            }
+            let location = Location {
+                root_port: port,
+                hub_port: 0,
+            };
+            let result = self.reset_root_port(port).and_then(|()| {
+                let speed_id = (self.read(register) >> 10) & 0xF;
+                self.attach(location, 0, speed_id, None)
+            });
+            if let Err(e) = result {
+                self.hw
+                    .log(format_args!("usb: port {location}: {e}; left alone"));
+            }
         }
     }
 
