@@ -1,4 +1,4 @@
-//! A USB keyboard through the xHCI controller, in QEMU. Three boots:
+//! A USB keyboard through the xHCI controller, in QEMU. Four boots:
 //!
 //! - OVMF on a Q35 without an i8042 or a PIT (a UEFI-only desktop), the keyboard
 //!   behind a `usb-hub`: the cube test's key sequence gives the software
@@ -9,6 +9,8 @@
 //!   USB keyboard alone act exactly once each (the firmware's own USB
 //!   keyboard support is gone once the kernel has the controller), and PS/2
 //!   keys act too.
+//! - OVMF with the keyboard behind three tiers of `usb-hub`: the cube
+//!   test's keys give the software VGA's pictures.
 //! - OVMF with no keyboard at boot: one plugged in with QMP `device_add`
 //!   after `screen: ready` is found and its keys act; pulled out
 //!   (`device_del`) it is let go of; plugged in again its keys act again.
@@ -402,4 +404,48 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
     let console = qemu.serial();
     assert_eq!(console.matches(PLUGGED).count(), 2, "{console}");
     assert_eq!(commands_done(&console), 4, "{console}");
+}
+
+#[test]
+fn a_usb_keyboard_behind_three_tiers_of_hubs_drives_the_demo() {
+    let board = Board {
+        chipset: Chipset::Q35,
+        pit: false,
+        i8042: false,
+        hpet: true,
+    };
+    let devices = vec![
+        "qemu-xhci,id=xhci".to_string(),
+        "usb-hub,bus=xhci.0,port=1".to_string(),
+        "usb-hub,bus=xhci.0,port=1.1".to_string(),
+        "usb-hub,bus=xhci.0,port=1.1.1".to_string(),
+        usb_keyboard("bus=xhci.0,port=1.1.1.1"),
+    ];
+    let mut qemu = start(Firmware::Uefi, Graphics::BochsDisplay, board, devices);
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    let keyboard_line = console
+        .lines()
+        .find(|l| l.starts_with("keyboard: USB keyboard, read by its report descriptor "))
+        .unwrap_or_else(|| panic!("no USB keyboard found:\n{console}"));
+    // The root port (QEMU's bus port 1 is the first USB 2 port, after the
+    // USB 3 ones), then port 1 of each hub tier.
+    let location = keyboard_line.rsplit(" on port ").next().unwrap();
+    assert!(
+        location.ends_with(".1.1.1") && location.split('.').count() == 4,
+        "the keyboard is on port 1 of the third hub: {keyboard_line}"
+    );
+    // The cube test's keys, each compared with the software VGA.
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    let mut done = 0;
+    for (n, &(key, command)) in CUBE_KEYS.iter().enumerate() {
+        done = send_and_wait(&mut qemu, &[(key, true), (key, false)], done, 1);
+        app.apply(command);
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        let screen = qemu.screendump().unwrap();
+        let expected = presented(&model_picture(&soft), screen.width, screen.height);
+        assert_pictures_equal(&screen, &expected, &format!("usb key {} ({key})", n + 1));
+    }
 }

@@ -188,22 +188,44 @@ pub enum Handoff {
     Forced,
 }
 
-/// Where a device hangs: a root port, and a hub port below it (0: none).
+/// Where a device hangs: a root port, and the hub ports on the way down.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Location {
     /// The root hub port, 1-based.
     pub root_port: u8,
-    /// The port of the hub on `root_port`, or 0 for the root port itself.
-    pub hub_port: u8,
+    /// The route string: the port on each hub tier below the root port,
+    /// four bits a tier, the first tier lowest (0: the root port itself).
+    pub route: u32,
+}
+
+/// Hub tiers below the root hub a route string can name (USB 2.0 and
+/// xHCI: five, four bits each).
+pub const MAX_HUB_TIERS: u32 = 5;
+
+impl Location {
+    /// The hub tiers between the root port and the device.
+    pub fn depth(&self) -> u32 {
+        (0..MAX_HUB_TIERS)
+            .take_while(|tier| (self.route >> (4 * tier)) & 0xF != 0)
+            .count() as u32
+    }
+
+    /// Port `port` of the hub at this location.
+    fn below(&self, port: u8) -> Location {
+        Location {
+            root_port: self.root_port,
+            route: self.route | u32::from(port & 0xF) << (4 * self.depth()),
+        }
+    }
 }
 
 impl core::fmt::Display for Location {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        if self.hub_port == 0 {
-            write!(f, "{}", self.root_port)
-        } else {
-            write!(f, "{}.{}", self.root_port, self.hub_port)
+        write!(f, "{}", self.root_port)?;
+        for tier in 0..self.depth() {
+            write!(f, ".{}", (self.route >> (4 * tier)) & 0xF)?;
         }
+        Ok(())
     }
 }
 
@@ -900,7 +922,7 @@ impl<H: Hardware> Xhci<H> {
             }
             let location = Location {
                 root_port: port,
-                hub_port: 0,
+                route: 0,
             };
             if let Err(e) = self.reset_root_port(port) {
                 self.hw
@@ -1127,12 +1149,12 @@ impl<H: Hardware> Xhci<H> {
                 }
                 Ok(())
             }
-            Some(Function::Hub) if location.hub_port == 0 => {
+            Some(Function::Hub) if location.depth() < MAX_HUB_TIERS => {
                 self.set_up_hub(index, configuration.value)
             }
             Some(Function::Hub) => {
                 self.hw.log(format_args!(
-                    "usb: hub on port {location}: deeper hubs are not supported"
+                    "usb: hub on port {location}: past the five hub tiers a route string names; left alone"
                 ));
                 // Left addressed and unused, as a device that is not ours.
                 Ok(())
@@ -1366,10 +1388,7 @@ impl<H: Hardware> Xhci<H> {
         // Devices need up to 100 ms to connect after power (USB 2.0 7.1.7.3).
         self.pause(100_000);
         for port in 1..=ports {
-            let location = Location {
-                root_port: hub.location.root_port,
-                hub_port: port,
-            };
+            let location = hub.location.below(port);
             let status = self.hub_port_status(index, port)?;
             if status & 1 == 0 {
                 continue;
@@ -1382,9 +1401,16 @@ impl<H: Hardware> Xhci<H> {
                 } else {
                     speed::FULL
                 };
-                let translator = (hub.speed == speed::HIGH && speed_id != speed::HIGH)
-                    .then_some((hub.slot, port));
-                self.attach(location, u32::from(port), speed_id, translator)
+                // A full- or low-speed device is reached through the
+                // transaction translator of the nearest high-speed hub
+                // above it: this hub's, or the one this hub itself uses.
+                let translator = if hub.speed == speed::HIGH {
+                    (speed_id != speed::HIGH).then_some((hub.slot, port))
+                } else {
+                    let context = hub.slot_context;
+                    (context.tt_hub_slot != 0).then_some((context.tt_hub_slot, context.tt_port))
+                };
+                self.attach(location, location.route, speed_id, translator)
             });
             if let Err(e) = result {
                 self.hw
@@ -1624,7 +1650,7 @@ impl<H: Hardware> Xhci<H> {
             }
             let location = Location {
                 root_port: port,
-                hub_port: 0,
+                route: 0,
             };
             let result = self.reset_root_port(port).and_then(|()| {
                 let speed_id = (self.read(register) >> 10) & 0xF;
