@@ -403,6 +403,13 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
     }
     let console = qemu.serial();
     assert_eq!(console.matches(PLUGGED).count(), 2, "{console}");
+    // What each enumeration held the frame loop up for, as the kernel measured it.
+    let enumerations: Vec<&str> = console
+        .lines()
+        .filter(|l| l.contains(": enumerated in "))
+        .collect();
+    assert_eq!(enumerations.len(), 2, "{console}");
+    eprintln!("{}", enumerations.join("\n"));
     assert_eq!(commands_done(&console), 4, "{console}");
 }
 

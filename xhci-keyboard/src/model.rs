@@ -343,8 +343,14 @@ impl Model {
                     self.complete_command(address, 1, slot);
                 }
                 trb_type::ENABLE_SLOT => {
-                    let slot = self.next_slot;
-                    self.next_slot += 1;
+                    // The lowest slot free, as a controller hands them out
+                    // again once disabled.
+                    let Some(slot) = (1..self.slots.len()).find(|&s| !self.slots[s].enabled) else {
+                        self.complete_command(address, 9, 0); // No Slots Available
+                        continue;
+                    };
+                    let slot = slot as u8;
+                    self.next_slot = self.next_slot.max(slot + 1);
                     self.slots[usize::from(slot)].enabled = true;
                     self.complete_command(address, 1, slot);
                 }

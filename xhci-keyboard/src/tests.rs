@@ -725,3 +725,28 @@ fn a_sixth_tier_of_hubs_is_left_alone() {
     assert!(model.hub_states[..5].iter().all(|hub| hub.configured));
     assert!(!model.hub_states[5].configured, "the sixth hub is not used");
 }
+
+#[test]
+fn a_keyboard_switched_back_and_forth_a_thousand_times_still_types() {
+    let mut model = Model::new();
+    model.hub = true;
+    model.empty_at_start = true;
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 0);
+    // Each plug takes 10 pages (a hub and a keyboard); 1,000 of them are
+    // far more than the model's 1 MiB of DMA memory holds.
+    for round in 0..1000 {
+        xhci.hardware().plug();
+        assert_eq!(poll(&mut xhci), []);
+        xhci.hardware().now += 100_000;
+        assert_eq!(poll(&mut xhci), []);
+        assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+        assert_eq!(poll(&mut xhci), [0x1E], "round {round}");
+        xhci.hardware().unplug();
+        assert_eq!(poll(&mut xhci), [0x9E], "round {round}");
+    }
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+}

@@ -359,12 +359,19 @@ impl Keyboard {
     }
 }
 
-/// A bump allocator of zeroed pages in the DMA region.
+/// A bump allocator of zeroed pages in the DMA region, with the pages of
+/// devices pulled out kept for the next ones (a KVM switched back and
+/// forth all day must not run the region dry).
 #[derive(Clone, Copy, Debug)]
 struct Pages {
     next: u64,
     end: u64,
+    freed: [u64; FREED_PAGES],
+    freed_count: usize,
 }
+
+/// Pages of departed devices kept for reuse: a hub tree's worth.
+const FREED_PAGES: usize = 64;
 
 /// What the capability registers say.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -498,6 +505,8 @@ impl<H: Hardware> Xhci<H> {
             pages: Pages {
                 next: first,
                 end: dma_base + dma_bytes,
+                freed: [0; FREED_PAGES],
+                freed_count: 0,
             },
             dcbaa: 0,
             commands: None,
@@ -576,6 +585,14 @@ impl<H: Hardware> Xhci<H> {
     }
 
     fn page(&mut self) -> Result<u64> {
+        if self.pages.freed_count > 0 {
+            self.pages.freed_count -= 1;
+            let page = self.pages.freed[self.pages.freed_count];
+            for offset in (0..PAGE_BYTES).step_by(4) {
+                self.hw.mem_write(page + offset, 0);
+            }
+            return Ok(page);
+        }
         let page = self.pages.next;
         let limit = if self.capabilities.addressing_64 {
             u64::MAX
@@ -1612,7 +1629,7 @@ impl<H: Hardware> Xhci<H> {
             if let Some(keyboard) = device.keyboard.as_mut() {
                 keyboard.state.release_all(out);
             }
-            self.devices[index] = None;
+            self.free_pages_of(index);
             let mut disable = command::DisableSlot::new();
             disable.set_slot_id(slot);
             let _ = self.queue_command(Trb(disable.into_raw()));
@@ -1628,6 +1645,28 @@ impl<H: Hardware> Xhci<H> {
                 .log(format_args!("usb: port {port}: device plugged in"));
         } else {
             self.connected_ports[word] &= !(1 << bit);
+        }
+    }
+
+    /// Forgets a device and keeps its pages for the next. They are
+    /// touched again only after a later Enable Slot completes, which the
+    /// command ring runs after this device's Disable Slot.
+    fn free_pages_of(&mut self, index: usize) {
+        let Some(device) = self.devices[index].take() else {
+            return;
+        };
+        let keyboard = device.keyboard.map(|k| [k.ring.base(), k.reports]);
+        let pages = [
+            device.output,
+            device.input,
+            device.buffer,
+            device.ep0.base(),
+        ];
+        for page in pages.into_iter().chain(keyboard.into_iter().flatten()) {
+            if self.pages.freed_count < FREED_PAGES {
+                self.pages.freed[self.pages.freed_count] = page;
+                self.pages.freed_count += 1;
+            }
         }
     }
 
@@ -1652,13 +1691,21 @@ impl<H: Hardware> Xhci<H> {
                 root_port: port,
                 route: 0,
             };
+            // The enumeration holds up the poll that runs it: said, so
+            // that its cost can be seen.
+            let start = self.hw.now_micros();
             let result = self.reset_root_port(port).and_then(|()| {
                 let speed_id = (self.read(register) >> 10) & 0xF;
                 self.attach(location, 0, speed_id, None)
             });
-            if let Err(e) = result {
-                self.hw
-                    .log(format_args!("usb: port {location}: {e}; left alone"));
+            let took = self.hw.now_micros().saturating_sub(start);
+            match result {
+                Ok(()) => self.hw.log(format_args!(
+                    "usb: port {location}: enumerated in {took} us"
+                )),
+                Err(e) => self.hw.log(format_args!(
+                    "usb: port {location}: {e}; left alone after {took} us"
+                )),
             }
         }
     }
