@@ -63,6 +63,16 @@ fn main() {
             .map_err(|e| format!("the EFI system partition: {e:#}"))?;
         let esp = std::fs::read(&esp_path).map_err(|e| format!("reading the ESP back: {e}"))?;
         let _ = std::fs::remove_file(&esp_path);
+        // The pieces again, for the runner's signed stick (boot/secure_boot.rs),
+        // which lays out the same disk around an ESP with shim in it.
+        for (name, bytes) in [
+            ("hybrid-esp.fat", &esp[..]),
+            ("bios-boot-sector.bin", bootloader::bios_boot_sector()),
+            ("bios-stage-2.bin", bootloader::bios_stage_2()),
+        ] {
+            std::fs::write(out_dir.join(name), bytes)
+                .map_err(|e| format!("writing {name}: {e}"))?;
+        }
         let disk = disk_layout::hybrid_image(
             bootloader::bios_boot_sector(),
             bootloader::bios_stage_2(),
@@ -76,6 +86,16 @@ fn main() {
     println!("cargo:rustc-env=BIOS_IMAGE={}", bios.display());
     println!("cargo:rustc-env=UEFI_IMAGE={}", uefi.display());
     println!("cargo:rustc-env=KERNEL_ELF={}", kernel.display());
+    for (variable, name) in [
+        ("HYBRID_ESP", "hybrid-esp.fat"),
+        ("BIOS_BOOT_SECTOR", "bios-boot-sector.bin"),
+        ("BIOS_STAGE_2", "bios-stage-2.bin"),
+    ] {
+        println!(
+            "cargo:rustc-env={variable}={}",
+            out_dir.join(name).display()
+        );
+    }
     // The commit the kernel's report names (kernel/build.rs reads it the same
     // way, and a moved HEAD rebuilds the kernel, so this script runs again):
     // the tests compare with this, not with whatever HEAD is when they run.

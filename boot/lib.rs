@@ -31,6 +31,7 @@ pub mod disk_layout;
 pub mod image;
 pub mod images;
 pub mod qemu;
+pub mod secure_boot;
 pub mod usb;
 
 pub use image::{ImageError, RgbImage};

@@ -63,6 +63,18 @@ struct Args {
     /// UEFI), or the single-firmware `bios` (bios.img) or `uefi` (uefi.img).
     #[arg(long, value_enum, default_value_t = ImageChoice::One)]
     image: ImageChoice,
+    /// Boot (or write) the signed stick, modex-cube-secure-boot.img, with
+    /// OVMF's Secure Boot build and Microsoft's keys, its variables kept in
+    /// target/secure-boot/OVMF_VARS_4M.ms.fd (so an enrolled key stays).
+    #[arg(long)]
+    secure_boot: bool,
+    /// Sign with this private key (PEM) instead of the one kept in
+    /// ~/.config/modex-cube/secure-boot (made there on first use).
+    #[arg(long, value_name = "FILE", requires = "sign_cert")]
+    sign_key: Option<PathBuf>,
+    /// The certificate (PEM) of --sign-key.
+    #[arg(long, value_name = "FILE", requires = "sign_key")]
+    sign_cert: Option<PathBuf>,
 }
 
 /// The runner's `--image` names.
@@ -127,9 +139,17 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     let images = boot::images::publish()?;
     // The one image boots under both firmwares.
     let image = match args.image {
+        _ if args.secure_boot || args.sign_key.is_some() => {
+            signed_stick(args.sign_key.as_deref(), args.sign_cert.as_deref())?
+        }
         ImageChoice::One => images.hybrid,
         ImageChoice::Bios => images.bios,
         ImageChoice::Uefi => images.uefi,
+    };
+    let firmware = if args.secure_boot {
+        Firmware::Uefi
+    } else {
+        firmware
     };
     let mismatch = match (args.image, firmware) {
         (ImageChoice::Bios, Firmware::Uefi) => Some("bios.img has no UEFI loader"),
@@ -160,6 +180,9 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     options.graphics = args.graphics;
     options.echo_serial = true;
     options.instruction_clock = args.icount;
+    if args.secure_boot {
+        options.secure_boot_vars = Some(secure_boot_vars(&image)?);
+    }
     println!("Booting {} ({:?})", image.display(), firmware);
     let mut qemu = Qemu::start(&options)?;
 
@@ -198,6 +221,70 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
             ExitCode::FAILURE
         }
     })
+}
+
+/// Makes `target/images/modex-cube-secure-boot.img`, signed with the given
+/// key or the user's own (made on first use), and says where the key is.
+fn signed_stick(key: Option<&Path>, cert: Option<&Path>) -> anyhow::Result<PathBuf> {
+    use boot::secure_boot::{self as sb, KeyOrigin};
+    let key = match (key, cert) {
+        (Some(key), Some(cert)) => sb::given_key(key, cert)?,
+        _ => {
+            let dir = sb::default_key_dir();
+            let (key, origin) = sb::make_or_reuse_key(&dir)?;
+            if origin == KeyOrigin::Made {
+                println!(
+                    "Made your Secure Boot signing key in {} (keep it: a PC that enrolled \
+                     its certificate boots only sticks signed with it).",
+                    dir.display()
+                );
+            }
+            key
+        }
+    };
+    let shim = sb::Shim::read(&sb::default_shim_dir())?;
+    let pieces = sb::BuiltPieces::of_this_build()?;
+    let disk = sb::signed_disk(&pieces, &key, Some(&shim), sb::Route::Shim)?;
+    let path = boot::images::images_dir().join(sb::SIGNED_IMAGE_NAME);
+    sb::write_whole(&path, &disk)?;
+    println!(
+        "Signed the loader with {}; wrote {}",
+        key.cert.display(),
+        path.display()
+    );
+    Ok(path)
+}
+
+/// The Secure Boot variables kept under target/ (a copy of OVMF's with
+/// Microsoft's keys, made once), and what to do if the key is not enrolled.
+fn secure_boot_vars(image: &Path) -> anyhow::Result<PathBuf> {
+    use boot::secure_boot as sb;
+    let dir = boot::images::images_dir()
+        .parent()
+        .map(|target| target.join("secure-boot"))
+        .unwrap_or_else(|| PathBuf::from("secure-boot"));
+    std::fs::create_dir_all(&dir)?;
+    let vars = dir.join("OVMF_VARS_4M.ms.fd");
+    if !vars.exists() {
+        let fresh = std::fs::read(sb::OVMF_MICROSOFT_VARS).map_err(|e| {
+            anyhow::anyhow!(
+                "cannot read {}: {e}; install OVMF with boot/setup.sh",
+                sb::OVMF_MICROSOFT_VARS
+            )
+        })?;
+        sb::write_whole(&vars, &fresh)?;
+    }
+    let cert = boot::secure_boot::cert_of_image(image)?;
+    if !sb::is_enrolled(&std::fs::read(&vars)?, &cert) {
+        println!(
+            "Your key is not enrolled in {} yet. Shim will say \"Verification failed\": press \
+             Enter, then any key for MokManager; choose \"Enroll key from disk\", the disk, \
+             {}, \"Continue\", \"Yes\" and \"Reboot\". From then on it boots.",
+            vars.display(),
+            sb::ENROLL_FILE_NAME
+        );
+    }
+    Ok(vars)
 }
 
 /// Writes the image to a USB stick after the checks in `boot::usb` and the

@@ -75,6 +75,12 @@ pub enum Graphics {
     Qxl,
     /// virtio-gpu with a VGA.
     Virtio,
+    /// virtio-gpu on PCI alone (`-device virtio-gpu-pci`): no legacy VGA, and
+    /// under OVMF a GOP in Blt-only mode, so no framebuffer either.
+    VirtioGpu,
+    /// Two adapters: virtio-gpu first (a Blt-only GOP under OVMF), QEMU's
+    /// standard VGA second (id `vga`, for [`Qemu::screendump_of`]).
+    VirtioGpuThenStdVga,
 }
 
 impl Graphics {
@@ -101,12 +107,17 @@ impl Graphics {
             Graphics::Vmware => "vmware",
             Graphics::Qxl => "qxl",
             Graphics::Virtio => "virtio",
+            Graphics::VirtioGpu => "virtio-gpu",
+            Graphics::VirtioGpuThenStdVga => "virtio-gpu+std",
         }
     }
 
     /// The adapter with this runner name.
     pub fn from_name(name: &str) -> Option<Graphics> {
-        Graphics::ALL.into_iter().find(|g| g.name() == name)
+        Graphics::ALL
+            .into_iter()
+            .chain([Graphics::VirtioGpu, Graphics::VirtioGpuThenStdVga])
+            .find(|g| g.name() == name)
     }
 
     /// QEMU's arguments for it.
@@ -122,6 +133,15 @@ impl Graphics {
             Graphics::Vmware => &["-vga", "none", "-device", "vmware-svga"],
             Graphics::Qxl => &["-vga", "none", "-device", "qxl-vga"],
             Graphics::Virtio => &["-vga", "none", "-device", "virtio-vga"],
+            Graphics::VirtioGpu => &["-vga", "none", "-device", "virtio-gpu-pci"],
+            Graphics::VirtioGpuThenStdVga => &[
+                "-vga",
+                "none",
+                "-device",
+                "virtio-gpu-pci",
+                "-device",
+                "VGA,id=vga",
+            ],
         }
     }
 }
@@ -233,6 +253,13 @@ pub struct QemuOptions {
     /// timing reports (boot option `bench`, `present:`) repeat exactly. The
     /// guest then runs slower than real time.
     pub instruction_clock: bool,
+    /// With UEFI: boot OVMF's Secure Boot build
+    /// ([`crate::secure_boot::OVMF_SECURE_BOOT_CODE`]) on a Q35 with SMM,
+    /// its variables in this file (read and written: enrolled keys stay).
+    pub secure_boot_vars: Option<PathBuf>,
+    /// QEMU's `-cpu` value, when not the board's default (for example
+    /// `qemu64,-nx`: a CPU without the no-execute bit).
+    pub cpu: Option<String>,
 }
 
 impl QemuOptions {
@@ -252,6 +279,8 @@ impl QemuOptions {
             debug_exit: true,
             keep_after_power_off: false,
             instruction_clock: false,
+            secure_boot_vars: None,
+            cpu: None,
         }
     }
 }
@@ -310,6 +339,10 @@ pub fn check_installed(firmware: Firmware) -> Result<()> {
 #[derive(Default)]
 struct SerialLog {
     text: Mutex<String>,
+    /// What has come after the last newline: firmware screens (shim's,
+    /// MokManager's) are drawn with cursor moves and may end no line for a
+    /// long time. Waits look at it; [`Qemu::serial`] leaves it out.
+    partial: Mutex<String>,
     grew: Condvar,
 }
 
@@ -355,13 +388,40 @@ impl Qemu {
                 "unix:{},server=on,wait=off",
                 monitor_path.display()
             ));
-        command.args(options.board.qemu_machine(options.graphics));
+        let mut machine = options.board.qemu_machine(options.graphics);
+        if options.secure_boot_vars.is_some() {
+            // OVMF's Secure Boot build keeps its variables safe in SMM: Q35
+            // with SMM on, and the flash writable only from SMM.
+            machine[1] = machine[1].replacen("pc,", "q35,", 1) + ",smm=on";
+        }
+        command.args(machine);
         command.args(options.graphics.qemu_args(options.precise_retrace));
+        if let Some(cpu) = &options.cpu {
+            // After the board's own `-cpu`, if any: QEMU takes the last.
+            command.arg("-cpu").arg(cpu);
+        }
         for device in &options.devices {
             command.arg("-device").arg(device);
         }
-        if options.firmware == Firmware::Uefi {
-            command.args(["-bios", OVMF_CODE]);
+        match (&options.secure_boot_vars, options.firmware) {
+            (Some(vars), Firmware::Uefi) => {
+                command
+                    .arg("-drive")
+                    .arg(format!(
+                        "if=pflash,format=raw,unit=0,readonly=on,file={}",
+                        crate::secure_boot::OVMF_SECURE_BOOT_CODE
+                    ))
+                    .arg("-drive")
+                    .arg(format!(
+                        "if=pflash,format=raw,unit=1,file={}",
+                        vars.display()
+                    ))
+                    .args(["-global", "driver=cfi.pflash01,property=secure,value=on"]);
+            }
+            (None, Firmware::Uefi) => {
+                command.args(["-bios", OVMF_CODE]);
+            }
+            (_, Firmware::Bios) => {}
         }
         if options.debug_exit {
             command.args(["-device", "isa-debug-exit,iobase=0xf4,iosize=0x04"]);
@@ -434,6 +494,11 @@ impl Qemu {
         loop {
             if text.matches(needle).count() >= count {
                 return Ok(text.clone());
+            }
+            let partial = self.serial.partial.lock().unwrap().clone();
+            let with_partial = format!("{text}{partial}");
+            if !partial.is_empty() && with_partial.matches(needle).count() >= count {
+                return Ok(with_partial);
             }
             let now = Instant::now();
             if now >= deadline {
@@ -535,6 +600,20 @@ impl Qemu {
     /// Sends key presses and releases, in order, in one QMP command to the
     /// keyboards bound to `display` (see [`Qemu::key_event_on`]).
     pub fn key_events_on(&mut self, display: &str, keys: &[(&str, bool)]) -> Result<()> {
+        self.send_key_events(Some(display), keys)
+    }
+
+    /// Sends key presses and releases, in order, in one QMP command to the
+    /// keyboard bound to no display: the PS/2 one. Unlike `sendkey` this
+    /// bypasses QEMU's delayed-key queue (which drops events when full) and
+    /// lets a key stay down across others. QEMU's PS/2 keyboard queues 16
+    /// bytes and drops what does not fit, so a caller sends no more than
+    /// that before the guest has read them.
+    pub fn key_events(&mut self, keys: &[(&str, bool)]) -> Result<()> {
+        self.send_key_events(None, keys)
+    }
+
+    fn send_key_events(&mut self, display: Option<&str>, keys: &[(&str, bool)]) -> Result<()> {
         let is_name = |c: char| c.is_ascii_alphanumeric() || c == '_';
         if let Some((key, _)) = keys
             .iter()
@@ -553,9 +632,13 @@ impl Qemu {
                 })
             })
             .collect();
+        let arguments = match display {
+            Some(display) => json!({ "device": display, "events": events }),
+            None => json!({ "events": events }),
+        };
         self.execute(json!({
             "execute": "input-send-event",
-            "arguments": { "device": display, "events": events },
+            "arguments": arguments,
         }))?;
         Ok(())
     }
@@ -572,6 +655,23 @@ impl Qemu {
         let bytes = std::fs::read(&path).map_err(|e| {
             QemuError::Monitor(format!(
                 "screendump wrote no file ({e}); QEMU said: {reply}"
+            ))
+        })?;
+        RgbImage::from_ppm(&bytes).map_err(QemuError::Screendump)
+    }
+
+    /// As [`Qemu::screendump`], of the display of the device with this id
+    /// (when there are several adapters; `screendump` shows the first).
+    pub fn screendump_of(&mut self, device: &str) -> Result<RgbImage> {
+        let path = self.scratch.path().join("screen.ppm");
+        let _ = std::fs::remove_file(&path);
+        let reply = self.execute(json!({
+            "execute": "screendump",
+            "arguments": { "filename": path, "device": device },
+        }))?;
+        let bytes = std::fs::read(&path).map_err(|e| {
+            QemuError::Monitor(format!(
+                "screendump of {device} wrote no file ({e}); QEMU said: {reply}"
             ))
         })?;
         RgbImage::from_ppm(&bytes).map_err(QemuError::Screendump)
@@ -660,16 +760,25 @@ impl Drop for Qemu {
 fn spawn_reader(stream: impl Read + Send + 'static, log: Arc<SerialLog>, echo: bool) {
     std::thread::spawn(move || {
         let mut reader = BufReader::new(stream);
-        let mut line = Vec::new();
-        while reader.read_until(b'\n', &mut line).is_ok_and(|n| n > 0) {
-            let text = String::from_utf8_lossy(&line).replace('\r', "");
-            if echo {
-                print!("{text}");
-                let _ = std::io::stdout().flush();
+        let mut pending = Vec::new();
+        loop {
+            let chunk = match reader.fill_buf() {
+                Ok(bytes) if !bytes.is_empty() => bytes.to_vec(),
+                _ => break,
+            };
+            reader.consume(chunk.len());
+            pending.extend_from_slice(&chunk);
+            while let Some(end) = pending.iter().position(|&byte| byte == b'\n') {
+                let line: Vec<u8> = pending.drain(..=end).collect();
+                let text = String::from_utf8_lossy(&line).replace('\r', "");
+                if echo {
+                    print!("{text}");
+                    let _ = std::io::stdout().flush();
+                }
+                log.text.lock().unwrap().push_str(&text);
             }
-            log.text.lock().unwrap().push_str(&text);
+            *log.partial.lock().unwrap() = String::from_utf8_lossy(&pending).replace('\r', "");
             log.grew.notify_all();
-            line.clear();
         }
     });
 }

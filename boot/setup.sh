@@ -29,6 +29,12 @@ dpkg-query -W -f='${Status}' bochs-x 2>/dev/null | grep -q 'ok installed' || mis
 command -v Xvfb >/dev/null || missing+=(xvfb)
 command -v xdotool >/dev/null || missing+=(xdotool)
 command -v xwd >/dev/null || missing+=(x11-apps)
+# Secure Boot (boot/secure_boot.rs): sbsign signs the UEFI loader with
+# Authenticode, openssl makes the user's key, python3-venv holds virt-firmware.
+command -v sbsign >/dev/null || missing+=(sbsigntool)
+command -v openssl >/dev/null || missing+=(openssl)
+[ -f /usr/share/OVMF/OVMF_CODE_4M.secboot.fd ] && [ -f /usr/share/OVMF/OVMF_VARS_4M.ms.fd ] || missing+=(ovmf)
+python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)
 if [ ${#missing[@]} -gt 0 ]; then
     command -v apt-get >/dev/null || die "please install ${missing[*]} with your package manager"
     say "installing ${missing[*]}"
@@ -36,6 +42,63 @@ if [ ${#missing[@]} -gt 0 ]; then
     as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 say "$(qemu-system-x86_64 --version | head -n 1)"
+
+# Shim and MokManager, signed by Microsoft and Debian, from Debian's packages
+# (not installed: downloaded and unpacked into a cache outside the repository).
+# apt-get download checks each .deb against the SHA-256 in the signed index;
+# the files unpacked are then checked against the .deb's own md5sums. The
+# runner reads them from $MODEX_CUBE_SHIM_DIR, or
+# ${XDG_CACHE_HOME:-~/.cache}/modex-cube/shim.
+shim_dir=${MODEX_CUBE_SHIM_DIR:-${XDG_CACHE_HOME:-$HOME/.cache}/modex-cube/shim}
+fetch_shim() {
+    local work
+    work=$(mktemp -d)
+    trap 'rm -rf "$work"' RETURN
+    # The package lists may be absent when nothing else needed installing.
+    apt-cache show shim-signed shim-helpers-amd64-signed >/dev/null 2>&1 || as_root apt-get update -qq
+    ( cd "$work" && chmod 755 . && apt-get download -q shim-signed shim-helpers-amd64-signed >/dev/null ) \
+        || die "apt-get download shim-signed shim-helpers-amd64-signed failed (run 'apt-get update' first?)"
+    local deb package
+    mkdir -p "$work/root"
+    for deb in "$work"/*.deb; do
+        package=$(dpkg-deb -f "$deb" Package)
+        # The SHA-256 apt's signed index gives for this version, checked again
+        # here so that a cache filled by hand cannot slip through.
+        local want got
+        want=$(apt-cache show "$package=$(dpkg-deb -f "$deb" Version)" | sed -n 's/^SHA256: //p' | head -n 1)
+        got=$(sha256sum "$deb" | cut -d' ' -f1)
+        [ -n "$want" ] && [ "$want" = "$got" ] || die "$deb: SHA-256 $got is not the index's ($want)"
+        dpkg-deb -x "$deb" "$work/root"
+        dpkg-deb -e "$deb" "$work/control-$package"
+        ( cd "$work/root" && md5sum --quiet -c "$work/control-$package/md5sums" ) \
+            || die "$deb: the unpacked files do not match its md5sums"
+        cp "$work/root/usr/share/doc/$package/copyright" "$work/copyright-$package"
+        echo "$package $(dpkg-deb -f "$deb" Version) $got" >>"$work/packages"
+    done
+    mkdir -p "$shim_dir"
+    install -m 644 "$work/root/usr/lib/shim/shimx64.efi.signed" "$shim_dir/shimx64.efi"
+    install -m 644 "$work/root/usr/lib/shim/mmx64.efi.signed" "$shim_dir/mmx64.efi"
+    install -m 644 "$work"/copyright-* "$shim_dir/"
+    install -m 644 "$work/packages" "$shim_dir/packages"
+}
+if [ -f "$shim_dir/shimx64.efi" ] && [ -f "$shim_dir/mmx64.efi" ] && [ -f "$shim_dir/packages" ]; then
+    say "shim and MokManager are in $shim_dir"
+else
+    say "fetching shim and MokManager from Debian's shim-signed and shim-helpers-amd64-signed"
+    fetch_shim
+fi
+while read -r package version sha; do say "$package $version (sha256 $sha)"; done <"$shim_dir/packages"
+
+# virt-fw-vars (PyPI's virt-firmware) writes certificates into OVMF's variable
+# store (tests/secure_boot.rs); in a venv under target/, as pip wants.
+venv=target/tools/virt-firmware
+if [ -x "$venv/bin/virt-fw-vars" ]; then
+    say "virt-fw-vars is in $venv"
+else
+    say "installing virt-firmware into $venv"
+    python3 -m venv "$venv"
+    "$venv/bin/pip" install -q virt-firmware
+fi
 say "bochs $(dpkg-query -W -f='${Version}' bochs 2>/dev/null || echo '(version unknown)')"
 
 command -v rustup >/dev/null || die "rustup not found: install it from the Rust website, then run this again"

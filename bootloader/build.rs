@@ -69,12 +69,23 @@ fn build_uefi_bootloader() -> PathBuf {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut cmd = Command::new(cargo);
     cmd.arg("install").arg("bootloader-x86_64-uefi");
-    if Path::new("uefi").exists() {
+    // Patched copy: the vendored loader (`uefi/`, with `common/`) by an
+    // absolute path, built in OUT_DIR (a `target/` inside the watched source
+    // would rerun this script every build; see CHANGES.md items 6 and 9).
+    let local_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("uefi"); // Patched
+    if local_path.exists() {
         // local build
-        cmd.arg("--path").arg("uefi");
-        println!("cargo:rerun-if-changed=uefi");
-        println!("cargo:rerun-if-changed=common");
-        cmd.arg("--target-dir").arg("target/uefi_target");
+        cmd.arg("--path").arg(&local_path); // Patched
+        println!("cargo:rerun-if-changed={}", local_path.display()); // Patched
+        println!(
+            "cargo:rerun-if-changed={}",
+            local_path.with_file_name("common").display() // Patched
+        );
+        println!(
+            "cargo:rerun-if-changed={}",
+            local_path.with_file_name("loader-logic").display() // Patched
+        );
+        cmd.arg("--target-dir").arg(out_dir.join("uefi-target")); // Patched
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
         // Patched copy: build in OUT_DIR. Without a target directory of its
@@ -147,7 +158,8 @@ fn build_bios_boot_sector() -> PathBuf {
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
         // Patched copy: build in OUT_DIR (see `build_uefi_bootloader`).
-        cmd.arg("--target-dir").arg(out_dir.join("boot_sector-target"));
+        cmd.arg("--target-dir")
+            .arg(out_dir.join("boot_sector-target"));
     }
     cmd.arg("--locked");
     cmd.arg("--target")
@@ -216,6 +228,13 @@ fn build_bios_stage_2() -> PathBuf {
         // watched source directory (which would rerun this script every build).
         cmd.arg("--target-dir").arg(out_dir.join("stage-2-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
+        // Patched copy: stage 2 uses the host-tested `loader-logic` crate.
+        println!(
+            "cargo:rerun-if-changed={}",
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("loader-logic")
+                .display() // Patched
+        );
         // Patched copy: only watch `bios/common` when the copy has one (a
         // missing path would rerun this script on every build).
         if local_path.with_file_name("common").exists() {
@@ -360,6 +379,11 @@ fn build_bios_stage_4() -> PathBuf {
         // watched source directory (which would rerun this script every build).
         cmd.arg("--target-dir").arg(out_dir.join("stage-4-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
+        // Patched copy: stage 4 builds against the vendored `common/`.
+        let common_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("common"); // Patched
+        if common_path.exists() {
+            println!("cargo:rerun-if-changed={}", common_path.display()); // Patched
+        }
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
     }

@@ -6,8 +6,9 @@
 //! * [`PerPixel`]: the common one (the `vga` crate draws Mode X this way) — the
 //!   same erase and fill, but pixel by pixel, each with its own Map Mask OUT.
 
-use crate::frame::{FrameDrawer, BACKGROUND, SCREEN_CLIP};
+use crate::frame::FrameDrawer;
 use crate::scene::Scene;
+use crate::screen::{BACKGROUND, SCREEN_CLIP};
 use engine::{fill_convex_polygon, Point};
 use modex::{ModeX, Page, VgaBus};
 

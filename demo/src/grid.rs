@@ -22,10 +22,11 @@
 //! assert!(counts.drawn > 12); // each solid shows more than one face
 //! ```
 
-use crate::depth::{each_visible_face_in_rows, render_faces_with_depth};
+use crate::depth::render_faces_with_depth;
 use crate::solids::{CUBE, SHAPES};
 use core::f64::consts::PI;
-use engine::{DepthBand, FaceCounts, Object, Xform, PROJECTION_RATIO};
+use core::ops::Range;
+use engine::{DepthBand, FaceCounts, Object, VisibleFace, Xform, PROJECTION_RATIO};
 use modex::{PageImage, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Centre to centre, in model units: the solids are about 26 units from
@@ -122,6 +123,29 @@ impl<const N: usize> Grid<N> {
     }
 }
 
+/// Every face of `objects` that survives backface removal, object by object,
+/// leaving out (while still counting) the faces whose corners all lie above
+/// or all below `rows`: a band's faces, without paying for the depth plane of
+/// a face that misses the band.
+fn each_visible_face_in_rows(
+    objects: &mut [Object],
+    rows: Range<i32>,
+    mut draw: impl FnMut(&VisibleFace),
+) -> FaceCounts {
+    let mut counts = FaceCounts::default();
+    for object in objects {
+        counts += object.each_visible_face(|visible| {
+            let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
+            let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
+            // The filler draws rows top..bottom.
+            if top < rows.end && bottom > rows.start {
+                draw(visible);
+            }
+        });
+    }
+    counts
+}
+
 /// Columns for `count` solids in a grid about as wide, for its height, as
 /// the screen (4:3).
 fn columns_for(count: usize) -> usize {
@@ -151,7 +175,7 @@ fn depth_to_fit(columns: usize, rows: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::BACKGROUND;
+    use crate::screen::BACKGROUND;
     use modex::PAGE_PIXELS;
     use std::boxed::Box;
 

@@ -3,6 +3,11 @@
 //! The kernel supplies a VGA bus and scancodes; the host tests supply a
 //! software VGA and the same scancodes.
 //!
+//! A frame's data goes one way: [`scene`] hands out its faces as plain data
+//! ([`faces`]), [`depth`] draws them into a RAM image, and [`frame`], which
+//! alone knows both, takes the image to the VGA. No module's imports lead
+//! back to itself (`demo/tests/module_graph.rs` checks).
+//!
 //! ```
 //! use demo::app::App;
 //! use modex::soft::SoftVga;
@@ -39,6 +44,7 @@ pub mod app;
 pub mod baseline;
 pub mod command;
 pub mod depth;
+pub mod faces;
 pub mod facts;
 pub mod frame;
 pub mod grid;
@@ -48,6 +54,7 @@ pub mod pattern;
 pub mod report;
 pub mod scale;
 pub mod scene;
+pub mod screen;
 pub mod screens;
 pub mod shading;
 pub mod solids;

@@ -220,7 +220,7 @@ fn each_convex_solid_alone_is_exact_without_the_depth_test() {
     // `render_with_depth`); backface removal alone must then be exact.
     for shape in 0..5 {
         let mut scene = scene_with(shape);
-        assert!(!demo::depth::needs_depth_test(&mut scene));
+        assert!(!demo::frame::needs_depth_test(&mut scene));
         for step in 0..30 {
             assert_exact(&mut scene, &format!("shape {shape}, step {step}"));
             scene.apply(SceneCommand::Rotate(Axis::Y, Sense::Positive));

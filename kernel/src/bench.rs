@@ -10,10 +10,10 @@ use crate::run::RENDERER;
 use crate::serial_println;
 use crate::time;
 use demo::baseline::PerPixel;
-use demo::depth::{render_with_depth, rows_needing_depth_test};
+use demo::depth::render_with_depth;
 use demo::frame::{FrameDrawer, BACKGROUND};
 use demo::grid::Grid;
-use demo::scene::{Scene, SceneCommand};
+use demo::scene::{Scene, SceneCommand, SceneFaces};
 use engine::DepthBand;
 use modex::regs::Port;
 use modex::{ModeX, Page, PageImage, VgaBus, PAGE_PIXELS};
@@ -80,8 +80,8 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
     ] {
         let phases = time_phases(vga, commands);
         serial_println!(
-            "bench: phases of the {} (us/frame): motion {}, transform and projection {}, \
-             culling and scan conversion {}, comparison and grouping {}, bus writes {}",
+            "bench: phases of the {} (us/frame): motion {}, transform, projection and culling {}, \
+             depth policy and scan conversion {}, comparison and grouping {}, bus writes {}",
             name,
             phases.motion,
             phases.transform,
@@ -90,8 +90,28 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
             phases.bus_writes
         );
     }
+    ps2_poll_cost();
     largest_grid_at_60_fps(vga);
     vga.set_mode();
+}
+
+/// Calls of the PS/2 poll timed together.
+const POLL_CALLS: u64 = 100_000;
+
+/// What the frame loop's poll of the 8042 costs when no key is waiting (one
+/// call a frame, and one an idle step): timed over many calls.
+fn ps2_poll_cost() {
+    let start = time::micros();
+    for _ in 0..POLL_CALLS {
+        crate::input::ps2::poll();
+    }
+    let micros = time::micros() - start;
+    serial_println!(
+        "bench: PS/2 poll with no key waiting: {} ns per call ({} calls in {} us)",
+        micros * 1000 / POLL_CALLS,
+        POLL_CALLS,
+        micros
+    );
 }
 
 /// Grows the grid until a frame (motion, transform, scan conversion with the
@@ -174,10 +194,11 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
 struct Phases {
     /// `Scene::tick`: the objects' own motion.
     motion: u64,
-    /// Transforming and projecting the objects that moved, and their screen
-    /// rectangles (which decide where the depth test is needed).
+    /// The scene's faces: transforming and projecting the objects that
+    /// moved, their screen rectangles, backface culling and colouring.
     transform: u64,
-    /// Backface culling and scan conversion into the RAM frame.
+    /// The depth policy: where the test is needed, and scan conversion of
+    /// the faces into the RAM frame.
     scan_conversion: u64,
     /// Comparing the frame with the page's shadow and grouping the changes
     /// by Map Mask: `update_page` on a bus that drops every write.
@@ -187,12 +208,13 @@ struct Phases {
 }
 
 /// The frame, the two pages' shadows, a copy of a shadow for the dry run,
-/// and the depth band: ~360 KiB, kept off the stack.
+/// the depth band and the scene's faces: ~430 KiB, kept off the stack.
 struct Images {
     next: PageImage,
     shadows: [PageImage; 2],
     dry_run_shadow: PageImage,
     band: DepthBand,
+    faces: SceneFaces,
 }
 
 static IMAGES: Mutex<Images> = Mutex::new(Images {
@@ -200,6 +222,7 @@ static IMAGES: Mutex<Images> = Mutex::new(Images {
     shadows: [[BACKGROUND; PAGE_PIXELS]; 2],
     dry_run_shadow: [BACKGROUND; PAGE_PIXELS],
     band: DepthBand::new(),
+    faces: SceneFaces::new(),
 });
 
 /// A VGA that takes every write and answers every read with zero: the
@@ -240,9 +263,9 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
         let t0 = time::tsc::rdtsc();
         scene.tick();
         let t1 = time::tsc::rdtsc();
-        let _ = rows_needing_depth_test(&mut scene);
+        let faces = scene.faces(&mut images.faces);
         let t2 = time::tsc::rdtsc();
-        render_with_depth(&mut scene, &mut images.next, &mut images.band);
+        render_with_depth(faces, &mut images.next, &mut images.band);
         let t3 = time::tsc::rdtsc();
         dry_run.update_page(page, &mut images.dry_run_shadow, &images.next);
         let t4 = time::tsc::rdtsc();

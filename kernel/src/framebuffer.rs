@@ -90,6 +90,12 @@ pub fn layout_of(info: &FrameBufferInfo) -> FramebufferLayout {
     }
 }
 
+/// The software VGA alone, once, when there is no framebuffer to present it
+/// into: the demo runs on it unseen.
+pub fn soft_vga_alone() -> &'static mut SoftVga {
+    MutexGuard::leak(SOFT_VGA.try_lock().expect("the software VGA is taken once"))
+}
+
 /// Takes over the framebuffer and the software VGA, once: returns the model
 /// for the mirror to drive and the display it presents to.
 pub fn take_over(

@@ -19,6 +19,12 @@ pub fn goodbye<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     } else {
         demo::screens::goodbye(vga);
     }
+    let (by_irq, by_poll) = crate::input::ps2::taken();
+    serial_println!(
+        "ps2: {} keyboard bytes taken by IRQ 1, {} by the poll",
+        by_irq,
+        by_poll
+    );
     serial_println!(
         "{} ({} scancodes dropped by a full queue, {} serial characters dropped)",
         protocol::line::GOODBYE,

@@ -11,6 +11,8 @@ const SPINS: u32 = 200;
 /// Gives up the CPU for a moment: until the next interrupt while the PIT is
 /// ticking (at most a millisecond), else for a few hundred `pause`s.
 pub fn idle() {
+    // Keys are taken here too, so that they arrive where IRQ 1 never does.
+    crate::input::ps2::poll();
     if pit::ticking() && x86_64::instructions::interrupts::are_enabled() {
         x86_64::instructions::hlt();
     } else {

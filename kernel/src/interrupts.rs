@@ -60,6 +60,22 @@ pub fn init() {
     }
 }
 
+/// Masks IRQ 1 at the master PIC for good (boot option `irq1=masked`): the
+/// keyboard is then read only by the loops' poll, as on a machine whose
+/// firmware never delivers the interrupt.
+pub fn mask_keyboard_irq() {
+    const IRQ1: u8 = 1 << 1;
+    x86_64::instructions::interrupts::without_interrupts(|| {
+        let mut pics = PICS.lock();
+        // SAFETY: masking one more line only stops IRQ 1 being delivered;
+        // the keyboard's bytes are still taken by `ps2::poll`.
+        unsafe {
+            let [master, slave] = pics.read_masks();
+            pics.write_masks(master | IRQ1, slave);
+        }
+    });
+}
+
 /// Runs `f` with every IRQ masked at both PICs, then restores the masks (a
 /// real-mode BIOS call must not see an IRQ meant for the kernel's vectors).
 /// Call with interrupts off, so no handler waits on the PIC lock held here.

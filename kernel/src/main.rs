@@ -35,10 +35,10 @@ mod vga_bus;
 
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
-use demo::facts::Ps2;
 use firmware::acpi::Presence;
 use firmware::boot_firmware::Firmware;
 use input::{ps2, xhci};
+use keyboard::i8042::FirmwareSays;
 use platform::{acpi, boot_firmware, qemu};
 use protocol::{BootOption, BootRequest};
 use time::pit;
@@ -75,17 +75,12 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         physical_memory_offset,
         mapped_physical_memory_end(&boot_info.memory_regions),
     );
-    let ps2_state = if acpi.legacy.i8042 == Presence::Absent {
-        serial_println!(
-            "keyboard: the ACPI tables say there is no PS/2 controller (8042); not set up"
-        );
-        Ps2::Absent
-    } else if let Err(problem) = ps2::init() {
-        serial_println!("keyboard: {}", problem);
-        Ps2::Failed(problem)
-    } else {
-        Ps2::Ready
-    };
+    // The FADT's word is a hint (firmware gets it wrong): the probe decides.
+    let ps2_state = ps2::init(match acpi.legacy.i8042 {
+        Presence::Present => FirmwareSays::Present,
+        Presence::Absent => FirmwareSays::Absent,
+        Presence::Unknown => FirmwareSays::Nothing,
+    });
     facts::record(|facts| facts.ps2 = ps2_state);
     x86_64::instructions::interrupts::enable();
 
@@ -102,6 +97,16 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         }
     };
     let (force_true_mode_x, option) = (request.true_mode_x, request.option);
+    if request.irq1_masked {
+        interrupts::mask_keyboard_irq();
+        serial_println!(
+            "keyboard: IRQ 1 masked at the PIC for the whole run; PS/2 keys are polled"
+        );
+    }
+    run::ECHO_SCANCODES.store(
+        request.echo_scancodes,
+        core::sync::atomic::Ordering::Relaxed,
+    );
     let rate = time::init(acpi, physical_memory_offset, request.clock);
     facts::record(|facts| facts.clock = Some(rate));
     xhci::init(&boot_info.memory_regions, physical_memory_offset);
@@ -158,7 +163,23 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
     }
     let Some(framebuffer) = boot_info.framebuffer.as_mut() else {
-        panic!("no display: neither a legacy VGA nor a framebuffer from the bootloader");
+        // No picture anywhere (e.g. UEFI with only a Blt-only virtio-gpu GOP):
+        // the demo runs on the software VGA unseen; serial and keys work.
+        serial_println!(
+            "display: none: no legacy VGA and no framebuffer from the bootloader \
+             (its log says why: no usable GOP, or no VESA linear mode); \
+             running without a picture"
+        );
+        run::NO_DISPLAY.store(true, core::sync::atomic::Ordering::Relaxed);
+        facts::record(|facts| {
+            facts.display = demo::facts::Display::Nothing("no legacy VGA, no framebuffer")
+        });
+        let mut vga = modex::ModeX::new(modex::MirroredVga::new(
+            framebuffer::soft_vga_alone(),
+            |_| {},
+        ));
+        vga.set_mode();
+        run_screen(&mut vga, option)
     };
     let (soft, display) = framebuffer::take_over(framebuffer, physical_memory_offset);
     let mirror = modex::MirroredVga::new(soft, move |soft| display.present(soft));

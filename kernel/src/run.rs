@@ -5,6 +5,7 @@
 
 use crate::{goodbye, idle, input::ps2, input::xhci, platform::power, serial_println, stack, time};
 use clock::pacing::Pacing;
+use core::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use demo::app::App;
 use demo::frame::Renderer;
 use keyboard::reset_keys::ResetChord;
@@ -12,9 +13,30 @@ use modex::{ModeX, VgaBus};
 use protocol::line;
 use spin::Mutex;
 
-/// The renderer's three 75 KiB frame images and its depth band, in static
-/// memory rather than on the stack; the demo and the bench take turns.
+/// The renderer's three 75 KiB frame images, its depth band and the scene's
+/// faces (353 KiB), in static memory rather than on the stack; the demo and
+/// the bench take turns.
 pub static RENDERER: Mutex<Renderer> = Mutex::new(Renderer::new());
+
+/// Say on serial every scancode byte taken (boot word `scancodes=echo`), so
+/// that a test can pace its keys by what the kernel has received.
+pub static ECHO_SCANCODES: AtomicBool = AtomicBool::new(false);
+
+/// Bytes said per `scancodes:` line at most.
+const ECHO_LINE_BYTES: usize = 32;
+
+/// Scancode bytes taken from the queue since boot, for the echo.
+static SCANCODES_TAKEN: AtomicU64 = AtomicU64::new(0);
+
+/// Says `bytes` on serial as a `scancodes: taken ...` line.
+fn echo(bytes: &[u8]) {
+    if bytes.is_empty() {
+        return;
+    }
+    let total =
+        SCANCODES_TAKEN.fetch_add(bytes.len() as u64, Ordering::Relaxed) + bytes.len() as u64;
+    serial_println!("{}", line::ScancodesTaken { bytes, total });
+}
 
 /// A pacing report every this many flips (about ten seconds).
 const PACING_REPORT_FLIPS: u64 = 600;
@@ -33,22 +55,47 @@ fn count_flip(pacing: &mut Pacing, timed_out: bool) {
     }
 }
 
+/// Set when there is no display at all: the demo runs unseen, and the ready
+/// line says so.
+pub static NO_DISPLAY: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
 pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut renderer = RENDERER.lock();
     let mut app = App::with_renderer(&mut *renderer);
     app.step(vga, &time::micros);
-    serial_println!("{}", line::READY);
+    serial_println!(
+        "{}",
+        if NO_DISPLAY.load(core::sync::atomic::Ordering::Relaxed) {
+            line::READY_NO_DISPLAY
+        } else {
+            line::READY
+        }
+    );
     let mut reported_commands = 0;
     let mut pacing = Pacing::default();
     let mut reset_chord = ResetChord::new();
     loop {
         xhci::poll();
+        ps2::poll();
+        let echoing = ECHO_SCANCODES.load(Ordering::Relaxed);
+        let mut echoed = [0u8; ECHO_LINE_BYTES];
+        let mut waiting = 0;
         while let Some(byte) = ps2::SCANCODES.pop() {
+            if echoing {
+                echoed[waiting] = byte;
+                waiting += 1;
+                if waiting == ECHO_LINE_BYTES {
+                    echo(&echoed);
+                    waiting = 0;
+                }
+            }
             if reset_chord.feed(byte) {
+                echo(&echoed[..waiting]);
                 power::reset();
             }
             app.feed_scancode(byte);
         }
+        echo(&echoed[..waiting]);
         if app.quit_requested() {
             stack::report();
             goodbye::goodbye(vga);

@@ -8,7 +8,9 @@
 //!   simulator;
 //! - [`scancode_queue`]: the lock-free queue that carries bytes from the
 //!   keyboard interrupt (or a poll) to the frame loop;
-//! - [`reset_keys`]: Ctrl+Alt+Del, recognised from the byte stream.
+//! - [`reset_keys`]: Ctrl+Alt+Del, recognised from the byte stream;
+//! - [`i8042`]: the PS/2 controller's set-up and byte taking, behind a port
+//!   trait, tested against a model of the controller.
 //!
 //! The kernel's shells are `kernel/src/input/ps2.rs` and `kernel/src/input/xhci.rs`.
 
@@ -20,6 +22,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod i8042;
 pub mod keys;
 pub mod reset_keys;
 pub mod scancode;

@@ -193,13 +193,28 @@ const CLOCK_PREFIX: &str = "clock=";
 /// QEMU's standard VGA still tests the real registers.
 pub const TRUE_MODE_X: &str = "modex=true-mode-x";
 
+/// The word that masks IRQ 1 at the PIC for the whole run, so that PS/2
+/// keys arrive only through the frame and idle loops' poll of the 8042, as
+/// on a machine whose firmware left the interrupt undelivered.
+pub const IRQ1_MASKED: &str = "irq1=masked";
+
+/// The word that makes the kernel say on serial every scancode byte it
+/// takes ([`line::ScancodesTaken`]), so that a test can pace its keys by
+/// what the kernel has received.
+pub const ECHO_SCANCODES: &str = "scancodes=echo";
+
 /// Everything one fw_cfg string asks for: true Mode X on UEFI or not, a
-/// clock reference or not, and at most one boot option, separated by spaces
-/// ("modex=true-mode-x clock=hpet bench").
+/// clock reference or not, IRQ 1 masked or not, scancodes echoed or not, and
+/// at most one boot option, separated by spaces ("modex=true-mode-x
+/// clock=hpet irq1=masked bench").
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct BootRequest {
     /// Drive the real VGA registers even on a UEFI boot.
     pub true_mode_x: bool,
+    /// Mask IRQ 1 for the whole run ([`IRQ1_MASKED`]).
+    pub irq1_masked: bool,
+    /// Echo every scancode byte taken ([`ECHO_SCANCODES`]).
+    pub echo_scancodes: bool,
     /// Measure the TSC against this reference only.
     pub clock: Option<ClockReference>,
     /// The boot option, if any.
@@ -216,6 +231,10 @@ impl BootRequest {
                 .map(|name| named(&CLOCK_REFERENCES, name));
             if word == TRUE_MODE_X && !request.true_mode_x {
                 request.true_mode_x = true;
+            } else if word == IRQ1_MASKED && !request.irq1_masked {
+                request.irq1_masked = true;
+            } else if word == ECHO_SCANCODES && !request.echo_scancodes {
+                request.echo_scancodes = true;
             } else if let Some(clock) = clock {
                 match (clock, request.clock) {
                     (Some(reference), None) => request.clock = Some(reference),
@@ -243,6 +262,15 @@ impl fmt::Display for BootRequest {
             f.write_str(TRUE_MODE_X)?;
             separator = " ";
         }
+        for (asked, word) in [
+            (self.irq1_masked, IRQ1_MASKED),
+            (self.echo_scancodes, ECHO_SCANCODES),
+        ] {
+            if asked {
+                write!(f, "{separator}{word}")?;
+                separator = " ";
+            }
+        }
         if let Some(reference) = self.clock {
             write!(
                 f,
@@ -267,6 +295,12 @@ pub mod line {
     pub const KERNEL_BANNER: &str = "modex-cube kernel v";
     /// The first picture is on screen and keys are read.
     pub const READY: &str = "screen: ready";
+    /// There is no display at all (no legacy VGA, no framebuffer): the demo
+    /// runs unseen and keys are read.
+    pub const READY_NO_DISPLAY: &str = "screen: none, ready (no display)";
+    /// The bootloader's first line on serial (BIOS stage 2 and the UEFI
+    /// loader), written before it loads the kernel.
+    pub const LOADER_START: &str = "loader: loading kernel";
     /// The start of the goodbye line after Esc.
     pub const GOODBYE: &str = "demo: goodbye";
     /// The last line before a fault or panic halts the CPU.
@@ -526,6 +560,45 @@ pub mod line {
         }
     }
 
+    /// "scancodes: taken 1e 9e e0 4b, 1234 in all": the scancode bytes the
+    /// frame loop took from the queue since its last such line, and how
+    /// many it has taken since boot (with the boot word `scancodes=echo`).
+    #[derive(Clone, Debug, PartialEq, Eq)]
+    pub struct ScancodesTaken<'a> {
+        /// The bytes, in order.
+        pub bytes: &'a [u8],
+        /// Bytes taken since boot, these included.
+        pub total: u64,
+    }
+
+    impl ScancodesTaken<'_> {
+        const PREFIX: &'static str = "scancodes: taken";
+        const SUFFIX: &'static str = " in all";
+
+        /// The bytes and the total of such a line, if it is one.
+        pub fn parse(line: &str, bytes: &mut [u8]) -> Option<(usize, u64)> {
+            let rest = line.trim_end().strip_prefix(Self::PREFIX)?;
+            let (list, total) = rest.rsplit_once(", ")?;
+            let total = total.strip_suffix(Self::SUFFIX)?.parse().ok()?;
+            let mut count = 0;
+            for word in list.split_whitespace() {
+                *bytes.get_mut(count)? = u8::from_str_radix(word, 16).ok()?;
+                count += 1;
+            }
+            Some((count, total))
+        }
+    }
+
+    impl fmt::Display for ScancodesTaken<'_> {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str(Self::PREFIX)?;
+            for byte in self.bytes {
+                write!(f, " {byte:02x}")?;
+            }
+            write!(f, ", {}{}", self.total, Self::SUFFIX)
+        }
+    }
+
     /// "demo: command N done": the kernel has drawn the Nth command's frame.
     #[derive(Clone, Copy, Debug, PartialEq, Eq)]
     pub struct CommandDone(pub u64);
@@ -588,6 +661,8 @@ mod tests {
             for option in BootOption::all().map(Some).chain([None]) {
                 let request = BootRequest {
                     true_mode_x,
+                    irq1_masked: option.is_some(),
+                    echo_scancodes: !true_mode_x,
                     clock: None,
                     option,
                 };
@@ -599,8 +674,16 @@ mod tests {
             Ok(BootRequest {
                 true_mode_x: true,
                 clock: None,
-                option: Some(BootOption::Bench)
+                option: Some(BootOption::Bench),
+                ..BootRequest::default()
             })
+        );
+        let keyed = BootRequest::parse("scancodes=echo irq1=masked").unwrap();
+        assert!(keyed.irq1_masked && keyed.echo_scancodes && keyed.option.is_none());
+        assert_eq!(keyed.to_string(), "irq1=masked scancodes=echo");
+        assert_eq!(
+            BootRequest::parse("irq1=masked irq1=masked"),
+            Err(UnknownOption)
         );
         let clocked = BootRequest::parse("clock=hpet clock-check").unwrap();
         assert_eq!(clocked.clock, Some(ClockReference::Hpet));
@@ -617,6 +700,35 @@ mod tests {
             Err(UnknownOption)
         );
         assert!(BootRequest::parse("").unwrap().is_empty());
+    }
+
+    #[test]
+    fn scancode_lines_format_and_parse() {
+        let taken = line::ScancodesTaken {
+            bytes: &[0x1e, 0x9e, 0xe0, 0x4b],
+            total: 1234,
+        };
+        let text = taken.to_string();
+        assert_eq!(text, "scancodes: taken 1e 9e e0 4b, 1234 in all");
+        let mut bytes = [0u8; 8];
+        assert_eq!(
+            line::ScancodesTaken::parse(&(text + "\r"), &mut bytes),
+            Some((4, 1234))
+        );
+        assert_eq!(bytes[..4], [0x1e, 0x9e, 0xe0, 0x4b]);
+        assert_eq!(
+            line::ScancodesTaken::parse("scancodes: taken 1e 9e, 2 in all", &mut [0u8; 1]),
+            None,
+            "more bytes than room"
+        );
+        assert_eq!(
+            line::ScancodesTaken::parse("scancodes: taken zz, 1 in all", &mut bytes),
+            None
+        );
+        assert_eq!(
+            line::ScancodesTaken::parse("demo: command 1 done", &mut bytes),
+            None
+        );
     }
 
     #[test]

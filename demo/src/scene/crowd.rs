@@ -44,7 +44,7 @@ impl Member {
     }
 
     /// The shape it shows: every shape in turn along the grid.
-    pub fn model(index: usize) -> &'static Model {
+    pub const fn model(index: usize) -> &'static Model {
         SHAPES[index % SHAPES.len()].model
     }
 

@@ -1,18 +1,26 @@
 //! The scene: Abrash's cube floating in front of the viewer, moved and
 //! turned by commands, optionally spinning by itself; and, switched on by
-//! keys, flat shading by a light, other solids in the cube's place, and two
-//! more solids circling on their own, drawn far to near.
+//! keys, flat shading by a light, other solids in the cube's place, two
+//! more solids circling on their own, and a crowd of small ones.
+//!
+//! The scene owns its objects, their motion and their colours. Each frame
+//! it hands its faces out, one way, as plain data ([`Scene::faces`] fills a
+//! [`SceneFaces`] list: projected, culled, coloured, with each object's
+//! screen rectangle and the far-to-near order); how they are drawn, and
+//! which surfaces hide which, is `crate::depth`'s business, which this
+//! module neither calls nor knows.
 
 mod command;
 mod crowd;
 mod orbit;
 
+use crate::faces::{FaceList, Faces};
 use crate::shading::{default_light, shaded_colour};
 use crate::solids::{Solid, SHAPES};
 use core::f64::consts::PI;
 use crowd::Member;
 pub use crowd::CROWD;
-use engine::{FaceCounts, Light, Object, Point, VisibleFace, Xform};
+use engine::{FaceCounts, Light, Model, Object, Point, VisibleFace, Xform};
 use orbit::{Satellite, ORBITS};
 
 pub use command::{Axis, LightTurn, SceneCommand, Sense};
@@ -38,6 +46,34 @@ const ROTATIONS_PER_REORTHONORMALIZATION: u32 = 64;
 pub const SATELLITES: usize = 2;
 /// The cube (or the solid in its place), two satellites, and the crowd.
 pub const MAX_OBJECTS: usize = 1 + SATELLITES + CROWD;
+/// The most faces the objects can have between them: the most of any shape
+/// for the solid in the cube's place, then each satellite's and each crowd
+/// member's own. (Loops, not iterators: this is worked out when compiling.)
+pub const MAX_FACES: usize = {
+    let mut most = 0;
+    let mut shape = 0;
+    while shape < SHAPES.len() {
+        if SHAPES[shape].model.faces.len() > most {
+            most = SHAPES[shape].model.faces.len();
+        }
+        shape += 1;
+    }
+    let mut total = most;
+    let mut satellite = 0;
+    while satellite < SATELLITES {
+        total += ORBITS[satellite].model.faces.len();
+        satellite += 1;
+    }
+    let mut member = 0;
+    while member < CROWD {
+        total += Member::model(member).faces.len();
+        member += 1;
+    }
+    total
+};
+
+/// Room for a frame of the scene's faces (78 KiB), for [`Scene::faces`].
+pub type SceneFaces = FaceList<MAX_OBJECTS, MAX_FACES>;
 
 /// What is drawn: the objects, the light, and the switches the keys flip.
 ///
@@ -296,25 +332,46 @@ impl Scene {
     /// Every face that survives backface removal, object by object in no
     /// particular depth order, with its colour as `visible_faces` gives it:
     /// for drawing with a depth test, where order does not matter.
-    pub fn each_visible_face(&mut self, draw: impl FnMut(&VisibleFace, u8)) -> FaceCounts {
-        self.each_visible_face_in_rows(i32::MIN..i32::MAX, draw)
+    pub fn each_visible_face(&mut self, mut draw: impl FnMut(&VisibleFace, u8)) -> FaceCounts {
+        let (lighting, light) = (self.lighting, self.light);
+        let mut counts = FaceCounts::default();
+        for object in self.objects_mut() {
+            counts += object.each_visible_face(|visible| {
+                draw(visible, face_colour(visible, lighting, &light));
+            });
+        }
+        counts
     }
 
-    /// As `each_visible_face`, but leaving out (while still counting) the
-    /// faces whose corners all lie above or all below `rows`: the renderer
-    /// draws a band of rows at a time, and a face's depth plane and shade
-    /// cost arithmetic worth saving.
-    pub fn each_visible_face_in_rows(
-        &mut self,
-        rows: core::ops::Range<i32>,
-        mut draw: impl FnMut(&VisibleFace, u8),
-    ) -> FaceCounts {
+    /// This frame's faces, handed out as plain data into `list`: each
+    /// object's faces that survive backface removal (in the order of
+    /// `each_visible_face`), projected and coloured as `visible_faces`
+    /// colours them, with its screen rectangle and whether it is convex; the
+    /// objects' far-to-near order (`drawing_order`); and whether the crowd's
+    /// small solids are shown. The scene does not draw them, nor know how
+    /// they will be drawn.
+    pub fn faces<'list>(&mut self, list: &'list mut SceneFaces) -> Faces<'list> {
+        list.begin_frame(self.crowd);
         let (lighting, light) = (self.lighting, self.light);
-        let count = self.object_count();
-        crate::depth::each_visible_face_in_rows(&mut self.objects[..count], rows, |visible| {
-            draw(visible, face_colour(visible, lighting, &light))
-        })
+        for object in self.objects_mut() {
+            let convex = convex(object.model());
+            list.push_object(object, convex, |visible| {
+                face_colour(visible, lighting, &light)
+            });
+        }
+        let (order, count) = self.drawing_order();
+        list.set_far_to_near(&order[..count]);
+        list.faces()
     }
+}
+
+/// Whether the shape with this model is convex; a model that is none of the
+/// shapes counts as not convex, so that the depth test covers it.
+fn convex(model: &Model) -> bool {
+    SHAPES
+        .iter()
+        .find(|solid| core::ptr::eq(solid.model, model))
+        .is_some_and(|solid| solid.convex)
 }
 
 /// Abrash's flat colour, or with lighting on the level of the colour's ramp

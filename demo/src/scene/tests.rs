@@ -278,7 +278,7 @@ fn where_objects_overlap_the_nearer_one_shows() {
             continue;
         }
         let mut frame_picture = std::vec![0u8; 320 * 240];
-        let clip = crate::frame::SCREEN_CLIP;
+        let clip = crate::screen::SCREEN_CLIP;
         scene.visible_faces(|polygon, colour| {
             engine::fill_convex_polygon(polygon, clip, |y, x0, x1| {
                 let row = y as usize * 320;
@@ -423,4 +423,114 @@ fn members_of_the_crowd_pass_through_each_other() {
         }
     }
     assert!(closest < 12.0, "closest {closest}");
+}
+
+/// The faces handed out are the faces `each_visible_face` walks, in its
+/// order and colours, grouped by object; the painter's order is
+/// `drawing_order`'s; the counts and the small-solids flag are the scene's.
+#[test]
+fn the_faces_handed_out_are_the_faces_the_scene_walks() {
+    let mut list = std::boxed::Box::new(SceneFaces::new());
+    let setups: [&[SceneCommand]; 4] = [
+        &[],
+        &[SceneCommand::ToggleSeveral, SceneCommand::ToggleLighting],
+        &[SceneCommand::NextSolid; 5], // the letter L, not convex
+        &[SceneCommand::ToggleCrowd, SceneCommand::ToggleLighting],
+    ];
+    for commands in setups {
+        let mut scene = Scene::new();
+        for &command in commands {
+            scene.apply(command);
+        }
+        for frame in 0..40 {
+            scene.tick();
+            let mut walked = std::vec::Vec::new();
+            let counts = scene.each_visible_face(|visible, colour| {
+                walked.push((visible.polygon.to_vec(), colour, visible.depth_plane()));
+            });
+            let mut by_object = std::vec::Vec::new();
+            for object in scene.objects_mut() {
+                let mut faces = std::vec::Vec::new();
+                object.each_visible_face(|visible| faces.push(visible.polygon.to_vec()));
+                by_object.push(faces);
+            }
+            let (order, count) = scene.drawing_order();
+            let crowd = scene.crowd();
+            let convex: std::vec::Vec<bool> = scene
+                .objects()
+                .iter()
+                .map(|object| {
+                    SHAPES
+                        .iter()
+                        .any(|s| core::ptr::eq(s.model, object.model()) && s.convex)
+                })
+                .collect();
+            let faces = scene.faces(&mut list);
+            let context = std::format!("{commands:?}, frame {frame}");
+            assert_eq!(faces.counts(), counts, "{context}");
+            assert_eq!(faces.small_solids(), crowd, "{context}");
+            let listed: std::vec::Vec<_> = faces
+                .all()
+                .iter()
+                .map(|face| (face.polygon().to_vec(), face.colour, face.depth_plane))
+                .collect();
+            assert_eq!(listed, walked, "{context}");
+            assert_eq!(faces.objects().len(), count, "{context}");
+            for (index, object) in faces.objects().iter().enumerate() {
+                let polygons: std::vec::Vec<_> = faces
+                    .of(object)
+                    .iter()
+                    .map(|face| face.polygon().to_vec())
+                    .collect();
+                assert_eq!(polygons, by_object[index], "{context}, object {index}");
+                assert_eq!(object.convex, convex[index], "{context}, object {index}");
+                assert!(object.bounds.is_some(), "{context}, object {index}");
+            }
+            let painted: std::vec::Vec<_> = faces.far_to_near().collect();
+            for (slot, &index) in order[..count].iter().enumerate() {
+                assert_eq!(
+                    painted[slot],
+                    faces.of(&faces.objects()[index]),
+                    "{context}"
+                );
+            }
+        }
+    }
+}
+
+/// The face list has room for the most faces the scene can show: every
+/// object's model's faces, whatever solid is in the cube's place.
+#[test]
+fn the_face_list_holds_every_face_of_every_object() {
+    for shape in 0..SHAPES.len() {
+        let mut scene = Scene::initial();
+        for _ in 0..shape {
+            scene.apply(SceneCommand::NextSolid);
+        }
+        scene.apply(SceneCommand::ToggleCrowd);
+        assert_eq!(scene.objects().len(), MAX_OBJECTS);
+        let faces: usize = scene
+            .objects()
+            .iter()
+            .map(|object| object.model().faces.len())
+            .sum();
+        assert!(faces <= MAX_FACES, "{faces} faces with shape {shape}");
+    }
+    // And no more than that: the largest shape's case fills it exactly.
+    let most = SHAPES.iter().map(|s| s.model.faces.len()).max().unwrap();
+    let largest = SHAPES
+        .iter()
+        .position(|s| s.model.faces.len() == most)
+        .unwrap();
+    let mut scene = Scene::initial();
+    for _ in 0..largest {
+        scene.apply(SceneCommand::NextSolid);
+    }
+    scene.apply(SceneCommand::ToggleCrowd);
+    let faces: usize = scene
+        .objects()
+        .iter()
+        .map(|object| object.model().faces.len())
+        .sum();
+    assert_eq!(faces, MAX_FACES);
 }

@@ -5,7 +5,8 @@
 
 use crate::platform::acpi::{self, Register};
 use crate::{serial_println, time};
-use firmware::acpi::{pm1_control_with_sleep_type, ResetStep, SCI_EN, SLP_EN};
+use demo::facts::Ps2;
+use firmware::acpi::{pm1_control_with_sleep_type, Presence, ResetStep, SCI_EN, SLP_EN};
 use x86_64::instructions::port::Port;
 
 /// How long the firmware gets to switch the chipset into ACPI mode.
@@ -79,7 +80,13 @@ pub fn reset() -> ! {
     crate::input::xhci::shut_down();
     x86_64::instructions::interrupts::disable();
     let facts = acpi::facts();
-    for step in ResetStep::order(facts.reset.is_some(), facts.legacy.i8042) {
+    // The 8042 probe's answer, where there was one, over the FADT's flag.
+    let i8042 = match crate::facts::try_get().map(|known| known.ps2) {
+        Some(Ps2::Absent) => Presence::Absent,
+        Some(Ps2::Ready | Ps2::Failed(_)) => Presence::Present,
+        Some(Ps2::Unknown) | None => facts.legacy.i8042,
+    };
+    for step in ResetStep::order(facts.reset.is_some(), i8042) {
         match step {
             ResetStep::FadtRegister => {
                 if let Some((register, value)) = facts.reset {

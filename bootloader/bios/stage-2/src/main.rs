@@ -19,6 +19,7 @@ mod fat;
 mod memory_map;
 mod protected_mode;
 mod screen;
+mod serial; // Patched
 mod vesa;
 
 /// We use this partition type to store the second bootloader stage;
@@ -102,6 +103,9 @@ fn start(disk_number: u16, partition_table_start: *const u8) -> ! {
     writeln!(screen::Writer, "stage 4 loaded at {stage_4_dst:#p}").unwrap();
 
     writeln!(screen::Writer, "loading kernel...").unwrap();
+    // Patched: the loader's first line on serial, so a slow load is no hang.
+    serial::init();
+    let _ = writeln!(serial::Com1, "loader: loading kernel (BIOS stage 2)");
     let kernel_len = load_file("kernel-x86_64", KERNEL_DST, &mut fs, &mut disk, disk_buffer);
     writeln!(screen::Writer, "kernel loaded at {KERNEL_DST:#p}").unwrap();
     let kernel_page_size = (((kernel_len - 1) / 4096) + 1) as usize;
@@ -125,7 +129,25 @@ fn start(disk_number: u16, partition_table_start: *const u8) -> ! {
     )
     .unwrap_or(0);
 
-    let memory_map = unsafe { memory_map::query_memory_map() }.unwrap();
+    // Patched: the map as the BIOS gives it; entries past the table are
+    // dropped and said so; no map at all stops here, said on screen and serial.
+    let memory_map = match unsafe { memory_map::query_memory_map() } {
+        Ok((memory_map, walk)) => {
+            if walk.dropped > 0 {
+                let _ = writeln!(
+                    serial::Both,
+                    "loader: memory map: {} entries past the table of {} dropped",
+                    walk.dropped,
+                    memory_map.len()
+                );
+            }
+            memory_map
+        }
+        Err(walk) => serial::stop(format_args!(
+            "loader: no memory map from the BIOS (INT 15h E820 ended with {:?}); stopped",
+            walk.ending
+        )),
+    };
     writeln!(screen::Writer, "{memory_map:x?}").unwrap();
 
     // TODO: load these from the kernel's config instead of hardcoding

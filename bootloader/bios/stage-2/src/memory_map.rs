@@ -14,18 +14,25 @@ static MEMORY_MAP: RacyCell<[E820MemoryRegion; 100]> = RacyCell::new(
 );
 
 /// use the INT 0x15, eax= 0xE820 BIOS function to get a memory map
-pub unsafe fn query_memory_map() -> Result<&'static mut [E820MemoryRegion], ()> {
+///
+/// Patched: the walk is `loader_logic::e820::walk` (host-tested): it ends on
+/// CF set or EBX=0 with the entries it has, drops and counts the entries past
+/// the table, and is bounded in calls. Err only when there are no entries.
+pub unsafe fn query_memory_map()
+-> Result<(&'static mut [E820MemoryRegion], loader_logic::e820::Walk), loader_logic::e820::Walk> {
+    use loader_logic::e820::{Answer, walk}; // Patched
     const SMAP: u32 = 0x534D4150;
+    // Patched: a bound on calls, far above any real list.
+    const MAX_CALLS: usize = 1024;
 
     let memory_map = unsafe { MEMORY_MAP.get_mut() };
 
-    let mut i = 0;
-
-    let mut offset = 0;
-    let buf = [0u8; 24];
-    loop {
+    let found = walk(memory_map, MAX_CALLS, |continuation| {
+        let mut offset = continuation; // Patched
+        let mut buf = [0u8; 24]; // Patched: the BIOS writes it
         let ret: u32;
-        let buf_written_len;
+        let buf_written_len: u32; // Patched
+        let carry: u8; // Patched
         unsafe {
             asm!(
                 "push ebx",
@@ -34,18 +41,25 @@ pub unsafe fn query_memory_map() -> Result<&'static mut [E820MemoryRegion], ()> 
                 "int 0x15",
                 "mov edx, ebx",
                 "pop ebx",
+                "setc {carry}", // Patched: CF set ends the list
+                carry = out(reg_byte) carry,
                 inout("eax") 0xe820 => ret,
                 inout("edx") offset,
-                inout("ecx") buf.len() => buf_written_len,
-                in("di") &buf
+                inout("ecx") buf.len() as u32 => buf_written_len,
+                in("di") &mut buf,
             )
         };
+        if carry != 0 {
+            return Answer::Carry; // Patched
+        }
         if ret != SMAP {
-            return Err(());
+            return Answer::NotSmap; // Patched
         }
 
-        if buf_written_len != 0 {
-            let buf = &buf[..buf_written_len];
+        let mut entry = None; // Patched
+        let written = (buf_written_len as usize).min(buf.len()); // Patched
+        if written >= 20 {
+            let buf = &buf[..written];
 
             let (&base_raw, rest) = split_array_ref(buf);
             let (&len_raw, rest) = split_array_ref(rest);
@@ -54,20 +68,22 @@ pub unsafe fn query_memory_map() -> Result<&'static mut [E820MemoryRegion], ()> 
 
             let len = u64::from_ne_bytes(len_raw);
             if len != 0 {
-                memory_map[i] = E820MemoryRegion {
+                entry = Some(E820MemoryRegion {
                     start_addr: u64::from_ne_bytes(base_raw),
                     len,
                     region_type: u32::from_ne_bytes(kind_raw),
                     acpi_extended_attributes: u32::from_ne_bytes(acpi_extended_raw),
-                };
-                i += 1;
+                });
             }
         }
-
-        if offset == 0 {
-            break;
+        Answer::Entry {
+            entry,
+            next: offset,
         }
-    }
+    });
 
-    Ok(&mut memory_map[..i])
+    if found.stored == 0 {
+        return Err(found); // Patched
+    }
+    Ok((&mut memory_map[..found.stored], found))
 }

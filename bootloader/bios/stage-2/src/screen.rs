@@ -37,6 +37,8 @@ pub fn panic(info: &core::panic::PanicInfo) -> ! {
         let _ = writeln!(Writer, "{location} ");
     }
     let _ = writeln!(Writer, " {info}");
+    // Patched: on serial too, so a stop is never silent there.
+    let _ = writeln!(crate::serial::Com1, "loader: PANIC: {info}");
 
     loop {
         unsafe {

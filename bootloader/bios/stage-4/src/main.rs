@@ -80,7 +80,7 @@ pub extern "C" fn _start(info: &mut BiosInfo) -> ! {
                         frame,
                         PageTableFlags::PRESENT
                             | PageTableFlags::WRITABLE
-                            | PageTableFlags::NO_EXECUTE,
+                            | bootloader_x86_64_common::no_execute(), // Patched: none without NX
                         &mut frame_allocator,
                     )
                     .unwrap()

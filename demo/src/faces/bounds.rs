@@ -1,5 +1,7 @@
 //! Screen rectangles around objects, to tell when two objects cannot cover
-//! the same pixel.
+//! the same pixel: the scene's face list gives each object its rectangle,
+//! the depth policy asks where they meet. Geometry only; depends on nothing
+//! in the crate.
 
 use core::ops::Range;
 use engine::Point;
@@ -45,10 +47,12 @@ impl ScreenBox {
 }
 
 /// The rows, as one range, where any two of the boxes share pixels.
-pub fn overlap_rows(boxes: &[ScreenBox]) -> Option<Range<i32>> {
+pub fn overlap_rows<'a>(
+    mut boxes: impl Iterator<Item = &'a ScreenBox> + Clone,
+) -> Option<Range<i32>> {
     let mut rows = None;
-    for (index, a) in boxes.iter().enumerate() {
-        for b in &boxes[index + 1..] {
+    while let Some(a) = boxes.next() {
+        for b in boxes.clone() {
             rows = hull(rows, a.overlap_rows(b));
         }
     }
@@ -90,9 +94,9 @@ mod tests {
         assert_eq!(left.overlap_rows(&touching), Some(10..11));
         assert_eq!(touching.overlap_rows(&left), Some(10..11));
         assert_eq!(left.overlap_rows(&below), None);
-        assert_eq!(overlap_rows(&[left, apart, below]), None);
-        assert_eq!(overlap_rows(&[left, apart, touching]), Some(10..11));
-        assert_eq!(overlap_rows(&[left]), None);
+        assert_eq!(overlap_rows([left, apart, below].iter()), None);
+        assert_eq!(overlap_rows([left, apart, touching].iter()), Some(10..11));
+        assert_eq!(overlap_rows([left].iter()), None);
     }
 
     #[test]
@@ -101,7 +105,7 @@ mod tests {
         let b = boxed(&[(5, 5), (15, 12)]);
         let c = boxed(&[(100, 50), (110, 60)]);
         let d = boxed(&[(105, 58), (120, 90)]);
-        assert_eq!(overlap_rows(&[a, b, c, d]), Some(5..61));
+        assert_eq!(overlap_rows([a, b, c, d].iter()), Some(5..61));
         assert_eq!(a.rows(), 0..11);
         assert_eq!(hull(None, Some(3..4)), Some(3..4));
         assert_eq!(hull(None, None), None);

@@ -1,0 +1,368 @@
+//! A frame's faces as plain data: what the scene hands out and the depth
+//! policy draws.
+//!
+//! Data goes one way. [`crate::scene::Scene::faces`] projects its objects,
+//! removes the faces turned away, colours the rest and writes them into a
+//! [`FaceList`], with each object's screen rectangle, whether it is convex,
+//! and the objects' order far to near; [`crate::depth`] reads the list as
+//! [`Faces`] and draws it into the frame; [`crate::frame`] calls the one,
+//! then the other. Neither calls back into the other, and this module
+//! depends on neither (only on `engine`), so neither depends on the other.
+//!
+//! A face is culled, coloured and given its depth plane once a frame, here,
+//! however many times the depth policy then draws it (once per band of
+//! rows). The list is fixed-size, as there is no heap: its owner sizes it
+//! for the most objects and faces it can show.
+
+pub mod bounds;
+
+use bounds::ScreenBox;
+use core::ops::Range;
+use engine::{DepthPlane, FaceCounts, Object, Point, VisibleFace, MAX_FACE_VERTICES};
+
+/// One face to draw: it faces the viewer, its corners are on the screen,
+/// and its colour is decided.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ScreenFace {
+    corners: [Point; MAX_FACE_VERTICES],
+    corner_count: u8,
+    /// The palette colour to fill it with.
+    pub colour: u8,
+    /// −1/z across the face, for the depth test: `None` for a plane through
+    /// the eye (seen edge-on), which the depth test leaves out.
+    pub depth_plane: Option<DepthPlane>,
+    top: i32,
+    bottom: i32,
+}
+
+impl ScreenFace {
+    const EMPTY: ScreenFace = ScreenFace {
+        corners: [Point::new(0, 0); MAX_FACE_VERTICES],
+        corner_count: 0,
+        colour: 0,
+        depth_plane: None,
+        top: 0,
+        bottom: 0,
+    };
+
+    /// The face `visible` (which survived backface removal) in `colour`.
+    pub fn new(visible: &VisibleFace, colour: u8) -> Self {
+        let polygon = visible.polygon;
+        let mut corners = [Point::default(); MAX_FACE_VERTICES];
+        corners[..polygon.len()].copy_from_slice(polygon);
+        ScreenFace {
+            corners,
+            // At most MAX_FACE_VERTICES (8): `Object` refuses bigger faces.
+            corner_count: polygon.len() as u8,
+            colour,
+            depth_plane: visible.depth_plane(),
+            top: polygon.iter().map(|p| p.y).min().unwrap_or(0),
+            bottom: polygon.iter().map(|p| p.y).max().unwrap_or(0),
+        }
+    }
+
+    /// The face's corners on the screen, in the face's order.
+    pub fn polygon(&self) -> &[Point] {
+        &self.corners[..usize::from(self.corner_count)]
+    }
+
+    /// Whether the face's fill can reach `rows`: the filler draws the rows
+    /// from its top corner down to, not including, its bottom one.
+    pub fn meets_rows(&self, rows: &Range<i32>) -> bool {
+        self.top < rows.end && self.bottom > rows.start
+    }
+}
+
+/// One object's part of the list: its faces, where it lies on the screen,
+/// and whether it is convex.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ObjectFaces {
+    first_face: usize,
+    end_face: usize,
+    /// The rectangle around all its vertices on the screen (drawn or not):
+    /// its drawing never leaves it. `None` for a model with no vertices.
+    pub bounds: Option<ScreenBox>,
+    /// Convex, so that its faces that survive backface removal never
+    /// overlap one another.
+    pub convex: bool,
+}
+
+impl ObjectFaces {
+    const EMPTY: ObjectFaces = ObjectFaces {
+        first_face: 0,
+        end_face: 0,
+        bounds: None,
+        convex: true,
+    };
+}
+
+/// Room for one frame's faces: up to `OBJECTS` objects with `FACES` faces
+/// between them. The scene fills it ([`FaceList::begin_frame`], then
+/// [`FaceList::push_object`] per object, then [`FaceList::set_far_to_near`]);
+/// the depth policy reads it through [`FaceList::faces`].
+#[derive(Clone, Debug)]
+pub struct FaceList<const OBJECTS: usize, const FACES: usize> {
+    objects: [ObjectFaces; OBJECTS],
+    object_count: usize,
+    faces: [ScreenFace; FACES],
+    face_count: usize,
+    far_to_near: [usize; OBJECTS],
+    counts: FaceCounts,
+    small_solids: bool,
+}
+
+impl<const OBJECTS: usize, const FACES: usize> Default for FaceList<OBJECTS, FACES> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
+    /// An empty list; `const`, so that it can live in a static beside the
+    /// renderer's images.
+    pub const fn new() -> Self {
+        FaceList {
+            objects: [ObjectFaces::EMPTY; OBJECTS],
+            object_count: 0,
+            faces: [ScreenFace::EMPTY; FACES],
+            face_count: 0,
+            far_to_near: [0; OBJECTS],
+            counts: FaceCounts {
+                drawn: 0,
+                culled: 0,
+            },
+            small_solids: false,
+        }
+    }
+
+    /// Empties the list for a new frame. `small_solids`: some objects are so
+    /// small on the screen that rounding their corners to pixels can fold a
+    /// face over its neighbour (see [`Faces::small_solids`]).
+    pub fn begin_frame(&mut self, small_solids: bool) {
+        self.object_count = 0;
+        self.face_count = 0;
+        self.counts = FaceCounts::default();
+        self.small_solids = small_solids;
+    }
+
+    /// Adds `object` (projected first if it moved) with its screen
+    /// rectangle and each face that survives backface removal, in model
+    /// order, coloured by `colour`; counts the faces drawn and culled.
+    ///
+    /// Panics if the list has no room left: its owner sizes it for the most
+    /// objects and faces it shows, so that would be a mistake in that sizing.
+    pub fn push_object(
+        &mut self,
+        object: &mut Object,
+        convex: bool,
+        colour: impl Fn(&VisibleFace) -> u8,
+    ) {
+        assert!(
+            self.object_count < OBJECTS,
+            "the face list holds at most {OBJECTS} objects"
+        );
+        let bounds = ScreenBox::around(object.screen_vertices());
+        let first_face = self.face_count;
+        let (faces, face_count) = (&mut self.faces, &mut self.face_count);
+        self.counts += object.each_visible_face(|visible| {
+            assert!(
+                *face_count < FACES,
+                "the face list holds at most {FACES} faces"
+            );
+            faces[*face_count] = ScreenFace::new(visible, colour(visible));
+            *face_count += 1;
+        });
+        self.objects[self.object_count] = ObjectFaces {
+            first_face,
+            end_face: self.face_count,
+            bounds,
+            convex,
+        };
+        self.object_count += 1;
+    }
+
+    /// The order the objects pushed this frame are painted in without the
+    /// depth test, farthest first: indices in the order they were pushed.
+    /// Panics unless `order` names each of them once.
+    pub fn set_far_to_near(&mut self, order: &[usize]) {
+        assert_eq!(order.len(), self.object_count, "an order for every object");
+        let mut named = [false; OBJECTS];
+        for &index in order {
+            assert!(
+                index < self.object_count && !named[index],
+                "object {index} named twice or missing"
+            );
+            named[index] = true;
+        }
+        self.far_to_near[..order.len()].copy_from_slice(order);
+    }
+
+    /// The frame's faces, to draw.
+    pub fn faces(&self) -> Faces<'_> {
+        Faces {
+            objects: &self.objects[..self.object_count],
+            faces: &self.faces[..self.face_count],
+            far_to_near: &self.far_to_near[..self.object_count],
+            counts: self.counts,
+            small_solids: self.small_solids,
+        }
+    }
+}
+
+/// A frame's faces, as filled into a [`FaceList`]: read-only, to draw.
+#[derive(Clone, Copy, Debug)]
+pub struct Faces<'list> {
+    objects: &'list [ObjectFaces],
+    faces: &'list [ScreenFace],
+    far_to_near: &'list [usize],
+    counts: FaceCounts,
+    small_solids: bool,
+}
+
+impl<'list> Faces<'list> {
+    /// The objects, in the order they were pushed.
+    pub fn objects(&self) -> &'list [ObjectFaces] {
+        self.objects
+    }
+
+    /// Every face, object by object in the order they were pushed, each
+    /// object's in model order: the order the depth test draws them in
+    /// (where two faces tie in depth, the first drawn shows).
+    pub fn all(&self) -> &'list [ScreenFace] {
+        self.faces
+    }
+
+    /// The faces of `object` (one of [`Faces::objects`]).
+    pub fn of(&self, object: &ObjectFaces) -> &'list [ScreenFace] {
+        &self.faces[object.first_face..object.end_face]
+    }
+
+    /// Each object's faces, the objects farthest first: the painter's order.
+    pub fn far_to_near(&self) -> impl Iterator<Item = &'list [ScreenFace]> {
+        let (objects, faces) = (self.objects, self.faces);
+        self.far_to_near.iter().map(move |&index| {
+            let object = &objects[index];
+            &faces[object.first_face..object.end_face]
+        })
+    }
+
+    /// How many faces were drawn and culled.
+    pub fn counts(&self) -> FaceCounts {
+        self.counts
+    }
+
+    /// Some objects are so small on the screen that rounding their corners
+    /// to pixels can fold a face over its neighbour, away from any edge
+    /// between objects: only the depth test everywhere draws them right.
+    pub fn small_solids(&self) -> bool {
+        self.small_solids
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::solids::{CUBE, TETRAHEDRON};
+    use engine::Xform;
+    use std::vec::Vec;
+
+    fn cube_at(x: f64, z: f64) -> Object {
+        Object::new(&CUBE, Xform::translation(x, 0.0, z))
+    }
+
+    #[test]
+    fn each_object_keeps_its_own_faces_bounds_and_convexity() {
+        let mut list: FaceList<3, 20> = FaceList::new();
+        let (mut near, mut far) = (cube_at(-40.0, -100.0), cube_at(40.0, -300.0));
+        let mut turned = Object::new(&TETRAHEDRON, Xform::translation(0.0, 0.0, -200.0));
+        turned.object_to_world_mut().append_rotation_y(0.5);
+        list.begin_frame(true);
+        list.push_object(&mut near, true, |_| 7);
+        list.push_object(&mut far, false, |visible| visible.face.colour);
+        list.push_object(&mut turned, true, |_| 9);
+        list.set_far_to_near(&[1, 2, 0]);
+        let faces = list.faces();
+        assert!(faces.small_solids());
+        let objects = faces.objects();
+        assert_eq!(objects.len(), 3);
+        let mut counts = FaceCounts::default();
+        for (object, (mut engine_object, convex)) in
+            objects
+                .iter()
+                .zip([(near, true), (far, false), (turned, true)])
+        {
+            let mut expected = Vec::new();
+            counts += engine_object.each_visible_face(|v| expected.push(v.polygon.to_vec()));
+            let listed: Vec<_> = faces
+                .of(object)
+                .iter()
+                .map(|f| f.polygon().to_vec())
+                .collect();
+            assert_eq!(listed, expected);
+            assert_eq!(object.convex, convex);
+            assert_eq!(
+                object.bounds,
+                ScreenBox::around(engine_object.screen_vertices())
+            );
+        }
+        assert_eq!(faces.counts(), counts);
+        assert!(faces.of(&objects[0]).iter().all(|face| face.colour == 7));
+        assert!(faces.of(&objects[2]).iter().all(|face| face.colour == 9));
+        let all: usize = objects.iter().map(|object| faces.of(object).len()).sum();
+        assert_eq!(faces.all().len(), all);
+        let order: Vec<_> = faces.far_to_near().collect();
+        assert_eq!(
+            order,
+            [
+                faces.of(&objects[1]),
+                faces.of(&objects[2]),
+                faces.of(&objects[0])
+            ]
+        );
+        // A new frame starts empty.
+        list.begin_frame(false);
+        let faces = list.faces();
+        assert!(faces.all().is_empty() && faces.objects().is_empty());
+        assert_eq!(faces.counts(), FaceCounts::default());
+        assert!(!faces.small_solids());
+    }
+
+    #[test]
+    fn a_face_meets_the_rows_its_fill_can_reach() {
+        let mut object = cube_at(0.0, -100.0);
+        let mut face = None;
+        object.each_visible_face(|visible| face = Some(ScreenFace::new(visible, 3)));
+        let face = face.expect("the front face");
+        let top = face.polygon().iter().map(|p| p.y).min().unwrap();
+        let bottom = face.polygon().iter().map(|p| p.y).max().unwrap();
+        assert!(face.meets_rows(&(top..top + 1)));
+        assert!(face.meets_rows(&(bottom - 1..bottom)));
+        assert!(!face.meets_rows(&(bottom..bottom + 40)));
+        assert!(!face.meets_rows(&(top - 40..top)));
+        assert!(face.depth_plane.is_some());
+    }
+
+    #[test]
+    #[should_panic(expected = "the face list holds at most 5 faces")]
+    fn a_list_too_small_says_so() {
+        let mut list: FaceList<2, 5> = FaceList::new();
+        list.begin_frame(false);
+        // Three faces of a cube seen from a corner, twice.
+        for _ in 0..2 {
+            let mut cube = cube_at(30.0, -100.0);
+            cube.object_to_world_mut().append_rotation_y(0.6);
+            cube.object_to_world_mut().append_rotation_x(0.6);
+            list.push_object(&mut cube, true, |_| 1);
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "named twice or missing")]
+    fn an_order_must_name_each_object_once() {
+        let mut list: FaceList<2, 12> = FaceList::new();
+        list.begin_frame(false);
+        list.push_object(&mut cube_at(0.0, -100.0), true, |_| 1);
+        list.push_object(&mut cube_at(0.0, -200.0), true, |_| 1);
+        list.set_far_to_near(&[1, 1]);
+    }
+}
