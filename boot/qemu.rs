@@ -719,6 +719,26 @@ impl Qemu {
         Ok(reply["return"].take())
     }
 
+    /// Plugs a device in while the machine runs (QMP `device_add`), as
+    /// `-device` would: `driver` is its type, `properties` the rest
+    /// (`id`, `bus`, `port`, ...).
+    pub fn device_add(&mut self, driver: &str, properties: &[(&str, &str)]) -> Result<()> {
+        let mut arguments = serde_json::Map::new();
+        arguments.insert("driver".into(), Value::from(driver));
+        for (name, value) in properties {
+            arguments.insert((*name).into(), Value::from(*value));
+        }
+        self.execute(json!({ "execute": "device_add", "arguments": arguments }))?;
+        Ok(())
+    }
+
+    /// Pulls out the device with `id` (QMP `device_del`). QEMU completes
+    /// the removal later; the guest's log says when it has seen it.
+    pub fn device_del(&mut self, id: &str) -> Result<()> {
+        self.execute(json!({ "execute": "device_del", "arguments": { "id": id } }))?;
+        Ok(())
+    }
+
     /// Presses and releases a key, named as QEMU's `sendkey` names keys
     /// (`a`, `4`, `kp_4`, `f1`, `left`, `esc`, `spc`, `shift-a`, ...).
     pub fn send_key(&mut self, key: &str) -> Result<()> {

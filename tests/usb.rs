@@ -1,4 +1,4 @@
-//! A USB keyboard through the xHCI controller, in QEMU. Two boots:
+//! A USB keyboard through the xHCI controller, in QEMU. Four boots:
 //!
 //! - OVMF on a Q35 without an i8042 or a PIT (a UEFI-only desktop), the keyboard
 //!   behind a `usb-hub`: the cube test's key sequence gives the software
@@ -9,6 +9,11 @@
 //!   USB keyboard alone act exactly once each (the firmware's own USB
 //!   keyboard support is gone once the kernel has the controller), and PS/2
 //!   keys act too.
+//! - OVMF with the keyboard behind three tiers of `usb-hub`: the cube
+//!   test's keys give the software VGA's pictures.
+//! - OVMF with no keyboard at boot: one plugged in with QMP `device_add`
+//!   after `screen: ready` is found and its keys act; pulled out
+//!   (`device_del`) it is let go of; plugged in again its keys act again.
 //!
 //! Keys reach the USB keyboard alone because it is bound to the display
 //! (`display=video0`) and sent there (`Qemu::press_key_on`); `sendkey`
@@ -361,4 +366,99 @@ fn esc_powers_off_with_the_xhci_halted_first() {
     );
     assert!(console.contains(line::GOODBYE), "{console}");
     assert_eq!(status.code(), Some(0), "{console}");
+}
+
+#[test]
+fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_acts_again() {
+    let board = Board {
+        chipset: Chipset::Q35,
+        pit: false,
+        i8042: false,
+        hpet: true,
+    };
+    let devices = vec!["qemu-xhci,id=xhci".to_string()];
+    let mut qemu = start(Firmware::Uefi, Graphics::BochsDisplay, board, devices);
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(
+        console.contains("usb: no USB keyboard on the xHCI"),
+        "{console}"
+    );
+    const FOUND: &str = "keyboard: USB keyboard, read by its report descriptor";
+    // QEMU's bus port 1 is the xHCI's first USB 2 port, after its USB 3 ones.
+    const PLUGGED: &str = ": device plugged in";
+    const GONE: &str = ": device gone";
+    let keyboard = [
+        ("id", "kbd2"),
+        ("bus", "xhci.0"),
+        ("port", "1"),
+        ("display", DISPLAY_ID),
+    ];
+    let mut done = 0;
+    for round in 1..=2 {
+        qemu.device_add("usb-kbd", &keyboard).unwrap();
+        qemu.wait_for_serial_count(FOUND, round, BOOT_TIMEOUT)
+            .unwrap();
+        // Each key acts once: two keys, two commands.
+        done = send_and_wait(&mut qemu, &[("6", true), ("6", false)], done, 1);
+        done = send_and_wait(&mut qemu, &[("4", true), ("4", false)], done, 1);
+        qemu.device_del("kbd2").unwrap();
+        qemu.wait_for_serial_count(GONE, round, BOOT_TIMEOUT)
+            .unwrap();
+    }
+    let console = qemu.serial();
+    assert_eq!(console.matches(PLUGGED).count(), 2, "{console}");
+    // What each enumeration held the frame loop up for, as the kernel measured it.
+    let enumerations: Vec<&str> = console
+        .lines()
+        .filter(|l| l.contains(": enumerated in "))
+        .collect();
+    assert_eq!(enumerations.len(), 2, "{console}");
+    eprintln!("{}", enumerations.join("\n"));
+    assert_eq!(commands_done(&console), 4, "{console}");
+}
+
+#[test]
+fn a_usb_keyboard_behind_three_tiers_of_hubs_drives_the_demo() {
+    let board = Board {
+        chipset: Chipset::Q35,
+        pit: false,
+        i8042: false,
+        hpet: true,
+    };
+    let devices = vec![
+        "qemu-xhci,id=xhci".to_string(),
+        "usb-hub,bus=xhci.0,port=1".to_string(),
+        "usb-hub,bus=xhci.0,port=1.1".to_string(),
+        "usb-hub,bus=xhci.0,port=1.1.1".to_string(),
+        usb_keyboard("bus=xhci.0,port=1.1.1.1"),
+    ];
+    let mut qemu = start(Firmware::Uefi, Graphics::BochsDisplay, board, devices);
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    let keyboard_line = console
+        .lines()
+        .find(|l| l.starts_with("keyboard: USB keyboard, read by its report descriptor "))
+        .unwrap_or_else(|| panic!("no USB keyboard found:\n{console}"));
+    // The root port (QEMU's bus port 1 is the first USB 2 port, after the
+    // USB 3 ones), then port 1 of each hub tier.
+    let location = keyboard_line.rsplit(" on port ").next().unwrap();
+    assert!(
+        location.ends_with(".1.1.1") && location.split('.').count() == 4,
+        "the keyboard is on port 1 of the third hub: {keyboard_line}"
+    );
+    // The cube test's keys, each compared with the software VGA.
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    let mut done = 0;
+    for (n, &(key, command)) in CUBE_KEYS.iter().enumerate() {
+        done = send_and_wait(&mut qemu, &[(key, true), (key, false)], done, 1);
+        app.apply(command);
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        let screen = qemu.screendump().unwrap();
+        let expected = presented(&model_picture(&soft), screen.width, screen.height);
+        assert_pictures_equal(&screen, &expected, &format!("usb key {} ({key})", n + 1));
+    }
 }

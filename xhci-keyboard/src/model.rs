@@ -67,6 +67,8 @@ enum Kind {
 #[derive(Clone, Debug, Default)]
 struct Slot {
     kind: Kind,
+    /// A hub's tier (0: on the root port).
+    tier: usize,
     enabled: bool,
     output: u64,
     ep0: Cursor,
@@ -100,7 +102,8 @@ pub struct KeyboardState {
     pub slot: u8,
 }
 
-/// What the hub was told, and its port 2 (where the keyboard is).
+/// What a hub was told, and its port 2 (where the keyboard, or the next
+/// hub, is).
 #[derive(Clone, Debug, Default)]
 pub struct HubState {
     pub slot: u8,
@@ -133,6 +136,11 @@ pub struct Model {
     pub needs_two_step: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
+    /// With `hub`: this many hubs chained, each on port 2 of the one
+    /// above, the keyboard on the last one's port 2.
+    pub hub_tiers: usize,
+    /// Root port 1 is empty after the controller's reset (plugged later).
+    pub empty_at_start: bool,
     /// The keyboard's interrupt endpoint was reset and awaits its dequeue pointer.
     endpoint_stopped: bool,
     // Registers.
@@ -156,7 +164,8 @@ pub struct Model {
     next_slot: u8,
     // What happened.
     pub keyboard: KeyboardState,
-    pub hub_state: HubState,
+    /// Each hub tier's state, the one on the root port first.
+    pub hub_states: Vec<HubState>,
     pub events_dropped: u32,
     /// Slots the driver disabled, in order.
     pub slots_disabled: Vec<u8>,
@@ -181,6 +190,8 @@ impl Model {
             ignores_set_protocol: false,
             needs_two_step: false,
             hub: false,
+            hub_tiers: 1,
+            empty_at_start: false,
             endpoint_stopped: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
@@ -204,7 +215,7 @@ impl Model {
                 protocol: 1,
                 ..KeyboardState::default()
             },
-            hub_state: HubState::default(),
+            hub_states: vec![HubState::default(); 6],
             events_dropped: 0,
             slots_disabled: Vec::new(),
             events_posted: 0,
@@ -332,8 +343,14 @@ impl Model {
                     self.complete_command(address, 1, slot);
                 }
                 trb_type::ENABLE_SLOT => {
-                    let slot = self.next_slot;
-                    self.next_slot += 1;
+                    // The lowest slot free, as a controller hands them out
+                    // again once disabled.
+                    let Some(slot) = (1..self.slots.len()).find(|&s| !self.slots[s].enabled) else {
+                        self.complete_command(address, 9, 0); // No Slots Available
+                        continue;
+                    };
+                    let slot = slot as u8;
+                    self.next_slot = self.next_slot.max(slot + 1);
                     self.slots[usize::from(slot)].enabled = true;
                     self.complete_command(address, 1, slot);
                 }
@@ -345,10 +362,14 @@ impl Model {
                     let ep0_dw1 = self.mem_read(input + 2 * ctx + 4);
                     let ep0_dequeue = self.read64(input + 2 * ctx + 8);
                     let route = slot_dw0 & 0xF_FFFF;
-                    let kind = match (self.hub, route) {
-                        (false, 0) | (true, 2) => Some(Kind::Keyboard),
-                        (true, 0) => Some(Kind::Hub),
-                        _ => None,
+                    let tiers = if self.hub { self.hub_tiers } else { 0 };
+                    // Each tier's hub on port 2 of the one above.
+                    let route_of = |tier: usize| (0..tier).fold(0, |r, t| r | 2 << (4 * t));
+                    let hub_tier = (0..tiers).find(|&t| route == route_of(t));
+                    let kind = if route == route_of(tiers) {
+                        Some(Kind::Keyboard)
+                    } else {
+                        hub_tier.map(|_| Kind::Hub)
                     };
                     let valid = add == 0b11
                         && kind.is_some()
@@ -397,11 +418,12 @@ impl Model {
                     self.mem_write(output + 12, slot_state << 27 | u32::from(slot));
                     let state = &mut self.slots[usize::from(slot)];
                     state.kind = kind_now;
+                    state.tier = hub_tier.unwrap_or(0);
                     state.output = output;
                     state.default_address = block_set_address;
                     state.ep0 = new_ep0;
                     match kind {
-                        Some(Kind::Hub) => self.hub_state.slot = slot,
+                        Some(Kind::Hub) => self.hub_states[hub_tier.unwrap_or(0)].slot = slot,
                         _ => self.keyboard.slot = slot,
                     }
                     self.complete_command(address, 1, slot);
@@ -462,7 +484,9 @@ impl Model {
                     if self.slots[usize::from(slot)].kind == Kind::Hub {
                         let slot_dw0 = self.mem_read(input + ctx);
                         let ports = self.mem_read(input + ctx + 4) >> 24;
-                        self.hub_state.marked = add == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
+                        let tier = self.slots[usize::from(slot)].tier;
+                        self.hub_states[tier].marked =
+                            add == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
                     }
                     for dci in 2..32u8 {
                         if add & (1 << dci) == 0 {
@@ -536,7 +560,8 @@ impl Model {
                         (true, 0xA3, 0, _) => {
                             let port = (setup >> 32) as u16;
                             let status = if port == 2 {
-                                self.hub_state.keyboard_port_status
+                                self.hub_states[self.slots[usize::from(slot)].tier]
+                                    .keyboard_port_status
                             } else {
                                 0
                             };
@@ -557,7 +582,8 @@ impl Model {
                     let (request_type, request) = (setup as u8, (setup >> 8) as u8);
                     let value = (setup >> 16) as u16;
                     if self.slots[usize::from(slot)].kind == Kind::Hub {
-                        let known = self.hub_request(setup);
+                        let tier = self.slots[usize::from(slot)].tier;
+                        let known = self.hub_request(tier, setup);
                         self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
                         continue;
                     }
@@ -600,7 +626,7 @@ impl Model {
     }
 
     /// A hub class (or standard) request's effect; whether the hub knows it.
-    fn hub_request(&mut self, setup: u64) -> bool {
+    fn hub_request(&mut self, tier: usize, setup: u64) -> bool {
         const CONNECTED: u32 = 1;
         const ENABLED: u32 = 1 << 1;
         const POWERED: u32 = 1 << 8;
@@ -612,22 +638,22 @@ impl Model {
         match (request_type, request, value) {
             (0x80 | 0xA0 | 0xA3, 6 | 0, _) => true,
             (0x00, 9, _) => {
-                self.hub_state.configured = true;
+                self.hub_states[tier].configured = true;
                 true
             }
             (0x23, 3, 8) if port_index < 4 => {
-                self.hub_state.powered[port_index] = true;
+                self.hub_states[tier].powered[port_index] = true;
                 if port == 2 {
-                    self.hub_state.keyboard_port_status = CONNECTED | POWERED;
+                    self.hub_states[tier].keyboard_port_status = CONNECTED | POWERED;
                 }
                 true
             }
             (0x23, 3, 4) if port == 2 => {
-                self.hub_state.keyboard_port_status |= ENABLED | RESET_CHANGE;
+                self.hub_states[tier].keyboard_port_status |= ENABLED | RESET_CHANGE;
                 true
             }
             (0x23, 1, 20) if port == 2 => {
-                self.hub_state.keyboard_port_status &= !RESET_CHANGE;
+                self.hub_states[tier].keyboard_port_status &= !RESET_CHANGE;
                 true
             }
             _ => {
@@ -695,6 +721,26 @@ impl Model {
         ]));
     }
 
+    /// A keyboard (or the hub, with `hub`) is plugged into root port 1, in
+    /// the state a device has after power-on: the port connects and the
+    /// controller says so with a Port Status Change event.
+    pub fn plug(&mut self) {
+        const CONNECT_CHANGE: u32 = 1 << 17;
+        self.keyboard = KeyboardState {
+            protocol: 1,
+            ..KeyboardState::default()
+        };
+        self.hub_states = vec![HubState::default(); 6];
+        self.endpoint_stopped = false;
+        self.portsc[0] = 1 | 1 << 9 | 1 << 10 | CONNECT_CHANGE;
+        self.post_event(Trb([
+            1 << 24,
+            0,
+            1 << 24,
+            trb_type::PORT_STATUS_CHANGE << 10,
+        ]));
+    }
+
     /// The root port's status change bits still set.
     pub fn root_port_changes(&self) -> u32 {
         self.portsc[0] & (0x7F << 17)
@@ -732,7 +778,8 @@ impl Model {
     /// The hub's port 2 status bits that matter: connected and enabled, and
     /// the reset change (bit 20) once cleared.
     pub fn keyboard_port_status_after_reset(&self) -> u32 {
-        self.hub_state.keyboard_port_status & (0b11 | 1 << 20)
+        let last = if self.hub { self.hub_tiers - 1 } else { 0 };
+        self.hub_states[last].keyboard_port_status & (0b11 | 1 << 20)
     }
 
     /// The DCBAA's entry 0: the scratchpad array.
@@ -827,7 +874,11 @@ impl Hardware for Model {
                     self.usbcmd = 0;
                     self.usbsts = 1 | if self.cnr_stuck { 1 << 11 } else { 0 };
                     self.portsc = [0; PORTS];
-                    self.portsc[0] = 1 | 1 << 9 | 1 << 10; // connected, powered, full speed
+                    self.portsc[0] = if self.empty_at_start {
+                        1 << 9
+                    } else {
+                        1 | 1 << 9 | 1 << 10 // connected, powered, full speed
+                    };
                     self.portsc[1] = 1 << 9;
                 } else {
                     self.usbcmd = value;

@@ -135,6 +135,11 @@ impl ProducerRing {
         }
     }
 
+    /// Where the ring's memory starts.
+    pub fn base(&self) -> u64 {
+        self.base
+    }
+
     /// Where the ring starts, with the cycle state the consumer starts with
     /// (for CRCR and endpoint contexts' dequeue pointers).
     pub fn dequeue_pointer(&self) -> u64 {

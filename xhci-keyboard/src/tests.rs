@@ -138,7 +138,7 @@ fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
             xhci.keyboards().collect::<Vec<_>>(),
             [Location {
                 root_port: 1,
-                hub_port: 0
+                route: 0
             }]
         );
     }
@@ -289,13 +289,13 @@ fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
         xhci.keyboards().collect::<Vec<_>>(),
         [Location {
             root_port: 1,
-            hub_port: 2
+            route: 2
         }]
     );
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
-    assert!(model.hub_state.configured && model.hub_state.marked);
-    assert_eq!(model.hub_state.powered, [true; 4]);
+    assert!(model.hub_states[0].configured && model.hub_states[0].marked);
+    assert_eq!(model.hub_states[0].powered, [true; 4]);
     assert_eq!(
         model.keyboard_port_status_after_reset(),
         0b11,
@@ -638,4 +638,115 @@ fn a_keyboard_pulled_out_lets_go_of_its_keys_and_its_slot() {
         assert_eq!(model.root_port_changes(), 0, "changes acknowledged");
         assert!(!model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
     }
+}
+
+#[test]
+fn a_keyboard_plugged_in_after_start_is_found_and_found_again_after_an_unplug() {
+    for hub in [false, true] {
+        let mut model = Model::new();
+        model.hub = hub;
+        model.empty_at_start = true;
+        let mut xhci = controller(model);
+        xhci.take_ownership();
+        xhci.reset_and_start().unwrap();
+        assert_eq!(xhci.enumerate(), 0);
+        for round in 0..3 {
+            xhci.hardware().plug();
+            // The connection settles first: nothing is asked of the device
+            // on the poll that sees the change.
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 0, "hub {hub} round {round}");
+            xhci.hardware().now += 100_000;
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 1, "hub {hub} round {round}");
+            assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+            assert_eq!(poll(&mut xhci), [0x1E], "hub {hub} round {round}");
+            assert!(xhci.hardware().send_report([0; 8]));
+            assert_eq!(poll(&mut xhci), [0x9E]);
+            xhci.hardware().unplug();
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 0);
+            xhci.hardware().now += 1_000_000;
+            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(xhci.keyboards().count(), 0);
+        }
+        let model = xhci.hardware();
+        assert!(model.errors.is_empty(), "hub {hub}: {:?}", model.errors);
+        assert_eq!(model.root_port_changes(), 0, "changes acknowledged");
+        let devices = if hub { 6 } else { 3 };
+        assert_eq!(model.slots_disabled.len(), devices, "hub {hub}");
+    }
+}
+
+#[test]
+fn a_keyboard_behind_three_and_five_tiers_of_hubs_is_reached() {
+    for (tiers, route, name) in [(3, 0x222, "1.2.2.2"), (5, 0x2_2222, "1.2.2.2.2.2")] {
+        let mut model = Model::new();
+        model.hub = true;
+        model.hub_tiers = tiers;
+        let mut xhci = with_keyboard(model);
+        assert_eq!(
+            xhci.keyboards().collect::<Vec<_>>(),
+            [Location {
+                root_port: 1,
+                route
+            }]
+        );
+        assert_eq!(std::format!("{}", xhci.keyboards().next().unwrap()), name);
+        let model = xhci.hardware();
+        assert!(model.errors.is_empty(), "{:?}", model.errors);
+        for (tier, hub) in model.hub_states[..tiers].iter().enumerate() {
+            assert!(hub.configured && hub.marked, "tier {tier}: {hub:?}");
+            assert_eq!(hub.powered, [true; 4], "tier {tier}");
+        }
+        assert_eq!(model.keyboard_port_status_after_reset(), 0b11);
+        assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+        assert_eq!(poll(&mut xhci), [0x01], "{tiers} tiers");
+    }
+}
+
+#[test]
+fn a_sixth_tier_of_hubs_is_left_alone() {
+    let mut model = Model::new();
+    model.hub = true;
+    model.hub_tiers = 6;
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 0);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert!(
+        model.log.iter().any(|l| l
+            == "usb: hub on port 1.2.2.2.2.2: past the five hub tiers a route string names; left alone"),
+        "{:?}",
+        model.log
+    );
+    assert!(model.hub_states[..5].iter().all(|hub| hub.configured));
+    assert!(!model.hub_states[5].configured, "the sixth hub is not used");
+}
+
+#[test]
+fn a_keyboard_switched_back_and_forth_a_thousand_times_still_types() {
+    let mut model = Model::new();
+    model.hub = true;
+    model.empty_at_start = true;
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 0);
+    // Each plug takes 10 pages (a hub and a keyboard); 1,000 of them are
+    // far more than the model's 1 MiB of DMA memory holds.
+    for round in 0..1000 {
+        xhci.hardware().plug();
+        assert_eq!(poll(&mut xhci), []);
+        xhci.hardware().now += 100_000;
+        assert_eq!(poll(&mut xhci), []);
+        assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+        assert_eq!(poll(&mut xhci), [0x1E], "round {round}");
+        xhci.hardware().unplug();
+        assert_eq!(poll(&mut xhci), [0x9E], "round {round}");
+    }
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
 }

@@ -83,6 +83,10 @@ const PORT_ENABLED: u32 = 1 << 1;
 const PORT_RESET: u32 = 1 << 4;
 const PORT_POWER: u32 = 1 << 9;
 const PORT_RESET_CHANGE: u32 = 1 << 21;
+const PORT_CONNECT_CHANGE: u32 = 1 << 17;
+/// How long a new connection must stay before it is enumerated (Linux's
+/// `HUB_DEBOUNCE_STABLE`): a plug bounces as it goes in.
+const DEBOUNCE_MICROS: u64 = 100_000;
 /// The write-1-to-clear change bits (CSC, PEC, WRC, OCC, PRC, PLC, CEC).
 const PORT_CHANGES: u32 = 0x7F << 17;
 
@@ -184,22 +188,44 @@ pub enum Handoff {
     Forced,
 }
 
-/// Where a device hangs: a root port, and a hub port below it (0: none).
+/// Where a device hangs: a root port, and the hub ports on the way down.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Location {
     /// The root hub port, 1-based.
     pub root_port: u8,
-    /// The port of the hub on `root_port`, or 0 for the root port itself.
-    pub hub_port: u8,
+    /// The route string: the port on each hub tier below the root port,
+    /// four bits a tier, the first tier lowest (0: the root port itself).
+    pub route: u32,
+}
+
+/// Hub tiers below the root hub a route string can name (USB 2.0 and
+/// xHCI: five, four bits each).
+pub const MAX_HUB_TIERS: u32 = 5;
+
+impl Location {
+    /// The hub tiers between the root port and the device.
+    pub fn depth(&self) -> u32 {
+        (0..MAX_HUB_TIERS)
+            .take_while(|tier| (self.route >> (4 * tier)) & 0xF != 0)
+            .count() as u32
+    }
+
+    /// Port `port` of the hub at this location.
+    fn below(&self, port: u8) -> Location {
+        Location {
+            root_port: self.root_port,
+            route: self.route | u32::from(port & 0xF) << (4 * self.depth()),
+        }
+    }
 }
 
 impl core::fmt::Display for Location {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        if self.hub_port == 0 {
-            write!(f, "{}", self.root_port)
-        } else {
-            write!(f, "{}.{}", self.root_port, self.hub_port)
+        write!(f, "{}", self.root_port)?;
+        for tier in 0..self.depth() {
+            write!(f, ".{}", (self.route >> (4 * tier)) & 0xF)?;
         }
+        Ok(())
     }
 }
 
@@ -333,12 +359,19 @@ impl Keyboard {
     }
 }
 
-/// A bump allocator of zeroed pages in the DMA region.
+/// A bump allocator of zeroed pages in the DMA region, with the pages of
+/// devices pulled out kept for the next ones (a KVM switched back and
+/// forth all day must not run the region dry).
 #[derive(Clone, Copy, Debug)]
 struct Pages {
     next: u64,
     end: u64,
+    freed: [u64; FREED_PAGES],
+    freed_count: usize,
 }
+
+/// Pages of departed devices kept for reuse: a hub tree's worth.
+const FREED_PAGES: usize = 64;
 
 /// What the capability registers say.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -413,6 +446,11 @@ pub struct Xhci<H: Hardware> {
     events: Option<EventRing>,
     protocols: PortProtocols,
     devices: [Option<Device>; MAX_DEVICES],
+    /// Root ports connected since start, a bit each, waiting for their
+    /// connection to settle before they are enumerated.
+    connected_ports: [u64; 4],
+    /// When the last of them connected.
+    connected_since: u64,
 }
 
 impl<H: Hardware> Xhci<H> {
@@ -467,12 +505,16 @@ impl<H: Hardware> Xhci<H> {
             pages: Pages {
                 next: first,
                 end: dma_base + dma_bytes,
+                freed: [0; FREED_PAGES],
+                freed_count: 0,
             },
             dcbaa: 0,
             commands: None,
             events: None,
             protocols: PortProtocols::default(),
             devices: Default::default(),
+            connected_ports: [0; 4],
+            connected_since: 0,
         })
     }
 
@@ -543,6 +585,14 @@ impl<H: Hardware> Xhci<H> {
     }
 
     fn page(&mut self) -> Result<u64> {
+        if self.pages.freed_count > 0 {
+            self.pages.freed_count -= 1;
+            let page = self.pages.freed[self.pages.freed_count];
+            for offset in (0..PAGE_BYTES).step_by(4) {
+                self.hw.mem_write(page + offset, 0);
+            }
+            return Ok(page);
+        }
         let page = self.pages.next;
         let limit = if self.capabilities.addressing_64 {
             u64::MAX
@@ -889,7 +939,7 @@ impl<H: Hardware> Xhci<H> {
             }
             let location = Location {
                 root_port: port,
-                hub_port: 0,
+                route: 0,
             };
             if let Err(e) = self.reset_root_port(port) {
                 self.hw
@@ -1116,12 +1166,12 @@ impl<H: Hardware> Xhci<H> {
                 }
                 Ok(())
             }
-            Some(Function::Hub) if location.hub_port == 0 => {
+            Some(Function::Hub) if location.depth() < MAX_HUB_TIERS => {
                 self.set_up_hub(index, configuration.value)
             }
             Some(Function::Hub) => {
                 self.hw.log(format_args!(
-                    "usb: hub on port {location}: deeper hubs are not supported"
+                    "usb: hub on port {location}: past the five hub tiers a route string names; left alone"
                 ));
                 // Left addressed and unused, as a device that is not ours.
                 Ok(())
@@ -1355,10 +1405,7 @@ impl<H: Hardware> Xhci<H> {
         // Devices need up to 100 ms to connect after power (USB 2.0 7.1.7.3).
         self.pause(100_000);
         for port in 1..=ports {
-            let location = Location {
-                root_port: hub.location.root_port,
-                hub_port: port,
-            };
+            let location = hub.location.below(port);
             let status = self.hub_port_status(index, port)?;
             if status & 1 == 0 {
                 continue;
@@ -1371,9 +1418,16 @@ impl<H: Hardware> Xhci<H> {
                 } else {
                     speed::FULL
                 };
-                let translator = (hub.speed == speed::HIGH && speed_id != speed::HIGH)
-                    .then_some((hub.slot, port));
-                self.attach(location, u32::from(port), speed_id, translator)
+                // A full- or low-speed device is reached through the
+                // transaction translator of the nearest high-speed hub
+                // above it: this hub's, or the one this hub itself uses.
+                let translator = if hub.speed == speed::HIGH {
+                    (speed_id != speed::HIGH).then_some((hub.slot, port))
+                } else {
+                    let context = hub.slot_context;
+                    (context.tt_hub_slot != 0).then_some((context.tt_hub_slot, context.tt_port))
+                };
+                self.attach(location, location.route, speed_id, translator)
             });
             if let Err(e) = result {
                 self.hw
@@ -1437,6 +1491,7 @@ impl<H: Hardware> Xhci<H> {
             };
             self.other_event(&event, out);
         }
+        self.enumerate_connected_ports();
         let now = self.hw.now_micros();
         for index in 0..MAX_DEVICES {
             let Some(keyboard) = self.devices[index]
@@ -1543,14 +1598,21 @@ impl<H: Hardware> Xhci<H> {
 
     /// A root port's status changed. A device pulled out (or switched away
     /// by a KVM) is let go of: its held keys released, its slot disabled
-    /// (queued, not waited for), everything behind it forgotten.
+    /// (queued, not waited for), everything behind it forgotten. A device
+    /// plugged in (or switched back) is enumerated from `poll` once its
+    /// connection has settled.
     fn root_port_changed(&mut self, port: u8, out: &mut impl FnMut(u8)) {
         if port == 0 || port > self.capabilities.ports {
             return;
         }
         let register = self.portsc(port);
         let status = self.read(register);
-        if status == u32::MAX || status & PORT_CONNECTED != 0 {
+        if status == u32::MAX {
+            return;
+        }
+        let connected = status & PORT_CONNECTED != 0;
+        // A reset's own change, acknowledged where the reset is waited for.
+        if connected && status & PORT_CONNECT_CHANGE == 0 {
             return;
         }
         // Acknowledge the changes (write-1-to-clear), keeping the power,
@@ -1567,13 +1629,84 @@ impl<H: Hardware> Xhci<H> {
             if let Some(keyboard) = device.keyboard.as_mut() {
                 keyboard.state.release_all(out);
             }
-            self.devices[index] = None;
+            self.free_pages_of(index);
             let mut disable = command::DisableSlot::new();
             disable.set_slot_id(slot);
             let _ = self.queue_command(Trb(disable.into_raw()));
             self.hw.log(format_args!(
                 "usb: port {location}: device gone; its keys released and slot {slot} disabled"
             ));
+        }
+        let (word, bit) = (usize::from(port / 64), port % 64);
+        if connected {
+            self.connected_ports[word] |= 1 << bit;
+            self.connected_since = self.hw.now_micros();
+            self.hw
+                .log(format_args!("usb: port {port}: device plugged in"));
+        } else {
+            self.connected_ports[word] &= !(1 << bit);
+        }
+    }
+
+    /// Forgets a device and keeps its pages for the next. They are
+    /// touched again only after a later Enable Slot completes, which the
+    /// command ring runs after this device's Disable Slot.
+    fn free_pages_of(&mut self, index: usize) {
+        let Some(device) = self.devices[index].take() else {
+            return;
+        };
+        let keyboard = device.keyboard.map(|k| [k.ring.base(), k.reports]);
+        let pages = [
+            device.output,
+            device.input,
+            device.buffer,
+            device.ep0.base(),
+        ];
+        for page in pages.into_iter().chain(keyboard.into_iter().flatten()) {
+            if self.pages.freed_count < FREED_PAGES {
+                self.pages.freed[self.pages.freed_count] = page;
+                self.pages.freed_count += 1;
+            }
+        }
+    }
+
+    /// Enumerates the root ports whose new connection has settled.
+    fn enumerate_connected_ports(&mut self) {
+        if self.connected_ports == [0; 4]
+            || self.hw.now_micros().saturating_sub(self.connected_since) < DEBOUNCE_MICROS
+        {
+            return;
+        }
+        let ports = core::mem::take(&mut self.connected_ports);
+        for port in 1..=self.capabilities.ports {
+            if ports[usize::from(port / 64)] & (1 << (port % 64)) == 0 {
+                continue;
+            }
+            let register = self.portsc(port);
+            let status = self.read(register);
+            if status == u32::MAX || status & PORT_CONNECTED == 0 {
+                continue;
+            }
+            let location = Location {
+                root_port: port,
+                route: 0,
+            };
+            // The enumeration holds up the poll that runs it: said, so
+            // that its cost can be seen.
+            let start = self.hw.now_micros();
+            let result = self.reset_root_port(port).and_then(|()| {
+                let speed_id = (self.read(register) >> 10) & 0xF;
+                self.attach(location, 0, speed_id, None)
+            });
+            let took = self.hw.now_micros().saturating_sub(start);
+            match result {
+                Ok(()) => self.hw.log(format_args!(
+                    "usb: port {location}: enumerated in {took} us"
+                )),
+                Err(e) => self.hw.log(format_args!(
+                    "usb: port {location}: {e}; left alone after {took} us"
+                )),
+            }
         }
     }
 
