@@ -658,12 +658,39 @@ impl Qemu {
         self.wait_for_console(&what, budget, |text| text.matches(needle).count() >= count)
     }
 
-    /// Waits until `done` holds for the serial console (`what` names it in
-    /// an error); `budget` as for [`Qemu::wait_for_serial`].
+    /// As [`Qemu::wait_for_serial_count`], but also looking at the text after
+    /// the last newline: firmware screens (shim's, MokManager's) are drawn
+    /// with cursor moves and may end no line for a long time. The kernel's
+    /// lines are matched whole by the other waits, so that a line a wait saw
+    /// is always in [`Qemu::serial`] too.
+    pub fn wait_for_screen_text(
+        &mut self,
+        needle: &str,
+        count: usize,
+        budget: Duration,
+    ) -> Result<String> {
+        let what = format!("{needle:?} (x{count}) on the firmware's screen");
+        self.wait_for_text(&what, budget, true, |text| {
+            text.matches(needle).count() >= count
+        })
+    }
+
+    /// Waits until `done` holds for the serial console's whole lines (`what`
+    /// names it in an error); `budget` as for [`Qemu::wait_for_serial`].
     pub fn wait_for_console(
         &mut self,
         what: &str,
         budget: Duration,
+        done: impl Fn(&str) -> bool,
+    ) -> Result<String> {
+        self.wait_for_text(what, budget, false, done)
+    }
+
+    fn wait_for_text(
+        &mut self,
+        what: &str,
+        budget: Duration,
+        with_partial_line: bool,
         done: impl Fn(&str) -> bool,
     ) -> Result<String> {
         let pid = self.child.id();
@@ -675,7 +702,7 @@ impl Qemu {
             if done(&console.text) {
                 return Ok(console.text.clone());
             }
-            if !console.partial.is_empty() {
+            if with_partial_line && !console.partial.is_empty() {
                 let with_partial = format!("{}{}", console.text, console.partial);
                 if done(&with_partial) {
                     return Ok(with_partial);

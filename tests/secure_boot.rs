@@ -87,7 +87,7 @@ fn save_screen(qemu: &mut Qemu, name: &str) {
 /// (OVMF copies its text console, shim's and MokManager's screens included,
 /// to serial).
 fn wait_text(qemu: &mut Qemu, text: &str, count: usize) {
-    qemu.wait_for_serial_count(text, count, SECURE_BOOT_TIMEOUT)
+    qemu.wait_for_screen_text(text, count, SECURE_BOOT_TIMEOUT)
         .unwrap_or_else(|e| panic!("{e}"));
 }
 
@@ -392,7 +392,7 @@ fn a_loader_signed_by_another_key_is_refused_by_shim() {
     assert!(status.success());
     let mut qemu = secure_boot(&stick, &vars);
     let console = qemu
-        .wait_for_serial("Verification failed", SECURE_BOOT_TIMEOUT)
+        .wait_for_screen_text("Verification failed", 1, SECURE_BOOT_TIMEOUT)
         .unwrap();
     assert!(console.contains("Security Violation"), "{console}");
     save_screen(&mut qemu, "refused-another-key.png");
