@@ -68,8 +68,37 @@ impl Hardware for Mmio {
     }
 }
 
-static CONTROLLERS: Mutex<[Option<Xhci<Mmio>>; MAX_CONTROLLERS]> =
-    Mutex::new([const { None }; MAX_CONTROLLERS]);
+/// A place in the controller table. `repr(u8)`, so that an empty place is a
+/// zero tag and the table starts all zero, in `.bss` rather than in the kernel
+/// file (`tests/size.rs`): an `Option` would mark `None` with a spare non-zero
+/// value inside the driver.
+#[repr(u8)]
+// The place is the controller's storage (no heap): an empty place's unused
+// bytes are the point.
+#[allow(clippy::large_enum_variant)]
+enum Controller {
+    Absent,
+    Running(Xhci<Mmio>),
+}
+
+impl Controller {
+    fn running(&mut self) -> Option<&mut Xhci<Mmio>> {
+        match self {
+            Controller::Running(xhci) => Some(xhci),
+            Controller::Absent => None,
+        }
+    }
+
+    fn take(&mut self) -> Option<Xhci<Mmio>> {
+        match core::mem::replace(self, Controller::Absent) {
+            Controller::Running(xhci) => Some(xhci),
+            Controller::Absent => None,
+        }
+    }
+}
+
+static CONTROLLERS: Mutex<[Controller; MAX_CONTROLLERS]> =
+    Mutex::new([const { Controller::Absent }; MAX_CONTROLLERS]);
 
 /// Finds the xHCI controllers, takes them from the firmware, and sets up the
 /// boot keyboards on them. Every step is bounded; a failure is logged and
@@ -101,7 +130,9 @@ pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
         ) else {
             break;
         };
-        *slot = start(function, dma, &mut mapping, physical_memory_offset);
+        if let Some(xhci) = start(function, dma, &mut mapping, physical_memory_offset) {
+            *slot = Controller::Running(xhci);
+        }
     }
 }
 
@@ -232,7 +263,7 @@ pub fn poll() {
     let Some(mut controllers) = CONTROLLERS.try_lock() else {
         return;
     };
-    for xhci in controllers.iter_mut().flatten() {
+    for xhci in controllers.iter_mut().filter_map(Controller::running) {
         xhci.poll(&mut |byte| {
             // SCANCODES has a single producer, IRQ 1. With interrupts off the
             // IRQ handler cannot run in the middle of this push, and there is
