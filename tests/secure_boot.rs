@@ -391,10 +391,11 @@ fn a_loader_signed_by_another_key_is_refused_by_shim() {
         .unwrap();
     assert!(status.success());
     let mut qemu = secure_boot(&stick, &vars);
+    // Shim draws its box a piece at a time: wait for the end of the message.
     let console = qemu
-        .wait_for_screen_text("Verification failed", 1, SECURE_BOOT_TIMEOUT)
+        .wait_for_screen_text("Security Violation", 1, SECURE_BOOT_TIMEOUT)
         .unwrap();
-    assert!(console.contains("Security Violation"), "{console}");
+    assert!(console.contains("Verification failed"), "{console}");
     save_screen(&mut qemu, "refused-another-key.png");
     qemu.send_key("ret").unwrap();
     wait_text(&mut qemu, "Press any key to perform MOK management", 1);
