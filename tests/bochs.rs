@@ -27,7 +27,7 @@ const BOOT_TIMEOUT: Duration = Duration::from_secs(60);
 /// From a key to the kernel's line saying it has drawn its answer.
 const KEY_TIMEOUT: Duration = Duration::from_secs(20);
 /// From that line to the window showing the answer: Bochs redraws the window
-/// several times a second.
+/// 10 times an emulated second.
 const SCREEN_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// Bochs 2.7 shows Mode X at 640x480: its renderer (iodev/display/vgacore.cc,
@@ -110,6 +110,21 @@ fn save_pictures(name: &str, shown: &RgbImage, expected: &RgbImage) -> String {
     format!("pictures in {}", dir.display())
 }
 
+/// The error, and where the whole window it last saw is saved, if it has one.
+fn with_window_saved(error: BochsError, name: &str) -> String {
+    match &error {
+        BochsError::NoGuestPicture {
+            window: Some(window),
+            ..
+        } => {
+            let path = boot::images::images_dir().join(format!("{name}-window.png"));
+            let _ = window.write_png(&path);
+            format!("{error}; the window is in {}", path.display())
+        }
+        _ => error.to_string(),
+    }
+}
+
 fn boot(vga: VgaExtension) -> Bochs {
     let images = boot::images::publish().expect("the build script made the images");
     // The one image (GPT with a hybrid MBR): Bochs's BIOS boots its MBR.
@@ -165,7 +180,7 @@ fn picture_and_goodbye(vga: VgaExtension) {
             save_pictures(&format!("{name}-after-r"), &last, &expected),
             bochs.serial()
         ),
-        Err(e) => panic!("{name}: {e}"),
+        Err(e) => panic!("{name}: {}", with_window_saved(e, &format!("{name}-after-r"))),
     }
 
     bochs.send_key("Escape").unwrap_or_else(|e| panic!("{e}"));
@@ -177,7 +192,11 @@ fn picture_and_goodbye(vga: VgaExtension) {
             "{name}: {waited:?} after the goodbye line on serial, the window is not the goodbye screen: {}",
             goodbye_mismatch(&last).unwrap_or_default()
         ),
-        Err(e) => panic!("{name}: {e}"),
+        Err(e) => panic!(
+            "{name}: {}{}",
+            with_window_saved(e, &format!("{name}-goodbye")),
+            bochs.diagnostics()
+        ),
     }
     println!("{name}: passed in {:.1?}", started.elapsed());
 }
