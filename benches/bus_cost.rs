@@ -241,16 +241,13 @@ fn main() {
     let through = compare("Interpenetrating solids", &interpenetrating_set(), false);
     let crowd = compare("The crowd of 59 solids", &crowd_set(), false);
     println!(
-        // `*_vs_seed_method` repeat `*_vs_abrash_method` under their old names,
-        // for scripts that read them; they go in the release after next.
         "SUMMARY vram_writes_over_bound={:.3} bus_ops_over_full_bound={:.3} \
          bus_ops_vs_per_pixel={:.2} bus_ops_vs_abrash_method={:.2} \
          extras_vram_writes_over_bound={:.3} extras_bus_ops_over_full_bound={:.3} \
          extras_bus_ops_vs_per_pixel={:.2} extras_bus_ops_vs_abrash_method={:.2} \
          interpenetrating_vram_writes_over_bound={:.3} \
          interpenetrating_bus_ops_over_full_bound={:.3} \
-         crowd_vram_writes_over_bound={:.3} crowd_bus_ops_over_full_bound={:.3} \
-         bus_ops_vs_seed_method={:.2} extras_bus_ops_vs_seed_method={:.2}",
+         crowd_vram_writes_over_bound={:.3} crowd_bus_ops_over_full_bound={:.3}",
         cube.vram_over_bound,
         cube.bus_over_full_bound,
         cube.vs_per_pixel,
@@ -263,7 +260,5 @@ fn main() {
         through.bus_over_full_bound,
         crowd.vram_over_bound,
         crowd.bus_over_full_bound,
-        cube.vs_original,
-        extras.vs_original,
     );
 }
