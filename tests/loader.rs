@@ -56,6 +56,10 @@ fn a_blt_only_gop_alone_boots_without_a_display_and_keys_still_act() {
     );
     assert!(console.contains("display: none:"), "{console}");
     assert!(
+        !console.contains("drawing through the firmware framebuffer"),
+        "no framebuffer, so none is said to be drawn through:\n{console}"
+    );
+    assert!(
         console.contains("facts: display: none: no legacy VGA, no framebuffer"),
         "{console}"
     );

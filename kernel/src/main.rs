@@ -127,14 +127,21 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     // the card may scan out the firmware's framebuffer whatever the VGA
     // registers say (Intel iGPUs answer them with the VGA plane disabled), so
     // true Mode X would be a black screen.
-    let true_mode_x = if acpi.legacy.vga == Presence::Absent && !force_true_mode_x {
-        serial_println!("display: the ACPI tables say there is no VGA; not probing it");
-        false
-    } else if booted_by == Firmware::Uefi && !force_true_mode_x {
-        serial_println!(
-            "display: UEFI boot: drawing through the firmware framebuffer \
-             (true Mode X needs a BIOS or CSM boot)"
-        );
+    // The FADT's "VGA not present" is only a hint (firmware gets it wrong):
+    // the probe below reads before it writes, so it is safe where nothing
+    // answers, and it decides.
+    if acpi.legacy.vga == Presence::Absent {
+        serial_println!("display: the ACPI tables say there is no VGA; a hint, the probe decides");
+    }
+    let true_mode_x = if booted_by == Firmware::Uefi && !force_true_mode_x {
+        // Said only where there is a framebuffer; without one, the line
+        // below says there is no picture.
+        if boot_info.framebuffer.as_ref().is_some() {
+            serial_println!(
+                "display: UEFI boot: drawing through the firmware framebuffer \
+                 (true Mode X needs a BIOS or CSM boot)"
+            );
+        }
         false
     } else {
         if force_true_mode_x {
