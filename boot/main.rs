@@ -136,7 +136,7 @@ fn seconds(text: &str) -> Result<Duration, String> {
 
 fn adapter(name: &str) -> Result<Graphics, String> {
     Graphics::from_name(name).ok_or_else(|| {
-        let names: Vec<_> = Graphics::ALL.iter().map(|g| g.name()).collect();
+        let names: Vec<_> = Graphics::CHOICES.iter().map(|g| g.name()).collect();
         format!("unknown adapter {name:?}; one of: {}", names.join(", "))
     })
 }
@@ -401,6 +401,18 @@ mod tests {
         let error = Args::try_parse_from(["runner", "--keys", "r nope"]).unwrap_err();
         assert!(error.to_string().contains("\"nope\""), "{error}");
         assert!(error.to_string().contains("pgdn"), "{error}");
+    }
+
+    #[test]
+    fn every_adapter_the_runner_takes_is_named_when_one_is_wrong() {
+        for graphics in Graphics::CHOICES {
+            let args = Args::try_parse_from(["runner", "--vga", graphics.name()]).unwrap();
+            assert_eq!(args.graphics, graphics);
+        }
+        let error = Args::try_parse_from(["runner", "--vga", "hercules"]).unwrap_err();
+        for graphics in Graphics::CHOICES {
+            assert!(error.to_string().contains(graphics.name()), "{error}");
+        }
     }
 
     #[test]

@@ -129,6 +129,21 @@ impl Graphics {
         Graphics::BochsDisplay,
     ];
 
+    /// Every adapter `--vga` takes: [`Graphics::ALL`], then the two set-ups
+    /// without a usable legacy VGA that the loader tests boot.
+    pub const CHOICES: [Graphics; 10] = [
+        Graphics::StdVga,
+        Graphics::Cirrus,
+        Graphics::Vmware,
+        Graphics::Qxl,
+        Graphics::Virtio,
+        Graphics::Ati,
+        Graphics::IsaCirrus,
+        Graphics::BochsDisplay,
+        Graphics::VirtioGpu,
+        Graphics::VirtioGpuThenStdVga,
+    ];
+
     /// The runner's name for it (`--vga NAME`).
     pub fn name(self) -> &'static str {
         match self {
@@ -147,10 +162,7 @@ impl Graphics {
 
     /// The adapter with this runner name.
     pub fn from_name(name: &str) -> Option<Graphics> {
-        Graphics::ALL
-            .into_iter()
-            .chain([Graphics::VirtioGpu, Graphics::VirtioGpuThenStdVga])
-            .find(|g| g.name() == name)
+        Graphics::CHOICES.into_iter().find(|g| g.name() == name)
     }
 
     /// QEMU's arguments for it.
@@ -775,6 +787,7 @@ impl Qemu {
     /// Like [`Qemu::send_key`], holding the key down for `hold_millis` (long
     /// holds make the keyboard repeat). QEMU plays keys one after another.
     pub fn send_key_held(&mut self, key: &str, hold_millis: u32) -> Result<()> {
+        let key = qemu_key_name(key);
         let is_name = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '-';
         if key.is_empty() || !key.chars().all(is_name) {
             return Err(QemuError::Monitor(format!(
@@ -841,7 +854,7 @@ impl Qemu {
             .map(|(key, down)| {
                 json!({
                     "type": "key",
-                    "data": { "down": down, "key": { "type": "qcode", "data": key } },
+                    "data": { "down": down, "key": { "type": "qcode", "data": qemu_key_name(key) } },
                 })
             })
             .collect();
@@ -1063,5 +1076,15 @@ fn connect_monitor(path: &Path, child: &mut Child, log: &SerialLog) -> Result<Un
                 std::thread::sleep(Duration::from_millis(20));
             }
         }
+    }
+}
+
+/// QEMU's name for one of the runner's keys (`keyboard::keys`): the same
+/// name except the Menu (Application) key, E0 5D on PS/2, which QEMU calls
+/// `compose`; its own `menu` sends nothing to a PS/2 keyboard.
+pub fn qemu_key_name(key: &str) -> &str {
+    match key {
+        "menu" => "compose",
+        other => other,
     }
 }
