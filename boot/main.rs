@@ -136,7 +136,7 @@ fn seconds(text: &str) -> Result<Duration, String> {
 
 fn adapter(name: &str) -> Result<Graphics, String> {
     Graphics::from_name(name).ok_or_else(|| {
-        let names: Vec<_> = Graphics::CHOICES.iter().map(|g| g.name()).collect();
+        let names: Vec<_> = Graphics::choices().map(Graphics::name).collect();
         format!("unknown adapter {name:?}; one of: {}", names.join(", "))
     })
 }
@@ -405,12 +405,12 @@ mod tests {
 
     #[test]
     fn every_adapter_the_runner_takes_is_named_when_one_is_wrong() {
-        for graphics in Graphics::CHOICES {
+        for graphics in Graphics::choices() {
             let args = Args::try_parse_from(["runner", "--vga", graphics.name()]).unwrap();
             assert_eq!(args.graphics, graphics);
         }
         let error = Args::try_parse_from(["runner", "--vga", "hercules"]).unwrap_err();
-        for graphics in Graphics::CHOICES {
+        for graphics in Graphics::choices() {
             assert!(error.to_string().contains(graphics.name()), "{error}");
         }
     }

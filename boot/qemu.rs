@@ -129,20 +129,17 @@ impl Graphics {
         Graphics::BochsDisplay,
     ];
 
-    /// Every adapter `--vga` takes: [`Graphics::ALL`], then the two set-ups
-    /// without a usable legacy VGA that the loader tests boot.
-    pub const CHOICES: [Graphics; 10] = [
-        Graphics::StdVga,
-        Graphics::Cirrus,
-        Graphics::Vmware,
-        Graphics::Qxl,
-        Graphics::Virtio,
-        Graphics::Ati,
-        Graphics::IsaCirrus,
-        Graphics::BochsDisplay,
-        Graphics::VirtioGpu,
-        Graphics::VirtioGpuThenStdVga,
-    ];
+    /// The two set-ups without a usable legacy VGA that the loader tests
+    /// boot: `--vga` takes them too, after [`Graphics::ALL`].
+    pub const WITHOUT_LEGACY_VGA: [Graphics; 2] =
+        [Graphics::VirtioGpu, Graphics::VirtioGpuThenStdVga];
+
+    /// Every adapter `--vga` takes.
+    pub fn choices() -> impl Iterator<Item = Graphics> {
+        Graphics::ALL
+            .into_iter()
+            .chain(Graphics::WITHOUT_LEGACY_VGA)
+    }
 
     /// The runner's name for it (`--vga NAME`).
     pub fn name(self) -> &'static str {
@@ -162,7 +159,7 @@ impl Graphics {
 
     /// The adapter with this runner name.
     pub fn from_name(name: &str) -> Option<Graphics> {
-        Graphics::CHOICES.into_iter().find(|g| g.name() == name)
+        Graphics::choices().find(|g| g.name() == name)
     }
 
     /// QEMU's arguments for it.
