@@ -287,42 +287,17 @@ pub fn given_key(key: &Path, cert: &Path) -> Result<SigningKey> {
                       or leave both out to use (or make) the key in ~/.config/modex-cube/secure-boot",
             })?;
     }
-    let key_public = tool_output(
-        Command::new("openssl")
-            .args(["pkey", "-pubout", "-in"])
-            .arg(key),
-    )
-    .map_err(|detail| SecureBootError::BadFile {
-        path: key.to_owned(),
-        what: "a PEM private key",
-        detail,
-    })?;
-    let cert_public = tool_output(
-        Command::new("openssl")
-            .args(["x509", "-noout", "-pubkey", "-in"])
-            .arg(cert),
-    )
-    .map_err(|detail| SecureBootError::BadFile {
-        path: cert.to_owned(),
-        what: "a PEM X.509 certificate",
-        detail,
-    })?;
+    const KEY: &str = "a PEM private key";
+    const CERT: &str = "a PEM X.509 certificate";
+    let key_public = openssl_reading(key, KEY, &["pkey", "-pubout", "-in"])?;
+    let cert_public = openssl_reading(cert, CERT, &["x509", "-noout", "-pubkey", "-in"])?;
     if key_public != cert_public {
         return Err(SecureBootError::KeyCertMismatch {
             key: key.to_owned(),
             cert: cert.to_owned(),
         });
     }
-    let cert_der = tool_output(
-        Command::new("openssl")
-            .args(["x509", "-outform", "DER", "-in"])
-            .arg(cert),
-    )
-    .map_err(|detail| SecureBootError::BadFile {
-        path: cert.to_owned(),
-        what: "a PEM X.509 certificate",
-        detail,
-    })?;
+    let cert_der = openssl_reading(cert, CERT, &["x509", "-outform", "DER", "-in"])?;
     Ok(SigningKey {
         key: key.to_owned(),
         cert: cert.to_owned(),
@@ -702,6 +677,17 @@ pub const OVMF_MICROSOFT_VARS: &str = "/usr/share/OVMF/OVMF_VARS_4M.ms.fd";
 /// through MokManager) or in `db`. Both keep the DER bytes whole.
 pub fn is_enrolled(vars: &[u8], cert_der: &[u8]) -> bool {
     !cert_der.is_empty() && vars.windows(cert_der.len()).any(|w| w == cert_der)
+}
+
+/// What `openssl ARGS path` prints; a failure says the file is not `what`.
+fn openssl_reading(path: &Path, what: &'static str, args: &[&str]) -> Result<Vec<u8>> {
+    tool_output(Command::new("openssl").args(args).arg(path)).map_err(|detail| {
+        SecureBootError::BadFile {
+            path: path.to_owned(),
+            what,
+            detail,
+        }
+    })
 }
 
 fn scratch_dir() -> Result<tempfile::TempDir> {

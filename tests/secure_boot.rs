@@ -44,6 +44,40 @@ fn microsoft_vars(dir: &Path) -> PathBuf {
     vars
 }
 
+/// Where a certificate is enrolled in a copy of OVMF's variables.
+#[derive(Clone, Copy)]
+enum Enrolled {
+    /// In `db`: the firmware itself trusts what it signs.
+    Db,
+    /// In shim's MOK list: shim trusts what it signs.
+    Mok,
+}
+
+/// OVMF's variables with Microsoft's keys, and `key`'s certificate enrolled
+/// as `how` (written with virt-fw-vars, which boot/setup.sh installs), at
+/// `path`.
+fn microsoft_vars_with(path: &Path, how: Enrolled, key: &SigningKey) -> PathBuf {
+    let (flag, owner) = match how {
+        Enrolled::Db => ("--add-db", "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d"),
+        Enrolled::Mok => ("--add-mok", "605dab50-e046-4300-abb6-3dd810dd8b23"),
+    };
+    let tool =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
+    let status = std::process::Command::new(&tool)
+        .args(["--input", sb::OVMF_MICROSOFT_VARS, "--output"])
+        .arg(path)
+        .args([flag, owner])
+        .arg(&key.cert)
+        .status()
+        .unwrap_or_else(|e| panic!("{}: {e}; boot/setup.sh installs it", tool.display()));
+    assert!(
+        status.success(),
+        "{} {flag} failed: {status}",
+        tool.display()
+    );
+    path.to_owned()
+}
+
 fn secure_boot(image: &Path, vars: &Path) -> Qemu {
     let mut options = QemuOptions::new(image);
     options.firmware = Firmware::Uefi;
@@ -272,17 +306,7 @@ fn with_our_certificate_in_db_the_loader_boots_without_shim() {
     let stick = signed_stick(scratch.path(), &key, Route::Direct);
     let disk = std::fs::read(&stick).unwrap();
     assert!(sb::pe_section(&file_on_disk(&disk, sb::REMOVABLE_BOOT_PATH), ".sbat").is_some());
-    let vars = scratch.path().join("vars-with-db.fd");
-    let tool =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
-    let status = std::process::Command::new(&tool)
-        .args(["--input", sb::OVMF_MICROSOFT_VARS, "--output"])
-        .arg(&vars)
-        .args(["--add-db", "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d"])
-        .arg(&key.cert)
-        .status()
-        .unwrap_or_else(|e| panic!("{}: {e}; boot/setup.sh installs it", tool.display()));
-    assert!(status.success());
+    let vars = microsoft_vars_with(&scratch.path().join("vars-with-db.fd"), Enrolled::Db, &key);
     assert!(sb::is_enrolled(
         &std::fs::read(&vars).unwrap(),
         &key.cert_der
@@ -379,17 +403,11 @@ fn a_loader_signed_by_another_key_is_refused_by_shim() {
     let enrolled = test_key(&scratch.path().join("enrolled"));
     let other = test_key(&scratch.path().join("other"));
     let stick = signed_stick(scratch.path(), &other, Route::Shim);
-    let vars = scratch.path().join("vars-with-mok.fd");
-    let tool =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
-    let status = std::process::Command::new(&tool)
-        .args(["--input", sb::OVMF_MICROSOFT_VARS, "--output"])
-        .arg(&vars)
-        .args(["--add-mok", "605dab50-e046-4300-abb6-3dd810dd8b23"])
-        .arg(&enrolled.cert)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let vars = microsoft_vars_with(
+        &scratch.path().join("vars-with-mok.fd"),
+        Enrolled::Mok,
+        &enrolled,
+    );
     let mut qemu = secure_boot(&stick, &vars);
     // Shim draws its box a piece at a time: wait for the end of the message.
     let console = qemu
@@ -474,17 +492,7 @@ fn a_tampered_kernel_is_refused_by_the_signed_loader() {
         .unwrap()[..32]
     );
 
-    let vars = scratch.path().join("vars-with-db.fd");
-    let tool =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
-    let status = std::process::Command::new(&tool)
-        .args(["--input", sb::OVMF_MICROSOFT_VARS, "--output"])
-        .arg(&vars)
-        .args(["--add-db", "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d"])
-        .arg(&key.cert)
-        .status()
-        .unwrap();
-    assert!(status.success());
+    let vars = microsoft_vars_with(&scratch.path().join("vars-with-db.fd"), Enrolled::Db, &key);
     let mut qemu = secure_boot(&tampered, &vars);
     // Once on COM1, once through the UEFI console (the screen, copied to serial).
     let refused = "kernel refused: kernel-x86_64 is not the kernel this loader was signed for";
