@@ -153,8 +153,12 @@ pub enum Function {
         /// The report descriptor's length its HID descriptor announces (0: none).
         report_descriptor_bytes: u16,
     },
-    /// A hub.
-    Hub,
+    /// A hub, and its status change endpoint (the interrupt IN endpoint
+    /// of its interface) if the configuration names one.
+    Hub {
+        /// The endpoint that says which ports changed.
+        status_change: Option<InterruptIn>,
+    },
 }
 
 /// A configuration: its value for SET_CONFIGURATION and what it offers.
@@ -205,6 +209,8 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
     let mut boot_keyboard = None;
     let mut other_hid = None;
     let mut hub = false;
+    let mut in_hub_interface = false;
+    let mut status_change = None;
     while offset + 2 <= bytes.len() {
         let length = usize::from(bytes[offset]);
         if length < 2 || offset + length > bytes.len() {
@@ -222,6 +228,7 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
                     report_descriptor_bytes: 0,
                 });
                 hub |= class == CLASS_HUB;
+                in_hub_interface = class == CLASS_HUB;
             }
             kind::HID => {
                 if let Some(interface) = interface.as_mut() {
@@ -232,14 +239,18 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
                 let address = descriptor[2];
                 let is_interrupt_in = address & 0x80 != 0 && descriptor[3] & 0x03 == 0x03;
                 let number = address & 0x0F;
+                let endpoint = InterruptIn {
+                    number,
+                    max_packet: u16::from_le_bytes([descriptor[4], descriptor[5]]) & 0x7FF,
+                    interval: descriptor[6],
+                };
+                if in_hub_interface && is_interrupt_in && number != 0 {
+                    status_change = status_change.or(Some(endpoint));
+                }
                 if let (Some(found), true, true) = (interface, is_interrupt_in, number != 0) {
                     let function = Function::Keyboard {
                         interface: found.number,
-                        endpoint: InterruptIn {
-                            number,
-                            max_packet: u16::from_le_bytes([descriptor[4], descriptor[5]]) & 0x7FF,
-                            interval: descriptor[6],
-                        },
+                        endpoint,
                         boot: found.boot,
                         report_descriptor_bytes: found.report_descriptor_bytes,
                     };
@@ -256,7 +267,7 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
         offset += length;
     }
     let function = if hub {
-        Some(Function::Hub)
+        Some(Function::Hub { status_change })
     } else {
         boot_keyboard.or(other_hid)
     };
@@ -329,7 +340,16 @@ mod tests {
         assert_eq!(configuration(&mouse).unwrap().function, None);
         let mut hub = KEYBOARD_CONFIGURATION;
         hub[14] = CLASS_HUB;
-        assert_eq!(configuration(&hub).unwrap().function, Some(Function::Hub));
+        assert_eq!(
+            configuration(&hub).unwrap().function,
+            Some(Function::Hub {
+                status_change: Some(InterruptIn {
+                    number: 1,
+                    max_packet: 8,
+                    interval: 10
+                })
+            })
+        );
     }
 
     #[test]

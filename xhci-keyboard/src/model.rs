@@ -62,6 +62,19 @@ enum Kind {
     #[default]
     Keyboard,
     Hub,
+    /// The keyboard on root port 2.
+    Keyboard2,
+    /// A device on root port 2 that answers no control transfer.
+    Dead,
+}
+
+/// What hangs on root port 2.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Port2 {
+    /// A second keyboard (its state is `keyboard2`).
+    Keyboard,
+    /// A device whose control transfers never complete.
+    Dead,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -112,6 +125,10 @@ pub struct HubState {
     pub marked: bool,
     pub powered: [bool; 4],
     pub keyboard_port_status: u32,
+    /// Nothing is plugged into port 2.
+    pub port_2_empty: bool,
+    /// A port change waits for a transfer on the status change endpoint.
+    pub change_pending: bool,
 }
 
 #[derive(Debug)]
@@ -141,6 +158,12 @@ pub struct Model {
     pub hub_tiers: usize,
     /// Root port 1 is empty after the controller's reset (plugged later).
     pub empty_at_start: bool,
+    /// What hangs on root port 2 (None: nothing).
+    pub port_2: Option<Port2>,
+    /// The keyboard on root port 2.
+    pub keyboard2: KeyboardState,
+    /// Command Aborts the driver asked for (CRCR's CA).
+    pub commands_aborted: u32,
     /// The keyboard's interrupt endpoint was reset and awaits its dequeue pointer.
     endpoint_stopped: bool,
     // Registers.
@@ -192,6 +215,12 @@ impl Model {
             hub: false,
             hub_tiers: 1,
             empty_at_start: false,
+            port_2: None,
+            keyboard2: KeyboardState {
+                protocol: 1,
+                ..KeyboardState::default()
+            },
+            commands_aborted: 0,
             endpoint_stopped: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
@@ -366,7 +395,13 @@ impl Model {
                     // Each tier's hub on port 2 of the one above.
                     let route_of = |tier: usize| (0..tier).fold(0, |r, t| r | 2 << (4 * t));
                     let hub_tier = (0..tiers).find(|&t| route == route_of(t));
-                    let kind = if route == route_of(tiers) {
+                    let kind = if root_port == 2 {
+                        match (route, self.port_2) {
+                            (0, Some(Port2::Keyboard)) => Some(Kind::Keyboard2),
+                            (0, Some(Port2::Dead)) => Some(Kind::Dead),
+                            _ => None,
+                        }
+                    } else if route == route_of(tiers) {
                         Some(Kind::Keyboard)
                     } else {
                         hub_tier.map(|_| Kind::Hub)
@@ -375,7 +410,7 @@ impl Model {
                         && kind.is_some()
                         && (slot_dw0 >> 20) & 0xF == 1
                         && slot_dw0 >> 27 == 1
-                        && root_port == 1
+                        && (root_port == 1 || root_port == 2)
                         && (ep0_dw1 >> 3) & 7 == 4
                         && ep0_dw1 >> 16
                             == u32::from(self.slots[usize::from(slot)].ep0_max_packet.max(8))
@@ -424,6 +459,8 @@ impl Model {
                     state.ep0 = new_ep0;
                     match kind {
                         Some(Kind::Hub) => self.hub_states[hub_tier.unwrap_or(0)].slot = slot,
+                        Some(Kind::Keyboard2) => self.keyboard2.slot = slot,
+                        Some(Kind::Dead) => {}
                         _ => self.keyboard.slot = slot,
                     }
                     self.complete_command(address, 1, slot);
@@ -486,7 +523,7 @@ impl Model {
                         let ports = self.mem_read(input + ctx + 4) >> 24;
                         let tier = self.slots[usize::from(slot)].tier;
                         self.hub_states[tier].marked =
-                            add == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
+                            add & !(1 << 3) == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
                     }
                     for dci in 2..32u8 {
                         if add & (1 << dci) == 0 {
@@ -526,6 +563,19 @@ impl Model {
     }
 
     fn run_control(&mut self, slot: u8) {
+        if self.slots[usize::from(slot)].kind == Kind::Dead {
+            // It never answers: the TRBs stay where they are.
+            return;
+        }
+        if self.slots[usize::from(slot)].kind == Kind::Keyboard2 {
+            // The second keyboard answers as the first does, with its own state.
+            std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+            self.slots[usize::from(slot)].kind = Kind::Keyboard;
+            self.run_control(slot);
+            self.slots[usize::from(slot)].kind = Kind::Keyboard2;
+            std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+            return;
+        }
         let mut cursor = self.slots[usize::from(slot)].ep0;
         let mut setup = 0u64;
         while let Some((address, trb)) = self.next_trb(&mut cursor) {
@@ -631,6 +681,7 @@ impl Model {
         const ENABLED: u32 = 1 << 1;
         const POWERED: u32 = 1 << 8;
         const RESET_CHANGE: u32 = 1 << 20;
+        const CONNECTION_CHANGE: u32 = 1 << 16;
         let (request_type, request) = (setup as u8, (setup >> 8) as u8);
         let value = (setup >> 16) as u16;
         let port = (setup >> 32) as u16;
@@ -643,17 +694,21 @@ impl Model {
             }
             (0x23, 3, 8) if port_index < 4 => {
                 self.hub_states[tier].powered[port_index] = true;
-                if port == 2 {
-                    self.hub_states[tier].keyboard_port_status = CONNECTED | POWERED;
+                if port == 2 && !self.hub_states[tier].port_2_empty {
+                    // A device found at power-on is a connection change.
+                    self.hub_states[tier].keyboard_port_status =
+                        CONNECTED | POWERED | CONNECTION_CHANGE;
                 }
                 true
             }
             (0x23, 3, 4) if port == 2 => {
-                self.hub_states[tier].keyboard_port_status |= ENABLED | RESET_CHANGE;
+                if self.hub_states[tier].keyboard_port_status & CONNECTED != 0 {
+                    self.hub_states[tier].keyboard_port_status |= ENABLED | RESET_CHANGE;
+                }
                 true
             }
-            (0x23, 1, 20) if port == 2 => {
-                self.hub_states[tier].keyboard_port_status &= !RESET_CHANGE;
+            (0x23, 1, 16..=20) if port == 2 => {
+                self.hub_states[tier].keyboard_port_status &= !(1 << value);
                 true
             }
             _ => {
@@ -739,6 +794,65 @@ impl Model {
             1 << 24,
             trb_type::PORT_STATUS_CHANGE << 10,
         ]));
+    }
+
+    /// The device on port 2 of hub `tier` (the next hub, or the keyboard)
+    /// is pulled out: the hub says so on its status change endpoint.
+    pub fn unplug_behind_hub(&mut self, tier: usize) {
+        let hub = &mut self.hub_states[tier];
+        hub.port_2_empty = true;
+        hub.keyboard_port_status &= !0b11;
+        hub.keyboard_port_status |= 1 << 16;
+        self.notify_hub_change(tier);
+    }
+
+    /// A device (the next hub, or the keyboard) in its power-on state is
+    /// plugged into port 2 of hub `tier`.
+    pub fn plug_behind_hub(&mut self, tier: usize) {
+        for below in &mut self.hub_states[tier + 1..] {
+            *below = HubState::default();
+        }
+        self.keyboard = KeyboardState {
+            protocol: 1,
+            ..KeyboardState::default()
+        };
+        self.endpoint_stopped = false;
+        let hub = &mut self.hub_states[tier];
+        hub.port_2_empty = false;
+        hub.keyboard_port_status = 1 | 1 << 8 | 1 << 16;
+        self.notify_hub_change(tier);
+    }
+
+    /// Hub `tier` reports port 2's change on its status change endpoint,
+    /// now if a transfer waits there, else when one is queued.
+    fn notify_hub_change(&mut self, tier: usize) {
+        let slot = self.hub_states[tier].slot;
+        let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
+            self.hub_states[tier].change_pending = true;
+            return;
+        };
+        let Some((address, trb)) = self.next_trb(&mut cursor) else {
+            self.hub_states[tier].change_pending = true;
+            return;
+        };
+        self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
+        self.hub_states[tier].change_pending = false;
+        let length = trb.0[2] & 0x1_FFFF;
+        if length == 0 {
+            self.errors.push("a hub status transfer of no bytes".into());
+            return;
+        }
+        self.mem_write(trb.parameter(), 1 << 2);
+        let code = if length > 1 { 13 } else { 1 };
+        self.transfer_event(address, code, length - 1, slot, dci);
+    }
+
+    /// The keyboard on root port 2 sends a report.
+    pub fn send_report_2(&mut self, report: [u8; 8]) -> bool {
+        std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+        let sent = self.send_bytes(&report);
+        std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+        sent
     }
 
     /// The root port's status change bits still set.
@@ -879,7 +993,11 @@ impl Hardware for Model {
                     } else {
                         1 | 1 << 9 | 1 << 10 // connected, powered, full speed
                     };
-                    self.portsc[1] = 1 << 9;
+                    self.portsc[1] = if self.port_2.is_some() {
+                        1 | 1 << 9 | 1 << 10
+                    } else {
+                        1 << 9
+                    };
                 } else {
                     self.usbcmd = value;
                     if value & 1 != 0 {
@@ -891,6 +1009,10 @@ impl Hardware for Model {
                         self.usbsts |= 1;
                     }
                 }
+            }
+            o if o == OPERATIONAL + 0x18 && value & (1 << 2) != 0 => {
+                // Command Abort: the ring stops; what was consumed stays consumed.
+                self.commands_aborted += 1;
             }
             o if o == OPERATIONAL + 0x18 => {
                 self.crcr = Cursor {
@@ -940,6 +1062,12 @@ impl Hardware for Model {
                 let slot = ((o - DOORBELLS) / 4) as u8;
                 if value == 1 {
                     self.run_control(slot);
+                } else if let Some(tier) = self
+                    .hub_states
+                    .iter()
+                    .position(|h| h.slot == slot && h.change_pending)
+                {
+                    self.notify_hub_change(tier);
                 }
                 // Interrupt endpoints are served when the keyboard has a report.
             }
