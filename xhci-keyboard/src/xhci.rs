@@ -463,7 +463,15 @@ pub struct Xhci<H: Hardware> {
     enumeration: Option<enumeration::Enumeration>,
     /// When the root ports are first looked at.
     scan_at: Option<u64>,
+    /// Scancodes of keys let go by a step (a keyboard behind a hub pulled
+    /// out), handed on by the poll that ran it.
+    released: [u8; RELEASED_BYTES],
+    released_count: usize,
 }
+
+/// Room for the releases of every key a keyboard can hold down (each up
+/// to 4 bytes with its prefixes), a few keyboards' worth.
+const RELEASED_BYTES: usize = 256;
 
 impl<H: Hardware> Xhci<H> {
     /// Reads the capability registers of a controller whose BAR0 is
@@ -528,6 +536,8 @@ impl<H: Hardware> Xhci<H> {
             queue: enumeration::WorkQueue::default(),
             enumeration: None,
             scan_at: None,
+            released: [0; RELEASED_BYTES],
+            released_count: 0,
         })
     }
 
@@ -890,6 +900,12 @@ impl<H: Hardware> Xhci<H> {
             self.other_event(&event, out);
         }
         self.advance_enumeration();
+        if self.released_count > 0 {
+            for &byte in &self.released[..self.released_count] {
+                out(byte);
+            }
+            self.released_count = 0;
+        }
         let now = self.hw.now_micros();
         for index in 0..MAX_DEVICES {
             let Some(keyboard) = self.devices[index]

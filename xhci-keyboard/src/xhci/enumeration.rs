@@ -1698,7 +1698,21 @@ impl<H: Hardware> Xhci<H> {
         job.hub.connection_changed = false;
         let location = job.location.below(port);
         if connection_changed {
-            self.release_under(location, &mut |_| {});
+            // The poll hands the released keys on once the step is done.
+            let mut released = [0u8; RELEASED_BYTES];
+            let mut count = 0;
+            self.release_under(location, &mut |byte| {
+                if let Some(slot) = released.get_mut(count) {
+                    *slot = byte;
+                    count += 1;
+                }
+            });
+            for &byte in &released[..count] {
+                if let Some(slot) = self.released.get_mut(self.released_count) {
+                    *slot = byte;
+                    self.released_count += 1;
+                }
+            }
             if status & HUB_PORT_CONNECTION != 0 {
                 if job.hub_changes_only {
                     self.hw
