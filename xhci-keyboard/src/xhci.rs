@@ -899,8 +899,9 @@ impl<H: Hardware> Xhci<H> {
             };
             self.other_event(&event, out);
         }
-        self.advance_enumeration();
-        if self.released_count > 0 {
+        // Checked here, so that the idle poll pays no call.
+        if !self.enumeration_idle() {
+            self.advance_enumeration();
             for &byte in &self.released[..self.released_count] {
                 out(byte);
             }

@@ -417,6 +417,7 @@ impl<H: Hardware> Xhci<H> {
     }
 
     /// Whether nothing is being enumerated or waits to be.
+    #[inline]
     pub fn enumeration_idle(&self) -> bool {
         self.scan_at.is_none() && self.enumeration.is_none() && self.queue.is_empty()
     }
@@ -544,9 +545,6 @@ impl<H: Hardware> Xhci<H> {
 
     /// Runs at most one enumeration step.
     pub(super) fn advance_enumeration(&mut self) {
-        if self.enumeration_idle() {
-            return;
-        }
         let now = self.hw.now_micros();
         if self.scan_at.is_some_and(|at| now >= at) {
             self.scan_at = None;
