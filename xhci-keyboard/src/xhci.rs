@@ -103,6 +103,7 @@ const COMPLETION_SUCCESS: u8 = 1;
 const COMPLETION_SHORT_PACKET: u8 = 13;
 const COMPLETION_STALL: u8 = 6;
 const COMPLETION_CONTEXT_STATE: u8 = 19;
+const COMPLETION_COMMAND_RING_STOPPED: u8 = 24;
 
 /// Why a step failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -927,6 +928,13 @@ impl<H: Hardware> Xhci<H> {
     }
 
     fn other_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
+        // After a Command Abort the ring stops with an event naming the
+        // command that would have run next: that command's, it is not.
+        if event.kind() == trb_type::COMMAND_COMPLETION
+            && event.completion_code() == COMPLETION_COMMAND_RING_STOPPED
+        {
+            return;
+        }
         if self.enumeration_event(event) {
             return;
         }
