@@ -18,6 +18,8 @@ pub mod kind {
     pub const REPORT: u8 = 0x22;
     /// Hub descriptor (USB 2.0).
     pub const HUB: u8 = 0x29;
+    /// SuperSpeed hub descriptor (USB 3.2 10.15.2.1).
+    pub const SUPERSPEED_HUB: u8 = 0x2A;
 }
 
 /// HID class.
@@ -285,19 +287,27 @@ pub struct HubDescriptor {
     pub think_time: u8,
 }
 
-/// Reads a USB 2.0 hub descriptor.
+/// Reads a USB 2.0 hub descriptor, or a SuperSpeed one (12 bytes, the
+/// ports and power-on time where USB 2.0 has them, no transaction
+/// translator).
 pub fn hub(bytes: &[u8]) -> Result<HubDescriptor, DescriptorError> {
     need(bytes, 7)?;
-    if bytes[1] != kind::HUB {
-        return Err(DescriptorError::WrongType(bytes[1]));
-    }
-    if bytes[0] < 7 {
+    let shortest = match bytes[1] {
+        kind::HUB => 7,
+        kind::SUPERSPEED_HUB => 12,
+        other => return Err(DescriptorError::WrongType(other)),
+    };
+    if bytes[0] < shortest {
         return Err(DescriptorError::BadLength(bytes[0]));
     }
     Ok(HubDescriptor {
         ports: bytes[2],
         power_on_to_good_2ms: bytes[5],
-        think_time: (bytes[3] >> 5) & 3,
+        think_time: if bytes[1] == kind::HUB {
+            (bytes[3] >> 5) & 3
+        } else {
+            0
+        },
     })
 }
 

@@ -37,6 +37,8 @@ pub const HUB_CONFIGURATION: [u8; 25] = [
     9, 2, 25, 0, 1, 1, 0, 0xE0, 0, 9, 4, 0, 0, 1, 9, 0, 0, 0, 7, 5, 0x81, 3, 1, 0, 12,
 ];
 pub const HUB_DESCRIPTOR: [u8; 9] = [9, 0x29, 4, 0, 0, 50, 0, 0, 0xFF];
+/// A SuperSpeed hub's descriptor: 4 ports, 100 ms to power good.
+pub const SUPERSPEED_HUB_DESCRIPTOR: [u8; 12] = [12, 0x2A, 4, 0, 0, 50, 0, 0, 0, 0, 0, 0];
 /// QEMU's usb-kbd report descriptor: the boot report (HID 1.11 appendix
 /// E.6): modifier bits, a constant byte, LED outputs, six key bytes.
 pub const KEYBOARD_REPORT_DESCRIPTOR: [u8; 63] = [
@@ -127,6 +129,8 @@ pub struct HubState {
     pub keyboard_port_status: u32,
     /// Nothing is plugged into port 2.
     pub port_2_empty: bool,
+    /// What SET_HUB_DEPTH said (SuperSpeed hubs).
+    pub depth: Option<u16>,
     /// A port change waits for a transfer on the status change endpoint.
     pub change_pending: bool,
 }
@@ -160,6 +164,9 @@ pub struct Model {
     pub empty_at_start: bool,
     /// What hangs on root port 2 (None: nothing).
     pub port_2: Option<Port2>,
+    /// The root ports are USB 3 and the hubs SuperSpeed (the keyboard
+    /// behind them too).
+    pub usb3: bool,
     /// The keyboard on root port 2.
     pub keyboard2: KeyboardState,
     /// Command Aborts the driver asked for (CRCR's CA).
@@ -216,6 +223,7 @@ impl Model {
             hub_tiers: 1,
             empty_at_start: false,
             port_2: None,
+            usb3: false,
             keyboard2: KeyboardState {
                 protocol: 1,
                 ..KeyboardState::default()
@@ -406,14 +414,22 @@ impl Model {
                     } else {
                         hub_tier.map(|_| Kind::Hub)
                     };
+                    // SuperSpeed: speed 4, 512-byte packets on endpoint 0,
+                    // and no transaction translator anywhere.
+                    let (speed, ep0_packet) = if self.usb3 {
+                        (4, 512)
+                    } else {
+                        (1, self.slots[usize::from(slot)].ep0_max_packet.max(8))
+                    };
+                    let translator = self.mem_read(input + ctx + 8) & 0xFFFF;
                     let valid = add == 0b11
                         && kind.is_some()
-                        && (slot_dw0 >> 20) & 0xF == 1
+                        && (slot_dw0 >> 20) & 0xF == speed
                         && slot_dw0 >> 27 == 1
                         && (root_port == 1 || root_port == 2)
                         && (ep0_dw1 >> 3) & 7 == 4
-                        && ep0_dw1 >> 16
-                            == u32::from(self.slots[usize::from(slot)].ep0_max_packet.max(8))
+                        && ep0_dw1 >> 16 == u32::from(ep0_packet)
+                        && !(self.usb3 && translator != 0)
                         && ep0_dequeue != 0
                         && self.slots[usize::from(slot)].enabled;
                     let block_set_address = trb.0[3] & (1 << 9) != 0;
@@ -588,10 +604,19 @@ impl Model {
                     let hub = self.slots[usize::from(slot)].kind == Kind::Hub;
                     let reply = match (hub, request_type, request, value >> 8) {
                         (false, 0x80, 6, 1) => {
-                            let packet =
-                                usize::from(self.slots[usize::from(slot)].ep0_max_packet.max(8));
-                            let device_packet =
+                            let announced =
                                 usize::from(self.device_descriptor.get(7).copied().unwrap_or(8));
+                            // SuperSpeed gives the packet size as a power of two.
+                            let (packet, device_packet) = if self.usb3 {
+                                (512, 1 << announced.min(9))
+                            } else {
+                                (
+                                    usize::from(
+                                        self.slots[usize::from(slot)].ep0_max_packet.max(8),
+                                    ),
+                                    announced,
+                                )
+                            };
                             // A reply longer than one packet of the wrong
                             // size babbles.
                             if length > packet && packet != device_packet {
@@ -604,9 +629,17 @@ impl Model {
                         (false, 0x81, 6, 0x22) => {
                             self.report_descriptor.clone().unwrap_or_default()
                         }
-                        (true, 0x80, 6, 1) => HUB_DEVICE.to_vec(),
+                        (true, 0x80, 6, 1) => {
+                            let mut device = HUB_DEVICE;
+                            if self.usb3 {
+                                device[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
+                                device[7] = 9; // 2^9 = 512 bytes
+                            }
+                            device.to_vec()
+                        }
                         (true, 0x80, 6, 2) => HUB_CONFIGURATION.to_vec(),
-                        (true, 0xA0, 6, 0x29) => HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA0, 6, 0x29) if !self.usb3 => HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA0, 6, 0x2A) if self.usb3 => SUPERSPEED_HUB_DESCRIPTOR.to_vec(),
                         (true, 0xA3, 0, _) => {
                             let port = (setup >> 32) as u16;
                             let status = if port == 2 {
@@ -682,6 +715,8 @@ impl Model {
         const POWERED: u32 = 1 << 8;
         const RESET_CHANGE: u32 = 1 << 20;
         const CONNECTION_CHANGE: u32 = 1 << 16;
+        // A SuperSpeed hub's power bit is bit 9 (bit 9 is low speed in USB 2.0).
+        let powered = if self.usb3 { 1 << 9 } else { POWERED };
         let (request_type, request) = (setup as u8, (setup >> 8) as u8);
         let value = (setup >> 16) as u16;
         let port = (setup >> 32) as u16;
@@ -692,12 +727,16 @@ impl Model {
                 self.hub_states[tier].configured = true;
                 true
             }
+            (0x20, 12, depth) if self.usb3 => {
+                self.hub_states[tier].depth = Some(depth);
+                true
+            }
             (0x23, 3, 8) if port_index < 4 => {
                 self.hub_states[tier].powered[port_index] = true;
                 if port == 2 && !self.hub_states[tier].port_2_empty {
                     // A device found at power-on is a connection change.
                     self.hub_states[tier].keyboard_port_status =
-                        CONNECTED | POWERED | CONNECTION_CHANGE;
+                        CONNECTED | powered | CONNECTION_CHANGE;
                 }
                 true
             }
@@ -817,9 +856,10 @@ impl Model {
             ..KeyboardState::default()
         };
         self.endpoint_stopped = false;
+        self.hub_states[tier].port_2_empty = false;
+        let powered = if self.usb3 { 1 << 9 } else { 1 << 8 };
         let hub = &mut self.hub_states[tier];
-        hub.port_2_empty = false;
-        hub.keyboard_port_status = 1 | 1 << 8 | 1 << 16;
+        hub.keyboard_port_status = 1 | powered | 1 << 16;
         self.notify_hub_change(tier);
     }
 
@@ -965,7 +1005,13 @@ impl Hardware for Model {
                 self.legacy | 4 << 8 | 1
             }
             o if o == EXTENDED + 4 => self.legacy_control,
-            o if o == EXTENDED + 0x10 => 0x0200_0000 | 2,
+            o if o == EXTENDED + 0x10 => {
+                if self.usb3 {
+                    0x0300_0000 | 2
+                } else {
+                    0x0200_0000 | 2
+                }
+            }
             o if o == EXTENDED + 0x14 => 0x2042_5355,
             o if o == EXTENDED + 0x18 => (PORTS as u32) << 8 | 1,
             _ => 0,
@@ -990,6 +1036,9 @@ impl Hardware for Model {
                     self.portsc = [0; PORTS];
                     self.portsc[0] = if self.empty_at_start {
                         1 << 9
+                    } else if self.usb3 {
+                        // A USB 3 port trains and enables by itself.
+                        1 | 1 << 1 | 1 << 9 | 4 << 10
                     } else {
                         1 | 1 << 9 | 1 << 10 // connected, powered, full speed
                     };

@@ -989,3 +989,40 @@ fn a_hub_pulled_out_takes_the_keyboard_behind_it() {
     assert_eq!(poll(&mut xhci), [0x01]);
     assert!(xhci.hardware().errors.is_empty());
 }
+
+#[test]
+fn a_keyboard_behind_two_usb_3_hubs_is_reached_and_found_again_after_an_unplug() {
+    let mut model = Model::new();
+    model.usb3 = true;
+    model.hub = true;
+    model.hub_tiers = 2;
+    // A SuperSpeed keyboard: endpoint 0 takes 2^9 = 512-byte packets.
+    model.device_descriptor[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
+    model.device_descriptor[7] = 9;
+    let mut xhci = with_keyboard(model);
+    let behind = Location {
+        root_port: 1,
+        route: 0x22,
+    };
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [behind]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    for (tier, hub) in model.hub_states[..2].iter().enumerate() {
+        assert!(hub.configured && hub.marked, "tier {tier}: {hub:?}");
+        assert_eq!(hub.depth, Some(tier as u16), "SET_HUB_DEPTH, tier {tier}");
+    }
+    assert_eq!(model.keyboard_port_status_after_reset(), 0b11);
+    assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+    assert_eq!(poll(&mut xhci), [0x01]);
+    // Pulled out of the second hub and plugged back.
+    xhci.hardware().unplug_behind_hub(1);
+    settle(&mut xhci);
+    assert_eq!(xhci.keyboards().count(), 0);
+    xhci.hardware().plug_behind_hub(1);
+    settle(&mut xhci);
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [behind]);
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+    assert_eq!(poll(&mut xhci), [0x1E]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+}

@@ -441,6 +441,9 @@ const ENDPOINT_HALT: u16 = 0;
 const HUB_PORT_RESET: u16 = 4;
 const HUB_PORT_POWER: u16 = 8;
 const HUB_C_PORT_RESET_FEATURE: u16 = 20;
+/// SET_HUB_DEPTH (USB 3.2 10.16.2.9): a SuperSpeed hub's tier, for the
+/// route string it reads.
+const SET_HUB_DEPTH: u8 = 12;
 
 /// The controller and what hangs on it.
 #[derive(Debug)]

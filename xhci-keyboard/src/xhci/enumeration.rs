@@ -58,6 +58,9 @@ const HUB_C_PORT_RESET: u32 = 1 << 20;
 /// C_PORT_CONNECTION to C_PORT_RESET: cleared with the feature of the same
 /// number (16 to 20).
 const HUB_PORT_CHANGES: u32 = 0x1F << 16;
+/// A SuperSpeed hub's further changes (USB 3.2 10.16.2.6.2):
+/// C_BH_PORT_RESET, C_PORT_LINK_STATE, C_PORT_CONFIG_ERROR.
+const SUPERSPEED_HUB_PORT_CHANGES: u32 = 0x7 << 21;
 
 /// What waits in the queue.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -243,6 +246,8 @@ pub(super) enum EnumerationStep {
     ReadingHubDescriptor,
     /// SET_CONFIGURATION sent to a hub.
     ConfiguringHub,
+    /// SET_HUB_DEPTH sent to a SuperSpeed hub.
+    SettingHubDepth,
     /// Configure Endpoint: the slot marked as a hub, its status change
     /// endpoint added.
     MarkingHub,
@@ -281,6 +286,7 @@ impl core::fmt::Display for EnumerationStep {
             SettingProtocol => write!(f, "setting the protocol"),
             SettingIdle => write!(f, "setting idle"),
             ReadingHubDescriptor => write!(f, "reading the hub descriptor"),
+            SettingHubDepth => write!(f, "setting the hub's depth"),
             MarkingHub => write!(f, "marking the slot as a hub"),
             PoweringHubPort(port) => write!(f, "powering hub port {port}"),
             WaitingForHubPower => write!(f, "waiting for the hub's power"),
@@ -641,6 +647,7 @@ impl<H: Hardware> Xhci<H> {
             SettingIdle => self.setting_idle(job, done),
             ReadingHubDescriptor => self.reading_hub_descriptor(job, done),
             ConfiguringHub => self.configuring_hub(job, done),
+            SettingHubDepth => self.setting_hub_depth(job, done),
             MarkingHub => self.marking_hub(job, done),
             PoweringHubPort(port) => self.powering_hub_port(job, done, port),
             WaitingForHubPower => self.waiting_for_hub_power(job),
@@ -764,11 +771,12 @@ impl<H: Hardware> Xhci<H> {
         length: u16,
     ) -> Result<Next> {
         let index = Self::device_index(job)?;
-        let request_type = if kind == descriptor::kind::HUB {
-            0xA0
-        } else {
-            0x80
-        };
+        let request_type =
+            if kind == descriptor::kind::HUB || kind == descriptor::kind::SUPERSPEED_HUB {
+                0xA0
+            } else {
+                0x80
+            };
         let setup = Setup {
             request_type,
             request: GET_DESCRIPTOR,
@@ -913,7 +921,11 @@ impl<H: Hardware> Xhci<H> {
         let Some(parent) = self.devices[hub].as_ref() else {
             return Err(XhciError::PortReset);
         };
-        job.speed = if status & HUB_PORT_LOW_SPEED != 0 {
+        // Behind a SuperSpeed hub every device is SuperSpeed (its port
+        // status has no speed bits of USB 2.0's meaning; bit 9 is power).
+        job.speed = if parent.speed == speed::SUPER {
+            speed::SUPER
+        } else if status & HUB_PORT_LOW_SPEED != 0 {
             speed::LOW
         } else if status & HUB_PORT_HIGH_SPEED != 0 {
             speed::HIGH
@@ -923,7 +935,9 @@ impl<H: Hardware> Xhci<H> {
         // A full- or low-speed device is reached through the transaction
         // translator of the nearest high-speed hub above it: this hub's,
         // or the one this hub itself uses.
-        job.translator = if parent.speed == speed::HIGH {
+        job.translator = if parent.speed == speed::SUPER {
+            None
+        } else if parent.speed == speed::HIGH {
             (job.speed != speed::HIGH).then_some((parent.slot, job.location.port()))
         } else {
             let context = parent.slot_context;
@@ -1211,20 +1225,15 @@ impl<H: Hardware> Xhci<H> {
                     (0x00, SET_CONFIGURATION, u16::from(configuration.value), 0),
                 )
             }
-            Some(Function::Hub { .. }) if job.speed == speed::SUPER => {
-                self.hw.log(format_args!(
-                    "usb: hub on port {location}: USB 3 hubs are not supported"
-                ));
-                Ok(Next::Done)
-            }
             Some(Function::Hub { status_change }) if location.depth() < MAX_HUB_TIERS => {
                 job.hub.status_change = status_change;
-                self.get_descriptor(
-                    job,
-                    EnumerationStep::ReadingHubDescriptor,
-                    descriptor::kind::HUB,
-                    9,
-                )
+                // A SuperSpeed hub has its own descriptor.
+                let (kind, length) = if job.speed == speed::SUPER {
+                    (descriptor::kind::SUPERSPEED_HUB, 12)
+                } else {
+                    (descriptor::kind::HUB, 9)
+                };
+                self.get_descriptor(job, EnumerationStep::ReadingHubDescriptor, kind, length)
             }
             Some(Function::Hub { .. }) => {
                 self.hw.log(format_args!(
@@ -1500,7 +1509,7 @@ impl<H: Hardware> Xhci<H> {
     fn reading_hub_descriptor(&mut self, job: &mut Enumeration, done: Result<()>) -> Result<Next> {
         done?;
         let index = Self::device_index(job)?;
-        let mut bytes = [0u8; 9];
+        let mut bytes = [0u8; 12];
         self.read_buffer(index, &mut bytes);
         let described = descriptor::hub(&bytes)?;
         // A route string has four bits a tier: ports past 15 cannot be reached.
@@ -1522,10 +1531,31 @@ impl<H: Hardware> Xhci<H> {
         )
     }
 
-    /// Tells the controller the slot is a hub (for its transaction
-    /// translator) and adds the hub's status change endpoint.
+    /// The hub is configured; a SuperSpeed hub is told its depth (it
+    /// picks its nibble of the route string by it), as Linux does.
     fn configuring_hub(&mut self, job: &mut Enumeration, done: Result<()>) -> Result<Next> {
         done?;
+        if job.speed == speed::SUPER {
+            let index = Self::device_index(job)?;
+            let depth = job.location.depth() as u16;
+            return self.request(
+                job,
+                EnumerationStep::SettingHubDepth,
+                index,
+                (0x20, SET_HUB_DEPTH, depth, 0),
+            );
+        }
+        self.mark_hub(job)
+    }
+
+    fn setting_hub_depth(&mut self, job: &mut Enumeration, done: Result<()>) -> Result<Next> {
+        done?;
+        self.mark_hub(job)
+    }
+
+    /// Tells the controller the slot is a hub (for its transaction
+    /// translator) and adds the hub's status change endpoint.
+    fn mark_hub(&mut self, job: &mut Enumeration) -> Result<Next> {
         let index = Self::device_index(job)?;
         let (ring_page, buffer) = (self.page()?, self.page()?);
         let layout = self.capabilities.layout;
@@ -1662,17 +1692,32 @@ impl<H: Hardware> Xhci<H> {
     /// left, acts on the port's status.
     fn clear_next_hub_port_change(&mut self, job: &mut Enumeration, port: u8) -> Result<Next> {
         let index = Self::device_index(job)?;
-        let pending = job.hub.port_status & HUB_PORT_CHANGES;
+        let superspeed = self.devices[index]
+            .as_ref()
+            .is_some_and(|d| d.speed == speed::SUPER);
+        let changes = if superspeed {
+            HUB_PORT_CHANGES | SUPERSPEED_HUB_PORT_CHANGES
+        } else {
+            HUB_PORT_CHANGES
+        };
+        let pending = job.hub.port_status & changes;
         if pending != 0 {
-            // The feature that clears a change has the change bit's number.
-            let feature = pending.trailing_zeros();
-            job.hub.port_status &= !(1 << feature);
-            job.hub.connection_changed |= 1 << feature == HUB_C_PORT_CONNECTION;
+            let bit = pending.trailing_zeros();
+            job.hub.port_status &= !(1 << bit);
+            job.hub.connection_changed |= 1 << bit == HUB_C_PORT_CONNECTION;
+            // A change up to C_PORT_RESET is cleared by the feature of its
+            // bit's number; SuperSpeed's later ones by their own.
+            let feature = match bit {
+                21 => 29, // C_BH_PORT_RESET
+                22 => 25, // C_PORT_LINK_STATE
+                23 => 26, // C_PORT_CONFIG_ERROR
+                bit => bit as u16,
+            };
             return self.request(
                 job,
                 EnumerationStep::ClearingHubPortChange(port),
                 index,
-                (0x23, CLEAR_FEATURE, feature as u16, u16::from(port)),
+                (0x23, CLEAR_FEATURE, feature, u16::from(port)),
             );
         }
         self.hub_port_examined(job, port)
