@@ -1,5 +1,7 @@
 //! A register model of an xHCI controller with one full-speed boot keyboard
-//! on root port 1, for the host tests: enough of the specification to run
+//! on root port 1 (or behind up to six hubs there, USB 2 or USB 3; and a
+//! second keyboard, or a device that never answers, on root port 2), for
+//! the host tests: enough of the specification to run
 //! the driver end to end (ownership hand-off, reset and Controller Not Ready,
 //! scratchpads, 32- or 64-byte contexts, the command, transfer and event
 //! rings with their cycle bits), and knobs to make it misbehave. It checks
