@@ -18,6 +18,8 @@ pub mod kind {
     pub const REPORT: u8 = 0x22;
     /// Hub descriptor (USB 2.0).
     pub const HUB: u8 = 0x29;
+    /// SuperSpeed hub descriptor (USB 3.2 10.15.2.1).
+    pub const SUPERSPEED_HUB: u8 = 0x2A;
 }
 
 /// HID class.
@@ -153,8 +155,12 @@ pub enum Function {
         /// The report descriptor's length its HID descriptor announces (0: none).
         report_descriptor_bytes: u16,
     },
-    /// A hub.
-    Hub,
+    /// A hub, and its status change endpoint (the interrupt IN endpoint
+    /// of its interface) if the configuration names one.
+    Hub {
+        /// The endpoint that says which ports changed.
+        status_change: Option<InterruptIn>,
+    },
 }
 
 /// A configuration: its value for SET_CONFIGURATION and what it offers.
@@ -205,6 +211,8 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
     let mut boot_keyboard = None;
     let mut other_hid = None;
     let mut hub = false;
+    let mut in_hub_interface = false;
+    let mut status_change = None;
     while offset + 2 <= bytes.len() {
         let length = usize::from(bytes[offset]);
         if length < 2 || offset + length > bytes.len() {
@@ -222,6 +230,7 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
                     report_descriptor_bytes: 0,
                 });
                 hub |= class == CLASS_HUB;
+                in_hub_interface = class == CLASS_HUB;
             }
             kind::HID => {
                 if let Some(interface) = interface.as_mut() {
@@ -232,14 +241,18 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
                 let address = descriptor[2];
                 let is_interrupt_in = address & 0x80 != 0 && descriptor[3] & 0x03 == 0x03;
                 let number = address & 0x0F;
+                let endpoint = InterruptIn {
+                    number,
+                    max_packet: u16::from_le_bytes([descriptor[4], descriptor[5]]) & 0x7FF,
+                    interval: descriptor[6],
+                };
+                if in_hub_interface && is_interrupt_in && number != 0 {
+                    status_change = status_change.or(Some(endpoint));
+                }
                 if let (Some(found), true, true) = (interface, is_interrupt_in, number != 0) {
                     let function = Function::Keyboard {
                         interface: found.number,
-                        endpoint: InterruptIn {
-                            number,
-                            max_packet: u16::from_le_bytes([descriptor[4], descriptor[5]]) & 0x7FF,
-                            interval: descriptor[6],
-                        },
+                        endpoint,
                         boot: found.boot,
                         report_descriptor_bytes: found.report_descriptor_bytes,
                     };
@@ -256,7 +269,7 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
         offset += length;
     }
     let function = if hub {
-        Some(Function::Hub)
+        Some(Function::Hub { status_change })
     } else {
         boot_keyboard.or(other_hid)
     };
@@ -274,19 +287,27 @@ pub struct HubDescriptor {
     pub think_time: u8,
 }
 
-/// Reads a USB 2.0 hub descriptor.
+/// Reads a USB 2.0 hub descriptor, or a SuperSpeed one (12 bytes, the
+/// ports and power-on time where USB 2.0 has them, no transaction
+/// translator).
 pub fn hub(bytes: &[u8]) -> Result<HubDescriptor, DescriptorError> {
     need(bytes, 7)?;
-    if bytes[1] != kind::HUB {
-        return Err(DescriptorError::WrongType(bytes[1]));
-    }
-    if bytes[0] < 7 {
+    let shortest = match bytes[1] {
+        kind::HUB => 7,
+        kind::SUPERSPEED_HUB => 12,
+        other => return Err(DescriptorError::WrongType(other)),
+    };
+    if bytes[0] < shortest {
         return Err(DescriptorError::BadLength(bytes[0]));
     }
     Ok(HubDescriptor {
         ports: bytes[2],
         power_on_to_good_2ms: bytes[5],
-        think_time: (bytes[3] >> 5) & 3,
+        think_time: if bytes[1] == kind::HUB {
+            (bytes[3] >> 5) & 3
+        } else {
+            0
+        },
     })
 }
 
@@ -329,7 +350,16 @@ mod tests {
         assert_eq!(configuration(&mouse).unwrap().function, None);
         let mut hub = KEYBOARD_CONFIGURATION;
         hub[14] = CLASS_HUB;
-        assert_eq!(configuration(&hub).unwrap().function, Some(Function::Hub));
+        assert_eq!(
+            configuration(&hub).unwrap().function,
+            Some(Function::Hub {
+                status_change: Some(InterruptIn {
+                    number: 1,
+                    max_packet: 8,
+                    interval: 10
+                })
+            })
+        );
     }
 
     #[test]

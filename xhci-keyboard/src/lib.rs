@@ -10,8 +10,8 @@
 //! - [`ring`]: the command, transfer and event rings and their cycle bits;
 //! - [`context`]: slot and endpoint contexts, 32- or 64-byte (CSZ);
 //! - [`xhci`]: the controller: taking it from the firmware, resetting it,
-//!   addressing and configuring keyboards (directly or behind one hub), and
-//!   polling their reports.
+//!   enumerating keyboards and hubs (USB 2 and USB 3, five tiers) a step
+//!   per poll, hot-plug at root and hub ports, and polling the reports.
 
 #![no_std]
 #![forbid(unsafe_code)]

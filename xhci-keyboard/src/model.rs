@@ -1,5 +1,7 @@
 //! A register model of an xHCI controller with one full-speed boot keyboard
-//! on root port 1, for the host tests: enough of the specification to run
+//! on root port 1 (or behind up to six hubs there, USB 2 or USB 3; and a
+//! second keyboard, or a device that never answers, on root port 2), for
+//! the host tests: enough of the specification to run
 //! the driver end to end (ownership hand-off, reset and Controller Not Ready,
 //! scratchpads, 32- or 64-byte contexts, the command, transfer and event
 //! rings with their cycle bits), and knobs to make it misbehave. It checks
@@ -37,6 +39,8 @@ pub const HUB_CONFIGURATION: [u8; 25] = [
     9, 2, 25, 0, 1, 1, 0, 0xE0, 0, 9, 4, 0, 0, 1, 9, 0, 0, 0, 7, 5, 0x81, 3, 1, 0, 12,
 ];
 pub const HUB_DESCRIPTOR: [u8; 9] = [9, 0x29, 4, 0, 0, 50, 0, 0, 0xFF];
+/// A SuperSpeed hub's descriptor: 4 ports, 100 ms to power good.
+pub const SUPERSPEED_HUB_DESCRIPTOR: [u8; 12] = [12, 0x2A, 4, 0, 0, 50, 0, 0, 0, 0, 0, 0];
 /// QEMU's usb-kbd report descriptor: the boot report (HID 1.11 appendix
 /// E.6): modifier bits, a constant byte, LED outputs, six key bytes.
 pub const KEYBOARD_REPORT_DESCRIPTOR: [u8; 63] = [
@@ -62,6 +66,19 @@ enum Kind {
     #[default]
     Keyboard,
     Hub,
+    /// The keyboard on root port 2.
+    Keyboard2,
+    /// A device on root port 2 that answers no control transfer.
+    Dead,
+}
+
+/// What hangs on root port 2.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Port2 {
+    /// A second keyboard (its state is `keyboard2`).
+    Keyboard,
+    /// A device whose control transfers never complete.
+    Dead,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -112,6 +129,12 @@ pub struct HubState {
     pub marked: bool,
     pub powered: [bool; 4],
     pub keyboard_port_status: u32,
+    /// Nothing is plugged into port 2.
+    pub port_2_empty: bool,
+    /// What SET_HUB_DEPTH said (SuperSpeed hubs).
+    pub depth: Option<u16>,
+    /// A port change waits for a transfer on the status change endpoint.
+    pub change_pending: bool,
 }
 
 #[derive(Debug)]
@@ -141,6 +164,15 @@ pub struct Model {
     pub hub_tiers: usize,
     /// Root port 1 is empty after the controller's reset (plugged later).
     pub empty_at_start: bool,
+    /// What hangs on root port 2 (None: nothing).
+    pub port_2: Option<Port2>,
+    /// The root ports are USB 3 and the hubs SuperSpeed (the keyboard
+    /// behind them too).
+    pub usb3: bool,
+    /// The keyboard on root port 2.
+    pub keyboard2: KeyboardState,
+    /// Command Aborts the driver asked for (CRCR's CA).
+    pub commands_aborted: u32,
     /// The keyboard's interrupt endpoint was reset and awaits its dequeue pointer.
     endpoint_stopped: bool,
     // Registers.
@@ -192,6 +224,13 @@ impl Model {
             hub: false,
             hub_tiers: 1,
             empty_at_start: false,
+            port_2: None,
+            usb3: false,
+            keyboard2: KeyboardState {
+                protocol: 1,
+                ..KeyboardState::default()
+            },
+            commands_aborted: 0,
             endpoint_stopped: false,
             legacy: 1 << 16,
             legacy_control: 0xE000_E011,
@@ -366,19 +405,33 @@ impl Model {
                     // Each tier's hub on port 2 of the one above.
                     let route_of = |tier: usize| (0..tier).fold(0, |r, t| r | 2 << (4 * t));
                     let hub_tier = (0..tiers).find(|&t| route == route_of(t));
-                    let kind = if route == route_of(tiers) {
+                    let kind = if root_port == 2 {
+                        match (route, self.port_2) {
+                            (0, Some(Port2::Keyboard)) => Some(Kind::Keyboard2),
+                            (0, Some(Port2::Dead)) => Some(Kind::Dead),
+                            _ => None,
+                        }
+                    } else if route == route_of(tiers) {
                         Some(Kind::Keyboard)
                     } else {
                         hub_tier.map(|_| Kind::Hub)
                     };
+                    // SuperSpeed: speed 4, 512-byte packets on endpoint 0,
+                    // and no transaction translator anywhere.
+                    let (speed, ep0_packet) = if self.usb3 {
+                        (4, 512)
+                    } else {
+                        (1, self.slots[usize::from(slot)].ep0_max_packet.max(8))
+                    };
+                    let translator = self.mem_read(input + ctx + 8) & 0xFFFF;
                     let valid = add == 0b11
                         && kind.is_some()
-                        && (slot_dw0 >> 20) & 0xF == 1
+                        && (slot_dw0 >> 20) & 0xF == speed
                         && slot_dw0 >> 27 == 1
-                        && root_port == 1
+                        && (root_port == 1 || root_port == 2)
                         && (ep0_dw1 >> 3) & 7 == 4
-                        && ep0_dw1 >> 16
-                            == u32::from(self.slots[usize::from(slot)].ep0_max_packet.max(8))
+                        && ep0_dw1 >> 16 == u32::from(ep0_packet)
+                        && !(self.usb3 && translator != 0)
                         && ep0_dequeue != 0
                         && self.slots[usize::from(slot)].enabled;
                     let block_set_address = trb.0[3] & (1 << 9) != 0;
@@ -424,6 +477,8 @@ impl Model {
                     state.ep0 = new_ep0;
                     match kind {
                         Some(Kind::Hub) => self.hub_states[hub_tier.unwrap_or(0)].slot = slot,
+                        Some(Kind::Keyboard2) => self.keyboard2.slot = slot,
+                        Some(Kind::Dead) => {}
                         _ => self.keyboard.slot = slot,
                     }
                     self.complete_command(address, 1, slot);
@@ -486,7 +541,7 @@ impl Model {
                         let ports = self.mem_read(input + ctx + 4) >> 24;
                         let tier = self.slots[usize::from(slot)].tier;
                         self.hub_states[tier].marked =
-                            add == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
+                            add & !(1 << 3) == 1 && slot_dw0 & (1 << 26) != 0 && ports == 4;
                     }
                     for dci in 2..32u8 {
                         if add & (1 << dci) == 0 {
@@ -526,6 +581,19 @@ impl Model {
     }
 
     fn run_control(&mut self, slot: u8) {
+        if self.slots[usize::from(slot)].kind == Kind::Dead {
+            // It never answers: the TRBs stay where they are.
+            return;
+        }
+        if self.slots[usize::from(slot)].kind == Kind::Keyboard2 {
+            // The second keyboard answers as the first does, with its own state.
+            std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+            self.slots[usize::from(slot)].kind = Kind::Keyboard;
+            self.run_control(slot);
+            self.slots[usize::from(slot)].kind = Kind::Keyboard2;
+            std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+            return;
+        }
         let mut cursor = self.slots[usize::from(slot)].ep0;
         let mut setup = 0u64;
         while let Some((address, trb)) = self.next_trb(&mut cursor) {
@@ -538,10 +606,19 @@ impl Model {
                     let hub = self.slots[usize::from(slot)].kind == Kind::Hub;
                     let reply = match (hub, request_type, request, value >> 8) {
                         (false, 0x80, 6, 1) => {
-                            let packet =
-                                usize::from(self.slots[usize::from(slot)].ep0_max_packet.max(8));
-                            let device_packet =
+                            let announced =
                                 usize::from(self.device_descriptor.get(7).copied().unwrap_or(8));
+                            // SuperSpeed gives the packet size as a power of two.
+                            let (packet, device_packet) = if self.usb3 {
+                                (512, 1 << announced.min(9))
+                            } else {
+                                (
+                                    usize::from(
+                                        self.slots[usize::from(slot)].ep0_max_packet.max(8),
+                                    ),
+                                    announced,
+                                )
+                            };
                             // A reply longer than one packet of the wrong
                             // size babbles.
                             if length > packet && packet != device_packet {
@@ -554,9 +631,17 @@ impl Model {
                         (false, 0x81, 6, 0x22) => {
                             self.report_descriptor.clone().unwrap_or_default()
                         }
-                        (true, 0x80, 6, 1) => HUB_DEVICE.to_vec(),
+                        (true, 0x80, 6, 1) => {
+                            let mut device = HUB_DEVICE;
+                            if self.usb3 {
+                                device[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
+                                device[7] = 9; // 2^9 = 512 bytes
+                            }
+                            device.to_vec()
+                        }
                         (true, 0x80, 6, 2) => HUB_CONFIGURATION.to_vec(),
-                        (true, 0xA0, 6, 0x29) => HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA0, 6, 0x29) if !self.usb3 => HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA0, 6, 0x2A) if self.usb3 => SUPERSPEED_HUB_DESCRIPTOR.to_vec(),
                         (true, 0xA3, 0, _) => {
                             let port = (setup >> 32) as u16;
                             let status = if port == 2 {
@@ -631,6 +716,9 @@ impl Model {
         const ENABLED: u32 = 1 << 1;
         const POWERED: u32 = 1 << 8;
         const RESET_CHANGE: u32 = 1 << 20;
+        const CONNECTION_CHANGE: u32 = 1 << 16;
+        // A SuperSpeed hub's power bit is bit 9 (bit 9 is low speed in USB 2.0).
+        let powered = if self.usb3 { 1 << 9 } else { POWERED };
         let (request_type, request) = (setup as u8, (setup >> 8) as u8);
         let value = (setup >> 16) as u16;
         let port = (setup >> 32) as u16;
@@ -641,19 +729,27 @@ impl Model {
                 self.hub_states[tier].configured = true;
                 true
             }
+            (0x20, 12, depth) if self.usb3 => {
+                self.hub_states[tier].depth = Some(depth);
+                true
+            }
             (0x23, 3, 8) if port_index < 4 => {
                 self.hub_states[tier].powered[port_index] = true;
-                if port == 2 {
-                    self.hub_states[tier].keyboard_port_status = CONNECTED | POWERED;
+                if port == 2 && !self.hub_states[tier].port_2_empty {
+                    // A device found at power-on is a connection change.
+                    self.hub_states[tier].keyboard_port_status =
+                        CONNECTED | powered | CONNECTION_CHANGE;
                 }
                 true
             }
             (0x23, 3, 4) if port == 2 => {
-                self.hub_states[tier].keyboard_port_status |= ENABLED | RESET_CHANGE;
+                if self.hub_states[tier].keyboard_port_status & CONNECTED != 0 {
+                    self.hub_states[tier].keyboard_port_status |= ENABLED | RESET_CHANGE;
+                }
                 true
             }
-            (0x23, 1, 20) if port == 2 => {
-                self.hub_states[tier].keyboard_port_status &= !RESET_CHANGE;
+            (0x23, 1, 16..=20) if port == 2 => {
+                self.hub_states[tier].keyboard_port_status &= !(1 << value);
                 true
             }
             _ => {
@@ -739,6 +835,66 @@ impl Model {
             1 << 24,
             trb_type::PORT_STATUS_CHANGE << 10,
         ]));
+    }
+
+    /// The device on port 2 of hub `tier` (the next hub, or the keyboard)
+    /// is pulled out: the hub says so on its status change endpoint.
+    pub fn unplug_behind_hub(&mut self, tier: usize) {
+        let hub = &mut self.hub_states[tier];
+        hub.port_2_empty = true;
+        hub.keyboard_port_status &= !0b11;
+        hub.keyboard_port_status |= 1 << 16;
+        self.notify_hub_change(tier);
+    }
+
+    /// A device (the next hub, or the keyboard) in its power-on state is
+    /// plugged into port 2 of hub `tier`.
+    pub fn plug_behind_hub(&mut self, tier: usize) {
+        for below in &mut self.hub_states[tier + 1..] {
+            *below = HubState::default();
+        }
+        self.keyboard = KeyboardState {
+            protocol: 1,
+            ..KeyboardState::default()
+        };
+        self.endpoint_stopped = false;
+        self.hub_states[tier].port_2_empty = false;
+        let powered = if self.usb3 { 1 << 9 } else { 1 << 8 };
+        let hub = &mut self.hub_states[tier];
+        hub.keyboard_port_status = 1 | powered | 1 << 16;
+        self.notify_hub_change(tier);
+    }
+
+    /// Hub `tier` reports port 2's change on its status change endpoint,
+    /// now if a transfer waits there, else when one is queued.
+    fn notify_hub_change(&mut self, tier: usize) {
+        let slot = self.hub_states[tier].slot;
+        let Some((dci, mut cursor)) = self.slots[usize::from(slot)].interrupt else {
+            self.hub_states[tier].change_pending = true;
+            return;
+        };
+        let Some((address, trb)) = self.next_trb(&mut cursor) else {
+            self.hub_states[tier].change_pending = true;
+            return;
+        };
+        self.slots[usize::from(slot)].interrupt = Some((dci, cursor));
+        self.hub_states[tier].change_pending = false;
+        let length = trb.0[2] & 0x1_FFFF;
+        if length == 0 {
+            self.errors.push("a hub status transfer of no bytes".into());
+            return;
+        }
+        self.mem_write(trb.parameter(), 1 << 2);
+        let code = if length > 1 { 13 } else { 1 };
+        self.transfer_event(address, code, length - 1, slot, dci);
+    }
+
+    /// The keyboard on root port 2 sends a report.
+    pub fn send_report_2(&mut self, report: [u8; 8]) -> bool {
+        std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+        let sent = self.send_bytes(&report);
+        std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
+        sent
     }
 
     /// The root port's status change bits still set.
@@ -851,7 +1007,13 @@ impl Hardware for Model {
                 self.legacy | 4 << 8 | 1
             }
             o if o == EXTENDED + 4 => self.legacy_control,
-            o if o == EXTENDED + 0x10 => 0x0200_0000 | 2,
+            o if o == EXTENDED + 0x10 => {
+                if self.usb3 {
+                    0x0300_0000 | 2
+                } else {
+                    0x0200_0000 | 2
+                }
+            }
             o if o == EXTENDED + 0x14 => 0x2042_5355,
             o if o == EXTENDED + 0x18 => (PORTS as u32) << 8 | 1,
             _ => 0,
@@ -876,10 +1038,17 @@ impl Hardware for Model {
                     self.portsc = [0; PORTS];
                     self.portsc[0] = if self.empty_at_start {
                         1 << 9
+                    } else if self.usb3 {
+                        // A USB 3 port trains and enables by itself.
+                        1 | 1 << 1 | 1 << 9 | 4 << 10
                     } else {
                         1 | 1 << 9 | 1 << 10 // connected, powered, full speed
                     };
-                    self.portsc[1] = 1 << 9;
+                    self.portsc[1] = if self.port_2.is_some() {
+                        1 | 1 << 9 | 1 << 10
+                    } else {
+                        1 << 9
+                    };
                 } else {
                     self.usbcmd = value;
                     if value & 1 != 0 {
@@ -891,6 +1060,10 @@ impl Hardware for Model {
                         self.usbsts |= 1;
                     }
                 }
+            }
+            o if o == OPERATIONAL + 0x18 && value & (1 << 2) != 0 => {
+                // Command Abort: the ring stops; what was consumed stays consumed.
+                self.commands_aborted += 1;
             }
             o if o == OPERATIONAL + 0x18 => {
                 self.crcr = Cursor {
@@ -940,6 +1113,12 @@ impl Hardware for Model {
                 let slot = ((o - DOORBELLS) / 4) as u8;
                 if value == 1 {
                     self.run_control(slot);
+                } else if let Some(tier) = self
+                    .hub_states
+                    .iter()
+                    .position(|h| h.slot == slot && h.change_pending)
+                {
+                    self.notify_hub_change(tier);
                 }
                 // Interrupt endpoints are served when the keyboard has a report.
             }

@@ -1,7 +1,7 @@
 //! The driver against the register model: ownership, reset, scratchpads,
 //! context sizes, ring wrap, a keyboard end to end, and misbehaviour.
 
-use super::model::{Model, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use super::model::{Model, Port2, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use super::xhci::{Handoff, Location, Xhci, XhciError, HANDOFF_MICROS, PAGE_BYTES, RESET_MICROS};
 use std::vec::Vec;
 
@@ -22,6 +22,34 @@ fn poll(xhci: &mut Xhci<Model>) -> Vec<u8> {
     let mut bytes = Vec::new();
     xhci.poll(&mut |b| bytes.push(b));
     bytes
+}
+
+/// Model time a poll may take: a step's own work, never a wait.
+const POLL_MICROS_BOUND: u64 = 1_000;
+
+/// Polls a frame (1 ms of model time) apart, at least once and then until
+/// nothing is left to enumerate, each poll within [`POLL_MICROS_BOUND`];
+/// gives the bytes typed meanwhile and the polls it took.
+fn settle(xhci: &mut Xhci<Model>) -> (Vec<u8>, u32) {
+    let mut bytes = Vec::new();
+    let mut polls = 0;
+    while polls == 0 || !xhci.enumeration_idle() {
+        polls += 1;
+        assert!(
+            polls < 20_000,
+            "enumeration never ends: {:?}",
+            xhci.hardware().log
+        );
+        let before = xhci.hardware().now;
+        xhci.poll(&mut |b| bytes.push(b));
+        let took = xhci.hardware().now - before;
+        assert!(
+            took <= POLL_MICROS_BOUND,
+            "a poll took {took} us of model time"
+        );
+        xhci.hardware().now += 1_000;
+    }
+    (bytes, polls)
 }
 
 #[test]
@@ -204,14 +232,29 @@ fn a_controller_that_never_answers_commands_costs_bounded_time() {
     xhci.reset_and_start().unwrap();
     let start = xhci.hardware().now;
     assert!(matches!(xhci.no_op(), Err(XhciError::CommandTimeout(_))));
+    // Enable Slot gets Linux's 5 s; boot does not wait that long.
     assert_eq!(xhci.enumerate(), 0);
     let waited = xhci.hardware().now - start;
-    assert!(waited < 2_000_000, "{waited} us");
-    assert!(xhci
-        .hardware()
-        .log
-        .iter()
-        .any(|l| l.starts_with("usb: port 1: command")));
+    assert!(waited < 2_500_000, "{waited} us");
+    assert!(
+        xhci.hardware().log.iter().any(|l| l.starts_with(
+            "usb: boot enumeration cut short after 2000 ms, port 1 still enabling a slot"
+        )),
+        "{:?}",
+        xhci.hardware().log
+    );
+    settle(&mut xhci);
+    let waited = xhci.hardware().now - start;
+    assert!((5_000_000..6_000_000).contains(&waited), "{waited} us");
+    let model = xhci.hardware();
+    assert!(
+        model.log.iter().any(|l| l.starts_with(
+            "usb: port 1: command (TRB type 9) not completed while enabling a slot; left alone after "
+        )),
+        "{:?}",
+        model.log
+    );
+    assert_eq!(model.commands_aborted, 1, "the command stuck is aborted");
 }
 
 #[test]
@@ -657,7 +700,7 @@ fn a_keyboard_plugged_in_after_start_is_found_and_found_again_after_an_unplug() 
             assert_eq!(poll(&mut xhci), []);
             assert_eq!(xhci.keyboards().count(), 0, "hub {hub} round {round}");
             xhci.hardware().now += 100_000;
-            assert_eq!(poll(&mut xhci), []);
+            assert_eq!(settle(&mut xhci).0, []);
             assert_eq!(xhci.keyboards().count(), 1, "hub {hub} round {round}");
             assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
             assert_eq!(poll(&mut xhci), [0x1E], "hub {hub} round {round}");
@@ -741,12 +784,245 @@ fn a_keyboard_switched_back_and_forth_a_thousand_times_still_types() {
         xhci.hardware().plug();
         assert_eq!(poll(&mut xhci), []);
         xhci.hardware().now += 100_000;
-        assert_eq!(poll(&mut xhci), []);
+        assert_eq!(settle(&mut xhci).0, []);
         assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
         assert_eq!(poll(&mut xhci), [0x1E], "round {round}");
         xhci.hardware().unplug();
         assert_eq!(poll(&mut xhci), [0x9E], "round {round}");
     }
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+}
+
+/// A controller taken, reset and started, its ports to be enumerated by
+/// the polls that follow.
+fn started(model: Model) -> Xhci<Model> {
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    xhci.start_enumeration();
+    xhci
+}
+
+#[test]
+fn a_device_that_never_answers_costs_its_timeouts_and_never_a_frame() {
+    let mut model = Model::new();
+    model.port_2 = Some(Port2::Dead);
+    let mut xhci = started(model);
+    let start = xhci.hardware().now;
+    let mut typed = Vec::new();
+    let mut typed_while_probing = 0;
+    let mut polls = 0u32;
+    while !xhci.enumeration_idle() {
+        polls += 1;
+        assert!(polls < 20_000, "{:?}", xhci.hardware().log);
+        // A frame: a key pressed and let go on the good keyboard once it
+        // is there, then the poll.
+        let probing = xhci.keyboards().count() == 1;
+        if probing && polls.is_multiple_of(100) {
+            assert!(xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+            assert!(xhci.hardware().send_report([0; 8]));
+        }
+        let before = xhci.hardware().now;
+        let bytes = poll(&mut xhci);
+        let took = xhci.hardware().now - before;
+        assert!(took <= POLL_MICROS_BOUND, "poll {polls} took {took} us");
+        if probing && !bytes.is_empty() {
+            assert_eq!(bytes, [0x01, 0x81]);
+            typed_while_probing += 1;
+        }
+        typed.extend(bytes);
+        xhci.hardware().now += 1_000;
+    }
+    let waited = xhci.hardware().now - start;
+    // Linux's 5 s for the control transfer, then given up.
+    assert!((5_000_000..5_600_000).contains(&waited), "{waited} us");
+    assert!(
+        typed_while_probing >= 40,
+        "{typed_while_probing} keys typed"
+    );
+    let model = xhci.hardware();
+    assert!(
+        model.log.iter().any(|l| l.starts_with(
+            "usb: port 2: control transfer not completed while reading the device descriptor's first 8 bytes; left alone after "
+        )),
+        "{:?}",
+        model.log
+    );
+    assert_eq!(model.slots_disabled, [2], "the dead device's slot");
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(xhci.keyboards().count(), 1);
+}
+
+#[test]
+fn a_keyboard_plugged_in_while_a_dead_device_is_probed_waits_its_turn_then_types() {
+    let mut model = Model::new();
+    model.port_2 = Some(Port2::Dead);
+    model.empty_at_start = true;
+    let mut xhci = started(model);
+    // The dead device's probe starts.
+    for _ in 0..400 {
+        poll(&mut xhci);
+        xhci.hardware().now += 1_000;
+    }
+    assert!(!xhci.enumeration_idle());
+    xhci.hardware().plug();
+    let start = xhci.hardware().now;
+    let (bytes, _) = settle(&mut xhci);
+    assert_eq!(bytes, []);
+    let waited = xhci.hardware().now - start;
+    assert!(waited < 5_000_000, "{waited} us");
+    assert_eq!(xhci.keyboards().count(), 1, "{:?}", xhci.hardware().log);
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut xhci), [0x1E]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert!(model
+        .log
+        .iter()
+        .any(|l| l.starts_with("usb: port 2: control transfer not completed")));
+}
+
+#[test]
+fn two_keyboards_at_boot_are_both_set_up_and_both_type() {
+    let mut model = Model::new();
+    model.port_2 = Some(Port2::Keyboard);
+    let mut xhci = controller(model);
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    assert_eq!(xhci.enumerate(), 2, "{:?}", xhci.hardware().log);
+    assert!(xhci.enumeration_idle());
+    let at = |root_port| Location {
+        root_port,
+        route: 0,
+    };
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [at(1), at(2)]);
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+    assert!(xhci.hardware().send_report_2([0, 0, 0x05, 0, 0, 0, 0, 0])); // B
+    assert_eq!(poll(&mut xhci), [0x1E, 0x30]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.keyboard.configuration, Some(1));
+    assert_eq!(model.keyboard2.configuration, Some(1));
+    assert!(model.keyboard2.idle_set);
+}
+
+#[test]
+fn a_keyboard_behind_one_and_three_hubs_is_plugged_and_pulled_many_times() {
+    for tiers in [1, 3] {
+        let mut model = Model::new();
+        model.hub = true;
+        model.hub_tiers = tiers;
+        let mut xhci = with_keyboard(model);
+        let last = tiers - 1;
+        // 100 rounds of a keyboard's 6 pages are more than the model's
+        // 256 pages of DMA memory: pages must be reused.
+        for round in 0..100 {
+            assert!(xhci.hardware().send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0]));
+            assert_eq!(poll(&mut xhci), [0x2A, 0x1E], "{tiers} tiers round {round}");
+            xhci.hardware().unplug_behind_hub(last);
+            // Held keys released once the hub's port says it is gone.
+            let (bytes, _) = settle(&mut xhci);
+            assert_eq!(
+                bytes,
+                [0xAA, 0x9E],
+                "{tiers} tiers round {round}: {:?}",
+                xhci.hardware().log
+            );
+            assert_eq!(xhci.keyboards().count(), 0);
+            xhci.hardware().plug_behind_hub(last);
+            assert_eq!(settle(&mut xhci).0, []);
+            assert_eq!(
+                xhci.keyboards().count(),
+                1,
+                "{tiers} tiers round {round}: {:?}",
+                xhci.hardware().log
+            );
+        }
+        let model = xhci.hardware();
+        assert!(model.errors.is_empty(), "{:?}", model.errors);
+        assert_eq!(model.slots_disabled.len(), 100);
+        assert_eq!(model.keyboard_port_status_after_reset(), 0b11);
+        let gone = std::format!("usb: port 1{}: device gone", ".2".repeat(tiers));
+        assert_eq!(
+            model.log.iter().filter(|l| l.starts_with(&gone)).count(),
+            100
+        );
+        assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+        assert_eq!(poll(&mut xhci), [0x01]);
+    }
+}
+
+#[test]
+fn a_hub_pulled_out_takes_the_keyboard_behind_it() {
+    let mut model = Model::new();
+    model.hub = true;
+    model.hub_tiers = 2;
+    let mut xhci = with_keyboard(model);
+    assert!(xhci.hardware().send_report([0, 0, 0x50, 0, 0, 0, 0, 0])); // Left
+    assert_eq!(poll(&mut xhci), [0xE0, 0x4B]);
+    // The second hub, with the keyboard on it, is pulled from the first.
+    xhci.hardware().unplug_behind_hub(0);
+    let (bytes, _) = settle(&mut xhci);
+    assert_eq!(bytes, [0xE0, 0xCB], "the held key released");
+    xhci.hardware().now += 2_000_000;
+    assert_eq!(poll(&mut xhci), [], "and never repeated");
+    assert_eq!(xhci.keyboards().count(), 0);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    assert_eq!(model.slots_disabled.len(), 2, "the hub and the keyboard");
+    for at in ["1.2", "1.2.2"] {
+        let line = std::format!("usb: port {at}: device gone");
+        assert!(model.log.iter().any(|l| l.starts_with(&line)), "{at}");
+    }
+    // Plugged back: the hub and then its keyboard are enumerated again.
+    model.plug_behind_hub(0);
+    settle(&mut xhci);
+    assert_eq!(
+        xhci.keyboards().collect::<Vec<_>>(),
+        [Location {
+            root_port: 1,
+            route: 0x22
+        }]
+    );
+    assert!(xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+    assert_eq!(poll(&mut xhci), [0x01]);
+    assert!(xhci.hardware().errors.is_empty());
+}
+
+#[test]
+fn a_keyboard_behind_two_usb_3_hubs_is_reached_and_found_again_after_an_unplug() {
+    let mut model = Model::new();
+    model.usb3 = true;
+    model.hub = true;
+    model.hub_tiers = 2;
+    // A SuperSpeed keyboard: endpoint 0 takes 2^9 = 512-byte packets.
+    model.device_descriptor[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
+    model.device_descriptor[7] = 9;
+    let mut xhci = with_keyboard(model);
+    let behind = Location {
+        root_port: 1,
+        route: 0x22,
+    };
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [behind]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    for (tier, hub) in model.hub_states[..2].iter().enumerate() {
+        assert!(hub.configured && hub.marked, "tier {tier}: {hub:?}");
+        assert_eq!(hub.depth, Some(tier as u16), "SET_HUB_DEPTH, tier {tier}");
+    }
+    assert_eq!(model.keyboard_port_status_after_reset(), 0b11);
+    assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+    assert_eq!(poll(&mut xhci), [0x01]);
+    // Pulled out of the second hub and plugged back.
+    xhci.hardware().unplug_behind_hub(1);
+    settle(&mut xhci);
+    assert_eq!(xhci.keyboards().count(), 0);
+    xhci.hardware().plug_behind_hub(1);
+    settle(&mut xhci);
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [behind]);
+    assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+    assert_eq!(poll(&mut xhci), [0x1E]);
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
 }

@@ -15,6 +15,9 @@ use super::Hardware;
 // cycle bit.
 use xhci::ring::trb::{command, transfer};
 
+mod enumeration;
+pub use enumeration::BOOT_ENUMERATION_MICROS;
+
 /// Bytes in a page: DMA memory is handed out a page at a time.
 pub const PAGE_BYTES: u64 = 4096;
 /// TRBs in the command and event rings (one page each).
@@ -43,14 +46,10 @@ pub const HANDOFF_MICROS: u64 = 1_000_000;
 const HALT_MICROS: u64 = 50_000;
 /// How long Controller Not Ready and the reset may take.
 pub const RESET_MICROS: u64 = 500_000;
-const COMMAND_MICROS: u64 = 300_000;
-const TRANSFER_MICROS: u64 = 500_000;
-const PORT_RESET_MICROS: u64 = 300_000;
-/// Ports are looked at this long after the controller starts (devices need
-/// time to connect after the reset).
-const CONNECT_MICROS: u64 = 200_000;
-/// After a port reset, the device gets this long before it must answer (USB 2.0 7.1.7.3).
-const RESET_RECOVERY_MICROS: u64 = 10_000;
+/// How long the No Op at start may take (a check that the rings work).
+const NO_OP_MICROS: u64 = 300_000;
+/// How long each command of a keyboard's recovery may take.
+const RECOVERY_MICROS: u64 = 300_000;
 
 // Capability registers.
 const CAPLENGTH: u32 = 0x00;
@@ -77,6 +76,8 @@ const CMD_RESET: u32 = 1 << 1;
 const STS_HALTED: u32 = 1 << 0;
 const STS_NOT_READY: u32 = 1 << 11;
 const ERDP_BUSY: u32 = 1 << 3;
+/// CRCR's Command Abort bit.
+const CRCR_COMMAND_ABORT: u32 = 1 << 2;
 
 const PORT_CONNECTED: u32 = 1 << 0;
 const PORT_ENABLED: u32 = 1 << 1;
@@ -84,9 +85,6 @@ const PORT_RESET: u32 = 1 << 4;
 const PORT_POWER: u32 = 1 << 9;
 const PORT_RESET_CHANGE: u32 = 1 << 21;
 const PORT_CONNECT_CHANGE: u32 = 1 << 17;
-/// How long a new connection must stay before it is enumerated (Linux's
-/// `HUB_DEBOUNCE_STABLE`): a plug bounces as it goes in.
-const DEBOUNCE_MICROS: u64 = 100_000;
 /// The write-1-to-clear change bits (CSC, PEC, WRC, OCC, PRC, PLC, CEC).
 const PORT_CHANGES: u32 = 0x7F << 17;
 
@@ -105,6 +103,7 @@ const COMPLETION_SUCCESS: u8 = 1;
 const COMPLETION_SHORT_PACKET: u8 = 13;
 const COMPLETION_STALL: u8 = 6;
 const COMPLETION_CONTEXT_STATE: u8 = 19;
+const COMPLETION_COMMAND_RING_STOPPED: u8 = 24;
 
 /// Why a step failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -241,6 +240,19 @@ struct Device {
     ep0: ProducerRing,
     slot_context: SlotContext,
     keyboard: Option<Keyboard>,
+    hub: Option<Hub>,
+}
+
+/// A configured hub's status change endpoint.
+#[derive(Clone, Debug)]
+struct Hub {
+    ports: u8,
+    /// The endpoint's device context index (0: none, nothing plugged in
+    /// later is seen).
+    dci: u8,
+    ring: ProducerRing,
+    /// The page its reports land in.
+    buffer: u64,
 }
 
 /// How a keyboard's reports are read.
@@ -428,7 +440,10 @@ const PROTOCOL_REPORT: u16 = 1;
 const ENDPOINT_HALT: u16 = 0;
 const HUB_PORT_RESET: u16 = 4;
 const HUB_PORT_POWER: u16 = 8;
-const HUB_C_PORT_RESET: u16 = 20;
+const HUB_C_PORT_RESET_FEATURE: u16 = 20;
+/// SET_HUB_DEPTH (USB 3.2 10.16.2.9): a SuperSpeed hub's tier, for the
+/// route string it reads.
+const SET_HUB_DEPTH: u8 = 12;
 
 /// The controller and what hangs on it.
 #[derive(Debug)]
@@ -446,12 +461,21 @@ pub struct Xhci<H: Hardware> {
     events: Option<EventRing>,
     protocols: PortProtocols,
     devices: [Option<Device>; MAX_DEVICES],
-    /// Root ports connected since start, a bit each, waiting for their
-    /// connection to settle before they are enumerated.
-    connected_ports: [u64; 4],
-    /// When the last of them connected.
-    connected_since: u64,
+    /// Ports and hubs waiting for their turn to be enumerated.
+    queue: enumeration::WorkQueue,
+    /// The enumeration in progress, a step per poll.
+    enumeration: Option<enumeration::Enumeration>,
+    /// When the root ports are first looked at.
+    scan_at: Option<u64>,
+    /// Scancodes of keys let go by a step (a keyboard behind a hub pulled
+    /// out), handed on by the poll that ran it.
+    released: [u8; RELEASED_BYTES],
+    released_count: usize,
 }
+
+/// Room for the releases of every key a keyboard can hold down (each up
+/// to 4 bytes with its prefixes), a few keyboards' worth.
+const RELEASED_BYTES: usize = 256;
 
 impl<H: Hardware> Xhci<H> {
     /// Reads the capability registers of a controller whose BAR0 is
@@ -513,8 +537,11 @@ impl<H: Hardware> Xhci<H> {
             events: None,
             protocols: PortProtocols::default(),
             devices: Default::default(),
-            connected_ports: [0; 4],
-            connected_since: 0,
+            queue: enumeration::WorkQueue::default(),
+            enumeration: None,
+            scan_at: None,
+            released: [0; RELEASED_BYTES],
+            released_count: 0,
         })
     }
 
@@ -792,7 +819,7 @@ impl<H: Hardware> Xhci<H> {
         let address = commands.push(&mut self.hw, trb);
         self.write(self.doorbells, 0);
         let event = self
-            .wait_event(COMMAND_MICROS, |e| {
+            .wait_event(NO_OP_MICROS, |e| {
                 e.kind() == trb_type::COMMAND_COMPLETION && e.parameter() == address
             })
             .ok_or(XhciError::CommandTimeout(kind))?;
@@ -856,22 +883,6 @@ impl<H: Hardware> Xhci<H> {
         Ok((slot, status))
     }
 
-    fn control(&mut self, index: usize, setup: Setup) -> Result<()> {
-        let (slot, status) = self.queue_control(index, setup)?;
-        let event = self
-            .wait_event(TRANSFER_MICROS, |e| {
-                e.kind() == trb_type::TRANSFER_EVENT && e.slot() == slot && e.endpoint() == 1
-            })
-            .ok_or(XhciError::TransferTimeout)?;
-        let code = event.completion_code();
-        if event.parameter() != status
-            || (code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET)
-        {
-            return Err(XhciError::TransferFailed(code));
-        }
-        Ok(())
-    }
-
     /// Reads `length` bytes (at most a page) of the control buffer of device `index`.
     fn read_buffer(&mut self, index: usize, out: &mut [u8]) {
         let Some(buffer) = self.devices[index].as_ref().map(|d| d.buffer) else {
@@ -883,605 +894,6 @@ impl<H: Hardware> Xhci<H> {
         }
     }
 
-    fn get_descriptor(&mut self, index: usize, kind: u8, out: &mut [u8]) -> Result<()> {
-        self.devices[index]
-            .as_ref()
-            .map(|d| d.buffer)
-            .ok_or(XhciError::TransferTimeout)?;
-        let request_type = if kind == descriptor::kind::HUB {
-            0xA0
-        } else {
-            0x80
-        };
-        self.control(
-            index,
-            Setup {
-                request_type,
-                request: GET_DESCRIPTOR,
-                value: u16::from(kind) << 8,
-                index: 0,
-                length: out.len() as u16,
-            },
-        )?;
-        self.read_buffer(index, out);
-        Ok(())
-    }
-
-    fn request(
-        &mut self,
-        index: usize,
-        request_type: u8,
-        request: u8,
-        value: u16,
-        at: u16,
-    ) -> Result<()> {
-        self.control(
-            index,
-            Setup {
-                request_type,
-                request,
-                value,
-                index: at,
-                length: 0,
-            },
-        )
-    }
-
-    /// Starts the controller's ports: resets each connected one and sets up
-    /// what hangs there. Returns the number of keyboards found.
-    pub fn enumerate(&mut self) -> usize {
-        self.pause(CONNECT_MICROS);
-        for port in 1..=self.capabilities.ports {
-            let register = self.portsc(port);
-            let status = self.read(register);
-            if status == u32::MAX || status & PORT_CONNECTED == 0 {
-                continue;
-            }
-            let location = Location {
-                root_port: port,
-                route: 0,
-            };
-            if let Err(e) = self.reset_root_port(port) {
-                self.hw
-                    .log(format_args!("usb: port {location}: {e}; left alone"));
-                continue;
-            }
-            let speed_id = (self.read(register) >> 10) & 0xF;
-            if let Err(e) = self.attach(location, 0, speed_id, None) {
-                self.hw
-                    .log(format_args!("usb: port {location}: {e}; left alone"));
-            }
-        }
-        self.devices
-            .iter()
-            .flatten()
-            .filter(|d| d.keyboard.is_some())
-            .count()
-    }
-
-    fn reset_root_port(&mut self, port: u8) -> Result<()> {
-        let register = self.portsc(port);
-        let status = self.read(register);
-        let usb3 = self.protocols.major(port) == Some(3);
-        if usb3 && status & PORT_ENABLED != 0 {
-            // USB 3 ports train and enable by themselves.
-            return Ok(());
-        }
-        // PED is write-1-to-disable, and the change bits write-1-to-clear:
-        // write neither by accident.
-        self.write(register, PORT_POWER | PORT_RESET);
-        if !self.wait_for(register, PORT_RESET_MICROS, |s| {
-            s & PORT_RESET_CHANGE != 0 && s & PORT_RESET == 0
-        }) {
-            return Err(XhciError::PortReset);
-        }
-        let status = self.read(register);
-        self.write(register, PORT_POWER | (status & PORT_CHANGES));
-        if status & PORT_ENABLED == 0 {
-            return Err(XhciError::PortReset);
-        }
-        self.pause(RESET_RECOVERY_MICROS);
-        Ok(())
-    }
-
-    /// Enables a slot for the device at `location`, addresses it, reads its
-    /// descriptors and sets up a boot keyboard (or, on a root port, a hub).
-    fn attach(
-        &mut self,
-        location: Location,
-        route_string: u32,
-        speed_id: u32,
-        translator: Option<(u8, u8)>,
-    ) -> Result<()> {
-        let index = self
-            .devices
-            .iter()
-            .position(Option::is_none)
-            .ok_or(XhciError::TooManyDevices)?;
-        let event = self.command(Trb(command::EnableSlot::new().into_raw()))?;
-        let slot = event.slot();
-        if slot == 0 || slot > self.capabilities.slots.min(MAX_SLOTS) {
-            return Err(XhciError::BadSlot(slot));
-        }
-        let (output, input, ep0_page, buffer) =
-            (self.page()?, self.page()?, self.page()?, self.page()?);
-        let layout = self.capabilities.layout;
-        self.hw
-            .mem_write(self.dcbaa + 8 * u64::from(slot), output as u32);
-        self.hw
-            .mem_write(self.dcbaa + 8 * u64::from(slot) + 4, (output >> 32) as u32);
-        let ep0 = ProducerRing::new(ep0_page, RING_TRBS);
-        let (tt_hub_slot, tt_port) = translator.unwrap_or((0, 0));
-        let slot_context = SlotContext {
-            route_string,
-            speed: speed_id,
-            hub: false,
-            context_entries: 1,
-            root_port: location.root_port,
-            hub_ports: 0,
-            tt_hub_slot,
-            tt_port,
-        };
-        let mut max_packet_0 = match speed_id {
-            speed::LOW | speed::FULL => 8,
-            speed::HIGH => 64,
-            _ => 512,
-        };
-        let ep0_context = |dequeue: u64, max_packet: u16| EndpointContext {
-            kind: endpoint_type::CONTROL,
-            max_packet,
-            interval: 0,
-            dequeue,
-            average_trb_length: 8,
-        };
-        layout.start_input(&mut self.hw, input, 0b11);
-        layout.write_slot(&mut self.hw, input, &slot_context);
-        layout.write_endpoint(
-            &mut self.hw,
-            input,
-            1,
-            &ep0_context(ep0.dequeue_pointer(), max_packet_0),
-        );
-        self.devices[index] = Some(Device {
-            slot,
-            location,
-            speed: speed_id,
-            output,
-            input,
-            buffer,
-            ep0,
-            slot_context,
-            keyboard: None,
-        });
-        let result = self.set_up(index, &mut max_packet_0, ep0_context);
-        if result.is_err() {
-            // The slot stays enabled (disabling it could fail too), but
-            // nothing of ours points at it any more.
-            self.devices[index] = None;
-        }
-        result
-    }
-
-    fn set_up(
-        &mut self,
-        index: usize,
-        max_packet_0: &mut u16,
-        ep0_context: impl Fn(u64, u16) -> EndpointContext,
-    ) -> Result<()> {
-        let (slot, input, location, speed_id) = match self.devices[index].as_ref() {
-            Some(d) => (d.slot, d.input, d.location, d.speed),
-            None => return Err(XhciError::TooManyDevices),
-        };
-        let layout = self.capabilities.layout;
-        // Full- and low-speed devices are addressed in two steps, as the
-        // specification (4.6.5) and Linux do: first without SET_ADDRESS
-        // (BSR=1), so that the device descriptor's first 8 bytes are read at
-        // the default address with an 8-byte packet size; endpoint 0 then
-        // gets its real packet size; only then is the address set. Some
-        // devices take no address before their descriptor has been read.
-        let two_step = matches!(speed_id, speed::LOW | speed::FULL);
-        let mut address = command::AddressDevice::new();
-        address.set_input_context_pointer(input).set_slot_id(slot);
-        if two_step {
-            address.set_block_set_address_request();
-        }
-        self.command(Trb(address.into_raw()))?;
-        if !two_step {
-            // SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
-            self.pause(2_000);
-        }
-        let mut header = [0u8; 8];
-        self.get_descriptor(index, descriptor::kind::DEVICE, &mut header)?;
-        let first = descriptor::device(&header)?;
-        let announced = if speed_id == speed::SUPER {
-            1u16 << first.max_packet_0.min(9)
-        } else {
-            u16::from(first.max_packet_0)
-        };
-        if announced != *max_packet_0 && matches!(announced, 8 | 16 | 32 | 64 | 512) {
-            // Evaluate Context: endpoint 0's new packet size only.
-            let dequeue = 0; // not evaluated by Evaluate Context
-            layout.start_input(&mut self.hw, input, 0b10);
-            layout.write_endpoint(&mut self.hw, input, 1, &ep0_context(dequeue, announced));
-            let mut evaluate = command::EvaluateContext::new();
-            evaluate.set_input_context_pointer(input).set_slot_id(slot);
-            self.command(Trb(evaluate.into_raw()))?;
-            *max_packet_0 = announced;
-        }
-        if two_step {
-            // The second Address Device reads the input context again:
-            // the slot and endpoint 0 whole, endpoint 0's ring from where
-            // it now stands.
-            let Some(device) = self.devices[index].as_mut() else {
-                return Err(XhciError::TooManyDevices);
-            };
-            // The `xhci` crate takes only 64-byte aligned dequeue pointers:
-            // No Ops fill up to one, and are skipped.
-            device.ep0.align_enqueue(&mut self.hw, 64);
-            let (slot_context, ep0_dequeue) = (device.slot_context, device.ep0.enqueue_pointer());
-            layout.start_input(&mut self.hw, input, 0b11);
-            layout.write_slot(&mut self.hw, input, &slot_context);
-            layout.write_endpoint(
-                &mut self.hw,
-                input,
-                1,
-                &ep0_context(ep0_dequeue, *max_packet_0),
-            );
-            let mut address = command::AddressDevice::new();
-            address.set_input_context_pointer(input).set_slot_id(slot);
-            self.command(Trb(address.into_raw()))?;
-            self.pause(2_000);
-        }
-        let mut device_bytes = [0u8; 18];
-        self.get_descriptor(index, descriptor::kind::DEVICE, &mut device_bytes)?;
-        let device = descriptor::device(&device_bytes)?;
-        let mut config_header = [0u8; 9];
-        self.get_descriptor(index, descriptor::kind::CONFIGURATION, &mut config_header)?;
-        let total =
-            descriptor::configuration_total_length(&config_header)?.clamp(9, CONFIGURATION_BYTES);
-        let mut config_bytes = [0u8; CONFIGURATION_BYTES as usize];
-        let config_bytes = &mut config_bytes[..usize::from(total)];
-        self.get_descriptor(index, descriptor::kind::CONFIGURATION, config_bytes)?;
-        let configuration = descriptor::configuration(config_bytes)?;
-        match configuration.function {
-            Some(Function::Keyboard {
-                interface,
-                endpoint,
-                boot,
-                report_descriptor_bytes,
-            }) => {
-                let found = self.set_up_keyboard(
-                    index,
-                    configuration.value,
-                    interface,
-                    endpoint,
-                    boot,
-                    report_descriptor_bytes,
-                )?;
-                if !found {
-                    self.hw.log(format_args!(
-                        "usb: port {location}: device {:04x}:{:04x} is a HID device without keys; left alone",
-                        device.vendor, device.product
-                    ));
-                }
-                Ok(())
-            }
-            Some(Function::Hub) if location.depth() < MAX_HUB_TIERS => {
-                self.set_up_hub(index, configuration.value)
-            }
-            Some(Function::Hub) => {
-                self.hw.log(format_args!(
-                    "usb: hub on port {location}: past the five hub tiers a route string names; left alone"
-                ));
-                // Left addressed and unused, as a device that is not ours.
-                Ok(())
-            }
-            None => {
-                self.hw.log(format_args!(
-                    "usb: port {location}: device {:04x}:{:04x} is not a boot keyboard or a hub",
-                    device.vendor, device.product
-                ));
-                // Not an error: the device is simply not ours. Its slot
-                // stays addressed and unused.
-                Ok(())
-            }
-        }
-    }
-
-    /// Reads a HID interface's report descriptor (at most
-    /// [`hid::MAX_DESCRIPTOR_BYTES`]): where its keys lie, or why not.
-    fn report_layout(
-        &mut self,
-        index: usize,
-        interface: u8,
-        bytes: u16,
-    ) -> Result<core::result::Result<KeyboardLayout, hid::HidError>> {
-        let length = usize::from(bytes).min(hid::MAX_DESCRIPTOR_BYTES);
-        self.control(
-            index,
-            Setup {
-                request_type: 0x81,
-                request: GET_DESCRIPTOR,
-                value: u16::from(descriptor::kind::REPORT) << 8,
-                index: u16::from(interface),
-                length: length as u16,
-            },
-        )?;
-        let mut descriptor = [0u8; hid::MAX_DESCRIPTOR_BYTES];
-        self.read_buffer(index, &mut descriptor[..length]);
-        Ok(hid::parse(&descriptor[..length]))
-    }
-
-    /// Configures a HID interface that is or may be a keyboard and starts
-    /// its reports. The report descriptor decides how reports are read: a
-    /// keyboard it describes is kept in the report protocol (whatever it
-    /// would do with SET_PROTOCOL(boot)); a boot keyboard whose descriptor
-    /// cannot be read is put in the boot protocol; a descriptor that lies
-    /// is refused, and so is the keyboard. Returns whether it is a keyboard.
-    fn set_up_keyboard(
-        &mut self,
-        index: usize,
-        configuration: u8,
-        interface: u8,
-        endpoint: InterruptIn,
-        boot: bool,
-        report_descriptor_bytes: u16,
-    ) -> Result<bool> {
-        let Some(location) = self.devices[index].as_ref().map(|d| d.location) else {
-            return Err(XhciError::TooManyDevices);
-        };
-        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
-        let layout = if report_descriptor_bytes == 0 {
-            Err(None)
-        } else {
-            match self.report_layout(index, interface, report_descriptor_bytes) {
-                Ok(Ok(layout)) => Ok(layout),
-                Ok(Err(lie)) => {
-                    self.hw.log(format_args!(
-                        "usb: port {location}: report descriptor refused ({lie}); device left alone"
-                    ));
-                    return Ok(false);
-                }
-                Err(e) => Err(Some(e)),
-            }
-        };
-        let format = match layout {
-            Ok(layout) if layout.has_keys() => ReportFormat::Described(layout),
-            Ok(_) => return Ok(false),
-            Err(why) if boot => {
-                if let Some(e) = why {
-                    self.hw.log(format_args!(
-                        "usb: keyboard on port {location}: no report descriptor ({e}); boot protocol"
-                    ));
-                }
-                ReportFormat::Boot
-            }
-            Err(_) => return Ok(false),
-        };
-        let longest_report = match &format {
-            ReportFormat::Boot => report::REPORT_BYTES,
-            ReportFormat::Described(layout) => layout.longest_key_report(),
-        };
-        let (ring_page, reports) = (self.page()?, self.page()?);
-        let layout = self.capabilities.layout;
-        let Some(device) = self.devices[index].as_mut() else {
-            return Err(XhciError::TooManyDevices);
-        };
-        let dci = 2 * endpoint.number + 1;
-        let ring = ProducerRing::new(ring_page, INTERRUPT_RING_TRBS);
-        device.slot_context.context_entries = u32::from(dci);
-        let (slot, input, speed_id, slot_context) =
-            (device.slot, device.input, device.speed, device.slot_context);
-        let max_packet = endpoint.max_packet.clamp(1, REPORT_BUFFER_BYTES as u16);
-        // A transfer ends with a short packet or when its length is reached:
-        // one packet's worth, unless a report needs more (then whole packets,
-        // so that a report of exactly that length still ends it).
-        let report_bytes = if longest_report <= usize::from(max_packet) {
-            u32::from(max_packet)
-        } else {
-            (longest_report as u32).next_multiple_of(u32::from(max_packet))
-        }
-        .min(REPORT_BUFFER_BYTES as u32);
-        layout.start_input(&mut self.hw, input, 1 | 1 << dci);
-        layout.write_slot(&mut self.hw, input, &slot_context);
-        layout.write_endpoint(
-            &mut self.hw,
-            input,
-            dci,
-            &EndpointContext {
-                kind: endpoint_type::INTERRUPT_IN,
-                max_packet,
-                interval: interrupt_interval(speed_id, endpoint.interval).min(KEYBOARD_INTERVAL),
-                dequeue: ring.dequeue_pointer(),
-                average_trb_length: max_packet,
-            },
-        );
-        self.command(configure_endpoint(input, slot))?;
-        // SET_PROTOCOL exists only on boot interfaces; the others are
-        // always in the report protocol.
-        if boot {
-            let protocol = match format {
-                ReportFormat::Boot => PROTOCOL_BOOT,
-                ReportFormat::Described(_) => PROTOCOL_REPORT,
-            };
-            let result = self.request(
-                index,
-                0x21,
-                HID_SET_PROTOCOL,
-                protocol,
-                u16::from(interface),
-            );
-            match (result, format) {
-                (Ok(()), _) => {}
-                // Reports are read by the descriptor whatever it answers.
-                (Err(e), ReportFormat::Described(_)) => self.hw.log(format_args!(
-                    "usb: keyboard on port {location}: SET_PROTOCOL refused ({e})"
-                )),
-                (Err(e), ReportFormat::Boot) => return Err(e),
-            }
-        }
-        // Reports only when something changes; repeat is ours. Some
-        // keyboards refuse SET_IDLE; that costs nothing but reports.
-        if let Err(e) = self.request(index, 0x21, HID_SET_IDLE, 0, u16::from(interface)) {
-            self.hw.log(format_args!(
-                "usb: keyboard on port {location}: SET_IDLE refused ({e})"
-            ));
-        }
-        let mut keyboard = Keyboard {
-            dci,
-            ring,
-            reports,
-            report_bytes,
-            format,
-            keys_by_report: [(u8::MAX, KeySet::default()); KEY_REPORTS],
-            state: BootKeyboard::new(),
-            dropped: 0,
-            recovery: Recovery::Running,
-            failures_in_a_row: 0,
-            failed: false,
-        };
-        for _ in 0..QUEUED_REPORTS {
-            queue_report(&mut self.hw, &mut keyboard);
-        }
-        if let Some(device) = self.devices[index].as_mut() {
-            device.keyboard = Some(keyboard);
-        }
-        self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
-        match format {
-            ReportFormat::Boot => self.hw.log(format_args!(
-                "keyboard: USB keyboard, boot protocol, on port {location}"
-            )),
-            ReportFormat::Described(layout) => self.hw.log(format_args!(
-                "keyboard: USB keyboard, read by its report descriptor ({} key fields, {}-byte reports{}), on port {location}",
-                layout.fields().count(),
-                layout.longest_key_report(),
-                if layout.numbered { ", numbered" } else { "" }
-            )),
-        }
-        Ok(true)
-    }
-
-    fn set_up_hub(&mut self, index: usize, configuration: u8) -> Result<()> {
-        let Some(hub) = self.devices[index].clone() else {
-            return Err(XhciError::TooManyDevices);
-        };
-        if hub.speed == speed::SUPER {
-            self.hw.log(format_args!(
-                "usb: hub on port {}: USB 3 hubs are not supported",
-                hub.location
-            ));
-            return Ok(());
-        }
-        let mut bytes = [0u8; 9];
-        self.get_descriptor(index, descriptor::kind::HUB, &mut bytes)?;
-        let described = descriptor::hub(&bytes)?;
-        self.request(index, 0x00, SET_CONFIGURATION, u16::from(configuration), 0)?;
-        // A route string has four bits a tier: ports past 15 cannot be reached.
-        let ports = described.ports.min(15);
-        if described.ports > 15 {
-            self.hw.log(format_args!(
-                "usb: hub on port {}: ports past 15 are not supported",
-                hub.location
-            ));
-        }
-        // Tell the controller it is a hub (for its transaction translator).
-        let layout = self.capabilities.layout;
-        let mut slot_context = hub.slot_context;
-        slot_context.hub = true;
-        slot_context.hub_ports = ports;
-        layout.start_input(&mut self.hw, hub.input, 1);
-        layout.write_slot(&mut self.hw, hub.input, &slot_context);
-        if let Err(e) = self.command(configure_endpoint(hub.input, hub.slot)) {
-            self.hw.log(format_args!(
-                "usb: hub on port {}: not marked as a hub ({e})",
-                hub.location
-            ));
-        }
-        for port in 1..=ports {
-            self.request(index, 0x23, SET_FEATURE, HUB_PORT_POWER, u16::from(port))?;
-        }
-        let power_good = (u64::from(described.power_on_to_good_2ms) * 2_000).clamp(20_000, 500_000);
-        self.pause(power_good);
-        // Devices need up to 100 ms to connect after power (USB 2.0 7.1.7.3).
-        self.pause(100_000);
-        for port in 1..=ports {
-            let location = hub.location.below(port);
-            let status = self.hub_port_status(index, port)?;
-            if status & 1 == 0 {
-                continue;
-            }
-            let result = self.reset_hub_port(index, port).and_then(|status| {
-                let speed_id = if status & (1 << 9) != 0 {
-                    speed::LOW
-                } else if status & (1 << 10) != 0 {
-                    speed::HIGH
-                } else {
-                    speed::FULL
-                };
-                // A full- or low-speed device is reached through the
-                // transaction translator of the nearest high-speed hub
-                // above it: this hub's, or the one this hub itself uses.
-                let translator = if hub.speed == speed::HIGH {
-                    (speed_id != speed::HIGH).then_some((hub.slot, port))
-                } else {
-                    let context = hub.slot_context;
-                    (context.tt_hub_slot != 0).then_some((context.tt_hub_slot, context.tt_port))
-                };
-                self.attach(location, location.route, speed_id, translator)
-            });
-            if let Err(e) = result {
-                self.hw
-                    .log(format_args!("usb: port {location}: {e}; left alone"));
-            }
-        }
-        Ok(())
-    }
-
-    fn hub_port_status(&mut self, index: usize, port: u8) -> Result<u32> {
-        self.control(
-            index,
-            Setup {
-                request_type: 0xA3,
-                request: GET_STATUS,
-                value: 0,
-                index: u16::from(port),
-                length: 4,
-            },
-        )?;
-        let mut bytes = [0u8; 4];
-        self.read_buffer(index, &mut bytes);
-        Ok(u32::from_le_bytes(bytes))
-    }
-
-    /// Resets a hub's port; gives its status once enabled.
-    fn reset_hub_port(&mut self, index: usize, port: u8) -> Result<u32> {
-        self.request(index, 0x23, SET_FEATURE, HUB_PORT_RESET, u16::from(port))?;
-        let start = self.hw.now_micros();
-        let status = loop {
-            let status = self.hub_port_status(index, port)?;
-            // wPortChange's C_PORT_RESET is bit 4 of the high half.
-            if status & (1 << 20) != 0 {
-                break status;
-            }
-            if self.hw.now_micros().saturating_sub(start) >= PORT_RESET_MICROS {
-                return Err(XhciError::PortReset);
-            }
-            self.pause(1_000);
-        };
-        self.request(
-            index,
-            0x23,
-            CLEAR_FEATURE,
-            HUB_C_PORT_RESET,
-            u16::from(port),
-        )?;
-        if status & 0b10 == 0 {
-            return Err(XhciError::PortReset);
-        }
-        self.pause(RESET_RECOVERY_MICROS);
-        Ok(status)
-    }
-
     /// Handles the controller's events (at most a bounded number) and the
     /// keyboards' repeat: `out` gets PS/2 set-1 scancode bytes.
     pub fn poll(&mut self, out: &mut impl FnMut(u8)) {
@@ -1491,7 +903,14 @@ impl<H: Hardware> Xhci<H> {
             };
             self.other_event(&event, out);
         }
-        self.enumerate_connected_ports();
+        // Checked here, so that the idle poll pays no call.
+        if !self.enumeration_idle() {
+            self.advance_enumeration();
+            for &byte in &self.released[..self.released_count] {
+                out(byte);
+            }
+            self.released_count = 0;
+        }
         let now = self.hw.now_micros();
         for index in 0..MAX_DEVICES {
             let Some(keyboard) = self.devices[index]
@@ -1504,7 +923,7 @@ impl<H: Hardware> Xhci<H> {
             if keyboard
                 .recovery
                 .since()
-                .is_some_and(|since| now.saturating_sub(since) > COMMAND_MICROS)
+                .is_some_and(|since| now.saturating_sub(since) > RECOVERY_MICROS)
             {
                 self.give_up(index, 0, out);
             }
@@ -1512,6 +931,16 @@ impl<H: Hardware> Xhci<H> {
     }
 
     fn other_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
+        // After a Command Abort the ring stops with an event naming the
+        // command that would have run next: that command's, it is not.
+        if event.kind() == trb_type::COMMAND_COMPLETION
+            && event.completion_code() == COMPLETION_COMMAND_RING_STOPPED
+        {
+            return;
+        }
+        if self.enumeration_event(event) {
+            return;
+        }
         match event.kind() {
             trb_type::TRANSFER_EVENT => self.transfer_event(event, out),
             trb_type::COMMAND_COMPLETION => self.recovery_command_done(event),
@@ -1534,6 +963,12 @@ impl<H: Hardware> Xhci<H> {
         };
         let location = device.location;
         let slot = device.slot;
+        if let Some(hub) = device.hub.as_ref() {
+            if hub.dci != 0 && event.endpoint() == hub.dci {
+                self.hub_status_changed(index, event);
+            }
+            return;
+        }
         let Some(keyboard) = device.keyboard.as_mut() else {
             return;
         };
@@ -1596,11 +1031,37 @@ impl<H: Hardware> Xhci<H> {
         self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
     }
 
+    /// A hub's status change endpoint reported: the ports it names are
+    /// looked at in their turn.
+    fn hub_status_changed(&mut self, index: usize, event: &Trb) {
+        let Some(device) = self.devices[index].as_ref() else {
+            return;
+        };
+        let (slot, location) = (device.slot, device.location);
+        let Some(hub) = device.hub.as_ref() else {
+            return;
+        };
+        let code = event.completion_code();
+        if code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET {
+            // A hub pulled out fails its transfer; its port's change says the rest.
+            self.hw.log(format_args!(
+                "usb: hub on port {location}: status change transfer failed (completion code {code}); its ports are no longer watched"
+            ));
+            return;
+        }
+        let buffer = hub.buffer;
+        let changed = self.hw.mem_read(buffer) as u16;
+        // Bit 0 is the hub itself (power, over-current): nothing to do there.
+        if changed & !1 != 0 {
+            self.queue_hub_ports(slot, changed);
+        } else {
+            self.queue_status_change(index);
+        }
+    }
+
     /// A root port's status changed. A device pulled out (or switched away
-    /// by a KVM) is let go of: its held keys released, its slot disabled
-    /// (queued, not waited for), everything behind it forgotten. A device
-    /// plugged in (or switched back) is enumerated from `poll` once its
-    /// connection has settled.
+    /// by a KVM) is let go of with everything behind it; a device plugged in
+    /// (or switched back) is enumerated once its connection has settled.
     fn root_port_changed(&mut self, port: u8, out: &mut impl FnMut(u8)) {
         if port == 0 || port > self.capabilities.ports {
             return;
@@ -1618,33 +1079,49 @@ impl<H: Hardware> Xhci<H> {
         // Acknowledge the changes (write-1-to-clear), keeping the power,
         // never writing PED (write-1-to-disable).
         self.write(register, PORT_POWER | (status & PORT_CHANGES));
-        for index in 0..MAX_DEVICES {
+        let location = Location {
+            root_port: port,
+            route: 0,
+        };
+        self.release_under(location, out);
+        if connected {
+            self.hw
+                .log(format_args!("usb: port {port}: device plugged in"));
+            self.queue_port(location, false);
+        }
+    }
+
+    /// The devices at `location` and below are gone: their held keys
+    /// released, their slots disabled (queued, not waited for), their pages
+    /// kept for the next, and the work queued or running for them dropped.
+    fn release_under(&mut self, location: Location, out: &mut impl FnMut(u8)) {
+        let mut gone = [0u8; MAX_DEVICES];
+        for (index, slot) in gone.iter_mut().enumerate() {
             let Some(device) = self.devices[index].as_mut() else {
                 continue;
             };
-            if device.location.root_port != port {
+            if !location.holds(device.location) {
                 continue;
             }
-            let (slot, location) = (device.slot, device.location);
+            let (at, id) = (device.location, device.slot);
             if let Some(keyboard) = device.keyboard.as_mut() {
                 keyboard.state.release_all(out);
             }
+            *slot = id;
             self.free_pages_of(index);
-            let mut disable = command::DisableSlot::new();
-            disable.set_slot_id(slot);
-            let _ = self.queue_command(Trb(disable.into_raw()));
+            self.disable_slot(id);
             self.hw.log(format_args!(
-                "usb: port {location}: device gone; its keys released and slot {slot} disabled"
+                "usb: port {at}: device gone; its keys released and slot {id} disabled"
             ));
         }
-        let (word, bit) = (usize::from(port / 64), port % 64);
-        if connected {
-            self.connected_ports[word] |= 1 << bit;
-            self.connected_since = self.hw.now_micros();
-            self.hw
-                .log(format_args!("usb: port {port}: device plugged in"));
-        } else {
-            self.connected_ports[word] &= !(1 << bit);
+        self.forget_work_under(location, &gone);
+    }
+
+    /// Keeps a page for the next device.
+    fn free_page(&mut self, page: u64) {
+        if self.pages.freed_count < FREED_PAGES {
+            self.pages.freed[self.pages.freed_count] = page;
+            self.pages.freed_count += 1;
         }
     }
 
@@ -1656,57 +1133,19 @@ impl<H: Hardware> Xhci<H> {
             return;
         };
         let keyboard = device.keyboard.map(|k| [k.ring.base(), k.reports]);
+        let hub = device.hub.map(|h| [h.ring.base(), h.buffer]);
         let pages = [
             device.output,
             device.input,
             device.buffer,
             device.ep0.base(),
         ];
-        for page in pages.into_iter().chain(keyboard.into_iter().flatten()) {
-            if self.pages.freed_count < FREED_PAGES {
-                self.pages.freed[self.pages.freed_count] = page;
-                self.pages.freed_count += 1;
-            }
-        }
-    }
-
-    /// Enumerates the root ports whose new connection has settled.
-    fn enumerate_connected_ports(&mut self) {
-        if self.connected_ports == [0; 4]
-            || self.hw.now_micros().saturating_sub(self.connected_since) < DEBOUNCE_MICROS
+        for page in pages
+            .into_iter()
+            .chain(keyboard.into_iter().flatten())
+            .chain(hub.into_iter().flatten())
         {
-            return;
-        }
-        let ports = core::mem::take(&mut self.connected_ports);
-        for port in 1..=self.capabilities.ports {
-            if ports[usize::from(port / 64)] & (1 << (port % 64)) == 0 {
-                continue;
-            }
-            let register = self.portsc(port);
-            let status = self.read(register);
-            if status == u32::MAX || status & PORT_CONNECTED == 0 {
-                continue;
-            }
-            let location = Location {
-                root_port: port,
-                route: 0,
-            };
-            // The enumeration holds up the poll that runs it: said, so
-            // that its cost can be seen.
-            let start = self.hw.now_micros();
-            let result = self.reset_root_port(port).and_then(|()| {
-                let speed_id = (self.read(register) >> 10) & 0xF;
-                self.attach(location, 0, speed_id, None)
-            });
-            let took = self.hw.now_micros().saturating_sub(start);
-            match result {
-                Ok(()) => self.hw.log(format_args!(
-                    "usb: port {location}: enumerated in {took} us"
-                )),
-                Err(e) => self.hw.log(format_args!(
-                    "usb: port {location}: {e}; left alone after {took} us"
-                )),
-            }
+            self.free_page(page);
         }
     }
 

@@ -4,6 +4,7 @@
 
 use crate::{dma, input::ps2, pci, serial_println, time};
 use bootloader_api::info::MemoryRegions;
+use core::sync::atomic::{AtomicU64, Ordering};
 use spin::Mutex;
 use xhci_keyboard::xhci::{Handoff, Xhci};
 use xhci_keyboard::{Hardware, Memory};
@@ -100,8 +101,14 @@ impl Controller {
 static CONTROLLERS: Mutex<[Controller; MAX_CONTROLLERS]> =
     Mutex::new([const { Controller::Absent }; MAX_CONTROLLERS]);
 
+/// Each controller's longest poll since its enumeration work began (a
+/// device plugged in after boot), said when the work is done: what the
+/// frame loop was held up for.
+static LONGEST_ENUMERATION_POLL: [AtomicU64; MAX_CONTROLLERS] =
+    [const { AtomicU64::new(0) }; MAX_CONTROLLERS];
+
 /// Finds the xHCI controllers, takes them from the firmware, and sets up the
-/// boot keyboards on them. Every step is bounded; a failure is logged and
+/// keyboards on them (boot enumeration, bounded; the rest a step per poll). Every step is bounded; a failure is logged and
 /// the PS/2 keyboard (if any) is all there is.
 pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
     let (found, count) = pci::xhci_controllers::<MAX_CONTROLLERS>();
@@ -218,6 +225,8 @@ fn start(
         );
         return None;
     }
+    // Boot enumeration: at most `BOOT_ENUMERATION_MICROS`, then it carries
+    // on from the frame loop's polls (the driver says so).
     if xhci.enumerate() == 0 {
         serial_println!("usb: no USB keyboard on the xHCI {}", function);
     }
@@ -263,7 +272,15 @@ pub fn poll() {
     let Some(mut controllers) = CONTROLLERS.try_lock() else {
         return;
     };
-    for xhci in controllers.iter_mut().filter_map(Controller::running) {
+    for (xhci, longest) in controllers
+        .iter_mut()
+        .zip(LONGEST_ENUMERATION_POLL.iter())
+        .filter_map(|(controller, longest)| Some((controller.running()?, longest)))
+    {
+        // Only a poll with enumeration work reads the clock: the idle
+        // poll stays as cheap as it was.
+        let enumerating = !xhci.enumeration_idle();
+        let start = if enumerating { time::micros() } else { 0 };
         xhci.poll(&mut |byte| {
             // SCANCODES has a single producer, IRQ 1. With interrupts off the
             // IRQ handler cannot run in the middle of this push, and there is
@@ -272,5 +289,15 @@ pub fn poll() {
                 ps2::SCANCODES.push(byte);
             });
         });
+        if enumerating {
+            let took = time::micros().saturating_sub(start);
+            longest.fetch_max(took, Ordering::Relaxed);
+            if xhci.enumeration_idle() {
+                serial_println!(
+                    "usb: enumeration work done; its longest poll took {} us",
+                    longest.swap(0, Ordering::Relaxed)
+                );
+            }
+        }
     }
 }
