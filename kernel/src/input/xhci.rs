@@ -228,7 +228,10 @@ fn start(
     // Boot enumeration: at most `BOOT_ENUMERATION_MICROS`, then it carries
     // on from the frame loop's polls (the driver says so).
     if xhci.enumerate() == 0 {
-        serial_println!("usb: no USB keyboard on the xHCI {}", function);
+        serial_println!(
+            "usb: no USB keyboard on the xHCI {} at boot; its ports stay watched",
+            function
+        );
     }
     crate::facts::record(|facts| facts.usb_controllers += 1);
     Some(xhci)
