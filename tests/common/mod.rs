@@ -13,6 +13,8 @@ use modex::soft::SoftVga;
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
 
+pub mod flood;
+
 #[path = "../../demo/tests/common/fuzzing.rs"]
 mod fuzzing;
 #[allow(unused_imports)] // each test binary uses its own part of this
