@@ -18,122 +18,23 @@
 
 mod common;
 
-use boot::{line, BootRequest, Qemu, QemuOptions};
+use boot::{BootRequest, Qemu, QemuOptions};
+use common::assert_same_picture;
 use common::flood::{
-    assert_flood_presses_the_chord_keys_yet_never_makes_it, assert_flood_taken_once,
-    assert_reset_once, table_bytes, track_modifier, Flood, KeyBytes, Pacer, Target,
+    assert_flood_presses_the_chord_keys_yet_never_makes_it, flood_then_r_then_the_chord,
+    table_bytes, track_modifier, Flood, KeyBytes, Pacer, Target, TABLE_KEYS,
 };
-use common::{assert_same_picture, model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
 use demo::app::App;
-use demo::command::{Command, SceneCommand};
-use modex::ModeX;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-/// QEMU key names the flood taps; Esc is left out (it ends the demo, as it
-/// should).
-const KEYS: &[&str] = &[
-    "a",
-    "b",
-    "c",
-    "d",
-    "e",
-    "f",
-    "g",
-    "h",
-    "i",
-    "j",
-    "k",
-    "l",
-    "m",
-    "n",
-    "o",
-    "p",
-    "q",
-    "r",
-    "s",
-    "t",
-    "u",
-    "v",
-    "w",
-    "x",
-    "y",
-    "z",
-    "0",
-    "1",
-    "2",
-    "3",
-    "4",
-    "5",
-    "6",
-    "7",
-    "8",
-    "9",
-    "kp_0",
-    "kp_1",
-    "kp_2",
-    "kp_3",
-    "kp_4",
-    "kp_5",
-    "kp_6",
-    "kp_7",
-    "kp_8",
-    "kp_9",
-    "kp_add",
-    "kp_subtract",
-    "kp_multiply",
-    "kp_divide",
-    "kp_enter",
-    "kp_decimal",
-    "f1",
-    "f2",
-    "f3",
-    "f4",
-    "f5",
-    "f6",
-    "f7",
-    "f8",
-    "f9",
-    "f10",
-    "f11",
-    "f12",
-    "left",
-    "right",
-    "up",
-    "down",
-    "home",
-    "end",
-    "pgup",
-    "pgdn",
-    "insert",
-    "delete",
-    "spc",
-    "ret",
-    "tab",
-    "backspace",
-    "minus",
-    "equal",
-    "comma",
-    "dot",
-    "slash",
-    "semicolon",
-    "apostrophe",
-    "bracket_left",
-    "bracket_right",
-    "backslash",
-    "grave_accent",
-    "shift",
-    "shift_r",
-    "ctrl",
-    "ctrl_r",
-    "alt",
-    "alt_r",
-    "caps_lock",
-    "num_lock",
-    "scroll_lock",
-    "pause",
-    "print",
-    "compose",
-];
+/// QEMU key names the flood taps: the keys both keyboards send as the key
+/// table says, and Pause, Print Screen and Menu (QEMU's "compose"), whose
+/// PS/2 codes QEMU makes by its own rules.
+fn keys() -> Vec<&'static str> {
+    let mut keys = TABLE_KEYS.to_vec();
+    keys.extend(["pause", "print", "compose"]);
+    keys
+}
 /// Keys in the flood (taps, holds, releases and near misses).
 const FLOOD_KEYS: usize = 2000;
 /// A boot on a machine shared with busy loops and other emulators can take
@@ -200,81 +101,14 @@ fn boot_echoing() -> Qemu {
 #[test]
 fn a_paced_flood_of_two_thousand_keys_acts_once_each_and_only_the_real_chord_resets() {
     let mut qemu = boot_echoing();
-    let started = Instant::now();
-    let mut flood = Flood::new(QemuPs2::default(), KEYS, false);
-    let mut model = App::new();
-    let mut pacer = Pacer::new(Target::Ps2);
-    for index in 0..FLOOD_KEYS {
-        for (event, bytes) in flood.action(index) {
-            for &byte in &bytes {
-                model.feed_scancode(byte);
-            }
-            pacer.push(&mut qemu, event, &bytes);
-        }
-        assert!(!model.quit_requested(), "the flood asked to quit");
-    }
-    // Whatever is still held goes up.
-    for (event, bytes) in flood.release_held() {
-        for &byte in &bytes {
-            model.feed_scancode(byte);
-        }
-        pacer.push(&mut qemu, event, &bytes);
-    }
-    pacer.flush(&mut qemu);
-    if model.commands() > 0 {
-        qemu.wait_for_serial(
-            &line::CommandDone(model.commands()).to_string(),
-            BOOT_TIMEOUT,
-        )
-        .unwrap();
-    }
-    let console = qemu.serial();
-    println!(
-        "{FLOOD_KEYS} actions, {} bytes in {} windows, {} commands, in {:.1?}",
-        pacer.sent.len(),
-        pacer.windows,
-        model.commands(),
-        started.elapsed()
+    flood_then_r_then_the_chord(
+        &mut qemu,
+        Flood::new(QemuPs2::default(), keys(), false),
+        App::new(),
+        Pacer::new(Target::Ps2),
+        FLOOD_KEYS,
+        assert_same_picture,
     );
-    assert_flood_taken_once(&console, &pacer.sent, model.commands());
-
-    // R resumes if the flood left the demo paused, then R resets.
-    for _ in 0..2 {
-        let bytes = flood.keyboard.bytes("r", true);
-        let release = flood.keyboard.bytes("r", false);
-        for &byte in bytes.iter().chain(&release) {
-            model.feed_scancode(byte);
-        }
-        pacer.push(&mut qemu, ("r", true), &bytes);
-        pacer.push(&mut qemu, ("r", false), &release);
-        pacer.flush(&mut qemu);
-        qemu.wait_for_serial(
-            &line::CommandDone(model.commands()).to_string(),
-            BOOT_TIMEOUT,
-        )
-        .unwrap();
-    }
-    assert!(!model.paused());
-    let mut soft = soft_vga_in_mode_x();
-    let mut app = App::new();
-    app.apply(Command::Scene(SceneCommand::Reset));
-    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-    assert_same_picture(
-        &qemu.screendump().unwrap(),
-        &model_picture(&soft),
-        "after the flood and R",
-    );
-
-    // And a real Ctrl+Alt+Del resets the machine (QEMU, told not to
-    // reboot, ends).
-    let (chord, resets) = flood.chord_press();
-    assert!(resets, "the model sees the chord");
-    for (event, bytes) in &chord {
-        pacer.push(&mut qemu, *event, bytes);
-    }
-    pacer.send_last(&mut qemu);
-    let status = assert_reset_once(&mut qemu, &pacer.sent);
-    println!("QEMU ended with {status} after the chord");
 }
 
 /// The flood itself, on the host: Ctrl, Alt and Delete are pressed often,
@@ -284,7 +118,7 @@ fn a_paced_flood_of_two_thousand_keys_acts_once_each_and_only_the_real_chord_res
 #[test]
 fn the_flood_presses_ctrl_alt_and_delete_yet_never_makes_the_chord() {
     assert_flood_presses_the_chord_keys_yet_never_makes_it(
-        Flood::new(QemuPs2::default(), KEYS, false),
+        Flood::new(QemuPs2::default(), keys(), false),
         FLOOD_KEYS,
     );
 }

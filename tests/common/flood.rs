@@ -8,13 +8,121 @@
 //! (`tests/usb.rs`) differ only in the keyboard that turns events into bytes
 //! and the device the events are sent to.
 
-use boot::{line, Qemu};
+use boot::{line, Qemu, RgbImage};
+use demo::app::App;
+use demo::command::{Command, SceneCommand};
 use keyboard::reset_keys::ResetChord;
+use modex::ModeX;
+use std::time::Instant;
 
-use super::BOOT_TIMEOUT;
+use super::{model_picture, soft_vga_in_mode_x, BOOT_TIMEOUT};
 
 /// The modifiers the floods hold down across other keys.
 pub const MODIFIERS: &[&str] = &["shift", "shift_r", "ctrl", "ctrl_r", "alt", "alt_r"];
+/// QEMU key names of the keys a PC keyboard sends as the key table says,
+/// on PS/2 and on USB (QEMU's usb-kbd queues the same scancodes for them as
+/// the kernel gives from its reports). Esc is left out: it ends the demo,
+/// as it should.
+pub const TABLE_KEYS: &[&str] = &[
+    "a",
+    "b",
+    "c",
+    "d",
+    "e",
+    "f",
+    "g",
+    "h",
+    "i",
+    "j",
+    "k",
+    "l",
+    "m",
+    "n",
+    "o",
+    "p",
+    "q",
+    "r",
+    "s",
+    "t",
+    "u",
+    "v",
+    "w",
+    "x",
+    "y",
+    "z",
+    "0",
+    "1",
+    "2",
+    "3",
+    "4",
+    "5",
+    "6",
+    "7",
+    "8",
+    "9",
+    "kp_0",
+    "kp_1",
+    "kp_2",
+    "kp_3",
+    "kp_4",
+    "kp_5",
+    "kp_6",
+    "kp_7",
+    "kp_8",
+    "kp_9",
+    "kp_add",
+    "kp_subtract",
+    "kp_multiply",
+    "kp_divide",
+    "kp_enter",
+    "kp_decimal",
+    "f1",
+    "f2",
+    "f3",
+    "f4",
+    "f5",
+    "f6",
+    "f7",
+    "f8",
+    "f9",
+    "f10",
+    "f11",
+    "f12",
+    "left",
+    "right",
+    "up",
+    "down",
+    "home",
+    "end",
+    "pgup",
+    "pgdn",
+    "insert",
+    "delete",
+    "spc",
+    "ret",
+    "tab",
+    "backspace",
+    "minus",
+    "equal",
+    "comma",
+    "dot",
+    "slash",
+    "semicolon",
+    "apostrophe",
+    "bracket_left",
+    "bracket_right",
+    "backslash",
+    "grave_accent",
+    "shift",
+    "shift_r",
+    "ctrl",
+    "ctrl_r",
+    "alt",
+    "alt_r",
+    "caps_lock",
+    "num_lock",
+    "scroll_lock",
+];
 /// QEMU's PS/2 keyboard queues 16 bytes (`hw/input/ps2.c`, `PS2_QUEUE_SIZE`)
 /// and its usb-hid 16 scancodes (`hw/input/hid.c`, `QUEUE_LENGTH`); each
 /// drops an event that does not fit. For the keys the floods press, an
@@ -58,7 +166,7 @@ pub struct Flood<K: KeyBytes> {
     pub keyboard: K,
     pub chord: ResetChord,
     state: u64,
-    keys: &'static [&'static str],
+    keys: Vec<&'static str>,
     /// The flood is for a USB keyboard, whose last key pressed repeats while
     /// held (the kernel's own typematic, timed by the guest's clock): a
     /// modifier's hold is followed in the same action by a tap, and a tap
@@ -71,7 +179,7 @@ pub struct Flood<K: KeyBytes> {
 impl<K: KeyBytes> Flood<K> {
     /// A flood of taps of `keys` and the holds and near misses below,
     /// always the same for one keyboard and key list.
-    pub fn new(keyboard: K, keys: &'static [&'static str], usb: bool) -> Self {
+    pub fn new(keyboard: K, keys: Vec<&'static str>, usb: bool) -> Self {
         Flood {
             keyboard,
             chord: ResetChord::new(),
@@ -90,7 +198,8 @@ impl<K: KeyBytes> Flood<K> {
 
     fn tap(&mut self) -> Vec<(&'static str, bool)> {
         loop {
-            let key = self.keys[self.random(self.keys.len())];
+            let drawn = self.random(self.keys.len());
+            let key = self.keys[drawn];
             if !(self.usb && self.keyboard.held().contains(&key)) {
                 return vec![(key, true), (key, false)];
             }
@@ -221,6 +330,9 @@ pub enum Target {
 pub struct Pacer {
     target: Target,
     pub window: Vec<(&'static str, bool)>,
+    /// What the window takes in QEMU's queue.
+    window_cost: usize,
+    /// The bytes the kernel takes for the window.
     window_bytes: usize,
     pub sent: Vec<u8>,
     pub windows: usize,
@@ -231,6 +343,7 @@ impl Pacer {
         Pacer {
             target,
             window: Vec::new(),
+            window_cost: 0,
             window_bytes: 0,
             sent: Vec::new(),
             windows: 0,
@@ -244,13 +357,26 @@ impl Pacer {
         }
     }
 
+    /// What an event takes in QEMU's queue: its bytes on PS/2 (QEMU queues
+    /// them translated to set 1, as the kernel takes them); on USB its
+    /// scancodes by the key table, even when the kernel takes none (a held
+    /// modifier pressed again changes no report).
+    fn queue_cost(&self, (key, down): (&'static str, bool), bytes: &[u8]) -> usize {
+        match self.target {
+            Target::Ps2 => bytes.len(),
+            Target::BoundTo(_) => table_bytes(key, down).len(),
+        }
+    }
+
     /// Adds an event to the window, sending the window first if the event
     /// does not fit in it.
     pub fn push(&mut self, qemu: &mut Qemu, event: (&'static str, bool), bytes: &[u8]) {
-        if self.window_bytes + bytes.len() > QEMU_KEY_QUEUE {
+        let cost = self.queue_cost(event, bytes);
+        if self.window_cost + cost > QEMU_KEY_QUEUE {
             self.flush(qemu);
         }
         self.window.push(event);
+        self.window_cost += cost;
         self.window_bytes += bytes.len();
         self.sent.extend_from_slice(bytes);
     }
@@ -258,12 +384,15 @@ impl Pacer {
     /// Adds a whole action to one window, sending the window first if the
     /// action does not fit in it: no window ends inside an action.
     pub fn push_action(&mut self, qemu: &mut Qemu, action: &Action) {
-        let bytes: usize = action.iter().map(|(_, bytes)| bytes.len()).sum();
+        let cost: usize = action
+            .iter()
+            .map(|(event, bytes)| self.queue_cost(*event, bytes))
+            .sum();
         assert!(
-            bytes <= QEMU_KEY_QUEUE,
-            "an action too big for QEMU's queue"
+            cost <= QEMU_KEY_QUEUE,
+            "too big for QEMU's queue: {action:?}"
         );
-        if self.window_bytes + bytes > QEMU_KEY_QUEUE {
+        if self.window_cost + cost > QEMU_KEY_QUEUE {
             self.flush(qemu);
         }
         for (event, bytes) in action {
@@ -290,6 +419,7 @@ impl Pacer {
             }
         }
         self.window.clear();
+        self.window_cost = 0;
         self.window_bytes = 0;
     }
 
@@ -401,4 +531,91 @@ pub fn assert_flood_presses_the_chord_keys_yet_never_makes_it<K: KeyBytes>(
         );
     }
     assert!(most_held >= 2, "modifiers held together: {most_held}");
+}
+
+/// Feeds an action's bytes to a model app, as the kernel will take them.
+pub fn feed(model: &mut App, action: &Action) {
+    for (_, bytes) in action {
+        for &byte in bytes {
+            model.feed_scancode(byte);
+        }
+    }
+}
+
+/// The flood on a QEMU at the ready line whose kernel echoes what it takes,
+/// `model` standing where the kernel's app stands and `pacer.sent` holding
+/// every byte taken so far: `actions` actions, then whatever is still held
+/// released; the bytes taken must be the bytes sent and the commands the
+/// model's. Then R twice (the first resumes if the flood left the demo
+/// paused), and `compare` gets the screen and the software VGA's starting
+/// scene (as the model shows it, 320x240). Last, a real Ctrl+Alt+Del must
+/// reset the machine exactly once. A USB flood is sent a whole action to a
+/// window (see [`Flood::usb`]); a PS/2 one fills each window to the last byte.
+pub fn flood_then_r_then_the_chord<K: KeyBytes>(
+    qemu: &mut Qemu,
+    mut flood: Flood<K>,
+    mut model: App,
+    mut pacer: Pacer,
+    actions: usize,
+    compare: impl Fn(&RgbImage, &RgbImage, &str),
+) {
+    let started = Instant::now();
+    let bytes_before = pacer.sent.len();
+    for index in 0..actions {
+        let action = flood.action(index);
+        feed(&mut model, &action);
+        assert!(!model.quit_requested(), "the flood asked to quit");
+        if flood.usb {
+            pacer.push_action(qemu, &action);
+        } else {
+            for (event, bytes) in &action {
+                pacer.push(qemu, *event, bytes);
+            }
+        }
+    }
+    let release = flood.release_held();
+    feed(&mut model, &release);
+    pacer.push_action(qemu, &release);
+    pacer.flush(qemu);
+    let done = line::CommandDone(model.commands()).to_string();
+    qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+    println!(
+        "{actions} actions, {} bytes in {} windows, {} commands done, in {:.1?}",
+        pacer.sent.len() - bytes_before,
+        pacer.windows,
+        model.commands(),
+        started.elapsed()
+    );
+    assert_flood_taken_once(&qemu.serial(), &pacer.sent, model.commands());
+
+    for _ in 0..2 {
+        let tap = [("r", true), ("r", false)]
+            .map(|(key, down)| ((key, down), flood.keyboard.bytes(key, down)))
+            .to_vec();
+        feed(&mut model, &tap);
+        pacer.push_action(qemu, &tap);
+        pacer.flush(qemu);
+        let done = line::CommandDone(model.commands()).to_string();
+        qemu.wait_for_serial(&done, BOOT_TIMEOUT).unwrap();
+    }
+    assert!(!model.paused());
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    app.apply(Command::Scene(SceneCommand::Reset));
+    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+    compare(
+        &qemu.screendump().unwrap(),
+        &model_picture(&soft),
+        "after the flood and R",
+    );
+
+    // QEMU, told not to reboot, ends on the reset.
+    let (chord, resets) = flood.chord_press();
+    assert!(resets, "the model sees the chord");
+    for (event, bytes) in &chord {
+        pacer.push(qemu, *event, bytes);
+    }
+    pacer.send_last(qemu);
+    let status = assert_reset_once(qemu, &pacer.sent);
+    println!("QEMU ended with {status} after the chord");
 }

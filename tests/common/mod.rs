@@ -226,6 +226,57 @@ pub fn after_each_key_on(
     }
 }
 
+/// Sends key events to the USB keyboard bound to `display` and waits until
+/// the demo has acted on `commands` more keys than `done`; returns the new
+/// count.
+pub fn send_and_wait_on(
+    qemu: &mut Qemu,
+    display: &str,
+    events: &[(&str, bool)],
+    done: u64,
+    commands: u64,
+) -> u64 {
+    qemu.key_events_on(display, events).unwrap();
+    let target = done + commands;
+    qemu.wait_for_serial(&line::CommandDone(target).to_string(), BOOT_TIMEOUT)
+        .unwrap();
+    target
+}
+
+/// On a QEMU at the ready line with no command done yet: each of `keys`
+/// pressed on the USB keyboard bound to `display`, waited for, and the
+/// screen handed to `compare` with the software VGA's picture after the
+/// same commands (320x240, as the model shows it). Returns the commands done.
+pub fn usb_keys_match_the_software_vga(
+    qemu: &mut Qemu,
+    display: &str,
+    keys: &[(&str, Command)],
+    compare: impl Fn(&RgbImage, &RgbImage, &str),
+) -> u64 {
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    let mut done = 0;
+    for (n, &(key, command)) in keys.iter().enumerate() {
+        done = send_and_wait_on(qemu, display, &[(key, true), (key, false)], done, 1);
+        app.apply(command);
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        let screen = qemu.screendump().unwrap();
+        compare(
+            &screen,
+            &model_picture(&soft),
+            &format!("usb key {} ({key})", n + 1),
+        );
+    }
+    done
+}
+
+/// A framebuffer's screen must be the model's picture as the kernel
+/// presents it.
+pub fn assert_presented(screen: &RgbImage, model: &RgbImage, what: &str) {
+    let expected = presented(model, screen.width, screen.height);
+    assert_pictures_equal(screen, &expected, what);
+}
+
 /// The report screen as the kernel said it drew it (the lines after `from`
 /// in `console`): its facts, its log window, where the window is.
 pub struct ShownReport {
