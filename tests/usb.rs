@@ -29,13 +29,14 @@
 mod common;
 
 use boot::qemu::DISPLAY_ID;
-use boot::{line, Board, BootRequest, Chipset, Firmware, Graphics, Qemu, QemuOptions};
+use boot::{line, Board, BootRequest, Firmware, Graphics, Qemu, QemuOptions};
 use common::flood::{
     bytes_taken, commands_done, flood_then_r_then_the_chord, table_bytes, track_modifier, Flood,
     KeyBytes, Pacer, Target, TABLE_KEYS,
 };
 use common::{
-    assert_presented, send_and_wait_on, usb_keys_match_the_software_vga, BOOT_TIMEOUT, CUBE_KEYS,
+    assert_presented, send_and_wait_on, usb_escape_powers_off_with_the_xhci_halted_first,
+    usb_keys_match_the_software_vga, BOOT_TIMEOUT, CUBE_KEYS, Q35_WITHOUT_PS2,
 };
 use demo::app::App;
 use std::time::Duration;
@@ -44,14 +45,6 @@ use std::time::Duration;
 const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
 /// Actions in the flood (taps, holds, releases and near misses).
 const FLOOD_KEYS: usize = 2000;
-/// A PC of today: no i8042, and no PIT either (recent Intel platforms gate
-/// its clock), so the kernel idles without `hlt` and polls.
-const Q35_WITHOUT_PS2: Board = Board {
-    chipset: Chipset::Q35,
-    pit: false,
-    i8042: false,
-    hpet: true,
-};
 /// A USB boot keyboard through QEMU's usb-kbd and the kernel's driver, as
 /// far as the bytes of an event go: each key's set-1 bytes from the key
 /// table, the modifiers as bits of the report, so that a held modifier
@@ -313,25 +306,7 @@ fn esc_powers_off_with_the_xhci_halted_first() {
     let mut qemu = Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"));
     qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
         .unwrap();
-    qemu.press_key_on(DISPLAY_ID, "esc").unwrap();
-    let status = qemu
-        .wait_exit(UEFI_BOOT_TIMEOUT)
-        .unwrap()
-        .unwrap_or_else(|| panic!("still running after Esc:\n{}", qemu.serial()));
-    let console = qemu.serial();
-    let halted = console
-        .find("usb: xHCI 1b36:000d at ")
-        .and_then(|_| console.find(" halted and reset, ports switched off"))
-        .unwrap_or_else(|| panic!("the xHCI was not shut down:\n{console}"));
-    let switching_off = console
-        .find("power: switching off (ACPI S5")
-        .unwrap_or_else(|| panic!("no ACPI S5:\n{console}"));
-    assert!(
-        halted < switching_off,
-        "the xHCI is shut down before SLP_EN:\n{console}"
-    );
-    assert!(console.contains(line::GOODBYE), "{console}");
-    assert_eq!(status.code(), Some(0), "{console}");
+    usb_escape_powers_off_with_the_xhci_halted_first(&mut qemu, DISPLAY_ID, UEFI_BOOT_TIMEOUT);
 }
 
 #[test]

@@ -277,6 +277,45 @@ pub fn assert_presented(screen: &RgbImage, model: &RgbImage, what: &str) {
     assert_pictures_equal(screen, &expected, what);
 }
 
+/// A PC of today: no i8042, and no PIT either (recent Intel platforms gate
+/// its clock), so the kernel idles without `hlt` and polls.
+pub const Q35_WITHOUT_PS2: Board = Board {
+    chipset: boot::Chipset::Q35,
+    pit: false,
+    i8042: false,
+    hpet: true,
+};
+
+/// Esc pressed on the USB keyboard bound to `display`, on a machine without
+/// isa-debug-exit (a real PC's way out): QEMU must exit with 0 after the
+/// goodbye, and the log must show the xHCI halted and reset (its ports
+/// switched off) before ACPI S5's SLP_EN, as Linux's shutdown path does.
+pub fn usb_escape_powers_off_with_the_xhci_halted_first(
+    qemu: &mut Qemu,
+    display: &str,
+    budget: Duration,
+) {
+    qemu.press_key_on(display, "esc").unwrap();
+    let status = qemu
+        .wait_exit(budget)
+        .unwrap()
+        .unwrap_or_else(|| panic!("still running after Esc:\n{}", qemu.serial()));
+    let console = qemu.serial();
+    let halted = console
+        .find("usb: xHCI 1b36:000d at ")
+        .and_then(|_| console.find(" halted and reset, ports switched off"))
+        .unwrap_or_else(|| panic!("the xHCI was not shut down:\n{console}"));
+    let switching_off = console
+        .find("power: switching off (ACPI S5")
+        .unwrap_or_else(|| panic!("no ACPI S5:\n{console}"));
+    assert!(
+        halted < switching_off,
+        "the xHCI is shut down before SLP_EN:\n{console}"
+    );
+    assert!(console.contains(line::GOODBYE), "{console}");
+    assert_eq!(status.code(), Some(0), "{console}");
+}
+
 /// The report screen as the kernel said it drew it (the lines after `from`
 /// in `console`): its facts, its log window, where the window is.
 pub struct ShownReport {
