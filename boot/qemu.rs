@@ -77,8 +77,9 @@ impl UsbHost {
     }
 }
 
-/// QEMU's id of the USB stick's own host controller.
-const STICK_HOST_ID: &str = "stickhost";
+/// QEMU's id of the USB stick's own host controller: more USB devices go on
+/// it as `bus=stickhost.0`.
+pub const STICK_HOST_ID: &str = "stickhost";
 
 /// Whether QEMU shows a window; tests look at the screen through QMP either way.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,10 +1,15 @@
-//! A USB keyboard through the xHCI controller, in QEMU. Four boots:
+//! A USB keyboard through the xHCI controller, in QEMU. Five boots:
 //!
 //! - OVMF on a Q35 without an i8042 or a PIT (a UEFI-only desktop), the keyboard
 //!   behind a `usb-hub`: the cube test's key sequence gives the software
-//!   VGA's picture after each key, a held key repeats, a flood of 2,000 keys
-//!   arrives exactly once each, R restores the starting picture, and Esc
-//!   says goodbye.
+//!   VGA's picture after each key, a held key repeats, then a flood of 2,000
+//!   actions as the PS/2 one in `keyboard_abuse.rs` (the model and pacer in
+//!   `common/flood.rs`: Ctrl, Alt and Delete, left, right and keypad, held
+//!   across other keys, near misses of the chord, each window sent when the
+//!   kernel's echo shows every earlier byte taken): the bytes taken are the
+//!   bytes sent, the commands those of a model app fed the same bytes, R
+//!   restores the starting picture, and a real Ctrl+Alt+Del resets the
+//!   machine exactly once.
 //! - SeaBIOS on a PC with both a PS/2 and a USB keyboard: keys sent to the
 //!   USB keyboard alone act exactly once each (the firmware's own USB
 //!   keyboard support is gone once the kernel has the controller), and PS/2
@@ -14,6 +19,8 @@
 //! - OVMF with no keyboard at boot: one plugged in with QMP `device_add`
 //!   after `screen: ready` is found and its keys act; pulled out
 //!   (`device_del`) it is let go of; plugged in again its keys act again.
+//! - OVMF without isa-debug-exit: Esc says goodbye and powers off, the xHCI
+//!   halted first.
 //!
 //! Keys reach the USB keyboard alone because it is bound to the display
 //! (`display=video0`) and sent there (`Qemu::press_key_on`); `sendkey`
@@ -21,32 +28,46 @@
 
 mod common;
 
-use boot::qemu::{DISPLAY_ID, EXIT_SUCCESS};
-use boot::{line, Board, Chipset, Firmware, Graphics, Qemu, QemuOptions};
+use boot::qemu::DISPLAY_ID;
+use boot::{line, Board, BootRequest, Firmware, Graphics, Qemu, QemuOptions};
+use common::flood::{
+    bytes_taken, commands_done, flood_then_r_then_the_chord, table_bytes, track_modifier, Flood,
+    KeyBytes, Pacer, Target, TABLE_KEYS,
+};
 use common::{
-    assert_pictures_equal, model_picture, presented, soft_vga_in_mode_x, BOOT_TIMEOUT, CUBE_KEYS,
+    assert_presented, send_and_wait_on, usb_escape_powers_off_with_the_xhci_halted_first,
+    usb_keys_match_the_software_vga, BOOT_TIMEOUT, CUBE_KEYS, Q35_WITHOUT_PS2,
 };
 use demo::app::App;
-use demo::command::{Command, SceneCommand};
-use modex::ModeX;
 use std::time::Duration;
 
 /// OVMF boots in well under 20 s here, but emulation on a loaded machine is slow.
 const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
-/// Keys in the flood.
+/// Actions in the flood (taps, holds, releases and near misses).
 const FLOOD_KEYS: usize = 2000;
-/// QEMU's usb-hid queues 16 PS/2 scancodes (an E0 key's event takes two)
-/// and drops an event that does not fit: the flood is sent in bursts that
-/// fit, each sent when the last has been acted on.
-const HID_QUEUE_SCANCODES: usize = 16;
+/// A USB boot keyboard through QEMU's usb-kbd and the kernel's driver, as
+/// far as the bytes of an event go: each key's set-1 bytes from the key
+/// table, the modifiers as bits of the report, so that a held modifier
+/// pressed again changes nothing and gives no byte.
+#[derive(Clone, Default)]
+struct UsbKeyboard {
+    held: Vec<&'static str>,
+}
 
-/// Scancodes an event of `key` takes in QEMU's usb-hid queue: two for the
-/// keys PS/2 sends with an E0 prefix (the project's one key table says which).
-fn queue_cost(key: &str) -> usize {
-    keyboard::keys::scancode_for_name(key)
-        .unwrap_or_else(|| panic!("{key:?} is not a key name"))
-        .make()
-        .len()
+impl KeyBytes for UsbKeyboard {
+    fn held(&self) -> &[&'static str] {
+        &self.held
+    }
+
+    fn bytes(&mut self, key: &'static str, down: bool) -> Vec<u8> {
+        let again = down && self.held.contains(&key);
+        track_modifier(&mut self.held, key, down);
+        if again {
+            Vec::new()
+        } else {
+            table_bytes(key, down)
+        }
+    }
 }
 
 /// The USB keyboard, bound to the display so that keys can be sent to it alone.
@@ -54,7 +75,41 @@ fn usb_keyboard(bus: &str) -> String {
     format!("usb-kbd,id=usbkbd,display={DISPLAY_ID},{bus}")
 }
 
+/// OVMF on [`Q35_WITHOUT_PS2`] with `devices`, booted to the ready line:
+/// QEMU and the console so far.
+fn boot_uefi_without_ps2(devices: Vec<String>, boot: BootRequest) -> (Qemu, String) {
+    let mut qemu = start_with(
+        Firmware::Uefi,
+        Graphics::BochsDisplay,
+        Q35_WITHOUT_PS2,
+        devices,
+        boot,
+    );
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    (qemu, console)
+}
+
+/// The kernel's line that says it found a USB keyboard.
+fn usb_keyboard_line(console: &str) -> &str {
+    console
+        .lines()
+        .find(|l| l.starts_with("keyboard: USB keyboard, read by its report descriptor "))
+        .unwrap_or_else(|| panic!("no USB keyboard found:\n{console}"))
+}
+
 fn start(firmware: Firmware, graphics: Graphics, board: Board, devices: Vec<String>) -> Qemu {
+    start_with(firmware, graphics, board, devices, BootRequest::default())
+}
+
+fn start_with(
+    firmware: Firmware,
+    graphics: Graphics,
+    board: Board,
+    devices: Vec<String>,
+    boot: BootRequest,
+) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let image = match firmware {
         Firmware::Bios => images.bios,
@@ -65,91 +120,23 @@ fn start(firmware: Firmware, graphics: Graphics, board: Board, devices: Vec<Stri
     options.board = board;
     options.graphics = graphics;
     options.devices = devices;
+    options.boot = boot;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
-}
-
-/// The count in the kernel's last "demo: command N done" line.
-fn commands_done(console: &str) -> u64 {
-    console
-        .lines()
-        .rev()
-        .find_map(line::CommandDone::parse)
-        .unwrap_or(0)
-}
-
-/// Sends key events to the USB keyboard and waits until the demo has acted
-/// on `commands` more keys than `done`; returns the new count.
-fn send_and_wait(qemu: &mut Qemu, events: &[(&str, bool)], done: u64, commands: u64) -> u64 {
-    qemu.key_events_on(DISPLAY_ID, events).unwrap();
-    let target = done + commands;
-    qemu.wait_for_serial(&line::CommandDone(target).to_string(), BOOT_TIMEOUT)
-        .unwrap();
-    target
-}
-
-/// One flood key: the events it sends and the commands it gives (a
-/// modifier alone gives none; with a key, one).
-fn flood_key(index: usize, state: &mut u64) -> (Vec<(&'static str, bool)>, u64) {
-    /// Keys that are each one command and never pause the demo (a pause
-    /// swallows the next key): digits, letters, E0 keys, the keypad with
-    /// Num Lock on, function keys.
-    const KEYS: &[&str] = &[
-        "4", "6", "8", "2", "a", "t", "left", "right", "up", "down", "home", "end", "pgup", "pgdn",
-        "f1", "f2", "kp_4", "kp_6", "kp_8", "kp_2", "spc", "l", "n", "m", "r",
-    ];
-    *state ^= *state << 13;
-    *state ^= *state >> 7;
-    *state ^= *state << 17;
-    let key = KEYS[(*state % KEYS.len() as u64) as usize];
-    // Letters whose capital is the same command (a shifted digit is a
-    // symbol, which pauses).
-    const LETTERS: &[&str] = &["a", "t", "l", "n", "m"];
-    let letter = LETTERS[(*state % LETTERS.len() as u64) as usize];
-    match index % 50 {
-        // A key with a modifier held around it.
-        17 => (
-            vec![
-                ("shift", true),
-                (letter, true),
-                (letter, false),
-                ("shift", false),
-            ],
-            1,
-        ),
-        33 => (
-            vec![
-                ("shift_r", true),
-                (letter, true),
-                (letter, false),
-                ("shift_r", false),
-            ],
-            1,
-        ),
-        // A modifier alone is no command.
-        49 => (vec![("alt", true), ("alt", false)], 0),
-        _ => (vec![(key, true), (key, false)], 1),
-    }
 }
 
 #[test]
 fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
-    // A PC of today: no i8042, and no PIT either (recent Intel platforms
-    // gate its clock), so the kernel idles without `hlt` and polls.
-    let board = Board {
-        chipset: Chipset::Q35,
-        pit: false,
-        i8042: false,
-        hpet: true,
-    };
     let devices = vec![
         "qemu-xhci,id=xhci".to_string(),
         "usb-hub,id=hub,bus=xhci.0,port=1".to_string(),
         usb_keyboard("bus=xhci.0,port=1.1"),
     ];
-    let mut qemu = start(Firmware::Uefi, Graphics::BochsDisplay, board, devices);
-    let console = qemu
-        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
-        .unwrap();
+    // The kernel says every scancode byte it takes: the flood is paced by it.
+    let echo = BootRequest {
+        echo_scancodes: true,
+        ..BootRequest::default()
+    };
+    let (mut qemu, console) = boot_uefi_without_ps2(devices, echo);
     // No PS/2 here: the ACPI tables say so, or the controller does not answer.
     assert!(
         console.contains("keyboard: PS/2 controller did not answer")
@@ -157,27 +144,15 @@ fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
         "{console}"
     );
     assert!(console.contains("usb: xHCI 1b36:000d at "), "{console}");
-    let keyboard_line = console
-        .lines()
-        .find(|l| l.starts_with("keyboard: USB keyboard, read by its report descriptor "))
-        .unwrap_or_else(|| panic!("no USB keyboard found:\n{console}"));
+    let keyboard_line = usb_keyboard_line(&console);
     assert!(
         keyboard_line.ends_with(".1"),
         "the keyboard is on the hub's port 1: {keyboard_line}"
     );
 
     // The cube test's keys, each compared with the software VGA.
-    let mut soft = soft_vga_in_mode_x();
-    let mut app = App::new();
-    let mut done = 0;
-    for (n, &(key, command)) in CUBE_KEYS.iter().enumerate() {
-        done = send_and_wait(&mut qemu, &[(key, true), (key, false)], done, 1);
-        app.apply(command);
-        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-        let screen = qemu.screendump().unwrap();
-        let expected = presented(&model_picture(&soft), screen.width, screen.height);
-        assert_pictures_equal(&screen, &expected, &format!("usb key {} ({key})", n + 1));
-    }
+    let mut done =
+        usb_keys_match_the_software_vga(&mut qemu, DISPLAY_ID, &CUBE_KEYS, assert_presented);
 
     // A held key repeats: one press, three commands, no more keys sent. (At
     // least three: the kernel reports a frame's commands in one line, so on
@@ -200,67 +175,57 @@ fn a_usb_keyboard_behind_a_hub_drives_the_demo_on_a_uefi_machine_without_ps2() {
         .find(|l| l.contains("paused=true"))
         .and_then(line::CommandDone::parse)
         .unwrap();
-    // Any key resumes (and is swallowed).
-    done = send_and_wait(&mut qemu, &[("q", true), ("q", false)], done, 1);
+    // Any key resumes (and is swallowed). Its release is the second Q
+    // release the kernel takes; once it has, every byte before it has
+    // been taken, and no key is held.
+    done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("q", true), ("q", false)], done, 1);
+    let q_release = table_bytes("q", false)[0];
+    let console = qemu
+        .wait_for_console("the second Q release taken", BOOT_TIMEOUT, |console| {
+            bytes_taken(console)
+                .iter()
+                .filter(|&&byte| byte == q_release)
+                .count()
+                == 2
+        })
+        .unwrap();
 
-    // The flood, in bursts QEMU's queue holds, each key acted on once.
-    let started = std::time::Instant::now();
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut burst: Vec<(&str, bool)> = Vec::new();
-    let mut burst_commands = 0;
-    let cost = |events: &[(&str, bool)]| {
-        events
-            .iter()
-            .map(|&(key, _)| queue_cost(key))
-            .sum::<usize>()
-    };
-    for index in 0..FLOOD_KEYS {
-        let (events, commands) = flood_key(index, &mut state);
-        // The last burst's final releases may still be queued when its last
-        // key has acted: room is left for them.
-        if cost(&burst) + cost(&events) > HID_QUEUE_SCANCODES - 4 {
-            done = send_and_wait(&mut qemu, &burst, done, burst_commands);
-            burst.clear();
-            burst_commands = 0;
-        }
-        burst.extend(events);
-        burst_commands += commands;
+    // The flood, as the PS/2 one: a model app fed the bytes the kernel must
+    // take decides the commands; windows that fit QEMU's usb-hid queue,
+    // each sent when the kernel's echo shows every earlier byte taken. The
+    // model is fed the bytes before the flood too (the held key's repeats
+    // among them), so that it stands where the kernel stands.
+    let mut model = App::new();
+    let mut pacer = Pacer::new(Target::BoundTo(DISPLAY_ID));
+    pacer.sent = bytes_taken(&console);
+    for &byte in &pacer.sent {
+        model.feed_scancode(byte);
     }
-    done = send_and_wait(&mut qemu, &burst, done, burst_commands);
-    println!("{FLOOD_KEYS} keys over USB in {:.1?}", started.elapsed());
-    let console = qemu.serial();
-    assert_eq!(commands_done(&console), done, "a key acted twice");
-    assert!(
-        !console.contains("EXCEPTION") && !console.contains("PANIC"),
-        "{console}"
+    assert_eq!(
+        model.commands(),
+        done,
+        "the model and the kernel part before the flood"
     );
-    let last_command = console
-        .lines()
-        .rev()
-        .find(|l| line::CommandDone::parse(l).is_some())
-        .unwrap_or_default();
-    assert!(
-        last_command.ends_with("scancodes dropped=0"),
-        "{last_command}"
+    assert!(!model.paused());
+    flood_then_r_then_the_chord(
+        &mut qemu,
+        Flood::new(UsbKeyboard::default(), TABLE_KEYS.to_vec(), true),
+        model,
+        pacer,
+        FLOOD_KEYS,
+        assert_presented,
     );
+}
 
-    // R brings back the starting picture.
-    send_and_wait(&mut qemu, &[("r", true), ("r", false)], done, 1);
-    let mut soft = soft_vga_in_mode_x();
-    let mut app = App::new();
-    app.apply(Command::Scene(SceneCommand::Reset));
-    app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-    let screen = qemu.screendump().unwrap();
-    let expected = presented(&model_picture(&soft), screen.width, screen.height);
-    assert_pictures_equal(&screen, &expected, "usb flood then r");
-
-    // Esc says goodbye.
-    qemu.press_key_on(DISPLAY_ID, "esc").unwrap();
-    let status = qemu
-        .wait_for_exit(BOOT_TIMEOUT)
-        .unwrap_or_else(|e| panic!("QEMU powered off after Esc: {e}"));
-    assert_eq!(status.code(), Some(EXIT_SUCCESS));
-    assert!(qemu.serial().contains(line::GOODBYE));
+/// The USB flood itself, on the host: Ctrl, Alt and Delete (left, right,
+/// keypad) are pressed often, modifiers are held across other keys, and the
+/// bytes never make the chord.
+#[test]
+fn the_usb_flood_presses_ctrl_alt_and_delete_yet_never_makes_the_chord() {
+    common::flood::assert_flood_presses_the_chord_keys_yet_never_makes_it(
+        Flood::new(UsbKeyboard::default(), TABLE_KEYS.to_vec(), true),
+        FLOOD_KEYS,
+    );
 }
 
 #[test]
@@ -328,16 +293,10 @@ fn on_a_bios_boot_usb_keys_act_once_and_ps2_keys_act_too() {
 /// as Linux's shutdown path does, and the log says so before SLP_EN.
 #[test]
 fn esc_powers_off_with_the_xhci_halted_first() {
-    let board = Board {
-        chipset: Chipset::Q35,
-        pit: false,
-        i8042: false,
-        hpet: true,
-    };
     let images = boot::images::publish().expect("the build script made the images");
     let mut options = QemuOptions::new(images.uefi);
     options.firmware = Firmware::Uefi;
-    options.board = board;
+    options.board = Q35_WITHOUT_PS2;
     options.graphics = Graphics::BochsDisplay;
     options.debug_exit = false;
     options.devices = vec![
@@ -347,40 +306,13 @@ fn esc_powers_off_with_the_xhci_halted_first() {
     let mut qemu = Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"));
     qemu.wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
         .unwrap();
-    qemu.press_key_on(DISPLAY_ID, "esc").unwrap();
-    let status = qemu
-        .wait_exit(UEFI_BOOT_TIMEOUT)
-        .unwrap()
-        .unwrap_or_else(|| panic!("still running after Esc:\n{}", qemu.serial()));
-    let console = qemu.serial();
-    let halted = console
-        .find("usb: xHCI 1b36:000d at ")
-        .and_then(|_| console.find(" halted and reset, ports switched off"))
-        .unwrap_or_else(|| panic!("the xHCI was not shut down:\n{console}"));
-    let switching_off = console
-        .find("power: switching off (ACPI S5")
-        .unwrap_or_else(|| panic!("no ACPI S5:\n{console}"));
-    assert!(
-        halted < switching_off,
-        "the xHCI is shut down before SLP_EN:\n{console}"
-    );
-    assert!(console.contains(line::GOODBYE), "{console}");
-    assert_eq!(status.code(), Some(0), "{console}");
+    usb_escape_powers_off_with_the_xhci_halted_first(&mut qemu, DISPLAY_ID, UEFI_BOOT_TIMEOUT);
 }
 
 #[test]
 fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_acts_again() {
-    let board = Board {
-        chipset: Chipset::Q35,
-        pit: false,
-        i8042: false,
-        hpet: true,
-    };
     let devices = vec!["qemu-xhci,id=xhci".to_string()];
-    let mut qemu = start(Firmware::Uefi, Graphics::BochsDisplay, board, devices);
-    let console = qemu
-        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
-        .unwrap();
+    let (mut qemu, console) = boot_uefi_without_ps2(devices, BootRequest::default());
     assert!(
         console.contains("usb: no USB keyboard on the xHCI"),
         "{console}"
@@ -401,8 +333,8 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
         qemu.wait_for_serial_count(FOUND, round, BOOT_TIMEOUT)
             .unwrap();
         // Each key acts once: two keys, two commands.
-        done = send_and_wait(&mut qemu, &[("6", true), ("6", false)], done, 1);
-        done = send_and_wait(&mut qemu, &[("4", true), ("4", false)], done, 1);
+        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("6", true), ("6", false)], done, 1);
+        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("4", true), ("4", false)], done, 1);
         qemu.device_del("kbd2").unwrap();
         qemu.wait_for_serial_count(GONE, round, BOOT_TIMEOUT)
             .unwrap();
@@ -421,12 +353,6 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
 
 #[test]
 fn a_usb_keyboard_behind_three_tiers_of_hubs_drives_the_demo() {
-    let board = Board {
-        chipset: Chipset::Q35,
-        pit: false,
-        i8042: false,
-        hpet: true,
-    };
     let devices = vec![
         "qemu-xhci,id=xhci".to_string(),
         "usb-hub,bus=xhci.0,port=1".to_string(),
@@ -434,14 +360,8 @@ fn a_usb_keyboard_behind_three_tiers_of_hubs_drives_the_demo() {
         "usb-hub,bus=xhci.0,port=1.1.1".to_string(),
         usb_keyboard("bus=xhci.0,port=1.1.1.1"),
     ];
-    let mut qemu = start(Firmware::Uefi, Graphics::BochsDisplay, board, devices);
-    let console = qemu
-        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
-        .unwrap();
-    let keyboard_line = console
-        .lines()
-        .find(|l| l.starts_with("keyboard: USB keyboard, read by its report descriptor "))
-        .unwrap_or_else(|| panic!("no USB keyboard found:\n{console}"));
+    let (mut qemu, console) = boot_uefi_without_ps2(devices, BootRequest::default());
+    let keyboard_line = usb_keyboard_line(&console);
     // The root port (QEMU's bus port 1 is the first USB 2 port, after the
     // USB 3 ones), then port 1 of each hub tier.
     let location = keyboard_line.rsplit(" on port ").next().unwrap();
@@ -450,15 +370,5 @@ fn a_usb_keyboard_behind_three_tiers_of_hubs_drives_the_demo() {
         "the keyboard is on port 1 of the third hub: {keyboard_line}"
     );
     // The cube test's keys, each compared with the software VGA.
-    let mut soft = soft_vga_in_mode_x();
-    let mut app = App::new();
-    let mut done = 0;
-    for (n, &(key, command)) in CUBE_KEYS.iter().enumerate() {
-        done = send_and_wait(&mut qemu, &[(key, true), (key, false)], done, 1);
-        app.apply(command);
-        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
-        let screen = qemu.screendump().unwrap();
-        let expected = presented(&model_picture(&soft), screen.width, screen.height);
-        assert_pictures_equal(&screen, &expected, &format!("usb key {} ({key})", n + 1));
-    }
+    usb_keys_match_the_software_vga(&mut qemu, DISPLAY_ID, &CUBE_KEYS, assert_presented);
 }

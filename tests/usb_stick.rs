@@ -9,13 +9,22 @@
 //!
 //! An xHCI controller is also one the kernel takes for USB keyboards: the
 //! stick on it must not stop the kernel (it is no keyboard, and is left be).
+//! Two more boots put a `usb-kbd` and a `usb-tablet` beside the stick on its
+//! `qemu-xhci` (OVMF on a Q35 without PS/2 or PIT, SeaBIOS on a PC with
+//! PS/2): the kernel names the stick and the tablet on their ports and
+//! takes neither, the cube test's keys sent to the USB keyboard act once
+//! each with the software VGA's pictures, and Esc powers off with the xHCI
+//! halted first.
 
 mod common;
 
-use boot::{line, Board, DiskAttachment, Firmware, Qemu, QemuOptions, UsbHost};
+use boot::qemu::{DISPLAY_ID, STICK_HOST_ID};
+use boot::{line, Board, DiskAttachment, Firmware, Graphics, Qemu, QemuOptions, UsbHost};
+use common::flood::commands_done;
 use common::{
-    assert_pictures_equal, assert_same_picture, model_picture, presented, soft_vga_in_mode_x,
-    BOOT_TIMEOUT, CUBE_KEYS,
+    assert_pictures_equal, assert_presented, assert_same_picture, model_picture, presented,
+    soft_vga_in_mode_x, usb_escape_powers_off_with_the_xhci_halted_first,
+    usb_keys_match_the_software_vga, BOOT_TIMEOUT, CUBE_KEYS, Q35_WITHOUT_PS2,
 };
 use demo::app::App;
 use modex::ModeX;
@@ -23,23 +32,32 @@ use modex::ModeX;
 /// Keys from the cube test's sequence: a reset, turns, a move away.
 const KEYS: usize = 7;
 
-fn boot_from_stick(firmware: Firmware, host: UsbHost) -> Qemu {
+fn boot_from_stick(
+    firmware: Firmware,
+    host: UsbHost,
+    board: Board,
+    graphics: Graphics,
+    devices: Vec<String>,
+) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let mut options = QemuOptions::new(images.hybrid);
     options.disk = DiskAttachment::UsbStick(host);
     options.firmware = firmware;
-    options.board = match firmware {
-        Firmware::Bios => Board::PC,
-        Firmware::Uefi => Board::Q35,
-    };
+    options.board = board;
+    options.graphics = graphics;
     // As on a PC: Esc switches off through ACPI, and QEMU then exits with 0.
     options.debug_exit = false;
+    options.devices = devices;
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn boots_and_runs(firmware: Firmware, host: UsbHost) {
     let what = format!("{firmware:?} from a stick on {}", host.device());
-    let mut qemu = boot_from_stick(firmware, host);
+    let board = match firmware {
+        Firmware::Bios => Board::PC,
+        Firmware::Uefi => Board::Q35,
+    };
+    let mut qemu = boot_from_stick(firmware, host, board, Graphics::StdVga, Vec::new());
     let console = qemu
         .wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
         .unwrap_or_else(|e| panic!("{what}: {e}"));
@@ -97,4 +115,81 @@ fn ovmf_boots_from_a_stick_on_xhci() {
 #[test]
 fn ovmf_boots_from_a_stick_on_ehci() {
     boots_and_runs(Firmware::Uefi, UsbHost::Ehci);
+}
+
+/// The stick, a USB keyboard and a USB tablet on one `qemu-xhci`, as on a
+/// PC booted from a stick with a mouse beside the keyboard (issue #31): the
+/// keys sent to the keyboard act once each and give the software VGA's
+/// pictures; the log names the stick and the tablet, each on its port, as
+/// not taken; Esc says goodbye, and the xHCI is halted before the machine is
+/// switched off through ACPI (QEMU exits with 0).
+fn stick_tablet_and_keyboard_on_one_xhci(firmware: Firmware) {
+    let what = format!("{firmware:?} from a stick beside a keyboard and a tablet");
+    let mut devices = Vec::new();
+    if firmware == Firmware::Bios {
+        // The standard VGA's `-vga` device has no id: a second display
+        // gives the USB keyboard one to be bound to.
+        devices.push(format!("secondary-vga,id={DISPLAY_ID}"));
+    }
+    // The stick takes QEMU's bus port 1, a USB 3 port (QEMU's usb-storage
+    // does SuperSpeed): the xHCI's port 1. The keyboard and the tablet are
+    // USB 2 devices: bus ports 2 and 3 are the xHCI's ports 6 and 7, after
+    // its four USB 3 ones.
+    devices.push(format!(
+        "usb-kbd,id=usbkbd,display={DISPLAY_ID},bus={STICK_HOST_ID}.0,port=2"
+    ));
+    devices.push(format!("usb-tablet,id=tablet,bus={STICK_HOST_ID}.0,port=3"));
+    // Under OVMF the display is a `bochs-display`, with the id the keyboard
+    // is bound to.
+    let (board, graphics) = match firmware {
+        Firmware::Bios => (Board::PC, Graphics::StdVga),
+        Firmware::Uefi => (Q35_WITHOUT_PS2, Graphics::BochsDisplay),
+    };
+    let mut qemu = boot_from_stick(firmware, UsbHost::Xhci, board, graphics, devices);
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert_eq!(
+        console.matches("usb: xHCI 1b36:000d at ").count(),
+        1,
+        "{what}: one xHCI, the stick's:\n{console}"
+    );
+    // QEMU's usb-storage is 46f4:0001, its usb-tablet 0627:0001.
+    for expected in [
+        "usb: port 1: device 46f4:0001 is not a boot keyboard or a hub",
+        "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on port 6",
+        "usb: port 7: device 0627:0001 is a HID device without keys; left alone",
+    ] {
+        assert!(
+            console.lines().any(|l| l == expected),
+            "{what}: no line {expected:?}:\n{console}"
+        );
+    }
+    assert!(!console.contains("EXCEPTION"), "{what}: {console}");
+
+    let done =
+        usb_keys_match_the_software_vga(&mut qemu, DISPLAY_ID, &CUBE_KEYS, |screen, model, key| {
+            let what = format!("{what}, {key}");
+            match firmware {
+                Firmware::Bios => assert_same_picture(screen, model, &what),
+                Firmware::Uefi => assert_presented(screen, model, &what),
+            }
+        });
+    usb_escape_powers_off_with_the_xhci_halted_first(&mut qemu, DISPLAY_ID, BOOT_TIMEOUT);
+    // Esc ends the demo without a command line: the last is the last key's.
+    assert_eq!(
+        commands_done(&qemu.serial()),
+        done,
+        "{what}: a key acted twice"
+    );
+}
+
+#[test]
+fn ovmf_boots_from_a_stick_beside_a_usb_keyboard_and_tablet() {
+    stick_tablet_and_keyboard_on_one_xhci(Firmware::Uefi);
+}
+
+#[test]
+fn seabios_boots_from_a_stick_beside_a_usb_keyboard_and_tablet() {
+    stick_tablet_and_keyboard_on_one_xhci(Firmware::Bios);
 }

@@ -13,6 +13,8 @@ use modex::soft::SoftVga;
 use modex::{ModeX, Page, SCREEN_HEIGHT, SCREEN_WIDTH};
 use std::time::Duration;
 
+pub mod flood;
+
 #[path = "../../demo/tests/common/fuzzing.rs"]
 mod fuzzing;
 #[allow(unused_imports)] // each test binary uses its own part of this
@@ -222,6 +224,96 @@ pub fn after_each_key_on(
             &what,
         );
     }
+}
+
+/// Sends key events to the USB keyboard bound to `display` and waits until
+/// the demo has acted on `commands` more keys than `done`; returns the new
+/// count.
+pub fn send_and_wait_on(
+    qemu: &mut Qemu,
+    display: &str,
+    events: &[(&str, bool)],
+    done: u64,
+    commands: u64,
+) -> u64 {
+    qemu.key_events_on(display, events).unwrap();
+    let target = done + commands;
+    qemu.wait_for_serial(&line::CommandDone(target).to_string(), BOOT_TIMEOUT)
+        .unwrap();
+    target
+}
+
+/// On a QEMU at the ready line with no command done yet: each of `keys`
+/// pressed on the USB keyboard bound to `display`, waited for, and the
+/// screen handed to `compare` with the software VGA's picture after the
+/// same commands (320x240, as the model shows it). Returns the commands done.
+pub fn usb_keys_match_the_software_vga(
+    qemu: &mut Qemu,
+    display: &str,
+    keys: &[(&str, Command)],
+    compare: impl Fn(&RgbImage, &RgbImage, &str),
+) -> u64 {
+    let mut soft = soft_vga_in_mode_x();
+    let mut app = App::new();
+    let mut done = 0;
+    for (n, &(key, command)) in keys.iter().enumerate() {
+        done = send_and_wait_on(qemu, display, &[(key, true), (key, false)], done, 1);
+        app.apply(command);
+        app.step(&mut ModeX::new(&mut *soft), &|| 0u64);
+        let screen = qemu.screendump().unwrap();
+        compare(
+            &screen,
+            &model_picture(&soft),
+            &format!("usb key {} ({key})", n + 1),
+        );
+    }
+    done
+}
+
+/// A framebuffer's screen must be the model's picture as the kernel
+/// presents it.
+pub fn assert_presented(screen: &RgbImage, model: &RgbImage, what: &str) {
+    let expected = presented(model, screen.width, screen.height);
+    assert_pictures_equal(screen, &expected, what);
+}
+
+/// A PC of today: no i8042, and no PIT either (recent Intel platforms gate
+/// its clock), so the kernel idles without `hlt` and polls.
+pub const Q35_WITHOUT_PS2: Board = Board {
+    chipset: boot::Chipset::Q35,
+    pit: false,
+    i8042: false,
+    hpet: true,
+};
+
+/// Esc pressed on the USB keyboard bound to `display`, on a machine without
+/// isa-debug-exit (a real PC's way out): QEMU must exit with 0 after the
+/// goodbye, and the log must show the xHCI halted and reset (its ports
+/// switched off) before ACPI S5's SLP_EN, as Linux's shutdown path does.
+pub fn usb_escape_powers_off_with_the_xhci_halted_first(
+    qemu: &mut Qemu,
+    display: &str,
+    budget: Duration,
+) {
+    qemu.press_key_on(display, "esc").unwrap();
+    let status = qemu
+        .wait_exit(budget)
+        .unwrap()
+        .unwrap_or_else(|| panic!("still running after Esc:\n{}", qemu.serial()));
+    let console = qemu.serial();
+    let halted = console
+        .find("usb: xHCI 1b36:000d at ")
+        .and_then(|_| console.find(" halted and reset, ports switched off"))
+        .unwrap_or_else(|| panic!("the xHCI was not shut down:\n{console}"));
+    let switching_off = console
+        .find("power: switching off (ACPI S5")
+        .unwrap_or_else(|| panic!("no ACPI S5:\n{console}"));
+    assert!(
+        halted < switching_off,
+        "the xHCI is shut down before SLP_EN:\n{console}"
+    );
+    assert!(console.contains(line::GOODBYE), "{console}");
+    assert_eq!(status.code(), Some(0), "{console}");
 }
 
 /// The report screen as the kernel said it drew it (the lines after `from`
