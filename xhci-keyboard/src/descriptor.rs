@@ -171,6 +171,57 @@ pub struct Configuration {
     /// The first boot keyboard, else the first other HID interface that
     /// may be a keyboard (or a hub), if any.
     pub function: Option<Function>,
+    /// The first interface's class, subclass and protocol, to say what a
+    /// device that is not ours is.
+    pub first_interface: Option<InterfaceClass>,
+}
+
+/// An interface's `bInterfaceClass`, `bInterfaceSubClass` and
+/// `bInterfaceProtocol`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct InterfaceClass {
+    /// `bInterfaceClass`.
+    pub class: u8,
+    /// `bInterfaceSubClass`.
+    pub subclass: u8,
+    /// `bInterfaceProtocol`.
+    pub protocol: u8,
+}
+
+impl InterfaceClass {
+    /// The class's name in the USB-IF's list of class codes.
+    pub fn name(self) -> &'static str {
+        match self.class {
+            0x01 => "audio",
+            0x02 => "communications",
+            0x03 => "HID",
+            0x06 => "still image",
+            0x07 => "printer",
+            0x08 => "mass storage",
+            0x09 => "hub",
+            0x0A => "CDC data",
+            0x0B => "smart card",
+            0x0E => "video",
+            0xE0 => "wireless controller",
+            0xEF => "miscellaneous",
+            0xFE => "application specific",
+            0xFF => "vendor specific",
+            _ => "other",
+        }
+    }
+}
+
+impl core::fmt::Display for InterfaceClass {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "{}, class {:02x}/{:02x}/{:02x}",
+            self.name(),
+            self.class,
+            self.subclass,
+            self.protocol
+        )
+    }
 }
 
 /// A HID interface being walked: its number, whether it is a boot
@@ -213,6 +264,7 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
     let mut hub = false;
     let mut in_hub_interface = false;
     let mut status_change = None;
+    let mut first_interface = None;
     while offset + 2 <= bytes.len() {
         let length = usize::from(bytes[offset]);
         if length < 2 || offset + length > bytes.len() {
@@ -222,6 +274,11 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
         match descriptor[1] {
             kind::INTERFACE if length >= 9 => {
                 let (class, subclass, protocol) = (descriptor[5], descriptor[6], descriptor[7]);
+                first_interface = first_interface.or(Some(InterfaceClass {
+                    class,
+                    subclass,
+                    protocol,
+                }));
                 let boot = subclass == SUBCLASS_BOOT && protocol == PROTOCOL_KEYBOARD;
                 let maybe = subclass == NO_BOOT && protocol == NO_BOOT;
                 interface = (class == CLASS_HID && (boot || maybe)).then_some(HidInterface {
@@ -273,7 +330,11 @@ pub fn configuration(bytes: &[u8]) -> Result<Configuration, DescriptorError> {
     } else {
         boot_keyboard.or(other_hid)
     };
-    Ok(Configuration { value, function })
+    Ok(Configuration {
+        value,
+        function,
+        first_interface,
+    })
 }
 
 /// The fields of a hub descriptor this driver uses.
@@ -360,6 +421,23 @@ mod tests {
                 })
             })
         );
+    }
+
+    #[test]
+    fn a_stick_is_named_by_its_first_interface_and_offers_nothing() {
+        // QEMU's usb-storage: one bulk-only SCSI interface, two bulk endpoints.
+        let stick: [u8; 32] = [
+            9, 2, 32, 0, 1, 1, 0, 0x80, 50, // configuration
+            9, 4, 0, 0, 2, 8, 6, 0x50, 0, // interface: mass storage, SCSI, bulk-only
+            7, 5, 0x81, 2, 0, 2, 0, // endpoint 1 IN, bulk
+            7, 5, 0x02, 2, 0, 2, 0, // endpoint 2 OUT, bulk
+        ];
+        let offered = configuration(&stick).unwrap();
+        assert_eq!(offered.function, None);
+        let class = offered.first_interface.unwrap();
+        assert_eq!(std::format!("{class}"), "mass storage, class 08/06/50");
+        let keyboard = configuration(&KEYBOARD_CONFIGURATION).unwrap();
+        assert_eq!(keyboard.first_interface.unwrap().name(), "HID");
     }
 
     #[test]

@@ -1243,10 +1243,17 @@ impl<H: Hardware> Xhci<H> {
                 Ok(Next::Done)
             }
             None => {
-                self.hw.log(format_args!(
-                    "usb: port {location}: device {:04x}:{:04x} is not a boot keyboard or a hub",
-                    job.vendor, job.product
-                ));
+                match configuration.first_interface {
+                    Some(class) => self.hw.log(format_args!(
+                        "usb: port {location}: device {:04x}:{:04x} ({class}) is not a keyboard \
+                         or a hub; left alone",
+                        job.vendor, job.product
+                    )),
+                    None => self.hw.log(format_args!(
+                        "usb: port {location}: device {:04x}:{:04x} has no interface; left alone",
+                        job.vendor, job.product
+                    )),
+                }
                 // Not an error: the device is simply not ours. Its slot
                 // stays addressed and unused.
                 Ok(Next::Done)
