@@ -341,7 +341,8 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
     }
     let console = qemu.serial();
     assert_eq!(console.matches(PLUGGED).count(), 2, "{console}");
-    // What each enumeration held the frame loop up for, as the kernel measured it.
+    // How long each enumeration took, spread over polls, and its longest
+    // step, as the kernel measured them.
     let enumerations: Vec<&str> = console
         .lines()
         .filter(|l| l.contains(": enumerated in "))
@@ -349,6 +350,58 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
     assert_eq!(enumerations.len(), 2, "{console}");
     eprintln!("{}", enumerations.join("\n"));
     assert_eq!(commands_done(&console), 4, "{console}");
+}
+
+/// Hot-plug behind a hub: a hub plugged in after boot, a keyboard plugged
+/// into it, pulled out and plugged in again (its keys act each time), then
+/// the hub pulled out with the keyboard still in it: both are let go of.
+#[test]
+fn a_keyboard_plugged_into_a_hub_after_boot_acts_and_goes_with_the_hub() {
+    let devices = vec!["qemu-xhci,id=xhci".to_string()];
+    let (mut qemu, _) = boot_uefi_without_ps2(devices, BootRequest::default());
+    const FOUND: &str = "keyboard: USB keyboard, read by its report descriptor";
+    const GONE: &str = ": device gone";
+    qemu.device_add(
+        "usb-hub",
+        &[("id", "hub9"), ("bus", "xhci.0"), ("port", "2")],
+    )
+    .unwrap();
+    qemu.wait_for_serial_count(": enumerated in ", 1, BOOT_TIMEOUT)
+        .unwrap();
+    // Port 3 of the hub on bus port 2.
+    let keyboard = [
+        ("id", "kbd3"),
+        ("bus", "xhci.0"),
+        ("port", "2.3"),
+        ("display", DISPLAY_ID),
+    ];
+    let mut done = 0;
+    for round in 1..=2 {
+        qemu.device_add("usb-kbd", &keyboard).unwrap();
+        qemu.wait_for_serial_count(FOUND, round, BOOT_TIMEOUT)
+            .unwrap();
+        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("6", true), ("6", false)], done, 1);
+        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("4", true), ("4", false)], done, 1);
+        if round == 1 {
+            qemu.device_del("kbd3").unwrap();
+            qemu.wait_for_serial_count(GONE, 1, BOOT_TIMEOUT).unwrap();
+        }
+    }
+    // The hub goes with the keyboard still in it: both slots let go of.
+    qemu.device_del("hub9").unwrap();
+    qemu.wait_for_serial_count(GONE, 3, BOOT_TIMEOUT).unwrap();
+    let console = qemu.serial();
+    let found: Vec<&str> = console.lines().filter(|l| l.contains(FOUND)).collect();
+    assert_eq!(found.len(), 2, "{console}");
+    assert!(
+        found.iter().all(|l| l.ends_with("on port 6.3")),
+        "the keyboard is found behind the hub, on its port 3:\n{console}"
+    );
+    assert_eq!(commands_done(&console), 4, "{console}");
+    assert!(!console.contains("PANIC"), "{console}");
+    for line in console.lines().filter(|l| l.starts_with("usb: ")) {
+        eprintln!("{line}");
+    }
 }
 
 #[test]
