@@ -269,6 +269,16 @@ pub fn shut_down() {
     }
 }
 
+/// How many controllers are running (for the bench).
+pub fn running() -> usize {
+    CONTROLLERS.try_lock().map_or(0, |controllers| {
+        controllers
+            .iter()
+            .filter(|c| matches!(c, Controller::Running(_)))
+            .count()
+    })
+}
+
 /// Takes the keyboards' reports and repeats; their scancodes join the PS/2
 /// keyboard's in `ps2::SCANCODES`. Called from the main loops only.
 pub fn poll() {
