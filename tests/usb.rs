@@ -309,6 +309,20 @@ fn esc_powers_off_with_the_xhci_halted_first() {
     usb_escape_powers_off_with_the_xhci_halted_first(&mut qemu, DISPLAY_ID, UEFI_BOOT_TIMEOUT);
 }
 
+/// The line the kernel logs when it has set up a hot-plugged usb-kbd.
+const FOUND: &str = "keyboard: USB keyboard, read by its report descriptor";
+
+/// Plugs `keyboard` in (QMP `device_add usb-kbd`), waits for the kernel to
+/// have found it for the `round`th time, and types two keys, each of which
+/// must act once; returns the commands done.
+fn plug_in_and_type(qemu: &mut Qemu, keyboard: &[(&str, &str)], round: usize, done: u64) -> u64 {
+    qemu.device_add("usb-kbd", keyboard).unwrap();
+    qemu.wait_for_serial_count(FOUND, round, BOOT_TIMEOUT)
+        .unwrap();
+    let done = send_and_wait_on(qemu, DISPLAY_ID, &[("6", true), ("6", false)], done, 1);
+    send_and_wait_on(qemu, DISPLAY_ID, &[("4", true), ("4", false)], done, 1)
+}
+
 #[test]
 fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_acts_again() {
     let devices = vec!["qemu-xhci,id=xhci".to_string()];
@@ -317,7 +331,6 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
         console.contains("usb: no USB keyboard on the xHCI"),
         "{console}"
     );
-    const FOUND: &str = "keyboard: USB keyboard, read by its report descriptor";
     // QEMU's bus port 1 is the xHCI's first USB 2 port, after its USB 3 ones.
     const PLUGGED: &str = ": device plugged in";
     const GONE: &str = ": device gone";
@@ -329,12 +342,7 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
     ];
     let mut done = 0;
     for round in 1..=2 {
-        qemu.device_add("usb-kbd", &keyboard).unwrap();
-        qemu.wait_for_serial_count(FOUND, round, BOOT_TIMEOUT)
-            .unwrap();
-        // Each key acts once: two keys, two commands.
-        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("6", true), ("6", false)], done, 1);
-        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("4", true), ("4", false)], done, 1);
+        done = plug_in_and_type(&mut qemu, &keyboard, round, done);
         qemu.device_del("kbd2").unwrap();
         qemu.wait_for_serial_count(GONE, round, BOOT_TIMEOUT)
             .unwrap();
@@ -359,7 +367,6 @@ fn a_usb_keyboard_plugged_in_after_boot_acts_pulled_out_and_plugged_in_again_act
 fn a_keyboard_plugged_into_a_hub_after_boot_acts_and_goes_with_the_hub() {
     let devices = vec!["qemu-xhci,id=xhci".to_string()];
     let (mut qemu, _) = boot_uefi_without_ps2(devices, BootRequest::default());
-    const FOUND: &str = "keyboard: USB keyboard, read by its report descriptor";
     const GONE: &str = ": device gone";
     qemu.device_add(
         "usb-hub",
@@ -377,11 +384,7 @@ fn a_keyboard_plugged_into_a_hub_after_boot_acts_and_goes_with_the_hub() {
     ];
     let mut done = 0;
     for round in 1..=2 {
-        qemu.device_add("usb-kbd", &keyboard).unwrap();
-        qemu.wait_for_serial_count(FOUND, round, BOOT_TIMEOUT)
-            .unwrap();
-        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("6", true), ("6", false)], done, 1);
-        done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("4", true), ("4", false)], done, 1);
+        done = plug_in_and_type(&mut qemu, &keyboard, round, done);
         if round == 1 {
             qemu.device_del("kbd3").unwrap();
             qemu.wait_for_serial_count(GONE, 1, BOOT_TIMEOUT).unwrap();
