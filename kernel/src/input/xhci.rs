@@ -108,8 +108,9 @@ static LONGEST_ENUMERATION_POLL: [AtomicU64; MAX_CONTROLLERS] =
     [const { AtomicU64::new(0) }; MAX_CONTROLLERS];
 
 /// Finds the xHCI controllers, takes them from the firmware, and sets up the
-/// keyboards on them (boot enumeration, bounded; the rest a step per poll). Every step is bounded; a failure is logged and
-/// the PS/2 keyboard (if any) is all there is.
+/// keyboards on them (boot enumeration, bounded; the rest a step per poll).
+/// Every step is bounded; a failure is logged and the PS/2 keyboard (if
+/// any) is all there is.
 pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
     let (found, count) = pci::xhci_controllers::<MAX_CONTROLLERS>();
     if count == 0 {
