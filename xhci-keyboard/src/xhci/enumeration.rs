@@ -972,7 +972,6 @@ impl<H: Hardware> Xhci<H> {
             .ok_or(XhciError::TooManyDevices)?;
         let (output, input, ep0_page, buffer) =
             (self.page()?, self.page()?, self.page()?, self.page()?);
-        let layout = self.capabilities.layout;
         self.hw
             .mem_write(self.dcbaa + 8 * u64::from(slot), output as u32);
         self.hw
@@ -994,14 +993,7 @@ impl<H: Hardware> Xhci<H> {
             speed::HIGH => 64,
             _ => 512,
         };
-        layout.start_input(&mut self.hw, input, 0b11);
-        layout.write_slot(&mut self.hw, input, &slot_context);
-        layout.write_endpoint(
-            &mut self.hw,
-            input,
-            1,
-            &ep0_context(ep0.dequeue_pointer(), job.max_packet_0),
-        );
+        let ep0_dequeue = ep0.dequeue_pointer();
         self.devices[index] = Some(Device {
             slot,
             location: job.location,
@@ -1022,18 +1014,47 @@ impl<H: Hardware> Xhci<H> {
         // gets its real packet size; only then is the address set. Some
         // devices take no address before their descriptor has been read.
         job.two_step = matches!(job.speed, speed::LOW | speed::FULL);
+        let without_set_address = job.two_step;
+        self.address_device(
+            job,
+            slot,
+            input,
+            &slot_context,
+            ep0_dequeue,
+            without_set_address,
+        )
+    }
+
+    /// Writes the input context Address Device reads (the slot and endpoint
+    /// 0 whole, endpoint 0's ring from `ep0_dequeue`) and sends the command,
+    /// `without_set_address` (BSR=1) for a two-step device's first time.
+    fn address_device(
+        &mut self,
+        job: &mut Enumeration,
+        slot: u8,
+        input: u64,
+        slot_context: &SlotContext,
+        ep0_dequeue: u64,
+        without_set_address: bool,
+    ) -> Result<Next> {
+        let layout = self.capabilities.layout;
+        layout.start_input(&mut self.hw, input, 0b11);
+        layout.write_slot(&mut self.hw, input, slot_context);
+        layout.write_endpoint(
+            &mut self.hw,
+            input,
+            1,
+            &ep0_context(ep0_dequeue, job.max_packet_0),
+        );
         let mut address = command::AddressDevice::new();
         address.set_input_context_pointer(input).set_slot_id(slot);
-        if job.two_step {
+        let step = if without_set_address {
             address.set_block_set_address_request();
-            self.send_command(
-                job,
-                EnumerationStep::AddressingWithoutSetAddress,
-                Trb(address.into_raw()),
-            )
+            EnumerationStep::AddressingWithoutSetAddress
         } else {
-            self.send_command(job, EnumerationStep::Addressing, Trb(address.into_raw()))
-        }
+            EnumerationStep::Addressing
+        };
+        self.send_command(job, step, Trb(address.into_raw()))
     }
 
     fn addressing_without_set_address(
@@ -1128,7 +1149,6 @@ impl<H: Hardware> Xhci<H> {
         // slot and endpoint 0 whole, endpoint 0's ring from where it now
         // stands.
         let index = Self::device_index(job)?;
-        let layout = self.capabilities.layout;
         let Some(device) = self.devices[index].as_mut() else {
             return Err(XhciError::TooManyDevices);
         };
@@ -1141,17 +1161,7 @@ impl<H: Hardware> Xhci<H> {
             device.slot_context,
             device.ep0.enqueue_pointer(),
         );
-        layout.start_input(&mut self.hw, input, 0b11);
-        layout.write_slot(&mut self.hw, input, &slot_context);
-        layout.write_endpoint(
-            &mut self.hw,
-            input,
-            1,
-            &ep0_context(ep0_dequeue, job.max_packet_0),
-        );
-        let mut address = command::AddressDevice::new();
-        address.set_input_context_pointer(input).set_slot_id(slot);
-        self.send_command(job, EnumerationStep::Addressing, Trb(address.into_raw()))
+        self.address_device(job, slot, input, &slot_context, ep0_dequeue, false)
     }
 
     fn reading_device_descriptor(
