@@ -1026,3 +1026,49 @@ fn a_keyboard_behind_two_usb_3_hubs_is_reached_and_found_again_after_an_unplug()
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
 }
+
+#[test]
+fn a_keyboard_pulled_out_while_it_is_enumerated_is_let_go_of_and_found_again() {
+    // Pulled after each number of steps until enumeration would have ended.
+    let mut stopped = 0;
+    for steps in 1..40 {
+        let mut model = Model::new();
+        model.empty_at_start = true;
+        let mut xhci = controller(model);
+        xhci.take_ownership();
+        xhci.reset_and_start().unwrap();
+        assert_eq!(xhci.enumerate(), 0);
+        xhci.hardware().plug();
+        poll(&mut xhci);
+        xhci.hardware().now += 100_000;
+        for _ in 0..steps {
+            poll(&mut xhci);
+            xhci.hardware().now += 1_000;
+        }
+        let finished = xhci.enumeration_idle();
+        xhci.hardware().unplug();
+        settle(&mut xhci);
+        assert_eq!(xhci.keyboards().count(), 0, "after {steps} steps");
+        let log = xhci.hardware().log.join("\n");
+        // Said either way: stopped mid-way, or gone once set up.
+        let said = if finished {
+            "device gone; its keys released"
+        } else {
+            stopped += 1;
+            "the device went away while"
+        };
+        assert!(log.contains(said), "after {steps} steps:\n{log}");
+        xhci.hardware().plug();
+        poll(&mut xhci);
+        xhci.hardware().now += 100_000;
+        settle(&mut xhci);
+        assert_eq!(xhci.keyboards().count(), 1, "after {steps} steps:\n{log}");
+        let model = xhci.hardware();
+        assert!(
+            model.errors.is_empty(),
+            "after {steps} steps: {:?}",
+            model.errors
+        );
+    }
+    assert!(stopped > 10, "pulled mid-way only {stopped} times");
+}

@@ -134,6 +134,9 @@ pub enum XhciError {
     BadSlot(u8),
     /// More devices than this driver keeps.
     TooManyDevices,
+    /// The device being enumerated was let go of in the meantime (pulled
+    /// out, or its hub was).
+    Gone,
     /// A port reset did not finish, or left the port disabled.
     PortReset,
 }
@@ -160,6 +163,7 @@ impl core::fmt::Display for XhciError {
             XhciError::Descriptor(e) => write!(f, "{e}"),
             XhciError::BadSlot(s) => write!(f, "the controller gave slot {s}"),
             XhciError::TooManyDevices => write!(f, "too many devices"),
+            XhciError::Gone => write!(f, "the device went away during its enumeration"),
             XhciError::PortReset => write!(f, "port reset failed"),
         }
     }

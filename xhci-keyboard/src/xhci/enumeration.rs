@@ -535,6 +535,10 @@ impl<H: Hardware> Xhci<H> {
         });
         if cancel {
             if let Some(job) = self.enumeration.take() {
+                let (at, step) = (job.location, job.step);
+                self.hw.log(format_args!(
+                    "usb: port {at}: the device went away while {step}; enumeration stopped"
+                ));
                 if let Awaiting::Command { .. } = job.awaiting {
                     self.abort_command();
                 }
@@ -760,7 +764,7 @@ impl<H: Hardware> Xhci<H> {
     }
 
     fn device_index(job: &Enumeration) -> Result<usize> {
-        job.index.ok_or(XhciError::TooManyDevices)
+        job.index.ok_or(XhciError::Gone)
     }
 
     fn get_descriptor(
@@ -1112,7 +1116,7 @@ impl<H: Hardware> Xhci<H> {
             let (slot, input) = self.devices[index]
                 .as_ref()
                 .map(|d| (d.slot, d.input))
-                .ok_or(XhciError::TooManyDevices)?;
+                .ok_or(XhciError::Gone)?;
             let layout = self.capabilities.layout;
             let dequeue = 0; // not evaluated by Evaluate Context
             layout.start_input(&mut self.hw, input, 0b10);
@@ -1150,7 +1154,7 @@ impl<H: Hardware> Xhci<H> {
         // stands.
         let index = Self::device_index(job)?;
         let Some(device) = self.devices[index].as_mut() else {
-            return Err(XhciError::TooManyDevices);
+            return Err(XhciError::Gone);
         };
         // The `xhci` crate takes only 64-byte aligned dequeue pointers: No
         // Ops fill up to one, and are skipped.
@@ -1280,7 +1284,7 @@ impl<H: Hardware> Xhci<H> {
         done?;
         let index = Self::device_index(job)?;
         let Some(set_up) = job.keyboard.as_ref() else {
-            return Err(XhciError::TooManyDevices);
+            return Err(XhciError::Gone);
         };
         if set_up.report_descriptor_bytes == 0 {
             return self.choose_report_format(job, Err(None));
@@ -1341,7 +1345,7 @@ impl<H: Hardware> Xhci<H> {
         let index = Self::device_index(job)?;
         let location = job.location;
         let Some(set_up) = job.keyboard.as_ref() else {
-            return Err(XhciError::TooManyDevices);
+            return Err(XhciError::Gone);
         };
         let (endpoint, boot) = (set_up.endpoint, set_up.boot);
         let format = match layout {
@@ -1371,7 +1375,7 @@ impl<H: Hardware> Xhci<H> {
         };
         let layout = self.capabilities.layout;
         let Some(device) = self.devices[index].as_mut() else {
-            return Err(XhciError::TooManyDevices);
+            return Err(XhciError::Gone);
         };
         let dci = 2 * endpoint.number + 1;
         let ring = ProducerRing::new(ring_page, INTERRUPT_RING_TRBS);
@@ -1442,7 +1446,7 @@ impl<H: Hardware> Xhci<H> {
             .keyboard
             .as_ref()
             .map(|k| (k.boot, k.interface))
-            .ok_or(XhciError::TooManyDevices)?;
+            .ok_or(XhciError::Gone)?;
         // SET_PROTOCOL exists only on boot interfaces; the others are
         // always in the report protocol.
         if boot {
@@ -1497,14 +1501,14 @@ impl<H: Hardware> Xhci<H> {
         }
         let index = Self::device_index(job)?;
         let Some(mut keyboard) = job.keyboard.as_mut().and_then(|k| k.keyboard.take()) else {
-            return Err(XhciError::TooManyDevices);
+            return Err(XhciError::Gone);
         };
         for _ in 0..QUEUED_REPORTS {
             queue_report(&mut self.hw, &mut keyboard);
         }
         let (dci, format) = (keyboard.dci, keyboard.format);
         let Some(device) = self.devices[index].as_mut() else {
-            return Err(XhciError::TooManyDevices);
+            return Err(XhciError::Gone);
         };
         device.keyboard = Some(keyboard);
         let slot = device.slot;
@@ -1577,7 +1581,7 @@ impl<H: Hardware> Xhci<H> {
         let (ring_page, buffer) = (self.page()?, self.page()?);
         let layout = self.capabilities.layout;
         let Some(device) = self.devices[index].as_mut() else {
-            return Err(XhciError::TooManyDevices);
+            return Err(XhciError::Gone);
         };
         let ports = job.hub.ports;
         let mut add = 1;
