@@ -100,14 +100,19 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
 /// Calls of the PS/2 poll timed together.
 const POLL_CALLS: u64 = 100_000;
 
+/// Microseconds [`POLL_CALLS`] calls of `poll` take.
+fn time_poll_calls(mut poll: impl FnMut()) -> u64 {
+    let start = time::micros();
+    for _ in 0..POLL_CALLS {
+        poll();
+    }
+    time::micros() - start
+}
+
 /// What the frame loop's poll of the 8042 costs when no key is waiting (one
 /// call a frame, and one an idle step): timed over many calls.
 fn ps2_poll_cost() {
-    let start = time::micros();
-    for _ in 0..POLL_CALLS {
-        crate::input::ps2::poll();
-    }
-    let micros = time::micros() - start;
+    let micros = time_poll_calls(crate::input::ps2::poll);
     serial_println!(
         "bench: PS/2 poll with no key waiting: {} ns per call ({} calls in {} us)",
         micros * 1000 / POLL_CALLS,
@@ -124,11 +129,7 @@ fn xhci_poll_cost() {
         serial_println!("bench: xHCI poll: no controller running");
         return;
     }
-    let start = time::micros();
-    for _ in 0..POLL_CALLS {
-        crate::input::xhci::poll();
-    }
-    let micros = time::micros() - start;
+    let micros = time_poll_calls(crate::input::xhci::poll);
     serial_println!(
         "bench: xHCI poll with nothing changing: {} ns per call over {} controller(s) ({} calls in {} us)",
         micros * 1000 / POLL_CALLS,
