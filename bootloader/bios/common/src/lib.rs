@@ -1,6 +1,32 @@
 #![no_std]
 
 pub mod racy_cell;
+pub mod serial; // Patched
+
+/// Patched (see ../../CHANGES.md, "The boot path on real firmware"): the
+/// stacks the BIOS stages run on, and how their use is measured. Stages 2
+/// and 3 run on the stack the boot sector set up below 0000:7C00, which
+/// stage 2 paints from [`STACK_BOTTOM`] up to just below where it runs; stage
+/// 4, which goes far deeper, has a stack of its own (`.stack` in its linker
+/// script) that it paints at entry. Before it jumps to the kernel, stage 4
+/// finds in each the lowest word no longer painted.
+pub mod stack {
+    /// The lowest address of the boot sector's stack: conventional memory
+    /// starts here.
+    pub const STACK_BOTTOM: u32 = 0x500;
+    /// The boot sector's initial SS:ESP, 0000:7C00.
+    pub const STACK_TOP: u32 = 0x7c00;
+    /// The paint, one 32-bit word at a time.
+    pub const PAINT: u32 = 0x5ca1_ab1e;
+
+    /// The bytes used of a stack of `size` bytes, given its 32-bit words from
+    /// the bottom up: everything above the lowest word that is no longer the
+    /// paint.
+    pub fn used(words: impl IntoIterator<Item = u32>, size: u32) -> u32 {
+        let painted = words.into_iter().take_while(|&word| word == PAINT).count() as u32;
+        size.saturating_sub(painted * 4)
+    }
+}
 
 #[cfg_attr(feature = "debug", derive(Debug))]
 #[repr(C)]
@@ -64,6 +90,30 @@ pub struct E820MemoryRegion {
     pub len: u64,
     pub region_type: u32,
     pub acpi_extended_attributes: u32,
+}
+
+/// Patched (see ../../CHANGES.md): zeroes the calling stage's `.bss`, between
+/// the linker script's `__bss_start` and `__bss_end`. A stage's `.bss` lies
+/// past the end of its file, and RAM is not zero at power-on; each stage
+/// calls this first, before anything uses a static.
+///
+/// # Safety
+/// Only at a stage's entry, before any static in `.bss` is used, and in a
+/// mode that reaches the whole of it (flat protected or long mode, or unreal
+/// mode).
+pub unsafe fn zero_bss() {
+    unsafe extern "C" {
+        static mut __bss_start: u8;
+        static mut __bss_end: u8;
+    }
+    let end = &raw mut __bss_end;
+    let mut at = &raw mut __bss_start;
+    while at < end {
+        // SAFETY: between the two symbols is this stage's .bss, unused yet
+        // (the caller's promise).
+        unsafe { at.write_volatile(0) };
+        at = at.wrapping_add(1);
+    }
 }
 
 pub fn hlt() {

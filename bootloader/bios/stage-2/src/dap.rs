@@ -1,4 +1,4 @@
-use core::arch::asm;
+use crate::bios::{self, Registers}; // Patched
 
 #[derive(Debug, Clone, Copy)]
 #[allow(dead_code)]
@@ -35,24 +35,31 @@ impl DiskAddressPacket {
         }
     }
 
-    pub unsafe fn perform_load(&self, disk_number: u16) {
-        let self_addr = self as *const Self as u16;
-        unsafe {
-            asm!(
-                "push 'z'", // error code `z`, passed to `fail` on error
-                "mov {1:x}, si",
-                "mov si, {0:x}",
-                "int 0x13",
-                "jnc 2f", // carry is set on fail
-                "call fail",
-                "2:",
-                "pop si", // remove error code again
-                "mov si, {1:x}",
-                in(reg) self_addr,
-                out(reg) _,
-                in("ax") 0x4200u16,
-                in("dx") disk_number,
-            );
-        }
+    /// Patched (see ../../../CHANGES.md): INT 13h AH=42h through the BIOS
+    /// call wrapper; the BIOS's status byte (AH) on failure, never a stop here.
+    pub fn perform_load(&self, disk_number: u16) -> Result<(), u8> {
+        let (segment, offset) = bios::far_pointer(self as *const Self as u32);
+        let out = bios::call(
+            0x13,
+            Registers {
+                eax: 0x4200,
+                edx: disk_number.into(),
+                esi: offset.into(),
+                ds: segment,
+                ..Registers::default()
+            },
+        );
+        if out.carry() { Err(out.ah()) } else { Ok(()) }
     }
+}
+
+/// Patched: INT 13h AH=00h, the disk reset done between two tries of a read.
+pub fn reset(disk_number: u16) {
+    bios::call(
+        0x13,
+        Registers {
+            edx: disk_number.into(),
+            ..Registers::default()
+        },
+    );
 }

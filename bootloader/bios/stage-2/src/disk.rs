@@ -1,3 +1,4 @@
+use core::fmt::Write as _; // Patched
 use crate::dap;
 
 #[derive(Clone)]
@@ -47,16 +48,14 @@ impl Read for DiskAccess {
         let mut target_addr = buf.as_ptr_range().start as u32;
 
         loop {
-            let sectors = u64::min(number_of_sectors, 32) as u16;
-            let dap = dap::DiskAddressPacket::from_lba(
-                start_lba,
-                sectors,
-                (target_addr & 0b1111) as u16,
-                (target_addr >> 4).try_into().unwrap(),
-            );
-            unsafe {
-                dap.perform_load(self.disk_number);
-            }
+            // Patched: never more than 32 sectors (the limit is 127), and
+            // never across a 64 KiB boundary: the buffers are 512-aligned,
+            // so the boundary falls between sectors.
+            let to_boundary = (0x1_0000 - (target_addr & 0xffff)) / 512;
+            let sectors = u64::min(number_of_sectors, u64::from(to_boundary).min(32)) as u16;
+            let (segment, offset) = crate::bios::far_pointer(target_addr);
+            let dap = dap::DiskAddressPacket::from_lba(start_lba, sectors, offset, segment);
+            read_with_retries(&dap, self.disk_number, start_lba);
 
             start_lba += u64::from(sectors);
             number_of_sectors -= u64::from(sectors);
@@ -70,6 +69,35 @@ impl Read for DiskAccess {
         self.current_offset = end_addr;
     }
 }
+
+/// Patched: tries a read up to [`READ_TRIES`] times, with a disk reset
+/// between tries, as GRUB and SYSLINUX do (a USB stick behind a BIOS's INT
+/// 13h emulation may fail once). Each retry is said; a read that fails every
+/// time stops the loader with the LBA and the BIOS's status, on the screen
+/// and COM1. It does not reset the machine.
+fn read_with_retries(dap: &dap::DiskAddressPacket, disk_number: u16, lba: u64) {
+    let mut status = 0;
+    for attempt in 1..=READ_TRIES {
+        match dap.perform_load(disk_number) {
+            Ok(()) => return,
+            Err(failed) => status = failed,
+        }
+        if attempt < READ_TRIES {
+            let _ = writeln!(
+                crate::serial::Both,
+                "loader: read retried: LBA {lba:#010x}, BIOS status {status:#04x}"
+            );
+            dap::reset(disk_number);
+        }
+    }
+    crate::serial::stop(format_args!(
+        "loader: cannot read the disk at LBA {lba:#010x} (BIOS status {status:#04x}) after \
+         {READ_TRIES} tries; write the stick again or try another USB port"
+    ))
+}
+
+/// Patched: how often a disk read is tried before the loader gives up.
+pub const READ_TRIES: u32 = 3;
 
 impl Seek for DiskAccess {
     fn seek(&mut self, pos: SeekFrom) -> u64 {
@@ -97,7 +125,9 @@ pub trait Seek {
     fn seek(&mut self, pos: SeekFrom) -> u64;
 }
 
-#[repr(align(2))]
+/// Patched: 512-aligned (was 2), so that a read split at a 64 KiB boundary
+/// splits between sectors.
+#[repr(align(512))]
 pub struct AlignedArrayBuffer<const LEN: usize> {
     pub buffer: [u8; LEN],
 }

@@ -13,6 +13,8 @@ use core::{fmt::Write as _, slice};
 use disk::AlignedArrayBuffer;
 use mbr_nostd::{PartitionTableEntry, PartitionType};
 
+mod a20; // Patched
+mod bios; // Patched
 mod dap;
 mod disk;
 mod fat;
@@ -36,16 +38,75 @@ static mut DISK_BUFFER: AlignedArrayBuffer<0x4000> = AlignedArrayBuffer {
     buffer: [0; 0x4000],
 };
 
+// Patched (see ../../CHANGES.md, "The boot path on real firmware"): the boot
+// sector jumps here with DL the boot drive, DH the DL the BIOS gave, CL the
+// reads it retried, segments 0 and SS:ESP below 0000:7C00 with the upper half
+// clear. Before any Rust runs, the stack below is painted from
+// `STACK_BOTTOM` up (16 bytes short of the return address), so that stage 4
+// can tell how deep stages 2 to 4 went; then `stage_2` is called as a C
+// function (LLVM's `call` in 16-bit code pushes a 32-bit return address).
+core::arch::global_asm!(
+    r#"
+    .section .start, "ax"
+    .global _start
+_start:
+    cld
+    mov esi, edx
+    mov ebx, ecx
+    xor eax, eax
+    mov es, ax
+    mov di, {bottom}
+    mov cx, sp
+    sub cx, 16 + {bottom}
+    shr cx, 2
+    mov eax, {paint}
+    rep stosd
+    movzx eax, bl
+    push eax
+    mov eax, esi
+    movzx eax, ah
+    push eax
+    mov eax, esi
+    movzx eax, al
+    push eax
+    call stage_2
+1:
+    cli
+    hlt
+    jmp 1b
+"#,
+    bottom = const bootloader_x86_64_bios_common::stack::STACK_BOTTOM,
+    paint = const bootloader_x86_64_bios_common::stack::PAINT,
+);
+
+/// The MBR's partition table, where the boot sector left it.
+const PARTITION_TABLE: *const u8 = 0x7dbe as *const u8; // Patched
+
 #[unsafe(no_mangle)]
-#[unsafe(link_section = ".start")]
-pub extern "C" fn _start(disk_number: u16, partition_table_start: *const u8) -> ! {
-    start(disk_number, partition_table_start)
+pub extern "C" fn stage_2(disk_number: u32, disk_given: u32, boot_sector_retries: u32) -> ! {
+    // Patched: unreal mode first: .bss lies partly above 64 KiB.
+    enter_unreal_mode();
+    // SAFETY: first thing, in unreal mode; nothing has used a static yet.
+    unsafe { bootloader_x86_64_bios_common::zero_bss() };
+    serial::init();
+    a20::enable();
+    let disk_number = disk_number as u16;
+    if disk_given != u32::from(disk_number) {
+        let _ = writeln!(
+            serial::Both,
+            "loader: the BIOS gave boot drive {disk_given:#04x}, not a hard disk; using {disk_number:#04x}"
+        );
+    }
+    if boot_sector_retries != 0 {
+        let _ = writeln!(
+            serial::Both,
+            "loader: read retried: the boot sector tried {boot_sector_retries} reads of stage 2 again"
+        );
+    }
+    start(disk_number, PARTITION_TABLE)
 }
 
 fn start(disk_number: u16, partition_table_start: *const u8) -> ! {
-    // Enter unreal mode before doing anything else.
-    enter_unreal_mode();
-
     screen::Writer.write_str(" -> SECOND STAGE\n").unwrap();
 
     // parse partition table

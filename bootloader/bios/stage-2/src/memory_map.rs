@@ -2,7 +2,6 @@
 
 use crate::split_array_ref;
 use bootloader_x86_64_bios_common::{E820MemoryRegion, racy_cell::RacyCell};
-use core::arch::asm;
 
 static MEMORY_MAP: RacyCell<[E820MemoryRegion; 100]> = RacyCell::new(
     [E820MemoryRegion {
@@ -28,33 +27,30 @@ pub unsafe fn query_memory_map()
     let memory_map = unsafe { MEMORY_MAP.get_mut() };
 
     let found = walk(memory_map, MAX_CALLS, |continuation| {
-        let mut offset = continuation; // Patched
         let mut buf = [0u8; 24]; // Patched: the BIOS writes it
-        let ret: u32;
-        let buf_written_len: u32; // Patched
-        let carry: u8; // Patched
-        unsafe {
-            asm!(
-                "push ebx",
-                "mov ebx, edx",
-                "mov edx, 0x534D4150",
-                "int 0x15",
-                "mov edx, ebx",
-                "pop ebx",
-                "setc {carry}", // Patched: CF set ends the list
-                carry = out(reg_byte) carry,
-                inout("eax") 0xe820 => ret,
-                inout("edx") offset,
-                inout("ecx") buf.len() as u32 => buf_written_len,
-                in("di") &mut buf,
-            )
-        };
-        if carry != 0 {
+        // Patched: through the BIOS call wrapper; the buffer (on the stack,
+        // below 64 KiB) as segment:offset; CF set ends the list.
+        let (segment, offset) = crate::bios::far_pointer(buf.as_mut_ptr() as u32);
+        let out = crate::bios::call(
+            0x15,
+            crate::bios::Registers {
+                eax: 0xe820,
+                ebx: continuation,
+                ecx: buf.len() as u32,
+                edx: SMAP,
+                edi: offset.into(),
+                es: segment,
+                ..Default::default()
+            },
+        );
+        if out.carry() {
             return Answer::Carry; // Patched
         }
-        if ret != SMAP {
+        if out.eax != SMAP {
             return Answer::NotSmap; // Patched
         }
+        let offset = out.ebx; // Patched: the continuation
+        let buf_written_len = out.ecx; // Patched
 
         let mut entry = None; // Patched
         let written = (buf_written_len as usize).min(buf.len()); // Patched

@@ -1,10 +1,16 @@
 use core::{arch::asm, fmt::Write};
 
 pub fn print_char(c: u8) {
-    let ax = u16::from(c) | 0x0e00;
-    unsafe {
-        asm!("push bx", "mov bx, 0", "int 0x10", "pop bx", in("ax") ax);
-    }
+    // Patched: through the BIOS call wrapper (INT 10h may change BP and the
+    // upper halves of registers).
+    crate::bios::call(
+        0x10,
+        crate::bios::Registers {
+            eax: 0x0e00 | u32::from(c),
+            ebx: 0x0007,
+            ..Default::default()
+        },
+    );
 }
 
 pub fn print_str(s: &str) {

@@ -2,8 +2,8 @@
 
 use bootloader_x86_64_bios_common::PixelFormat;
 
+use crate::bios::{self, Registers}; // Patched
 use crate::{AlignedArrayBuffer, disk::AlignedBuffer};
-use core::arch::asm;
 
 #[repr(C, packed)]
 #[allow(dead_code)]
@@ -36,11 +36,19 @@ impl<'a> VesaInfo<'a> {
             .split_at_mut(core::mem::size_of::<VbeInfoBlock>());
         slice.fill(0);
         let block_ptr = slice.as_mut_ptr();
-        let ret;
-        unsafe {
-            asm!("push es", "mov es, {:x}", "int 0x10", "pop es", in(reg)0, inout("ax") 0x4f00u16 => ret, in("di") block_ptr)
-        };
-        match ret {
+        // Patched: through the BIOS call wrapper, the buffer as segment:offset
+        // (its linear address may lie above 64 KiB).
+        let (segment, offset) = bios::far_pointer(block_ptr as u32);
+        let out = bios::call(
+            0x10,
+            Registers {
+                eax: 0x4f00,
+                edi: offset.into(),
+                es: segment,
+                ..Registers::default()
+            },
+        );
+        match out.eax as u16 {
             0x4f => {
                 let info_block: &VbeInfoBlock = unsafe { &*block_ptr.cast() };
                 Ok(VesaInfo {
@@ -182,20 +190,19 @@ impl VesaModeInfo {
         slice.fill(0);
         let block_ptr = slice.as_mut_ptr();
 
-        let mut ret: u16;
-        let mut target_addr = block_ptr as u32;
-        let segment = target_addr >> 4;
-        target_addr -= segment << 4;
-        unsafe {
-            asm!(
-                "push es", "mov es, {:x}", "int 0x10", "pop es",
-                in(reg) segment as u16,
-                inout("ax") 0x4f01u16 => ret,
-                in("cx") mode,
-                in("di") target_addr as u16
-            )
-        };
-        match ret {
+        // Patched: through the BIOS call wrapper.
+        let (segment, offset) = bios::far_pointer(block_ptr as u32);
+        let out = bios::call(
+            0x10,
+            Registers {
+                eax: 0x4f01,
+                ecx: mode.into(),
+                edi: offset.into(),
+                es: segment,
+                ..Registers::default()
+            },
+        );
+        match out.eax as u16 {
             0x4f => {
                 let block: &VbeModeInfo = unsafe { &*block_ptr.cast() };
                 Ok(VesaModeInfo {
@@ -232,18 +239,16 @@ impl VesaModeInfo {
         // address handed on is one nothing scans out.
         const LINEAR_FRAMEBUFFER: u16 = 0x4000;
         let mode = self.mode | LINEAR_FRAMEBUFFER;
-        let mut ret: u16;
-        unsafe {
-            asm!(
-                "push bx",
-                "mov bx, {:x}",
-                "int 0x10",
-                "pop bx",
-                in(reg) mode,
-                inout("ax") 0x4f02u16 => ret,
-            )
-        };
-        match ret {
+        // Patched: through the BIOS call wrapper.
+        let out = bios::call(
+            0x10,
+            Registers {
+                eax: 0x4f02,
+                ebx: mode.into(),
+                ..Registers::default()
+            },
+        );
+        match out.eax as u16 {
             0x4f => Ok(()),
             other => Err(other),
         }

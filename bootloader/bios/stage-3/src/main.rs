@@ -13,6 +13,10 @@ mod screen;
 #[unsafe(no_mangle)]
 #[unsafe(link_section = ".start")]
 pub extern "C" fn _start(info: &mut BiosInfo) {
+    // Patched (../../CHANGES.md): the page tables below are statics in .bss,
+    // past the end of this file: zero them before anything else.
+    // SAFETY: first thing, in flat protected mode; no static used yet.
+    unsafe { bootloader_x86_64_bios_common::zero_bss() };
     screen::init(info.framebuffer);
     // Writer.clear_screen();
     writeln!(Writer, "Third Stage ({info:x?})").unwrap();

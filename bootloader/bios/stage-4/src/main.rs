@@ -8,7 +8,6 @@ use bootloader_x86_64_bios_common::{BiosFramebufferInfo, BiosInfo, E820MemoryReg
 use bootloader_x86_64_common::RawFrameBufferInfo;
 use bootloader_x86_64_common::{
     Kernel, PageTables, SystemInfo, legacy_memory_region::LegacyFrameAllocator,
-    load_and_switch_to_kernel,
 };
 use core::{cmp, slice};
 use usize_conversions::usize_from;
@@ -22,9 +21,40 @@ const GIGABYTE: u64 = 4096 * 512 * 512;
 
 mod memory_descriptor;
 
+// Patched (see ../../CHANGES.md, "The boot path on real firmware"): stage 4
+// used all 30 KiB of the boot sector's stack below 0x7C00 and more, so it
+// gets a stack of its own, painted first (RDI, the `BiosInfo`, kept).
+core::arch::global_asm!(
+    r#"
+    .section .start, "ax"
+    .global _start
+_start:
+    cld
+    mov rsi, rdi
+    mov rdi, offset __stack_bottom
+    mov rcx, offset __stack_top
+    sub rcx, rdi
+    shr rcx, 2
+    mov eax, {paint}
+    rep stosd
+    mov rsp, offset __stack_top
+    mov rdi, rsi
+    call stage_4
+1:
+    cli
+    hlt
+    jmp 1b
+"#,
+    paint = const bootloader_x86_64_bios_common::stack::PAINT,
+);
+
 #[unsafe(no_mangle)]
-#[unsafe(link_section = ".start")]
-pub extern "C" fn _start(info: &mut BiosInfo) -> ! {
+pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
+    // Patched (../../CHANGES.md): .bss lies past the end of this file; zero
+    // it before anything else.
+    // SAFETY: first thing, in long mode with the first 10 GiB identity
+    // mapped; no static used yet.
+    unsafe { bootloader_x86_64_bios_common::zero_bss() };
     let memory_map: &mut [E820MemoryRegion] = unsafe {
         core::slice::from_raw_parts_mut(
             info.memory_map_addr as *mut _,
@@ -170,7 +200,57 @@ pub extern "C" fn _start(info: &mut BiosInfo) -> ! {
         ramdisk_len: info.ramdisk.len,
     };
 
-    load_and_switch_to_kernel(kernel, config, frame_allocator, page_tables, system_info);
+    // Patched: the three steps of `load_and_switch_to_kernel`, so that the
+    // stack stages 2 to 4 used can be measured after the deepest of them.
+    let mut page_tables = page_tables;
+    let kernel_config = kernel.config;
+    let mut mappings = bootloader_x86_64_common::set_up_mappings(
+        kernel,
+        &mut frame_allocator,
+        &mut page_tables,
+        system_info.framebuffer.as_ref(),
+        &kernel_config,
+        &system_info,
+    );
+    let boot_info = bootloader_x86_64_common::create_boot_info(
+        &kernel_config,
+        &config,
+        frame_allocator,
+        &mut page_tables,
+        &mut mappings,
+        system_info,
+    );
+    report_stack_use();
+    bootloader_x86_64_common::switch_to_kernel(page_tables, mappings, boot_info);
+}
+
+/// Patched: how deep stages 2 and 3 went on the boot sector's stack, and
+/// stage 4 on its own, on COM1: `loader: stack: stages 2-3 used N of M
+/// bytes, stage 4 used N of M bytes`.
+fn report_stack_use() {
+    use bootloader_x86_64_bios_common::stack::{STACK_BOTTOM, STACK_TOP, used};
+    use core::fmt::Write as _;
+    unsafe extern "C" {
+        static __stack_bottom: u8;
+        static __stack_top: u8;
+    }
+    let words = |bottom: usize, top: usize| {
+        (bottom..top).step_by(4).map(|address| {
+            // SAFETY: a stack region of this loader (conventional memory, or
+            // stage 4's `.stack`), identity-mapped; only read.
+            unsafe { (address as *const u32).read_volatile() }
+        })
+    };
+    let (bottom, top) = (STACK_BOTTOM as usize, STACK_TOP as usize);
+    let boot_sector_stack = used(words(bottom, top), (top - bottom) as u32);
+    let (bottom, top) = (&raw const __stack_bottom as usize, &raw const __stack_top as usize);
+    let own_stack = used(words(bottom, top), (top - bottom) as u32);
+    let _ = writeln!(
+        bootloader_x86_64_bios_common::serial::Com1,
+        "loader: stack: stages 2-3 used {boot_sector_stack} of {} bytes, stage 4 used {own_stack} of {} bytes",
+        STACK_TOP - STACK_BOTTOM,
+        top - bottom
+    );
 }
 
 fn init_logger(
