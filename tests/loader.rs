@@ -147,3 +147,46 @@ fn with_nx_the_log_says_it_is_on() {
     assert_loader_line_first(&console);
     assert!(console.contains(NX_ON), "{console}");
 }
+
+/// The byte counts in the loader's stack line: (used, size) for the boot
+/// sector's stack (stages 2 and 3), then for stage 4's own.
+fn stack_use(console: &str) -> [(u64, u64); 2] {
+    let line = console
+        .lines()
+        .find_map(|l| l.trim_end().strip_prefix(line::LOADER_STACK))
+        .unwrap_or_else(|| panic!("no loader stack line on serial:\n{console}"));
+    let numbers: Vec<u64> = line
+        .split(|c: char| !c.is_ascii_digit())
+        .filter_map(|word| word.parse().ok())
+        .collect();
+    // "stages 2-3 used N of M bytes, stage 4 used N of M bytes"
+    match numbers[..] {
+        [2, 3, used_23, size_23, 4, used_4, size_4] => [(used_23, size_23), (used_4, size_4)],
+        _ => panic!("the stack line is not as expected: {line:?}"),
+    }
+}
+
+/// The BIOS stages measure how deep they went on their stacks, and stay
+/// under half of each: stages 2 and 3 on the 30 KiB below 0x7C00 the boot
+/// sector set up, stage 4 on its own. Each figure is more than nothing (the
+/// paint was there to be used) and under half.
+#[test]
+fn the_bios_loader_stays_under_half_of_each_stack() {
+    let mut qemu = start(Firmware::Bios, Graphics::StdVga, None);
+    let console = qemu.wait_for_serial(line::READY, BOOT_TIMEOUT).unwrap();
+    let [(used_23, size_23), (used_4, size_4)] = stack_use(&console);
+    assert_eq!(size_23, 0x7c00 - 0x500, "{console}");
+    for (what, used, size) in [
+        ("stages 2-3", used_23, size_23),
+        ("stage 4", used_4, size_4),
+    ] {
+        assert!(
+            used > 0 && used < size,
+            "{what}: {used} of {size}:\n{console}"
+        );
+        assert!(
+            used * 2 < size,
+            "{what} used {used} of {size} bytes, over half:\n{console}"
+        );
+    }
+}

@@ -301,6 +301,10 @@ pub mod line {
     /// The bootloader's first line on serial (BIOS stage 2 and the UEFI
     /// loader), written before it loads the kernel.
     pub const LOADER_START: &str = "loader: loading kernel";
+    /// The BIOS loader's stack use, written by stage 4 before it jumps to the
+    /// kernel: `loader: stack: stages 2-3 used N of M bytes, stage 4 used N
+    /// of M bytes`.
+    pub const LOADER_STACK: &str = "loader: stack: ";
     /// The start of the goodbye line after Esc.
     pub const GOODBYE: &str = "demo: goodbye";
     /// The last line before a fault or panic halts the CPU.

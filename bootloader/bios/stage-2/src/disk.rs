@@ -1,5 +1,5 @@
-use core::fmt::Write as _; // Patched
 use crate::dap;
+use core::fmt::Write as _; // Patched
 
 #[derive(Clone)]
 pub struct DiskAccess {

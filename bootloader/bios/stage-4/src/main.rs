@@ -243,7 +243,10 @@ fn report_stack_use() {
     };
     let (bottom, top) = (STACK_BOTTOM as usize, STACK_TOP as usize);
     let boot_sector_stack = used(words(bottom, top), (top - bottom) as u32);
-    let (bottom, top) = (&raw const __stack_bottom as usize, &raw const __stack_top as usize);
+    let (bottom, top) = (
+        &raw const __stack_bottom as usize,
+        &raw const __stack_top as usize,
+    );
     let own_stack = used(words(bottom, top), (top - bottom) as u32);
     let _ = writeln!(
         bootloader_x86_64_bios_common::serial::Com1,
