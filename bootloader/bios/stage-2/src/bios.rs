@@ -47,6 +47,10 @@ impl Registers {
 /// the address / 16 and the offset the rest, so that a buffer the BIOS is
 /// given is reached whatever 64 KiB it lies in.
 pub fn far_pointer(linear: u32) -> (u16, u16) {
+    // Opaque to the optimiser: folded into a static's address, the offset
+    // would become a 16-bit relocation of the symbol, which the linker
+    // refuses once the static lies above 64 KiB.
+    let linear = core::hint::black_box(linear);
     ((linear >> 4) as u16, (linear & 0xf) as u16)
 }
 

@@ -37,8 +37,10 @@ impl DiskAddressPacket {
 
     /// Patched (see ../../../CHANGES.md): INT 13h AH=42h through the BIOS
     /// call wrapper; the BIOS's status byte (AH) on failure, never a stop here.
-    pub fn perform_load(&self, disk_number: u16) -> Result<(), u8> {
-        let (segment, offset) = bios::far_pointer(self as *const Self as u32);
+    /// `&mut`: the BIOS writes the packet (the count of sectors it moved), so
+    /// the compiler must not take it as unchanged from one call to the next.
+    pub fn perform_load(&mut self, disk_number: u16) -> Result<(), u8> {
+        let (segment, offset) = bios::far_pointer(core::ptr::from_mut(self) as u32);
         let out = bios::call(
             0x13,
             Registers {

@@ -53,9 +53,7 @@ impl Read for DiskAccess {
             // so the boundary falls between sectors.
             let to_boundary = (0x1_0000 - (target_addr & 0xffff)) / 512;
             let sectors = u64::min(number_of_sectors, u64::from(to_boundary).min(32)) as u16;
-            let (segment, offset) = crate::bios::far_pointer(target_addr);
-            let dap = dap::DiskAddressPacket::from_lba(start_lba, sectors, offset, segment);
-            read_with_retries(&dap, self.disk_number, start_lba);
+            read_with_retries(self.disk_number, start_lba, sectors, target_addr);
 
             start_lba += u64::from(sectors);
             number_of_sectors -= u64::from(sectors);
@@ -75,9 +73,13 @@ impl Read for DiskAccess {
 /// 13h emulation may fail once). Each retry is said; a read that fails every
 /// time stops the loader with the LBA and the BIOS's status, on the screen
 /// and COM1. It does not reset the machine.
-fn read_with_retries(dap: &dap::DiskAddressPacket, disk_number: u16, lba: u64) {
+fn read_with_retries(disk_number: u16, lba: u64, sectors: u16, target_addr: u32) {
+    let (segment, offset) = crate::bios::far_pointer(target_addr);
     let mut status = 0;
     for attempt in 1..=READ_TRIES {
+        // A new packet each try: on failure the BIOS writes the sectors it
+        // did move (often 0) into the packet's count.
+        let mut dap = dap::DiskAddressPacket::from_lba(lba, sectors, offset, segment);
         match dap.perform_load(disk_number) {
             Ok(()) => return,
             Err(failed) => status = failed,
