@@ -274,15 +274,27 @@ fn evaluate(expression: &str, file: &str, constants: &[Constant], depth: u32) ->
             } else if token.starts_with(|c: char| c.is_ascii_digit()) {
                 number(&token)?
             } else {
+                // A constant of the same file, or one a path names
+                // (`demo::screens::PANEL_LOG_LINES`).
                 let name = token.rsplit("::").next().unwrap();
-                let constant = self
+                let path = token
+                    .trim_start_matches("crate::")
+                    .trim_start_matches("self::");
+                let same_file = self
                     .constants
                     .iter()
-                    .find(|c| c.file == self.file && c.name == name)?;
+                    .find(|c| c.file == self.file && c.name == name);
+                let constant = match (path.contains("::"), same_file) {
+                    (false, Some(constant)) => constant,
+                    _ => match constants_named(self.constants, path).as_slice() {
+                        [only] => *only,
+                        _ => return None,
+                    },
+                };
                 (self.depth < 8).then_some(())?;
                 evaluate(
                     &constant.expression,
-                    self.file,
+                    &constant.file,
                     self.constants,
                     self.depth + 1,
                 )?
