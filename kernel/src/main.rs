@@ -10,6 +10,7 @@
 mod bench;
 mod bios;
 mod diagnostics;
+mod display;
 mod dma;
 mod facts;
 mod fault;
@@ -36,11 +37,10 @@ mod vga_bus;
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
 use firmware::acpi::Presence;
-use firmware::boot_firmware::Firmware;
 use input::{ps2, xhci};
 use keyboard::i8042::FirmwareSays;
-use platform::{acpi, boot_firmware, qemu};
-use protocol::{BootOption, BootRequest};
+use platform::{acpi, qemu};
+use protocol::{line, BootOption, BootRequest};
 use time::pit;
 
 const BOOTLOADER_CONFIG: BootloaderConfig = {
@@ -58,11 +58,7 @@ entry_point!(kernel_main, config = &BOOTLOADER_CONFIG);
 fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     stack::paint(boot_info.kernel_stack_bottom, boot_info.kernel_stack_len);
     serial::init();
-    serial_println!(
-        "{}{}",
-        protocol::line::KERNEL_BANNER,
-        env!("CARGO_PKG_VERSION")
-    );
+    serial_println!("{}{}", line::KERNEL_BANNER, env!("CARGO_PKG_VERSION"));
     facts::record_cpu();
     gdt::init();
     interrupts::init();
@@ -70,20 +66,36 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     let Some(physical_memory_offset) = boot_info.physical_memory_offset.into_option() else {
         panic!("the bootloader did not map physical memory, so VGA memory is out of reach");
     };
+    let (rsdp, regions) = (boot_info.rsdp_addr.into_option(), &boot_info.memory_regions);
     let acpi = acpi::init(
-        boot_info.rsdp_addr.into_option(),
+        rsdp,
         physical_memory_offset,
-        mapped_physical_memory_end(&boot_info.memory_regions),
+        mapped_physical_memory_end(regions),
     );
-    // The FADT's word is a hint (firmware gets it wrong): the probe decides.
-    let ps2_state = ps2::init(match acpi.legacy.i8042 {
+    let ps2_state = ps2::init(firmware_says(acpi.legacy.i8042));
+    facts::record(|facts| facts.ps2 = ps2_state);
+    x86_64::instructions::interrupts::enable();
+    let request = boot_request();
+    let rate = time::init(acpi, physical_memory_offset, request.clock);
+    facts::record(|facts| facts.clock = Some(rate));
+    xhci::init(&boot_info.memory_regions, physical_memory_offset);
+    serial_println!("kernel: initialised");
+    display::start(boot_info, physical_memory_offset, acpi.legacy.vga, &request)
+}
+
+/// The FADT's word on the 8042 is a hint (firmware gets it wrong): the probe
+/// in `ps2::init` decides.
+fn firmware_says(presence: Presence) -> FirmwareSays {
+    match presence {
         Presence::Present => FirmwareSays::Present,
         Presence::Absent => FirmwareSays::Absent,
         Presence::Unknown => FirmwareSays::Nothing,
-    });
-    facts::record(|facts| facts.ps2 = ps2_state);
-    x86_64::instructions::interrupts::enable();
+    }
+}
 
+/// The boot option QEMU's harness left in fw_cfg (none on a real PC), with
+/// the settings that act at once: IRQ 1 masked, scancodes echoed.
+fn boot_request() -> BootRequest {
     let mut option_buffer = [0u8; 64];
     let request = match qemu::boot_option(&mut option_buffer).map(BootRequest::parse) {
         None => BootRequest::default(),
@@ -96,7 +108,6 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
             BootRequest::default()
         }
     };
-    let (force_true_mode_x, option) = (request.true_mode_x, request.option);
     if request.irq1_masked {
         interrupts::mask_keyboard_irq();
         serial_println!(
@@ -107,93 +118,7 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
         request.echo_scancodes,
         core::sync::atomic::Ordering::Relaxed,
     );
-    let rate = time::init(acpi, physical_memory_offset, request.clock);
-    facts::record(|facts| facts.clock = Some(rate));
-    xhci::init(&boot_info.memory_regions, physical_memory_offset);
-    serial_println!("kernel: initialised");
-
-    let booted_by = boot_firmware::firmware(&boot_info.memory_regions);
-    serial_println!("firmware: {:?} (told by the memory map)", booted_by);
-    let adapter = pci::display_controller();
-    facts::record(|facts| {
-        facts.firmware = Some(booted_by);
-        facts.adapter = adapter;
-    });
-
-    // SAFETY: the bootloader maps all physical memory at this offset (asked for
-    // in BOOTLOADER_CONFIG), and from here on only this bus touches the VGA.
-    let mut bus = unsafe { vga_bus::PortBus::new(physical_memory_offset) };
-    // By how the machine booted, not by whether the registers answer: on UEFI
-    // the card may scan out the firmware's framebuffer whatever the VGA
-    // registers say (Intel iGPUs answer them with the VGA plane disabled), so
-    // true Mode X would be a black screen.
-    // The FADT's "VGA not present" is only a hint (firmware gets it wrong):
-    // the probe below reads before it writes, so it is safe where nothing
-    // answers, and it decides.
-    if acpi.legacy.vga == Presence::Absent {
-        serial_println!("display: the ACPI tables say there is no VGA; a hint, the probe decides");
-    }
-    let true_mode_x = if booted_by == Firmware::Uefi && !force_true_mode_x {
-        // Said only where there is a framebuffer; without one, the line
-        // below says there is no picture.
-        if boot_info.framebuffer.as_ref().is_some() {
-            serial_println!(
-                "display: UEFI boot: drawing through the firmware framebuffer \
-                 (true Mode X needs a BIOS or CSM boot)"
-            );
-        }
-        false
-    } else {
-        if force_true_mode_x {
-            serial_println!("display: true Mode X asked for by the boot option");
-        }
-        modex::legacy_vga_present(&mut bus)
-    };
-    if true_mode_x {
-        serial_println!("display: legacy VGA found");
-        let card = legacy_vga::card();
-        let mut vga = legacy_vga::set_mode_x(
-            bus,
-            card,
-            booted_by,
-            &boot_info.memory_regions,
-            physical_memory_offset,
-        );
-        fault::report_on_screen(physical_memory_offset, card);
-        run_screen(&mut vga, option)
-    }
-
-    // The same Mode X code draws on the software VGA, and each flip is
-    // presented into the firmware's framebuffer. The real ports are never
-    // mode-set, which would kill that framebuffer.
-    if booted_by != Firmware::Uefi || force_true_mode_x {
-        serial_println!("display: no legacy VGA; Mode X runs on the software VGA");
-    }
-    let Some(framebuffer) = boot_info.framebuffer.as_mut() else {
-        // No picture anywhere (e.g. UEFI with only a Blt-only virtio-gpu GOP):
-        // the demo runs on the software VGA unseen; serial and keys work.
-        serial_println!(
-            "display: none: no legacy VGA and no framebuffer from the bootloader \
-             (its log says why: no usable GOP, or no VESA linear mode); \
-             running without a picture"
-        );
-        run::NO_DISPLAY.store(true, core::sync::atomic::Ordering::Relaxed);
-        facts::record(|facts| {
-            facts.display = demo::facts::Display::Nothing("no legacy VGA, no framebuffer")
-        });
-        let mut vga = modex::ModeX::new(modex::MirroredVga::new(
-            framebuffer::soft_vga_alone(),
-            |_| {},
-        ));
-        vga.set_mode();
-        run_screen(&mut vga, option)
-    };
-    let (soft, display) = framebuffer::take_over(framebuffer, physical_memory_offset);
-    let mirror = modex::MirroredVga::new(soft, move |soft| display.present(soft));
-    let mut vga = modex::ModeX::new(mirror);
-    vga.set_mode();
-    serial_println!("vga: Mode X 320x240 set on the software VGA");
-    run_screen(&mut vga, option)
+    request
 }
 
 /// The end of the bootloader's map of physical memory: every region it was
