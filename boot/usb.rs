@@ -515,7 +515,7 @@ fn plan_gpt_move(
     disk_bytes: u64,
 ) -> Result<Option<Vec<SectorWrite>>, UsbError> {
     let sector = SECTOR as u64;
-    if image_bytes % sector != 0 || image_bytes < disk_layout::GPT_HEAD_SECTORS * sector {
+    if !image_bytes.is_multiple_of(sector) || image_bytes < disk_layout::GPT_HEAD_SECTORS * sector {
         return Ok(None);
     }
     let read_error = |error| UsbError::ReadImage {

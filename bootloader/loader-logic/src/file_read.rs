@@ -205,15 +205,16 @@ mod tests {
         status: Status::DEVICE_ERROR,
     };
 
-    /// Runs the policy over scripted attempt results; gives what it returned,
-    /// how many attempts ran and the retry lines written.
-    fn run(
-        script: &[Result<u32, Failure<Status>>],
-    ) -> (
+    /// What [`run`] gives: the policy's result, the attempts, the retry lines.
+    type Run = (
         Result<Read<u32, Status>, Failure<Status>>,
         usize,
         Vec<String>,
-    ) {
+    );
+
+    /// Runs the policy over scripted attempt results; gives what it returned,
+    /// how many attempts ran and the retry lines written.
+    fn run(script: &[Result<u32, Failure<Status>>]) -> Run {
         let mut calls = 0;
         let mut lines = Vec::new();
         let result = read_with_one_retry(
