@@ -489,3 +489,173 @@ fn mbr_entry(boot: u8, kind: u8, start: u64, sectors: u64) -> [u8; 16] {
     entry[12..16].copy_from_slice(&(sectors as u32).to_le_bytes());
     entry
 }
+
+/// The sectors at the image's start that hold the MBR, the primary GPT header
+/// and the primary entries: what [`backup_gpt_to_disk_end`] reads.
+pub const GPT_HEAD_SECTORS: u64 = 2 + GPT_ENTRY_SECTORS;
+
+/// Sectors to write to a disk, from `lba` on (`bytes` is whole sectors).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct SectorWrite {
+    /// The first sector.
+    pub lba: u64,
+    /// What to write there.
+    pub bytes: Vec<u8>,
+}
+
+/// Why the image's GPT could not be moved to the disk's end: the image is
+/// not the one [`hybrid_image`] lays out, or the disk is too small for it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum GptMoveError {
+    /// The primary header (LBA 1) is not one this layout writes.
+    Primary(&'static str),
+    /// The backup header (the image's last sector) is not the primary's twin.
+    Backup(&'static str),
+    /// The disk has fewer sectors than the image.
+    DiskTooSmall {
+        /// The image's sectors.
+        image_sectors: u64,
+        /// The disk's sectors.
+        disk_sectors: u64,
+    },
+}
+
+impl fmt::Display for GptMoveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            GptMoveError::Primary(why) => write!(f, "the image's primary GPT header {why}"),
+            GptMoveError::Backup(why) => write!(f, "the image's backup GPT header {why}"),
+            GptMoveError::DiskTooSmall {
+                image_sectors,
+                disk_sectors,
+            } => write!(
+                f,
+                "the disk has {disk_sectors} sectors, fewer than the image's {image_sectors}"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for GptMoveError {}
+
+fn u32_at(bytes: &[u8], offset: usize) -> u32 {
+    u32::from_le_bytes(bytes[offset..offset + 4].try_into().expect("4 bytes"))
+}
+
+fn u64_at(bytes: &[u8], offset: usize) -> u64 {
+    u64::from_le_bytes(bytes[offset..offset + 8].try_into().expect("8 bytes"))
+}
+
+/// The header's CRC field recomputed over its `header size` bytes.
+fn seal_gpt_header(sector: &mut [u8]) {
+    let size = u32_at(sector, 12) as usize;
+    sector[16..20].fill(0);
+    let crc = crc32(&sector[..size]);
+    sector[16..20].copy_from_slice(&crc.to_le_bytes());
+}
+
+/// Checks a GPT header sector: signature, size, CRC, and where it says it is.
+fn check_gpt_header(sector: &[u8], this: u64, other: u64) -> Result<(), &'static str> {
+    if &sector[..8] != b"EFI PART" {
+        return Err("has no EFI PART signature");
+    }
+    let size = u32_at(sector, 12) as usize;
+    if !(92..=SECTOR).contains(&size) {
+        return Err("has a header size outside 92..=512");
+    }
+    let mut copy = sector[..size].to_vec();
+    copy[16..20].fill(0);
+    if crc32(&copy) != u32_at(sector, 16) {
+        return Err("has a wrong CRC");
+    }
+    if u64_at(sector, 24) != this || u64_at(sector, 32) != other {
+        return Err("is not where it says it is, or names the other header elsewhere");
+    }
+    Ok(())
+}
+
+/// What `sgdisk -e` does after an image is written to a larger disk: the
+/// backup GPT entries and header moved to the disk's last 33 sectors, both
+/// headers fixed (the primary's backup LBA and last usable LBA, the backup's
+/// own LBA and entries LBA) with their CRCs, and the image's old backup
+/// header sector zeroed. The MBR is left as it is: its protective entry
+/// covers only LBA 1 up to stage 2 (a hybrid MBR), so the disk's size is
+/// not in it, and its one active entry stays.
+///
+/// `head` is the image's first [`GPT_HEAD_SECTORS`] sectors, `last` its last
+/// sector. `Ok(None)`: the image has no GPT (nothing to move). An empty list:
+/// the disk is the image's size, the backup is already at its end. The
+/// writes are in the order to make them (the old header's zeros first, in
+/// case the new entries overlap it).
+pub fn backup_gpt_to_disk_end(
+    head: &[u8],
+    last: &[u8],
+    image_sectors: u64,
+    disk_sectors: u64,
+) -> Result<Option<Vec<SectorWrite>>, GptMoveError> {
+    assert_eq!(head.len(), GPT_HEAD_SECTORS as usize * SECTOR, "head size");
+    assert_eq!(last.len(), SECTOR, "last sector size");
+    let primary = &head[SECTOR..2 * SECTOR];
+    if &primary[..8] != b"EFI PART" {
+        return Ok(None);
+    }
+    if disk_sectors < image_sectors {
+        return Err(GptMoveError::DiskTooSmall {
+            image_sectors,
+            disk_sectors,
+        });
+    }
+    let old_backup = image_sectors - 1;
+    check_gpt_header(primary, 1, old_backup).map_err(GptMoveError::Primary)?;
+    check_gpt_header(last, old_backup, 1).map_err(GptMoveError::Backup)?;
+    let entries_bytes = u64::from(u32_at(primary, 80)) * u64::from(u32_at(primary, 84));
+    let entry_sectors = entries_bytes.div_ceil(SECTOR as u64);
+    if u64_at(primary, 72) != 2 || 2 + entry_sectors > GPT_HEAD_SECTORS {
+        return Err(GptMoveError::Primary(
+            "does not put its entries in LBA 2..=33",
+        ));
+    }
+    let entries = &head[2 * SECTOR..][..entry_sectors as usize * SECTOR];
+    if crc32(&entries[..entries_bytes as usize]) != u32_at(primary, 88) {
+        return Err(GptMoveError::Primary("has a wrong entry-array CRC"));
+    }
+    if last[40..56] != primary[40..56] || last[56..72] != primary[56..72] {
+        return Err(GptMoveError::Backup(
+            "differs from the primary in usable sectors or disk GUID",
+        ));
+    }
+    if disk_sectors == image_sectors {
+        return Ok(Some(Vec::new()));
+    }
+
+    let new_backup = disk_sectors - 1;
+    let new_entries = new_backup - entry_sectors;
+    let last_usable = new_entries - 1;
+    let mut new_primary = primary.to_vec();
+    new_primary[32..40].copy_from_slice(&new_backup.to_le_bytes());
+    new_primary[48..56].copy_from_slice(&last_usable.to_le_bytes());
+    seal_gpt_header(&mut new_primary);
+    let mut backup = new_primary.clone();
+    backup[24..32].copy_from_slice(&new_backup.to_le_bytes());
+    backup[32..40].copy_from_slice(&1u64.to_le_bytes());
+    backup[72..80].copy_from_slice(&new_entries.to_le_bytes());
+    seal_gpt_header(&mut backup);
+    Ok(Some(vec![
+        SectorWrite {
+            lba: old_backup,
+            bytes: vec![0; SECTOR],
+        },
+        SectorWrite {
+            lba: new_entries,
+            bytes: entries.to_vec(),
+        },
+        SectorWrite {
+            lba: new_backup,
+            bytes: backup,
+        },
+        SectorWrite {
+            lba: 1,
+            bytes: new_primary,
+        },
+    ]))
+}

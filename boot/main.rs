@@ -370,9 +370,15 @@ fn write_usb(image: &Path, device: &Path) -> anyhow::Result<ExitCode> {
         }
     })?;
     println!(
-        "Wrote {written} bytes to {} and flushed it.",
+        "Wrote {} bytes to {} and flushed it.",
+        written.bytes,
         device.display()
     );
+    if let Some(lba) = written.backup_gpt_lba {
+        println!(
+            "Moved the backup GPT to the stick's last sector (LBA {lba}), as `sgdisk -e` does."
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 

@@ -56,6 +56,15 @@ pub enum DiskAttachment {
     /// hard disk: the firmware must boot from USB, as a PC booted from a
     /// stick does.
     UsbStick(UsbHost),
+    /// A virtio disk whose reads of `sector` fail with an I/O error (QEMU's
+    /// `blkdebug`): only the first such read when `once`, else every one.
+    /// The firmware sees `EFI_DEVICE_ERROR`, as from a flaky stick.
+    FailingReads {
+        /// A 512-byte sector of the image; every read that covers it fails.
+        sector: u64,
+        /// Fail only the first read that covers it.
+        once: bool,
+    },
 }
 
 /// A USB host controller QEMU emulates.
@@ -523,6 +532,30 @@ impl Qemu {
                     .arg(format!(
                         "usb-storage,bus={STICK_HOST_ID}.0,drive=stick,bootindex=0"
                     ));
+            }
+            DiskAttachment::FailingReads { sector, once } => {
+                // blkdebug under the raw format, where raw's reads raise the
+                // "read_aio" event its rule waits for; errno 5 is EIO.
+                let config = scratch.path().join("blkdebug.cfg");
+                let once = if once { "on" } else { "off" };
+                std::fs::write(
+                    &config,
+                    format!(
+                        "[inject-error]\nevent = \"read_aio\"\nerrno = \"5\"\n\
+                         sector = \"{sector}\"\nonce = \"{once}\"\n"
+                    ),
+                )
+                .map_err(|e| QemuError::Io(format!("cannot write {}: {e}", config.display())))?;
+                command
+                    .arg("-drive")
+                    .arg(format!(
+                        "if=none,id=failing,driver=raw,snapshot=on,file.driver=blkdebug,\
+                         file.config={},file.image.filename={}",
+                        config.display(),
+                        options.image.display()
+                    ))
+                    .arg("-device")
+                    .arg("virtio-blk-pci,drive=failing,bootindex=0");
             }
         }
         command

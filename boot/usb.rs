@@ -7,9 +7,10 @@
 //! Everything is read from sysfs and procfs (Linux), under roots that tests
 //! replace with a fake tree, so no test ever needs a real device.
 
+use crate::disk_layout::{self, GptMoveError, SectorWrite, SECTOR};
 use std::fs::{self, File, OpenOptions};
-use std::io::{self, Read, Write};
-use std::os::unix::fs::{FileTypeExt, MetadataExt};
+use std::io::{self, Read, Seek, SeekFrom, Write};
+use std::os::unix::fs::{FileExt, FileTypeExt, MetadataExt};
 use std::path::{Path, PathBuf};
 
 /// sysfs counts disk sizes in 512-byte sectors, whatever the device's own.
@@ -17,8 +18,9 @@ const SYSFS_SECTOR_BYTES: u64 = 512;
 const COPY_CHUNK_BYTES: usize = 4 << 20;
 
 /// Why the image was not written, or not all of it. Every variant but
-/// [`UsbError::Copy`], [`UsbError::Write`] and [`UsbError::Flush`] is found
-/// before a byte is written (see [`UsbError::device_untouched`]).
+/// [`UsbError::Copy`], [`UsbError::Write`], [`UsbError::WriteGpt`] and
+/// [`UsbError::Flush`] is found before a byte is written (see
+/// [`UsbError::device_untouched`]).
 #[derive(Debug, thiserror::Error)]
 pub enum UsbError {
     /// The named device could not be looked at (it does not exist, say).
@@ -132,6 +134,14 @@ pub enum UsbError {
         /// The disk's size.
         disk_bytes: u64,
     },
+    /// The image's GPT is not one that can be moved to the disk's end.
+    #[error("cannot move the GPT of {} to the disk's end: {error}", image.display())]
+    Gpt {
+        /// The image.
+        image: PathBuf,
+        /// What is wrong with its GPT.
+        error: GptMoveError,
+    },
     /// The user did not confirm.
     #[error("not confirmed: nothing was written to {}", device.display())]
     NotConfirmed {
@@ -172,6 +182,22 @@ pub enum UsbError {
         /// The operating system's error.
         error: io::Error,
     },
+    /// The image was written, but moving its backup GPT to the disk's end
+    /// failed: the disk's GPT may be half moved.
+    #[error(
+        "the image was written, but writing the GPT's sectors at LBA {lba} of {} failed: \
+         {error}; run `sudo sgdisk -e {}` or write the stick again",
+        device.display(),
+        device.display()
+    )]
+    WriteGpt {
+        /// The device being written.
+        device: PathBuf,
+        /// The first sector of the write that failed.
+        lba: u64,
+        /// The operating system's error.
+        error: io::Error,
+    },
     /// Everything was written but the device did not confirm it has it.
     #[error("flushing {} failed: {error}", device.display())]
     Flush {
@@ -188,14 +214,31 @@ impl UsbError {
     pub fn device_untouched(&self) -> bool {
         !matches!(
             self,
-            UsbError::Copy { .. } | UsbError::Write { .. } | UsbError::Flush { .. }
+            UsbError::Copy { .. }
+                | UsbError::Write { .. }
+                | UsbError::WriteGpt { .. }
+                | UsbError::Flush { .. }
         )
     }
 }
 
+/// What [`write_image_to_usb`] wrote, all flushed to the device.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Written {
+    /// The image's bytes, written from the device's start.
+    pub bytes: u64,
+    /// Where the backup GPT header now is (the disk's last sector), when the
+    /// image has a GPT and the disk is larger than the image.
+    pub backup_gpt_lba: Option<u64>,
+}
+
 /// Writes `image` to the whole removable or USB disk `device` (e.g. `/dev/sdb`)
 /// after checking it and calling `confirm` with a description of what will
-/// be overwritten; returns the bytes written, flushed to the device.
+/// be overwritten; returns what was written, flushed to the device.
+///
+/// An image with a GPT has its backup GPT moved to the disk's end afterwards,
+/// as `sgdisk -e` would (`disk_layout::backup_gpt_to_disk_end`): firmware
+/// looks for it in the disk's last sector, not the image's.
 ///
 /// Refused, with an error saying why: anything that is not a block device,
 /// a partition rather than a whole disk, a disk the kernel neither reports as
@@ -206,7 +249,7 @@ pub fn write_image_to_usb(
     image: &Path,
     device: &Path,
     confirm: impl FnOnce(&str) -> bool,
-) -> Result<u64, UsbError> {
+) -> Result<Written, UsbError> {
     let node = DeviceNode::inspect(device)?;
     write_checked(image, &node, &SystemRoots::live(), confirm)
 }
@@ -431,7 +474,7 @@ fn write_checked(
     node: &DeviceNode,
     roots: &SystemRoots,
     confirm: impl FnOnce(&str) -> bool,
-) -> Result<u64, UsbError> {
+) -> Result<Written, UsbError> {
     let disk = Disk::identify(node, roots)?;
     disk.ensure_unused(roots)?;
     let image_bytes = fs::metadata(image)
@@ -447,16 +490,55 @@ fn write_checked(
             disk_bytes: disk.bytes,
         });
     }
+    // Planned before the question, so that an image whose GPT cannot be
+    // moved is refused with nothing written.
+    let gpt_writes = plan_gpt_move(image, image_bytes, disk.bytes)?;
     if !confirm(&disk.describe(node, image, image_bytes)) {
         return Err(UsbError::NotConfirmed {
             device: node.path.clone(),
         });
     }
-    copy_and_sync(image, &node.path)
+    let bytes = copy_and_sync(image, &node.path, gpt_writes.as_deref().unwrap_or_default())?;
+    Ok(Written {
+        bytes,
+        backup_gpt_lba: gpt_writes
+            .filter(|writes| !writes.is_empty())
+            .map(|_| disk.bytes / SECTOR as u64 - 1),
+    })
 }
 
-/// Copies `image` to the start of `device` and waits until the device has it.
-fn copy_and_sync(image: &Path, device: &Path) -> Result<u64, UsbError> {
+/// The sectors that move the image's backup GPT to the end of a disk of
+/// `disk_bytes`; `None` for an image without a GPT.
+fn plan_gpt_move(
+    image: &Path,
+    image_bytes: u64,
+    disk_bytes: u64,
+) -> Result<Option<Vec<SectorWrite>>, UsbError> {
+    let sector = SECTOR as u64;
+    if !image_bytes.is_multiple_of(sector) || image_bytes < disk_layout::GPT_HEAD_SECTORS * sector {
+        return Ok(None);
+    }
+    let read_error = |error| UsbError::ReadImage {
+        path: image.to_owned(),
+        error,
+    };
+    let mut file = File::open(image).map_err(read_error)?;
+    let mut head = vec![0; disk_layout::GPT_HEAD_SECTORS as usize * SECTOR];
+    file.read_exact(&mut head).map_err(read_error)?;
+    let mut last = vec![0; SECTOR];
+    file.seek(SeekFrom::Start(image_bytes - sector))
+        .and_then(|_| file.read_exact(&mut last))
+        .map_err(read_error)?;
+    disk_layout::backup_gpt_to_disk_end(&head, &last, image_bytes / sector, disk_bytes / sector)
+        .map_err(|error| UsbError::Gpt {
+            image: image.to_owned(),
+            error,
+        })
+}
+
+/// Copies `image` to the start of `device`, then makes `gpt_writes`, and
+/// waits until the device has it all.
+fn copy_and_sync(image: &Path, device: &Path, gpt_writes: &[SectorWrite]) -> Result<u64, UsbError> {
     let mut source = File::open(image).map_err(|error| UsbError::ReadImage {
         path: image.to_owned(),
         error,
@@ -490,6 +572,15 @@ fn copy_and_sync(image: &Path, device: &Path) -> Result<u64, UsbError> {
                 error,
             })?;
         written += read as u64;
+    }
+    for write in gpt_writes {
+        target
+            .write_all_at(&write.bytes, write.lba * SECTOR as u64)
+            .map_err(|error| UsbError::WriteGpt {
+                device: device.to_owned(),
+                lba: write.lba,
+                error,
+            })?;
     }
     target.sync_all().map_err(|error| UsbError::Flush {
         device: device.to_owned(),
@@ -607,6 +698,17 @@ mod tests {
             }
         }
 
+        /// [`Fixture::new`]'s removable disk on USB, with this image and a
+        /// device of `device_bytes` (all [`ORIGINAL`]).
+        fn sized(image: &[u8], device_bytes: u64) -> Fixture {
+            let fixture = Fixture::new("1");
+            fs::write(&fixture.image, image).unwrap();
+            fs::write(&fixture.node.path, vec![ORIGINAL; device_bytes as usize]).unwrap();
+            let size = format!("{}\n", device_bytes / SYSFS_SECTOR_BYTES);
+            fs::write(fixture.usb_disk().join("size"), size).unwrap();
+            fixture
+        }
+
         /// The disk's sysfs directory, for [`Fixture::new`]'s disk on USB.
         fn usb_disk(&self) -> PathBuf {
             self.roots
@@ -616,7 +718,7 @@ mod tests {
                 .join("block/sdb")
         }
 
-        fn write(&self, confirm: impl FnOnce(&str) -> bool) -> Result<u64, UsbError> {
+        fn write(&self, confirm: impl FnOnce(&str) -> bool) -> Result<Written, UsbError> {
             write_checked(&self.image, &self.node, &self.roots, confirm)
         }
 
@@ -668,7 +770,8 @@ mod tests {
                 true
             })
             .unwrap();
-        assert_eq!(written, 1 << 20);
+        assert_eq!(written.bytes, 1 << 20);
+        assert_eq!(written.backup_gpt_lba, None, "the test image has no GPT");
         let device = fs::read(&fixture.node.path).unwrap();
         assert_eq!(device[..1 << 20], fs::read(&fixture.image).unwrap()[..]);
         shown
@@ -688,6 +791,75 @@ mod tests {
         }
         let device = fs::read(&fixture.node.path).unwrap();
         assert!(device[1 << 20..].iter().all(|&b| b == ORIGINAL));
+    }
+
+    /// `--write-usb`'s image on a stick 64 MiB larger than it: read back
+    /// with the `gpt` crate, both headers are valid and at the stick's real
+    /// end, as after `sgdisk -e`; the MBR is the image's, with its one
+    /// active entry; everything else of the image is as it was.
+    #[test]
+    fn the_one_images_backup_gpt_is_moved_to_the_end_of_a_larger_stick() {
+        let image = fs::read(env!("ONE_IMAGE")).unwrap();
+        let image_bytes = image.len() as u64;
+        let device_bytes = image_bytes + (64 << 20);
+        let fixture = Fixture::sized(&image, device_bytes);
+        let written = fixture.write(|_| true).unwrap();
+        let last = device_bytes / 512 - 1;
+        assert_eq!(
+            written,
+            Written {
+                bytes: image_bytes,
+                backup_gpt_lba: Some(last)
+            }
+        );
+
+        let disk = fs::read(&fixture.node.path).unwrap();
+        assert_eq!(disk.len() as u64, device_bytes);
+        let gpt = gpt::GptConfig::new()
+            .writable(false)
+            .open(&fixture.node.path)
+            .unwrap_or_else(|e| panic!("the gpt crate cannot read the stick: {e}"));
+        let primary = gpt.primary_header().expect("primary header");
+        let backup = gpt.backup_header().expect("backup header");
+        assert_eq!((primary.current_lba, primary.backup_lba), (1, last));
+        assert_eq!((backup.current_lba, backup.backup_lba), (last, 1));
+        let entry_sectors = disk_layout::GPT_ENTRY_SECTORS;
+        assert_eq!(
+            (primary.part_start, backup.part_start),
+            (2, last - entry_sectors)
+        );
+        for header in [primary, backup] {
+            assert_eq!(header.last_usable, last - entry_sectors - 1, "{header:?}");
+            let table = &disk[header.part_start as usize * SECTOR..]
+                [..(header.num_parts * header.part_size) as usize];
+            assert_eq!(crc32fast::hash(table), header.crc32_parts, "{header:?}");
+        }
+        assert_eq!(&disk[last as usize * SECTOR..][..8], b"EFI PART");
+        assert_eq!(gpt.partitions().len(), 2);
+
+        // The MBR is the image's: one active entry, stage 2's.
+        assert_eq!(disk[..SECTOR], image[..SECTOR]);
+        let active = (0..4).filter(|i| disk[446 + 16 * i] == 0x80).count();
+        assert_eq!(active, 1, "active MBR entries");
+        // The old backup header is zeros; the rest of the image is as written.
+        let old_backup = image.len() - SECTOR;
+        assert!(disk[old_backup..image.len()].iter().all(|&b| b == 0));
+        assert_eq!(disk[2 * SECTOR..old_backup], image[2 * SECTOR..old_backup]);
+        // Between the image and the new entries, the stick is untouched.
+        let new_entries = (last - entry_sectors) as usize * SECTOR;
+        assert!(disk[image.len()..new_entries]
+            .iter()
+            .all(|&b| b == ORIGINAL));
+    }
+
+    #[test]
+    fn an_image_whose_gpt_is_broken_is_refused_before_anything_is_written() {
+        let mut image = fs::read(env!("ONE_IMAGE")).unwrap();
+        image[SECTOR + 40] ^= 1; // the primary header's first usable LBA
+        let fixture = Fixture::sized(&image, image.len() as u64 + (1 << 20));
+        let error = refused(&fixture);
+        assert!(matches!(error, UsbError::Gpt { .. }), "{error:?}");
+        assert!(error.to_string().contains("wrong CRC"), "{error}");
     }
 
     #[test]
@@ -726,7 +898,7 @@ mod tests {
     #[test]
     fn a_removable_disk_not_on_usb_is_accepted() {
         let fixture = Fixture::on_bus("0000:00:1e.6/mmc_host/mmc0/mmc0:0001", "1");
-        assert_eq!(fixture.write(|_| true).unwrap(), 1 << 20);
+        assert_eq!(fixture.write(|_| true).unwrap().bytes, 1 << 20);
     }
 
     #[test]

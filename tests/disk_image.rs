@@ -9,6 +9,8 @@
 //! describe the same partitions, inside the disk and not overlapping; the
 //! ESP holds the UEFI loader, BIOS stages 3 and 4 and one kernel for both.
 //! `bios.img`'s MBR (the patched bootloader's) keeps the same MBR rules.
+//! `--write-usb` moves the backup GPT to a larger stick's end: the moved GPT
+//! reads back valid, at the disk's real end, with the same partitions.
 //! And the layout refuses inputs it cannot boot (an empty or oversized
 //! kernel, a missing stage 2, a bad boot sector, an ESP that is not a FAT),
 //! naming what is wrong.
@@ -376,4 +378,101 @@ fn crc32_is_ieee() {
     assert_eq!(disk_layout::crc32(b"123456789"), 0xCBF4_3926);
     let bytes: Vec<u8> = (0..=255u8).cycle().take(10_000).collect();
     assert_eq!(disk_layout::crc32(&bytes), crc32fast::hash(&bytes));
+}
+
+/// The image's first sectors and last sector, as `backup_gpt_to_disk_end` takes them.
+fn head_and_last(disk: &[u8]) -> (&[u8], &[u8]) {
+    let head = &disk[..disk_layout::GPT_HEAD_SECTORS as usize * SECTOR];
+    (head, &disk[disk.len() - SECTOR..])
+}
+
+/// `--write-usb`'s GPT move (`boot/usb.rs` makes these writes): on disks 1,
+/// 33, 34 and 2048 sectors larger than the image (the first two put the new
+/// entries over the old backup header), the `gpt` crate reads both headers
+/// at the disk's real end, with the same partitions.
+#[test]
+fn the_backup_gpt_moves_to_the_end_of_any_larger_disk() {
+    let (_, image) = one_image();
+    let image_sectors = (image.len() / SECTOR) as u64;
+    let (head, last) = head_and_last(&image);
+    let original = gpt::GptConfig::new()
+        .writable(false)
+        .open(one_image().0)
+        .unwrap();
+    for extra in [1u64, 33, 34, 2048] {
+        let disk_sectors = image_sectors + extra;
+        let writes = disk_layout::backup_gpt_to_disk_end(head, last, image_sectors, disk_sectors)
+            .unwrap()
+            .expect("the image has a GPT");
+        let mut disk = image.clone();
+        disk.resize(disk_sectors as usize * SECTOR, 0);
+        for write in &writes {
+            assert_eq!(write.bytes.len() % SECTOR, 0);
+            disk[write.lba as usize * SECTOR..][..write.bytes.len()].copy_from_slice(&write.bytes);
+        }
+        let path =
+            std::env::temp_dir().join(format!("modex-gpt-move-{}-{extra}.img", std::process::id()));
+        std::fs::write(&path, &disk).unwrap();
+        let moved = gpt::GptConfig::new().writable(false).open(&path);
+        std::fs::remove_file(&path).unwrap();
+        let moved = moved.unwrap_or_else(|e| panic!("+{extra} sectors: {e}"));
+        let (primary, backup) = (
+            moved.primary_header().unwrap(),
+            moved.backup_header().unwrap(),
+        );
+        let end = disk_sectors - 1;
+        assert_eq!(
+            (primary.backup_lba, backup.current_lba),
+            (end, end),
+            "+{extra}"
+        );
+        assert_eq!(backup.backup_lba, 1);
+        assert_eq!(backup.part_start, end - disk_layout::GPT_ENTRY_SECTORS);
+        assert_eq!(primary.last_usable, backup.part_start - 1);
+        assert_eq!(moved.partitions(), original.partitions(), "+{extra}");
+        if extra > disk_layout::GPT_ENTRY_SECTORS {
+            let old = &disk[(image_sectors as usize - 1) * SECTOR..][..SECTOR];
+            assert!(
+                old.iter().all(|&b| b == 0),
+                "+{extra}: old backup header left"
+            );
+        }
+        assert_eq!(mbr_entries(&disk).len(), 3);
+        assert_mbr_boots_bios(&disk);
+    }
+}
+
+#[test]
+fn the_gpt_move_refuses_what_it_cannot_move_and_leaves_what_it_need_not() {
+    let (_, image) = one_image();
+    let sectors = (image.len() / SECTOR) as u64;
+    let (head, last) = head_and_last(&image);
+    let refused = |head: &[u8], last: &[u8], disk: u64| {
+        disk_layout::backup_gpt_to_disk_end(head, last, sectors, disk)
+            .expect_err("must be refused")
+            .to_string()
+    };
+    // Already at the disk's end: nothing to write.
+    assert_eq!(
+        disk_layout::backup_gpt_to_disk_end(head, last, sectors, sectors),
+        Ok(Some(Vec::new()))
+    );
+    // No GPT at all (an MBR-only image): nothing to move.
+    let mut no_gpt = head.to_vec();
+    no_gpt[SECTOR..2 * SECTOR].fill(0);
+    assert_eq!(
+        disk_layout::backup_gpt_to_disk_end(&no_gpt, last, sectors, sectors + 64),
+        Ok(None)
+    );
+    assert!(refused(head, last, sectors - 1).contains("fewer than the image's"));
+    let mut bad_entries = head.to_vec();
+    bad_entries[2 * SECTOR + 32] ^= 1;
+    assert!(refused(&bad_entries, last, sectors + 64).contains("entry-array CRC"));
+    let mut bad_backup = last.to_vec();
+    bad_backup[0] = b'X';
+    let error = refused(head, &bad_backup, sectors + 64);
+    assert!(
+        error.contains("backup GPT header has no EFI PART"),
+        "{error}"
+    );
 }

@@ -10,6 +10,12 @@
 //!   XMM register before it can change it and restores it before `iretq`:
 //!   the code it interrupted may be half-way through a transform held in
 //!   XMM registers.
+//!
+//! And one check on the UEFI loader's (the built ESP's `BOOTX64.EFI`), for
+//! issue 38 (`bootloader/CHANGES.md`): it never reads CR3 (the firmware's
+//! page tables are neither read nor written: the loader builds its own), and
+//! its only write to CR0 (setting WP) comes right after the write to CR3
+//! that switches to the kernel's tables.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -231,4 +237,61 @@ fn the_check_refuses_handlers_that_lose_xmm_registers() {
         "iretq".to_owned(),
     ];
     assert_eq!(keeps_xmm_registers(&quiet_leaf), Ok(()));
+}
+
+/// The UEFI loader's instructions in file order (mnemonic and operands,
+/// Intel syntax), from the `EFI/BOOT/BOOTX64.EFI` of the ESP just built.
+fn uefi_loader_instructions() -> Vec<String> {
+    let pieces = boot::secure_boot::BuiltPieces::of_this_build().expect("the built pieces");
+    let files = boot::secure_boot::fat_files(&pieces.esp).expect("the ESP reads");
+    let (_, loader) = files
+        .iter()
+        .find(|(path, _)| path.eq_ignore_ascii_case(boot::secure_boot::REMOVABLE_BOOT_PATH))
+        .expect("the ESP has the UEFI loader");
+    let path = std::env::temp_dir().join(format!("modex-loader-{}.efi", std::process::id()));
+    std::fs::write(&path, loader).unwrap();
+    let output = Command::new(llvm_objdump())
+        .args(["-d", "--no-show-raw-insn", "--x86-asm-syntax=intel"])
+        .arg(&path)
+        .output()
+        .expect("llvm-objdump runs");
+    std::fs::remove_file(&path).unwrap();
+    assert!(output.status.success(), "llvm-objdump failed");
+    String::from_utf8_lossy(&output.stdout)
+        .lines()
+        .filter_map(|line| {
+            let (address, instruction) = line.trim_start().split_once(':')?;
+            (!address.is_empty() && address.chars().all(|c| c.is_ascii_hexdigit()))
+                .then(|| instruction.split_whitespace().collect::<Vec<_>>().join(" "))
+        })
+        .filter(|instruction| !instruction.is_empty())
+        .collect()
+}
+
+#[test]
+fn the_uefi_loader_never_reads_cr3_and_sets_wp_only_on_the_kernels_tables() {
+    let code = uefi_loader_instructions();
+    assert!(code.len() > 1000, "too few instructions: {}", code.len());
+    let reads_cr3: Vec<_> = code
+        .iter()
+        .filter(|i| i.starts_with("mov ") && i.ends_with(", cr3"))
+        .collect();
+    assert!(
+        reads_cr3.is_empty(),
+        "the loader reads CR3 (the firmware's tables): {reads_cr3:?}"
+    );
+    let cr0_writes: Vec<usize> = (0..code.len())
+        .filter(|&n| code[n].starts_with("mov cr0, "))
+        .collect();
+    assert_eq!(cr0_writes.len(), 1, "one write to CR0 (WP)");
+    let at = cr0_writes[0];
+    let before = &code[at.saturating_sub(3)..at];
+    assert!(
+        before.iter().any(|i| i.starts_with("mov cr3, ")),
+        "CR0 is written before CR3 holds the kernel's tables: {before:?}"
+    );
+    assert!(
+        before.iter().any(|i| i.contains("0x10000")),
+        "the write sets WP (bit 16): {before:?}"
+    );
 }

@@ -4,13 +4,17 @@
 //! and Esc working; with a Blt-only GOP first and a usable one second the
 //! loader draws on the usable one; a CPU without NX boots under SeaBIOS and
 //! OVMF with the cube's pictures unchanged and NX reported off. Every boot
-//! starts with the loader's first serial line. The host tests of the GOP
-//! choice and the E820 walk are in `bootloader/loader-logic`.
+//! starts with the loader's first serial line. A disk whose first read of the
+//! kernel fails (issue 38) is read again and boots, the log saying so; one
+//! whose reads keep failing stops the loader with a message naming the file,
+//! the status and what to try, and the machine is not reset. The host tests
+//! of the GOP choice, the E820 walk and the read policy are in
+//! `bootloader/loader-logic`.
 
 mod common;
 
 use boot::qemu::EXIT_SUCCESS;
-use boot::{line, Board, Firmware, Graphics, Qemu, QemuOptions};
+use boot::{line, Board, DiskAttachment, Firmware, Graphics, Qemu, QemuError, QemuOptions};
 use common::{assert_pictures_equal, assert_same_picture, presented, BOOT_TIMEOUT};
 use std::time::Duration;
 
@@ -189,4 +193,74 @@ fn the_bios_loader_stays_under_half_of_each_stack() {
             "{what} used {used} of {size} bytes, over half:\n{console}"
         );
     }
+}
+
+/// A sector 32 KiB into the kernel file on the one image (where its ELF
+/// magic starts a sector of the ESP): only the loader's read of the kernel
+/// covers it.
+fn kernel_sector(image: &[u8]) -> u64 {
+    let starts: Vec<usize> = (0..image.len())
+        .step_by(512)
+        .filter(|&at| image[at..].starts_with(b"\x7fELF"))
+        .collect();
+    assert_eq!(starts.len(), 1, "one ELF file (the kernel) on the image");
+    (starts[0] / 512) as u64 + 64
+}
+
+/// OVMF on a virtio disk whose reads of the kernel's sector fail (`once`:
+/// only the first).
+fn start_failing(once: bool) -> Qemu {
+    let images = boot::images::publish().expect("the build script made the images");
+    let sector = kernel_sector(&std::fs::read(&images.hybrid).unwrap());
+    let mut options = QemuOptions::new(images.hybrid);
+    options.board = Board::Q35;
+    options.firmware = Firmware::Uefi;
+    options.disk = DiskAttachment::FailingReads { sector, once };
+    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+const RETRY_LINE: &str = "loader: reading kernel-x86_64 failed (DEVICE_ERROR); trying once more";
+
+#[test]
+fn a_kernel_read_that_fails_once_is_read_again_and_the_cube_runs() {
+    let mut qemu = start_failing(true);
+    let console = qemu
+        .wait_for_serial(line::READY, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert_loader_line_first(&console);
+    let retry = console
+        .find(RETRY_LINE)
+        .unwrap_or_else(|| panic!("no retry line:\n{console}"));
+    let worked = console
+        .find("loader: reading kernel-x86_64 worked the second time")
+        .unwrap_or_else(|| panic!("no line for the second read:\n{console}"));
+    assert!(retry < worked, "{console}");
+    assert!(
+        worked < console.find(line::KERNEL_BANNER).unwrap(),
+        "{console}"
+    );
+    assert!(!console.contains("cannot read"), "{console}");
+}
+
+#[test]
+fn a_kernel_read_that_keeps_failing_stops_the_loader_with_a_message_and_no_reset() {
+    let mut qemu = start_failing(false);
+    let stop = "loader: cannot read kernel-x86_64: Read returned DEVICE_ERROR, twice. \
+                Write the stick again, or try another USB port. The loader stops here.";
+    // Twice: once on COM1, once on the UEFI console (the screen), which OVMF
+    // copies to serial.
+    let console = qemu
+        .wait_for_serial_count(stop, 2, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(console.contains(RETRY_LINE), "{console}");
+    assert!(!console.contains("PANIC"), "{console}");
+    // The loader waits: QEMU (run with -no-reboot, so a reset would end it)
+    // spends 20 s of CPU time with nothing new on serial and keeps running.
+    let error = qemu
+        .wait_for_serial(line::KERNEL_BANNER, Duration::from_secs(20))
+        .expect_err("the kernel must not start");
+    assert!(matches!(error, QemuError::Timeout(_)), "{error}");
+    assert!(qemu.is_running(), "QEMU ended: the machine was reset");
+    let console = qemu.serial();
+    assert_eq!(console.matches(line::LOADER_START).count(), 1, "{console}");
 }

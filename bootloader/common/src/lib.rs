@@ -193,8 +193,11 @@ where
 
     // Enable support for the no-execute bit in page tables.
     enable_nxe_bit();
-    // Make the kernel respect the write-protection bits even when in ring 0 by default
-    enable_write_protect_bit();
+    // Patched (issue 38): CR0.WP is set in `context_switch`, right after CR3
+    // holds the kernel's tables: set here, on the firmware's (or stage 3's)
+    // tables, a firmware that maps its own page tables read-only faults at
+    // the loader's next write to them (upstream issue 345, a Dell Latitude
+    // E5510 triple-faulting here).
 
     let config = kernel.config;
     let kernel_slice_start = PhysAddr::new(kernel.start_address as _);
@@ -633,6 +636,9 @@ unsafe fn context_switch(addresses: Addresses) -> ! {
             r#"
             xor rbp, rbp
             mov cr3, {}
+            mov rax, cr0 # Patched (issue 38)
+            or rax, {wp} # Patched
+            mov cr0, rax # Patched
             mov rsp, {}
             push 0
             jmp {}
@@ -641,6 +647,10 @@ unsafe fn context_switch(addresses: Addresses) -> ! {
             in(reg) addresses.stack_top.as_u64(),
             in(reg) addresses.entry_point.as_u64(),
             in("rdi") addresses.boot_info as *const _ as usize,
+            // Patched (issue 38): CR0.WP, set only once CR3 holds the
+            // kernel's tables (the kernel still starts with it set).
+            wp = const x86_64::registers::control::Cr0Flags::WRITE_PROTECT.bits(), // Patched
+            out("rax") _, // Patched: the scratch register for CR0
         );
     }
     unreachable!();
@@ -713,7 +723,5 @@ pub fn no_execute() -> PageTableFlags {
     }
 }
 
-fn enable_write_protect_bit() {
-    use x86_64::registers::control::{Cr0, Cr0Flags};
-    unsafe { Cr0::update(|cr0| *cr0 |= Cr0Flags::WRITE_PROTECT) };
-}
+// Patched (issue 38): `enable_write_protect_bit` is gone; `context_switch`
+// sets CR0.WP right after it loads the kernel's CR3.

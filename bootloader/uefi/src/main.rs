@@ -64,7 +64,13 @@ fn main() -> Status {
         boot_mode = BootMode::Tftp;
         kernel = load_kernel(boot_mode);
     }
-    let kernel = kernel.expect("Failed to load kernel");
+    // Patched (issue 38): said on the screen and COM1, not a panic.
+    let Some(kernel) = kernel else {
+        stop(format_args!(
+            "loader: no kernel-x86_64 on the boot volume, nor from a network boot \
+             server. Write the stick again. The loader stops here."
+        ));
+    };
 
     let config_file = load_config_file(boot_mode);
     let mut error_loading_config: Option<serde_json_core::de::Error> = None;
@@ -234,26 +240,132 @@ fn load_file_from_boot_method(
     }
 }
 
+/// Patched (issue 38): every firmware call checked; a failed open, info or
+/// read (or a short read) is tried once more, and the log says so; a failure
+/// that stays is shown on the screen and COM1 and the loader stops there
+/// (`stop`). `None` only when the boot device has no file system (a network
+/// boot) or the file is not there (the config file and ramdisk are optional).
 fn load_file_from_disk(name: &CStr16) -> Option<&'static mut [u8]> {
+    use loader_logic::file_read::{RecoveredLine, RetryLine, StopMessage, read_with_one_retry};
     let mut file_system = boot::get_image_file_system(boot::image_handle()).ok()?;
+    let read = read_with_one_retry(
+        || read_file_once(&mut file_system, name),
+        |failure| {
+            let line = RetryLine {
+                file: name,
+                failure,
+            };
+            write_com1(format_args!("{line}\n"));
+            uefi_print(format_args!("{line}\r\n"));
+        },
+    );
+    match read {
+        Ok(read) => {
+            if read.retried_after.is_some() {
+                let line = RecoveredLine { file: name };
+                write_com1(format_args!("{line}\n"));
+                uefi_print(format_args!("{line}\r\n"));
+            }
+            read.value
+        }
+        Err(failure) => stop(format_args!(
+            "{}",
+            StopMessage {
+                file: name,
+                failure: &failure
+            }
+        )),
+    }
+}
 
-    let mut root = file_system.open_volume().unwrap();
-    let file_handle_result = root.open(name, FileMode::Read, FileAttribute::empty());
-    let file_handle = file_handle_result.ok()?;
+type ReadFailure = loader_logic::file_read::Failure<Status>; // Patched (issue 38)
 
-    let mut file = match file_handle.into_type().unwrap() {
-        uefi::proto::media::file::FileType::Regular(f) => f,
-        uefi::proto::media::file::FileType::Dir(_) => panic!(),
+/// Patched (issue 38): one attempt at reading a whole file: `Ok(None)` when
+/// it is not there. Pages taken for a read that then fails are given back.
+fn read_file_once(
+    file_system: &mut uefi::proto::media::fs::SimpleFileSystem,
+    name: &CStr16,
+) -> Result<Option<&'static mut [u8]>, ReadFailure> {
+    use loader_logic::file_read::{Failure, Step};
+    use uefi::proto::media::file::FileType;
+    fn failed<D: core::fmt::Debug>(step: Step) -> impl Fn(uefi::Error<D>) -> ReadFailure {
+        move |error| Failure::Status {
+            step,
+            status: error.status(),
+        }
+    }
+    let mut root = file_system
+        .open_volume()
+        .map_err(failed(Step::OpenVolume))?;
+    let handle = match root.open(name, FileMode::Read, FileAttribute::empty()) {
+        Ok(handle) => handle,
+        Err(error) if error.status() == Status::NOT_FOUND => return Ok(None),
+        Err(error) => return Err(failed(Step::Open)(error)),
+    };
+    let mut file = match handle.into_type().map_err(failed(Step::GetInfo))? {
+        FileType::Regular(file) => file,
+        FileType::Dir(_) => return Err(Failure::Directory),
     };
 
-    let mut buf = [0; 500];
-    let file_info: &mut FileInfo = file.get_info(&mut buf).unwrap();
-    let file_size = usize::try_from(file_info.file_size()).unwrap();
+    // `FileInfo` must be 8-byte aligned: a plain byte array need not be.
+    #[repr(C, align(8))]
+    struct InfoBuffer([u8; 512]);
+    let mut buffer = InfoBuffer([0; 512]);
+    let info: &mut FileInfo = file
+        .get_info(&mut buffer.0)
+        .map_err(failed(Step::GetInfo))?;
+    let size = usize::try_from(info.file_size()).map_err(|_| Failure::Status {
+        step: Step::GetInfo,
+        status: Status::BAD_BUFFER_SIZE,
+    })?;
+    if size == 0 {
+        return Ok(Some(&mut []));
+    }
 
-    let file_slice = allocate_loader_data(file_size);
-    file.read(file_slice).unwrap();
+    let pages = size.div_ceil(4096);
+    let start = boot::allocate_pages(AllocateType::AnyPages, MemoryType::LOADER_DATA, pages)
+        .map_err(failed(Step::Allocate))?;
+    // SAFETY: `pages` pages were just allocated at `start` for the loader
+    // alone; `size` bytes fit in them.
+    let slice = unsafe {
+        ptr::write_bytes(start.as_ptr(), 0, size);
+        slice::from_raw_parts_mut(start.as_ptr(), size)
+    };
+    let outcome = match file.read(slice) {
+        Ok(read) if read == size => return Ok(Some(slice)),
+        Ok(read) => Failure::Short { read, size },
+        Err(error) => failed(Step::Read)(error),
+    };
+    // SAFETY: the pages allocated above, of which nothing is kept.
+    if let Err(error) = unsafe { boot::free_pages(start, pages) } {
+        // A leak, not a fault: said, and the read goes on failing as it was.
+        write_com1(format_args!(
+            "loader: giving back {pages} pages for {name} failed ({:?})\n",
+            error.status()
+        ));
+    }
+    Err(outcome)
+}
 
-    Some(file_slice)
+/// Patched (issue 38): shows `message` on the UEFI console (the screen) and
+/// COM1, then waits for the user, forever, in bounded stalls: never a reset.
+/// The firmware's watchdog (which resets the machine five minutes after it
+/// started a boot option) is switched off first.
+fn stop(message: core::fmt::Arguments) -> ! {
+    write_com1(format_args!("{message}\n"));
+    uefi_print(format_args!("{message}\r\n"));
+    if let Err(error) = boot::set_watchdog_timer(0, 0x10000, None) {
+        let line = format_args!(
+            "loader: the firmware's watchdog would not switch off ({:?}); it may reset \
+             the machine",
+            error.status()
+        );
+        write_com1(format_args!("{line}\n"));
+        uefi_print(format_args!("{line}\r\n"));
+    }
+    loop {
+        boot::stall(core::time::Duration::from_secs(1));
+    }
 }
 
 /// Try to load a kernel from a TFTP boot server.
@@ -281,7 +393,8 @@ fn load_file_from_tftp_boot_server(name: &CStr8) -> Option<&'static mut [u8]> {
 }
 
 fn allocate_loader_data(size: usize) -> &'static mut [u8] {
-    let mut ptr = boot::allocate_pages(
+    let ptr = boot::allocate_pages(
+        // Patched: was `let mut` (a warning)
         AllocateType::AnyPages,
         MemoryType::LOADER_DATA,
         ((size - 1) / 4096) + 1,
@@ -319,14 +432,16 @@ fn create_page_tables(
     // UEFI identity-maps all memory, so the offset between physical and virtual addresses is 0
     let phys_offset = VirtAddr::new(0);
 
-    // copy the currently active level 4 page table, because it might be read-only
+    // Patched (issue 38): the bootloader's tables are all its own. Upstream
+    // copied the firmware's level-4 entries into a new table, so its later
+    // mappings could land in the firmware's level-3..1 tables, which the
+    // firmware may map read-only or share; now the firmware's tables are not
+    // even read: physical memory up to the memory map's end and the
+    // framebuffer are identity-mapped here, in 2 MiB pages (the first 2 MiB
+    // in 4 KiB pages, which the fixed MTRRs split), writable and executable,
+    // and cached as the MTRRs say, as the firmware's own identity map is.
     log::trace!("switching to new level 4 table");
     let bootloader_page_table = {
-        let old_table = {
-            let frame = x86_64::registers::control::Cr3::read().0;
-            let ptr: *const PageTable = (phys_offset + frame.start_address().as_u64()).as_ptr();
-            unsafe { &*ptr }
-        };
         let new_frame = frame_allocator
             .allocate_frame()
             .expect("Failed to allocate frame for new level 4 table");
@@ -339,31 +454,21 @@ fn create_page_tables(
                 &mut *ptr
             }
         };
+        // SAFETY: the table is in a frame just allocated, reached through
+        // the firmware's identity map (offset 0), which is still active.
+        let mut table = unsafe { OffsetPageTable::new(new_table, phys_offset) }; // Patched
+        identity_map(&mut table, frame_allocator, max_phys_addr, frame_buffer); // Patched
 
-        // copy the pml4 entries for all identity mapped memory.
-        let end_addr = VirtAddr::new(max_phys_addr.as_u64() - 1);
-        for p4 in 0..=usize::from(end_addr.p4_index()) {
-            new_table[p4] = old_table[p4].clone();
-        }
-
-        // copy the pml4 entry for the frame buffer (the frame buffer is not
-        // necessarily part of the identity mapping).
-        if let Some(frame_buffer) = frame_buffer {
-            let start_addr = VirtAddr::new(frame_buffer.addr.as_u64());
-            let end_addr = start_addr + frame_buffer.info.byte_len as u64;
-            for p4 in usize::from(start_addr.p4_index())..=usize::from(end_addr.p4_index()) {
-                new_table[p4] = old_table[p4].clone();
-            }
-        }
-
-        // the first level 4 table entry is now identical, so we can just load the new one
+        // SAFETY: the new table maps the loader's code, data and stack, the
+        // framebuffer and every frame it allocates at the same addresses as
+        // the firmware's did (all are below the memory map's end).
         unsafe {
             x86_64::registers::control::Cr3::write(
                 new_frame,
                 x86_64::registers::control::Cr3Flags::empty(),
             );
-            OffsetPageTable::new(&mut *new_table, phys_offset)
         }
+        table
     };
 
     // create a new page table hierarchy for the kernel
@@ -387,6 +492,45 @@ fn create_page_tables(
         bootloader: bootloader_page_table,
         kernel: kernel_page_table,
         kernel_level_4_frame,
+    }
+}
+
+/// Patched (issue 38): identity-maps `loader_logic::identity_map`'s ranges
+/// in the loader's own `table`: 2 MiB pages, and 4 KiB pages for the first
+/// 2 MiB. Its tables come from `frame_allocator`, never from the firmware.
+fn identity_map(
+    table: &mut OffsetPageTable<'static>,
+    frame_allocator: &mut impl FrameAllocator<Size4KiB>,
+    max_phys_addr: PhysAddr,
+    frame_buffer: Option<&RawFrameBufferInfo>,
+) {
+    use x86_64::structures::paging::{Mapper, Page, PageTableFlags as Flags, Size2MiB};
+    let flags = Flags::PRESENT | Flags::WRITABLE;
+    let frame_buffer = frame_buffer.map(|fb| (fb.addr.as_u64(), fb.info.byte_len as u64));
+    let ranges = loader_logic::identity_map::identity_ranges(max_phys_addr.as_u64(), frame_buffer);
+    for range in ranges.into_iter().flatten() {
+        let mut address = range.start;
+        while address < range.end {
+            if address < loader_logic::identity_map::PAGE {
+                let frame = PhysFrame::<Size4KiB>::containing_address(PhysAddr::new(address));
+                let page = Page::<Size4KiB>::containing_address(VirtAddr::new(address));
+                // SAFETY: an identity mapping in a table not yet active.
+                match unsafe { table.map_to(page, frame, flags, frame_allocator) } {
+                    Ok(flush) => flush.ignore(),
+                    Err(error) => panic!("identity-mapping {address:#x} failed: {error:?}"),
+                }
+                address += 4096;
+            } else {
+                let frame = PhysFrame::<Size2MiB>::containing_address(PhysAddr::new(address));
+                let page = Page::<Size2MiB>::containing_address(VirtAddr::new(address));
+                // SAFETY: an identity mapping in a table not yet active.
+                match unsafe { table.map_to(page, frame, flags, frame_allocator) } {
+                    Ok(flush) => flush.ignore(),
+                    Err(error) => panic!("identity-mapping {address:#x} failed: {error:?}"),
+                }
+                address += loader_logic::identity_map::PAGE;
+            }
+        }
     }
 }
 
