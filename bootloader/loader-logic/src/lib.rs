@@ -4,7 +4,13 @@
 //!
 //! - [`gop`]: which UEFI Graphics Output Protocol instance to draw on.
 //! - [`e820`]: the BIOS INT 15h, AX=E820h memory-map walk and how it ends.
+//! - [`secure_boot`]: the Secure Boot state record the UEFI loader hands to
+//!   the kernel, and the search of a signature database for its certificate.
 #![no_std]
 
 pub mod e820;
 pub mod gop;
+pub mod secure_boot;
+
+#[cfg(test)]
+extern crate std;
