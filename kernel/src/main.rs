@@ -114,10 +114,15 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
 
     let booted_by = boot_firmware::firmware(&boot_info.memory_regions);
     serial_println!("firmware: {:?} (told by the memory map)", booted_by);
+    let secure_boot = platform::secure_boot::state(boot_info, booted_by);
+    if let firmware::secure_boot::SecureBoot::Unknown(why) = secure_boot {
+        serial_println!("secure boot: unknown ({why:?})");
+    }
     let adapter = pci::display_controller();
     facts::record(|facts| {
         facts.firmware = Some(booted_by);
         facts.adapter = adapter;
+        facts.secure_boot = Some(secure_boot);
     });
 
     // SAFETY: the bootloader maps all physical memory at this offset (asked for
