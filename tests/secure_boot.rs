@@ -240,7 +240,17 @@ fn the_stick_holds_shim_the_signed_loader_and_the_certificate_but_no_private_key
     let stick = signed_stick(scratch.path(), &key, Route::Shim);
     let disk = std::fs::read(&stick).unwrap();
     let shim = shim();
-    assert_eq!(file_on_disk(&disk, sb::REMOVABLE_BOOT_PATH), shim.shim);
+    // Shim as Debian ships it, with the user's signature added after
+    // Microsoft's (issue 39): its code and SBAT data unchanged.
+    let stick_shim = file_on_disk(&disk, sb::REMOVABLE_BOOT_PATH);
+    for section in [".text", ".sbat", ".data"] {
+        assert_eq!(
+            sb::pe_section(&stick_shim, section),
+            sb::pe_section(&shim.shim, section),
+            "{section}"
+        );
+        assert!(sb::pe_section(&shim.shim, section).is_some(), "{section}");
+    }
     assert_eq!(file_on_disk(&disk, sb::MOK_MANAGER_PATH), shim.mok_manager);
     assert_eq!(file_on_disk(&disk, sb::ENROLL_FILE_NAME), key.cert_der);
     let loader = file_on_disk(&disk, sb::SECOND_STAGE_PATH);
