@@ -571,3 +571,35 @@ fn a_sbat_level_revoking_our_generation_is_refused_by_shim() {
         .unwrap();
     assert!(!qemu.serial().contains(boot::READY_LINE));
 }
+
+/// Secure Boot switched off in setup on a PC with Microsoft's 2023 keys
+/// (the platform key kept, `SecureBootEnable` cleared afterwards, as the
+/// setup's switch does): shim starts the loader unchecked, and the report
+/// says "off", never "on".
+#[test]
+fn with_secure_boot_switched_off_the_report_says_off() {
+    let scratch = tempfile::tempdir().unwrap();
+    let key = test_key(&scratch.path().join("key"));
+    let stick = signed_stick(scratch.path(), &key);
+    let on = microsoft_2023(&scratch.path().join("uefi23.fd"), "uefi23", &[]);
+    let off = scratch.path().join("uefi23-off.fd");
+    let output = std::process::Command::new(virt_fw_vars())
+        .arg("--input")
+        .arg(&on)
+        .arg("--output")
+        .arg(&off)
+        .args(["--set-false", "SecureBootEnable"])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let mut qemu = secure_boot(&stick, &off);
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, SECURE_BOOT_TIMEOUT)
+        .unwrap();
+    assert_eq!(logged_state(&console), "off");
+    report_says(&mut qemu, 0, "off");
+}
