@@ -211,6 +211,8 @@ const KERNEL_SOURCES: &[&str] = &[
     "modex",
     "engine",
     "demo",
+    // The Secure Boot record's format, shared with the UEFI loader.
+    "bootloader/loader-logic",
     "Cargo.toml",
     "Cargo.lock",
     "rust-toolchain.toml",

@@ -6,6 +6,15 @@
 //! (`grubx64.efi`) and the certificate as a file a user recognises in
 //! MokManager's file browser.
 //!
+//! One stick serves both routes (issue 39): shim keeps Microsoft's
+//! signatures and gets the user's beside them, so a PC that trusts
+//! Microsoft's third-party CA starts it by those, and a PC that does not
+//! (the CA switched off) starts it once the user's certificate is in the
+//! firmware's `db`; shim then finds the same certificate in `db` for the
+//! loader. For the firmware's key management the certificate is there in
+//! every form setups take: DER `.cer`, PEM `.crt`, an EFI signature list
+//! `.esl` and an append-write `.auth` signed with the user's key (efitools).
+//!
 //! The rest of the disk is the same as `modex-cube.img`'s (see
 //! `boot/disk_layout.rs`), so the stick still boots under BIOS and under UEFI
 //! with Secure Boot off (where shim starts the loader without checking it).
@@ -38,12 +47,41 @@ pub const REMOVABLE_BOOT_PATH: &str = "EFI/BOOT/BOOTX64.EFI";
 pub const SBAT_CSV: &str = "sbat,1,SBAT Version,sbat,1,https://github.com/rhboot/shim/blob/main/SBAT.md\n\
 modex-cube.loader,1,modex-cube,bootloader-x86_64-uefi,0.11.17,https://github.com/rust-osdev/bootloader\n";
 
+/// The loader's own SBAT component and its generation, from [`SBAT_CSV`]'s
+/// second line: what a revocation (`SbatLevel`) names to refuse it.
+pub fn sbat_component() -> (&'static str, u32) {
+    let line = SBAT_CSV
+        .lines()
+        .nth(1)
+        .expect("SBAT_CSV has the loader's line");
+    let mut fields = line.split(',');
+    let name = fields.next().expect("a component name");
+    let generation = fields
+        .next()
+        .and_then(|g| g.parse().ok())
+        .expect("a generation number");
+    (name, generation)
+}
+
 /// The file names of a signing key in its folder.
 pub const KEY_FILE: &str = "modex-cube-db.key";
 /// The certificate, PEM, as sbsign wants it.
 pub const CERT_FILE: &str = "modex-cube-db.crt";
 /// The certificate, DER, as MokManager and firmware setup screens want it.
 pub const CERT_DER_FILE: &str = "modex-cube-db.cer";
+
+/// The certificate files on the stick's root for the firmware's key
+/// management (issue 39): DER, PEM, an EFI signature list, and the list as a
+/// signed append to `db` (`.auth`).
+pub const DB_CER_FILE: &str = "modex-cube-db.cer";
+/// The PEM copy on the stick.
+pub const DB_CRT_FILE: &str = "modex-cube-db.crt";
+/// The EFI signature list on the stick.
+pub const DB_ESL_FILE: &str = "modex-cube-db.esl";
+/// The signed append to `db` on the stick.
+pub const DB_AUTH_FILE: &str = "modex-cube-db.auth";
+/// The owner GUID the signature list gives the certificate.
+pub const KEY_OWNER_GUID: &str = "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d";
 
 /// The environment variable that moves the key's folder.
 pub const KEY_DIR_VARIABLE: &str = "MODEX_CUBE_SECURE_BOOT_DIR";
@@ -121,6 +159,15 @@ pub enum SecureBootError {
     /// The ESP could not be made.
     #[error("the EFI system partition: {0}")]
     Esp(String),
+    /// A file on the stick does not match the key that signed the loader:
+    /// nothing is written.
+    #[error("{file} on the stick does not match the loader's signing key: {reason}")]
+    Mismatch {
+        /// The file on the stick.
+        file: String,
+        /// What differs.
+        reason: String,
+    },
     /// The disk could not be laid out.
     #[error("{0}")]
     Layout(#[from] disk_layout::LayoutError),
@@ -400,20 +447,36 @@ pub fn sha256(bytes: &[u8]) -> [u8; 32] {
     sha2::Sha256::digest(bytes).into()
 }
 
+/// The section the UEFI loader keeps its signing certificate's SHA-256 in
+/// (bootloader/uefi/src/secure_boot_state.rs, `KEY_CERT_SHA256`): the loader
+/// looks for that certificate in `db` and shim's MOK list to say who
+/// checked it.
+pub const CERT_HASH_SECTION: &str = ".kcert";
+
 /// The loader with `kernel_sha256` in its [`KERNEL_HASH_SECTION`]: written
 /// before the loader is signed, so the signature covers it, and no rebuild
 /// of the loader is needed for a new kernel.
 pub fn with_kernel_hash(loader: &[u8], kernel_sha256: &[u8; 32]) -> Result<Vec<u8>> {
-    let range = pe_section_range(loader, KERNEL_HASH_SECTION)
-        .filter(|range| range.len() >= kernel_sha256.len())
+    with_section_bytes(loader, KERNEL_HASH_SECTION, kernel_sha256)
+}
+
+/// The loader with `cert_sha256` in its [`CERT_HASH_SECTION`], written
+/// before signing like the kernel's hash.
+pub fn with_cert_hash(loader: &[u8], cert_sha256: &[u8; 32]) -> Result<Vec<u8>> {
+    with_section_bytes(loader, CERT_HASH_SECTION, cert_sha256)
+}
+
+fn with_section_bytes(loader: &[u8], section: &str, bytes: &[u8; 32]) -> Result<Vec<u8>> {
+    let range = pe_section_range(loader, section)
+        .filter(|range| range.len() >= bytes.len())
         .ok_or_else(|| {
             SecureBootError::Esp(format!(
-                "the UEFI loader has no {KERNEL_HASH_SECTION} section of 32 bytes \
+                "the UEFI loader has no {section} section of 32 bytes \
                  (it is not this project's patched loader)"
             ))
         })?;
     let mut patched = loader.to_vec();
-    patched[range.start..range.start + 32].copy_from_slice(kernel_sha256);
+    patched[range.start..range.start + 32].copy_from_slice(bytes);
     Ok(patched)
 }
 
@@ -463,8 +526,10 @@ pub fn sign(loader: &[u8], key: &SigningKey) -> Result<Vec<u8>> {
 /// How the signed loader is started on the stick.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Route {
-    /// Shim as `BOOTX64.EFI`, MokManager beside it, the loader as
-    /// `grubx64.efi`: for PCs that trust only Microsoft's keys.
+    /// Shim (signed by Microsoft and by the user's key) as `BOOTX64.EFI`,
+    /// MokManager beside it, the loader as `grubx64.efi`: for PCs that trust
+    /// Microsoft's third-party CA, and for those that trust only the user's
+    /// certificate in `db`. The runner's stick.
     Shim,
     /// The signed loader itself as `BOOTX64.EFI`: for firmware whose `db`
     /// holds the user's certificate.
@@ -596,10 +661,12 @@ pub fn signed_disk(
         .find(|(path, _)| path == KERNEL_FILE_NAME)
         .ok_or_else(|| SecureBootError::Esp(format!("the built ESP has no {KERNEL_FILE_NAME}")))?;
     let loader = with_kernel_hash(&loader, &sha256(&kernel.1))?;
+    let loader = with_cert_hash(&loader, &sha256(&key.cert_der))?;
     let signed = sign(&with_sbat(&loader)?, key)?;
     match (route, shim) {
         (Route::Shim, Some(shim)) => {
-            files.push((REMOVABLE_BOOT_PATH.to_owned(), shim.shim.clone()));
+            // Microsoft's signatures stay; the user's is added after them.
+            files.push((REMOVABLE_BOOT_PATH.to_owned(), sign(&shim.shim, key)?));
             files.push((MOK_MANAGER_PATH.to_owned(), shim.mok_manager.clone()));
             files.push((SECOND_STAGE_PATH.to_owned(), signed));
         }
@@ -610,16 +677,208 @@ pub fn signed_disk(
         }
         (Route::Direct, _) => files.push((REMOVABLE_BOOT_PATH.to_owned(), signed)),
     }
+    files.extend(certificate_files(key)?);
     files.sort();
     // First in the root folder, so MokManager's file browser lists it first,
     // already highlighted.
     files.insert(0, (ENROLL_FILE_NAME.to_owned(), key.cert_der.clone()));
+    check_stick(&files, key)?;
     let esp = fat_volume(&files, *b"MODEX-CUBE ")?;
     Ok(disk_layout::hybrid_image(
         &pieces.boot_sector,
         &pieces.stage_2,
         &esp,
     )?)
+}
+
+/// The certificate in every form a firmware setup's key management takes:
+/// DER, PEM, an EFI signature list (`cert-to-efi-sig-list`), and that list
+/// as an append to `db` signed with the key (`sign-efi-sig-list -a`), which
+/// a setup in setup mode takes and which never replaces the `db` it adds to.
+pub fn certificate_files(key: &SigningKey) -> Result<Vec<(String, Vec<u8>)>> {
+    let scratch = scratch_dir()?;
+    let esl = scratch.path().join(DB_ESL_FILE);
+    let auth = scratch.path().join(DB_AUTH_FILE);
+    run_tool(
+        "cert-to-efi-sig-list",
+        Command::new("cert-to-efi-sig-list")
+            .args(["-g", KEY_OWNER_GUID])
+            .arg(&key.cert)
+            .arg(&esl),
+    )?;
+    run_tool(
+        "sign-efi-sig-list",
+        Command::new("sign-efi-sig-list")
+            .args(["-a", "-g", KEY_OWNER_GUID, "-k"])
+            .arg(&key.key)
+            .arg("-c")
+            .arg(&key.cert)
+            .arg("db")
+            .arg(&esl)
+            .arg(&auth),
+    )?;
+    let pem = std::fs::read(&key.cert).map_err(|error| SecureBootError::Unreadable {
+        what: "the certificate",
+        path: key.cert.clone(),
+        error,
+        fix: "give a readable file with --sign-cert",
+    })?;
+    Ok(vec![
+        (DB_CER_FILE.to_owned(), key.cert_der.clone()),
+        (DB_CRT_FILE.to_owned(), pem),
+        (DB_ESL_FILE.to_owned(), read_back(&esl)?),
+        (DB_AUTH_FILE.to_owned(), read_back(&auth)?),
+    ])
+}
+
+/// Checks a stick's files before anything is written: every certificate
+/// file is the certificate of `key`, the signature list holds it, the
+/// `.auth` carries that list, the loader carries its hash, and the loader
+/// (and shim, on the shim route) verify with it (sbverify).
+pub fn check_stick(files: &[(String, Vec<u8>)], key: &SigningKey) -> Result<()> {
+    let file = |name: &str| {
+        files
+            .iter()
+            .find(|(path, _)| path == name)
+            .map(|(_, bytes)| bytes.as_slice())
+            .ok_or_else(|| SecureBootError::Mismatch {
+                file: name.to_owned(),
+                reason: "it is missing".to_owned(),
+            })
+    };
+    let mismatch = |name: &str, reason: &str| SecureBootError::Mismatch {
+        file: name.to_owned(),
+        reason: reason.to_owned(),
+    };
+    let wanted = sha256(&key.cert_der);
+    for name in [ENROLL_FILE_NAME, DB_CER_FILE] {
+        if file(name)? != key.cert_der {
+            return Err(mismatch(name, "another certificate"));
+        }
+    }
+    let pem = String::from_utf8_lossy(file(DB_CRT_FILE)?).into_owned();
+    if pem_to_der(&pem).as_deref() != Some(key.cert_der.as_slice()) {
+        return Err(mismatch(DB_CRT_FILE, "another certificate"));
+    }
+    let esl = file(DB_ESL_FILE)?;
+    match loader_logic::secure_boot::database_holds_cert(esl, &wanted, sha256) {
+        Ok(true) => {}
+        Ok(false) => return Err(mismatch(DB_ESL_FILE, "the list holds another certificate")),
+        Err(_) => return Err(mismatch(DB_ESL_FILE, "not an EFI signature list")),
+    }
+    if !file(DB_AUTH_FILE)?.ends_with(esl) {
+        return Err(mismatch(DB_AUTH_FILE, "it does not carry the .esl's list"));
+    }
+    let second_stage = if files.iter().any(|(path, _)| path == SECOND_STAGE_PATH) {
+        SECOND_STAGE_PATH
+    } else {
+        REMOVABLE_BOOT_PATH
+    };
+    let loader = file(second_stage)?;
+    if pe_section(loader, CERT_HASH_SECTION).map(|bytes| &bytes[..32]) != Some(&wanted[..]) {
+        return Err(mismatch(
+            second_stage,
+            "its .kcert is not the certificate's SHA-256",
+        ));
+    }
+    for name in [second_stage, REMOVABLE_BOOT_PATH] {
+        signed_by(file(name)?, key).map_err(|reason| mismatch(name, &reason))?;
+    }
+    Ok(())
+}
+
+/// Whether one of the PE image's signatures is the key's and verifies
+/// (sbverify). sbverify alone is not enough on an image with several
+/// signatures, shim's: it accepts Microsoft's whatever certificate it is
+/// given. So the signature holding the certificate is found, every other is
+/// removed from a copy, and that copy is verified.
+fn signed_by(image: &[u8], key: &SigningKey) -> std::result::Result<(), String> {
+    let scratch = scratch_dir().map_err(|e| e.to_string())?;
+    let path = scratch.path().join("image.efi");
+    std::fs::write(&path, image).map_err(|e| e.to_string())?;
+    let listed = tool_output(Command::new("sbverify").arg("--list").arg(&path))?;
+    let count = String::from_utf8_lossy(&listed)
+        .lines()
+        .filter(|line| line.starts_with("signature "))
+        .count();
+    let signature = scratch.path().join("signature.p7");
+    let ours = (1..=count).find(|&number| {
+        let _ = std::fs::remove_file(&signature);
+        tool_output(
+            Command::new("sbattach")
+                .arg("--detach")
+                .arg(&signature)
+                .args(["--signum", &number.to_string()])
+                .arg(&path),
+        )
+        .is_ok()
+            && std::fs::read(&signature).is_ok_and(|bytes| {
+                bytes
+                    .windows(key.cert_der.len())
+                    .any(|window| window == key.cert_der)
+            })
+    });
+    let Some(ours) = ours else {
+        return Err(format!("none of its {count} signatures is by this key"));
+    };
+    // The signatures before ours go; each removal renumbers the rest.
+    for _ in 1..ours {
+        tool_output(
+            Command::new("sbattach")
+                .args(["--remove", "--signum", "1"])
+                .arg(&path),
+        )?;
+    }
+    // And those after it.
+    for _ in ours..count {
+        tool_output(
+            Command::new("sbattach")
+                .args(["--remove", "--signum", "2"])
+                .arg(&path),
+        )?;
+    }
+    tool_output(
+        Command::new("sbverify")
+            .arg("--cert")
+            .arg(&key.cert)
+            .arg(&path),
+    )
+    .map(|_| ())
+    .map_err(|detail| format!("sbverify: {detail}"))
+}
+
+/// The DER bytes of a PEM certificate's first block.
+fn pem_to_der(pem: &str) -> Option<Vec<u8>> {
+    let body: String = pem
+        .lines()
+        .skip_while(|line| !line.starts_with("-----BEGIN CERTIFICATE"))
+        .skip(1)
+        .take_while(|line| !line.starts_with("-----END"))
+        .collect();
+    base64_decode(body.trim())
+}
+
+fn base64_decode(text: &str) -> Option<Vec<u8>> {
+    let value = |c: u8| -> Option<u32> {
+        Some(match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => return None,
+        } as u32)
+    };
+    let bytes: Vec<u8> = text.bytes().filter(|&c| c != b'=').collect();
+    let mut out = Vec::with_capacity(bytes.len() * 3 / 4);
+    for chunk in bytes.chunks(4) {
+        let mut word = 0u32;
+        for (at, &c) in chunk.iter().enumerate() {
+            word |= value(c)? << (18 - 6 * at);
+        }
+        out.extend(&word.to_be_bytes()[1..chunk.len()]);
+    }
+    Some(out)
 }
 
 /// Writes `bytes` to `path` whole: a temporary file beside it, renamed into

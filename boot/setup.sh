@@ -32,6 +32,8 @@ command -v xwd >/dev/null || missing+=(x11-apps)
 # Secure Boot (boot/secure_boot.rs): sbsign signs the UEFI loader with
 # Authenticode, openssl makes the user's key, python3-venv holds virt-firmware.
 command -v sbsign >/dev/null || missing+=(sbsigntool)
+# efitools: the stick's .esl and .auth for firmware setups' key management.
+command -v sign-efi-sig-list >/dev/null || missing+=(efitools)
 command -v openssl >/dev/null || missing+=(openssl)
 [ -f /usr/share/OVMF/OVMF_CODE_4M.secboot.fd ] && [ -f /usr/share/OVMF/OVMF_VARS_4M.ms.fd ] || missing+=(ovmf)
 python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)

@@ -67,6 +67,14 @@ fn a_blt_only_gop_alone_boots_without_a_display_and_keys_still_act() {
         console.contains("facts: display: none: no legacy VGA, no framebuffer"),
         "{console}"
     );
+    // Issue 39: OVMF's blank variables (no platform key: setup mode), said
+    // with no display too.
+    assert!(
+        console
+            .lines()
+            .any(|text| text.trim_end() == "facts: Secure Boot: setup mode"),
+        "{console}"
+    );
     assert!(!console.contains(line::READY), "{console}");
     assert!(
         !console.contains("PANIC") && !console.contains("panicked"),

@@ -27,6 +27,7 @@
 use clock::tsc_rate::{Source, TscRate};
 use core::fmt;
 use firmware::boot_firmware::Firmware;
+use firmware::secure_boot::SecureBoot;
 use kernel_log::text_of_field;
 
 /// The machine's facts, filled in at boot.
@@ -53,6 +54,9 @@ pub struct MachineFacts {
     pub usb_controllers: u8,
     /// The clock's rate and source; `None` before it was found.
     pub clock: Option<TscRate>,
+    /// Whether Secure Boot was on and who checked the loader; `None` before
+    /// it was told (said as "unknown", never as on or off).
+    pub secure_boot: Option<SecureBoot>,
 }
 
 /// CPUID's identification, as the CPU gives it.
@@ -127,12 +131,13 @@ impl MachineFacts {
             ps2: Ps2::Unknown,
             usb_controllers: 0,
             clock: None,
+            secure_boot: None,
         }
     }
 
     /// Hands each fact's row, in the report's order, to `row`: the build, the
     /// CPU, NX, the firmware, the adapter, the display, the keyboards, the
-    /// clock. Facts not yet known say so.
+    /// clock, Secure Boot. Facts not yet known say so.
     pub fn rows(&self, mut row: impl FnMut(&dyn fmt::Display)) {
         row(&format_args!(
             "modex-cube {} commit {}",
@@ -145,11 +150,12 @@ impl MachineFacts {
         row(&self.display);
         row(&KeyboardRow(self.ps2, self.usb_controllers));
         row(&ClockRow(self.clock));
+        row(&SecureBootRow(self.secure_boot));
     }
 }
 
 /// The rows [`MachineFacts::rows`] gives.
-pub const FACT_COUNT: usize = 8;
+pub const FACT_COUNT: usize = 9;
 
 struct CpuRow<'a>(&'a Cpu);
 
@@ -262,6 +268,17 @@ impl fmt::Display for KeyboardRow {
     }
 }
 
+struct SecureBootRow(Option<SecureBoot>);
+
+impl fmt::Display for SecureBootRow {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            Some(state) => write!(f, "Secure Boot: {state}"),
+            None => f.write_str("Secure Boot: unknown"),
+        }
+    }
+}
+
 struct ClockRow(Option<TscRate>);
 
 impl fmt::Display for ClockRow {
@@ -290,6 +307,7 @@ impl fmt::Display for ClockRow {
 mod tests {
     use super::*;
     use crate::report::FACT_COLUMNS;
+    use firmware::secure_boot::{CheckedBy, Unknown};
     use std::string::{String, ToString};
     use std::vec::Vec;
 
@@ -321,6 +339,7 @@ mod tests {
             source: Source::PmTimer,
             error_ppm: Some(20),
         });
+        facts.secure_boot = Some(SecureBoot::On(CheckedBy::YourKeyInDb));
         facts
     }
 
@@ -339,6 +358,7 @@ mod tests {
                 "display: framebuffer 1920x1080x4 scale 4, WC",
                 "keyboard: PS/2 ready; USB on 1 xHCI",
                 "clock: TSC 1992.000 MHz from the PM timer, 20 ppm",
+                "Secure Boot: on (your key in db)",
             ]
         );
         // The CPU's brand is the one row whose length the kernel does not
@@ -356,6 +376,7 @@ mod tests {
         assert_eq!(rows[3], "firmware: not told yet");
         assert_eq!(rows[5], "display: not set up yet");
         assert_eq!(rows[7], "clock: not calibrated yet");
+        assert_eq!(rows[8], "Secure Boot: unknown");
     }
 
     #[test]
@@ -380,6 +401,21 @@ mod tests {
         ];
         for display in displays {
             let text = display.to_string();
+            assert!(text.len() <= FACT_COLUMNS, "{text:?}");
+        }
+        let states = [
+            SecureBoot::NotUefi,
+            SecureBoot::Unknown(Unknown::NoRecord),
+            SecureBoot::Off,
+            SecureBoot::SetupMode,
+            SecureBoot::On(CheckedBy::ShimYourKey),
+            SecureBoot::On(CheckedBy::YourKeyInDb),
+            SecureBoot::On(CheckedBy::ShimNotChecking),
+            SecureBoot::On(CheckedBy::Shim),
+            SecureBoot::On(CheckedBy::Firmware),
+        ];
+        for state in states {
+            let text = SecureBootRow(Some(state)).to_string();
             assert!(text.len() <= FACT_COLUMNS, "{text:?}");
         }
         for ps2 in [Ps2::Unknown, Ps2::Ready, Ps2::Absent, Ps2::Failed("no ACK")] {

@@ -2,8 +2,9 @@
 //! hardware: the ACPI values for power-off and reset and the FADT's
 //! legacy-device flags ([`acpi`]), which firmware booted the machine, told
 //! by the memory map ([`boot_firmware`]), and QEMU's fw_cfg file directory,
-//! where the test harness leaves the boot option ([`fw_cfg`]), and, from
-//! which firmware booted, which display the kernel drives ([`display`]).
+//! where the test harness leaves the boot option ([`fw_cfg`]), from which
+//! firmware booted, which display the kernel drives ([`display`]), and
+//! whether Secure Boot was on, from the UEFI loader's record ([`secure_boot`]).
 //!
 //! The kernel's shell, `kernel/src/platform/`, maps the tables and does the
 //! port writes.
@@ -20,3 +21,4 @@ pub mod acpi;
 pub mod boot_firmware;
 pub mod display;
 pub mod fw_cfg;
+pub mod secure_boot;

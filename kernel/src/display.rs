@@ -3,9 +3,10 @@
 //! The choice itself is `firmware::display::choose`, tested on the host;
 //! this file gathers its inputs and starts what it chose.
 
-use crate::{facts, framebuffer, legacy_vga, pci, platform::boot_firmware, run, serial_println};
+use crate::{facts, framebuffer, legacy_vga, pci, run, serial_println};
 use bootloader_api::BootInfo;
 use firmware::acpi::Presence;
+use firmware::boot_firmware::Firmware;
 use firmware::display::{choose, Display};
 use protocol::BootRequest;
 
@@ -13,13 +14,12 @@ use protocol::BootRequest;
 /// screen on it (`crate::run_screen`).
 pub fn start(
     boot_info: &'static mut BootInfo,
+    booted_by: Firmware,
     physical_memory_offset: u64,
     acpi_vga: Presence,
     request: &BootRequest,
 ) -> ! {
     let (force_true_mode_x, option) = (request.true_mode_x, request.option);
-    let booted_by = boot_firmware::firmware(&boot_info.memory_regions);
-    serial_println!("firmware: {:?} (told by the memory map)", booted_by);
     let adapter = pci::display_controller();
     facts::record(|facts| {
         facts.firmware = Some(booted_by);

@@ -80,7 +80,16 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     facts::record(|facts| facts.clock = Some(rate));
     xhci::init(&boot_info.memory_regions, physical_memory_offset);
     serial_println!("kernel: initialised");
-    display::start(boot_info, physical_memory_offset, acpi.legacy.vga, &request)
+    let booted_by = platform::boot_firmware::firmware(&boot_info.memory_regions);
+    serial_println!("firmware: {:?} (told by the memory map)", booted_by);
+    platform::secure_boot::record(boot_info, booted_by);
+    display::start(
+        boot_info,
+        booted_by,
+        physical_memory_offset,
+        acpi.legacy.vga,
+        &request,
+    )
 }
 
 /// The FADT's word on the 8042 is a hint (firmware gets it wrong): the probe

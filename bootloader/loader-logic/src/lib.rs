@@ -7,9 +7,15 @@
 //! - [`file_read`]: reading a file through UEFI, one more try, the words of
 //!   a failure.
 //! - [`identity_map`]: what the UEFI loader's own page tables map.
+//! - [`secure_boot`]: the Secure Boot state record the UEFI loader hands to
+//!   the kernel, and the search of a signature database for its certificate.
 #![no_std]
 
 pub mod e820;
 pub mod file_read;
 pub mod gop;
 pub mod identity_map;
+pub mod secure_boot;
+
+#[cfg(test)]
+extern crate std;

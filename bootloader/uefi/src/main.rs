@@ -32,6 +32,7 @@ use x86_64::{
 };
 
 mod memory_descriptor;
+mod secure_boot_state; // Patched (issue 39)
 
 struct BootFile {
     disk: &'static CStr16,
@@ -112,7 +113,8 @@ fn main() -> Status {
 
     log::info!("Trying to load ramdisk via {:?}", boot_mode);
     // Ramdisk must load from same source, or not at all.
-    let ramdisk = load_ramdisk(boot_mode);
+    // Patched (issue 39): with no ramdisk file, the Secure Boot state record.
+    let ramdisk = load_ramdisk(boot_mode).or_else(secure_boot_state::record_as_ramdisk);
 
     log::info!(
         "{}",
