@@ -22,6 +22,10 @@ struct Args {
     /// Boot the image with OVMF (UEFI) instead of SeaBIOS.
     #[arg(long)]
     uefi: bool,
+    /// Boot the one image with 32-bit OVMF (a 32-bit UEFI, as on Bay Trail
+    /// tablets) on a Q35 with SMM: its loader is EFI/BOOT/BOOTIA32.EFI.
+    #[arg(long, conflicts_with_all = ["uefi", "secure_boot"])]
+    uefi32: bool,
     /// No window: the serial console streams to this terminal.
     #[arg(long)]
     headless: bool,
@@ -166,6 +170,8 @@ fn has_display() -> bool {
 fn run(args: Args) -> anyhow::Result<ExitCode> {
     let firmware = if args.uefi {
         Firmware::Uefi
+    } else if args.uefi32 {
+        Firmware::Uefi32
     } else {
         Firmware::Bios
     };
@@ -188,6 +194,10 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     let mismatch = match (args.image, firmware) {
         (ImageChoice::Bios, Firmware::Uefi) => Some("bios.img has no UEFI loader"),
         (ImageChoice::Uefi, Firmware::Bios) => Some("uefi.img has no BIOS boot code"),
+        (ImageChoice::Bios, Firmware::Uefi32) => Some("bios.img has no UEFI loader"),
+        (ImageChoice::Uefi, Firmware::Uefi32) => {
+            Some("uefi.img has no 32-bit UEFI loader (only the one image has)")
+        }
         _ => None,
     };
     if let (Some(why), None) = (mismatch, &args.write_usb) {
@@ -228,7 +238,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
 
     if !args.keys.0.is_empty() || args.screenshot.is_some() {
-        let boot_time = if firmware == Firmware::Uefi { 120 } else { 60 };
+        let boot_time = if firmware == Firmware::Bios { 60 } else { 120 };
         qemu.wait_for_serial(boot::READY_LINE, Duration::from_secs(boot_time))?;
         for key in &args.keys.0 {
             qemu.send_key(key)?;

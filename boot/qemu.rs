@@ -30,6 +30,14 @@ pub const EXIT_FAILURE: i32 = Exit::Failure.qemu_status();
 /// OVMF from Debian's `ovmf` package.
 pub const OVMF_CODE: &str = "/usr/share/OVMF/OVMF_CODE.fd";
 
+/// 32-bit OVMF (a 32-bit UEFI, as on Bay Trail tablets and Compute Sticks)
+/// from Debian's `ovmf-ia32` package: only a Secure Boot build, which needs
+/// SMM and its flash writable only from SMM (Secure Boot itself stays off
+/// with the empty variables of [`OVMF32_VARS`]).
+pub const OVMF32_CODE: &str = "/usr/share/OVMF/OVMF32_CODE_4M.secboot.fd";
+/// The variables template for [`OVMF32_CODE`], copied for each boot.
+pub const OVMF32_VARS: &str = "/usr/share/OVMF/OVMF32_VARS_4M.fd";
+
 /// The id of the display device (`bochs-display`), to which a keyboard can
 /// be bound (`-device usb-kbd,display=video0`) so that
 /// [`Qemu::press_key_on`] reaches it alone.
@@ -45,6 +53,9 @@ pub enum Firmware {
     Bios,
     /// OVMF ([`OVMF_CODE`]), booting the UEFI image's EFI partition.
     Uefi,
+    /// 32-bit OVMF ([`OVMF32_CODE`]) on a Q35 with SMM and a 64-bit CPU,
+    /// booting `EFI/BOOT/BOOTIA32.EFI` of the one image's partition.
+    Uefi32,
 }
 
 /// How the disk image is attached to the emulated PC.
@@ -387,6 +398,16 @@ pub fn check_installed(firmware: Firmware) -> Result<()> {
             "{OVMF_CODE} was not found. Install OVMF with `boot/setup.sh` (or `sudo apt-get install ovmf`)."
         )));
     }
+    if firmware == Firmware::Uefi32 {
+        for file in [OVMF32_CODE, OVMF32_VARS] {
+            if !Path::new(file).exists() {
+                return Err(QemuError::NotInstalled(format!(
+                    "{file} was not found. Install 32-bit OVMF with `boot/setup.sh` \
+                     (or `sudo apt-get install ovmf-ia32`)."
+                )));
+            }
+        }
+    }
     Ok(())
 }
 
@@ -566,9 +587,10 @@ impl Qemu {
                 monitor_path.display()
             ));
         let mut machine = options.board.qemu_machine(options.graphics);
-        if options.secure_boot_vars.is_some() {
-            // OVMF's Secure Boot build keeps its variables safe in SMM: Q35
-            // with SMM on, and the flash writable only from SMM.
+        if options.secure_boot_vars.is_some() || options.firmware == Firmware::Uefi32 {
+            // OVMF's Secure Boot builds (32-bit OVMF has only that one) keep
+            // their variables safe in SMM: Q35 with SMM on, and the flash
+            // writable only from SMM.
             machine[1] = machine[1].replacen("pc,", "q35,", 1) + ",smm=on";
         }
         command.args(machine);
@@ -597,6 +619,27 @@ impl Qemu {
             }
             (None, Firmware::Uefi) => {
                 command.args(["-bios", OVMF_CODE]);
+            }
+            (_, Firmware::Uefi32) => {
+                // A fresh copy of the empty variables each boot.
+                let vars = scratch.path().join("OVMF32_VARS_4M.fd");
+                std::fs::copy(OVMF32_VARS, &vars).map_err(|e| {
+                    QemuError::Io(format!(
+                        "cannot copy {OVMF32_VARS} to {}: {e}",
+                        vars.display()
+                    ))
+                })?;
+                command
+                    .arg("-drive")
+                    .arg(format!(
+                        "if=pflash,format=raw,unit=0,readonly=on,file={OVMF32_CODE}"
+                    ))
+                    .arg("-drive")
+                    .arg(format!(
+                        "if=pflash,format=raw,unit=1,file={}",
+                        vars.display()
+                    ))
+                    .args(["-global", "driver=cfi.pflash01,property=secure,value=on"]);
             }
             (_, Firmware::Bios) => {}
         }

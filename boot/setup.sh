@@ -22,6 +22,8 @@ as_root() {
 missing=()
 command -v qemu-system-x86_64 >/dev/null || missing+=(qemu-system-x86)
 [ -f /usr/share/OVMF/OVMF_CODE.fd ] || missing+=(ovmf)
+# 32-bit OVMF: the 32-bit UEFI loader's boot (tests/uefi32.rs, --uefi32).
+[ -f /usr/share/OVMF/OVMF32_CODE_4M.secboot.fd ] && [ -f /usr/share/OVMF/OVMF32_VARS_4M.fd ] || missing+=(ovmf-ia32)
 command -v bochs >/dev/null || missing+=(bochs)
 [ -f /usr/share/bochs/BIOS-bochs-latest ] || missing+=(bochsbios)
 [ -f /usr/share/vgabios/vgabios.bin ] && [ -f /usr/share/vgabios/vgabios-cirrus.bin ] || missing+=(vgabios)

@@ -55,11 +55,74 @@ fn bios_main() {
 
 #[cfg(feature = "uefi")]
 fn uefi_main() {
+    // Patched (issue 38): the 32-bit UEFI loader beside the 64-bit one.
+    let ia32_handle = std::thread::spawn(build_uefi_ia32_bootloader); // Patched
     let uefi_path = build_uefi_bootloader();
     println!(
         "cargo:rustc-env=UEFI_BOOTLOADER_PATH={}",
         uefi_path.display()
     );
+    let ia32_path = ia32_handle.join().unwrap(); // Patched
+    println!(
+        "cargo:rustc-env=UEFI_IA32_BOOTLOADER_PATH={}",
+        ia32_path.display() // Patched
+    );
+}
+
+/// Patched (issue 38, see CHANGES.md): the 32-bit UEFI loader
+/// (`uefi-ia32/`, `EFI/BOOT/BOOTIA32.EFI`), built as the 64-bit one is: its
+/// own workspace and `Cargo.lock` (`--locked`), its target directory in
+/// OUT_DIR, its sources and the crates it uses watched. It has no crates.io
+/// release, so there is no fallback to a published version.
+#[cfg(not(docsrs_dummy_build))]
+#[cfg(feature = "uefi")]
+fn build_uefi_ia32_bootloader() -> PathBuf {
+    let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap());
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let manifest_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let local_path = manifest_dir.join("uefi-ia32");
+    for watched in [
+        local_path.clone(),
+        manifest_dir.join("bios").join("common"),
+        manifest_dir.join("loader-logic"),
+    ] {
+        println!("cargo:rerun-if-changed={}", watched.display());
+    }
+    let mut cmd = Command::new(cargo);
+    cmd.arg("install").arg("bootloader-x86_64-uefi-ia32");
+    cmd.arg("--path").arg(&local_path);
+    cmd.arg("--target-dir")
+        .arg(out_dir.join("uefi-ia32-target"));
+    cmd.arg("--locked");
+    cmd.arg("--target").arg("i686-unknown-uefi");
+    cmd.arg("-Zbuild-std=core")
+        .arg("-Zbuild-std-features=compiler-builtins-mem");
+    cmd.arg("--root").arg(&out_dir);
+    cmd.env_remove("RUSTFLAGS");
+    cmd.env_remove("CARGO_ENCODED_RUSTFLAGS");
+    cmd.env_remove("RUSTC_WORKSPACE_WRAPPER"); // used by clippy
+    let status = cmd
+        .status()
+        .expect("failed to run cargo install for the IA32 uefi bootloader");
+    if !status.success() {
+        panic!("failed to build the IA32 uefi bootloader");
+    }
+    let path = out_dir.join("bin").join("bootloader-x86_64-uefi-ia32.efi");
+    assert!(
+        path.exists(),
+        "IA32 uefi bootloader executable does not exist after building"
+    );
+    path
+}
+
+/// Patched (issue 38): an empty file for docs.rs builds, as for the others.
+#[cfg(docsrs_dummy_build)]
+#[cfg(feature = "uefi")]
+fn build_uefi_ia32_bootloader() -> PathBuf {
+    let out_dir = PathBuf::from(std::env::var("OUT_DIR").unwrap());
+    let path = out_dir.join("bootloader-dummy-bootloader-uefi-ia32");
+    std::fs::File::create(&path).expect("Failed to create dummy IA32 uefi bootloader");
+    path
 }
 
 #[cfg(not(docsrs_dummy_build))]

@@ -7,7 +7,8 @@
 //! and a protective 0xEE entry from LBA 1 covering the primary GPT; the GPT's
 //! headers and CRCs are valid, the backup at the disk's end; MBR and GPT
 //! describe the same partitions, inside the disk and not overlapping; the
-//! ESP holds the UEFI loader, BIOS stages 3 and 4 and one kernel for both.
+//! ESP holds the UEFI loader, BIOS stages 3 and 4 and one kernel for both,
+//! and the 32-bit UEFI loader (`EFI/BOOT/BOOTIA32.EFI`, a PE32 for i386).
 //! `bios.img`'s MBR (the patched bootloader's) keeps the same MBR rules.
 //! `--write-usb` moves the backup GPT to a larger stick's end: the moved GPT
 //! reads back valid, at the disk's real end, with the same partitions.
@@ -269,6 +270,62 @@ fn the_esp_holds_both_loaders_and_one_kernel() {
     // Stage 2 sits whole in its partition, and is what the boot sector loads.
     let stage_2 = &disk[entries[0].start as usize * SECTOR..entries[0].end() as usize * SECTOR];
     assert!(stage_2.iter().any(|&b| b != 0), "stage 2 is there");
+}
+
+/// A PE image's COFF machine, optional-header magic and subsystem, read by
+/// the PE/COFF specification's offsets; `None` if it is no PE image.
+fn pe_header(image: &[u8]) -> Option<(u16, u16, u16)> {
+    let u16_at = |at: usize| Some(u16::from_le_bytes(image.get(at..at + 2)?.try_into().ok()?));
+    let u32_at = |at: usize| Some(u32::from_le_bytes(image.get(at..at + 4)?.try_into().ok()?));
+    if image.get(..2)? != b"MZ" {
+        return None;
+    }
+    let pe = usize::try_from(u32_at(0x3C)?).ok()?;
+    if image.get(pe..pe + 4)? != b"PE\0\0" {
+        return None;
+    }
+    let optional = pe + 24;
+    // The subsystem is 68 bytes into the optional header, PE32 and PE32+.
+    Some((u16_at(pe + 4)?, u16_at(optional)?, u16_at(optional + 68)?))
+}
+
+/// Issue 38: PCs with a 32-bit UEFI look for `EFI/BOOT/BOOTIA32.EFI`; it must
+/// be there, a PE32 EFI application for the i386 (machine 0x14c), beside the
+/// 64-bit loader (PE32+ for x86-64, 0x8664), with stage 4 and the kernel it
+/// loads.
+#[test]
+fn the_esp_holds_a_32_bit_uefi_loader() {
+    let (_, disk) = one_image();
+    let entries = mbr_entries(&disk);
+    let esp = &disk[entries[1].start as usize * SECTOR..entries[1].end() as usize * SECTOR];
+    let fs = fatfs::FileSystem::new(std::io::Cursor::new(esp.to_vec()), fatfs::FsOptions::new())
+        .expect("the ESP is a FAT fatfs can read");
+    let read = |path: &str| {
+        let mut bytes = Vec::new();
+        fs.root_dir()
+            .open_file(path)
+            .unwrap_or_else(|e| panic!("the ESP has no {path}: {e}"))
+            .read_to_end(&mut bytes)
+            .unwrap();
+        bytes
+    };
+    const EFI_APPLICATION: u16 = 10;
+    let ia32 = read("EFI/BOOT/BOOTIA32.EFI");
+    assert_eq!(
+        pe_header(&ia32),
+        Some((0x14c, 0x10b, EFI_APPLICATION)),
+        "BOOTIA32.EFI: i386, PE32, an EFI application"
+    );
+    let x64 = read("EFI/BOOT/BOOTX64.EFI");
+    assert_eq!(
+        pe_header(&x64),
+        Some((0x8664, 0x20b, EFI_APPLICATION)),
+        "BOOTX64.EFI: x86-64, PE32+, an EFI application"
+    );
+    assert_ne!(ia32, x64);
+    for needed in ["boot-stage-4", "kernel-x86_64"] {
+        assert!(!read(needed).is_empty(), "{needed} is empty");
+    }
 }
 
 #[test]

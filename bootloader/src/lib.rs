@@ -43,6 +43,9 @@ const CONFIG_FILE_NAME: &str = "boot.json";
 
 #[cfg(feature = "uefi")]
 const UEFI_BOOTLOADER: &[u8] = include_bytes!(env!("UEFI_BOOTLOADER_PATH"));
+/// Patched (issue 38): the 32-bit UEFI loader, which starts BIOS stage 4.
+#[cfg(feature = "uefi")]
+const UEFI_IA32_BOOTLOADER: &[u8] = include_bytes!(env!("UEFI_IA32_BOOTLOADER_PATH"));
 #[cfg(feature = "bios")]
 const BIOS_BOOT_SECTOR: &[u8] = include_bytes!(env!("BIOS_BOOT_SECTOR_PATH"));
 #[cfg(feature = "bios")]
@@ -182,11 +185,17 @@ impl DiskImageBuilder {
     /// Patched: one FAT partition for both routes: the UEFI loader
     /// (`efi/boot/bootx64.efi`), BIOS stages 3 and 4, and the files set here
     /// (the kernel, the config), so that both loaders read the same kernel.
+    /// Patched (issue 38): also the 32-bit UEFI loader
+    /// (`efi/boot/bootia32.efi`), which needs stage 4 from this partition.
     pub fn create_bios_uefi_fat_partition(&self, partition_path: &Path) -> anyhow::Result<()> {
         let mut internal_files = BTreeMap::new();
         internal_files.insert(
             "efi/boot/bootx64.efi",
             FileDataSource::Bytes(UEFI_BOOTLOADER),
+        );
+        internal_files.insert(
+            "efi/boot/bootia32.efi",
+            FileDataSource::Bytes(UEFI_IA32_BOOTLOADER), // Patched (issue 38)
         );
         internal_files.insert("boot-stage-3", FileDataSource::Bytes(BIOS_STAGE_3));
         internal_files.insert("boot-stage-4", FileDataSource::Bytes(BIOS_STAGE_4));

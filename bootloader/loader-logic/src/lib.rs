@@ -9,6 +9,8 @@
 //! - [`identity_map`]: what the UEFI loader's own page tables map.
 //! - [`secure_boot`]: the Secure Boot state record the UEFI loader hands to
 //!   the kernel, and the search of a signature database for its certificate.
+//! - [`uefi_map`]: the 32-bit UEFI loader's memory map for stage 4, UEFI
+//!   memory types as E820 entries.
 #![no_std]
 
 pub mod e820;
@@ -16,6 +18,7 @@ pub mod file_read;
 pub mod gop;
 pub mod identity_map;
 pub mod secure_boot;
+pub mod uefi_map;
 
 #[cfg(test)]
 extern crate std;

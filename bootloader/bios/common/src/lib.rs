@@ -39,7 +39,33 @@ pub struct BiosInfo {
     pub framebuffer: BiosFramebufferInfo,
     pub memory_map_addr: u32,
     pub memory_map_len: u16,
+    /// Patched (issue 38): the ACPI RSDP's address when the loader knows it
+    /// (the 32-bit UEFI loader, from UEFI's configuration table), else 0:
+    /// stage 4 then scans the BIOS areas for it.
+    pub rsdp_addr: u64, // Patched
+    /// Patched (issue 38): [`FIRMWARE_UEFI`] when UEFI booted the machine
+    /// (the 32-bit UEFI loader), [`FIRMWARE_BIOS`] from stage 2.
+    pub firmware: u64, // Patched
 }
+
+/// Patched (issue 38): `BiosInfo::firmware` on a BIOS boot.
+pub const FIRMWARE_BIOS: u64 = 0;
+/// Patched (issue 38): `BiosInfo::firmware` when a UEFI loader started stage 4.
+pub const FIRMWARE_UEFI: u64 = 1;
+
+// Patched (issue 38): 16-, 32- and 64-bit code share this struct, and 32-bit
+// targets may align a u64 at 4 bytes or at 8: the offsets are pinned so that
+// every stage reads the fields where the others wrote them.
+const _: () = {
+    assert!(core::mem::offset_of!(BiosInfo, last_used_addr) == 64);
+    assert!(core::mem::offset_of!(BiosInfo, framebuffer) == 72);
+    assert!(core::mem::offset_of!(BiosInfo, memory_map_addr) == 104);
+    assert!(core::mem::offset_of!(BiosInfo, memory_map_len) == 108);
+    assert!(core::mem::offset_of!(BiosInfo, rsdp_addr) == 112);
+    assert!(core::mem::offset_of!(BiosInfo, firmware) == 120);
+    assert!(core::mem::size_of::<BiosInfo>() == 128);
+    assert!(core::mem::size_of::<E820MemoryRegion>() == 24);
+};
 
 #[cfg_attr(feature = "debug", derive(Debug))]
 #[derive(Clone, Copy)]

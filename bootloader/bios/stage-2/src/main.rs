@@ -294,6 +294,8 @@ fn start(disk_number: u16, partition_table_start: *const u8) -> ! {
         memory_map_addr: memory_map.as_mut_ptr() as u32,
         memory_map_len: memory_map.len().try_into().unwrap(),
         framebuffer,
+        rsdp_addr: 0, // Patched (issue 38): stage 4 scans the BIOS areas
+        firmware: bootloader_x86_64_bios_common::FIRMWARE_BIOS, // Patched (issue 38)
     };
 
     enter_protected_mode_and_jump_to_stage_3(STAGE_3_DST, &mut info);

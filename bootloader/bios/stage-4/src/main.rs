@@ -85,9 +85,13 @@ pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
     };
     let kernel_size = info.kernel.len;
     let next_free_frame = PhysFrame::containing_address(PhysAddr::new(info.last_used_addr)) + 1;
+    // Patched (issue 38): the regions say whether UEFI made the map.
+    let uefi = info.firmware == bootloader_x86_64_bios_common::FIRMWARE_UEFI; // Patched
     let mut frame_allocator = LegacyFrameAllocator::new_starting_at(
         next_free_frame,
-        memory_map.iter().copied().map(MemoryRegion),
+        memory_map
+            .iter()
+            .map(move |region| MemoryRegion(*region, uefi)), // Patched
     );
 
     // We identity-mapped all memory, so the offset between physical and virtual addresses is 0
@@ -183,7 +187,14 @@ pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
 
     log::info!("4th Stage");
     log::info!("{info:x?}");
-    log::info!("BIOS boot");
+    log::info!(
+        "{}",
+        if uefi {
+            "UEFI boot (32-bit UEFI loader)"
+        } else {
+            "BIOS boot"
+        }
+    ); // Patched
 
     let system_info = SystemInfo {
         // Patched: stage 2 hands on a zero-length region when it set no VESA
@@ -192,7 +203,12 @@ pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
             addr: PhysAddr::new(info.framebuffer.region.start),
             info: framebuffer_info,
         }),
-        rsdp_addr: detect_rsdp(),
+        // Patched (issue 38): the loader's RSDP first (UEFI puts none where
+        // `detect_rsdp` scans); a BIOS boot gives 0 and is scanned for.
+        rsdp_addr: match info.rsdp_addr {
+            0 => detect_rsdp(),
+            addr => Some(PhysAddr::new(addr)),
+        }, // Patched
         ramdisk_addr: match info.ramdisk.len {
             0 => None,
             _ => Some(info.ramdisk.start),

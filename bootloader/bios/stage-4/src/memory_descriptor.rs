@@ -15,6 +15,10 @@ impl LegacyMemoryRegion for MemoryRegion {
     fn kind(&self) -> MemoryRegionKind {
         match self.0.region_type {
             1 => MemoryRegionKind::Usable,
+            // Patched (issue 38): a map the 32-bit UEFI loader made from
+            // UEFI's descriptors names UEFI kinds, so that the kernel knows
+            // UEFI booted it (it must never call a video BIOS then).
+            other if self.1 => MemoryRegionKind::UnknownUefi(uefi_type(other)), // Patched
             other => MemoryRegionKind::UnknownBios(other),
         }
     }
@@ -30,4 +34,19 @@ impl LegacyMemoryRegion for MemoryRegion {
 #[doc(hidden)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[repr(C)]
-pub struct MemoryRegion(pub E820MemoryRegion);
+///
+/// Patched (issue 38): the flag says the entry came from UEFI's memory map
+/// (the 32-bit UEFI loader), not from a BIOS's E820.
+pub struct MemoryRegion(pub E820MemoryRegion, pub bool); // Patched
+
+/// Patched (issue 38): the UEFI memory type for a non-usable E820 type of the
+/// 32-bit UEFI loader's map: ACPI reclaimable (3) and NVS (4) as UEFI's ACPI
+/// types (9, 10); everything else was UEFI-reserved, runtime services, MMIO
+/// or the loader's own data, all reserved (0) for the kernel.
+fn uefi_type(e820_type: u32) -> u32 {
+    match e820_type {
+        3 => 9,
+        4 => 10,
+        _ => 0,
+    }
+}

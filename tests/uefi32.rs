@@ -1,0 +1,128 @@
+//! A PC with a 64-bit CPU and a 32-bit UEFI (Bay Trail tablets, Compute
+//! Sticks; issue 38): 32-bit OVMF (`ovmf-ia32`, on a Q35 with SMM) boots the
+//! one image's `EFI/BOOT/BOOTIA32.EFI`, which hands over to BIOS stage 4 in
+//! long mode (see `bootloader/CHANGES.md`). The loader's line comes before the
+//! kernel's banner; the kernel knows UEFI booted it and found the ACPI tables
+//! through the RSDP the loader passed on; the cube test's keys give the
+//! software VGA's pictures on the GOP's framebuffer; Esc powers the machine
+//! off through ACPI (no isa-debug-exit) and QEMU exits with 0. On a CPU
+//! without long mode the loader says so and waits, the machine neither
+//! resetting nor starting the kernel. The host test of the loader's memory
+//! map is in `bootloader/loader-logic` (`uefi_map`).
+
+mod common;
+
+use boot::qemu::WALL_CLOCK_CEILING;
+use boot::{line, Firmware, Graphics, Qemu, QemuOptions};
+use common::{assert_pictures_equal, presented, BOOT_TIMEOUT};
+use std::time::{Duration, Instant};
+
+/// 32-bit OVMF boots in well under 30 s here; emulation on a loaded machine
+/// is slow.
+const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
+/// The 32-bit UEFI loader's first line (`bootloader/uefi-ia32`).
+const IA32_LOADER_LINE: &str = "loader: loading kernel (UEFI IA32)";
+/// The loader's stop on a CPU without long mode.
+const NO_LONG_MODE: &str = "this PC's CPU has no 64-bit mode; modex-cube needs one";
+
+fn start(cpu: Option<&str>) -> Qemu {
+    let images = boot::images::publish().expect("the build script made the images");
+    let mut options = QemuOptions::new(images.hybrid);
+    options.firmware = Firmware::Uefi32;
+    options.graphics = Graphics::StdVga;
+    // A real PC's way out: Esc must power off through ACPI, which needs the
+    // RSDP the loader found in UEFI's configuration table.
+    options.debug_exit = false;
+    options.cpu = cpu.map(str::to_owned);
+    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn the_32_bit_uefi_loader_boots_the_cube_and_esc_powers_off() {
+    let mut qemu = start(None);
+    let console = qemu
+        .wait_for_serial(line::READY, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    let loader = console
+        .find(IA32_LOADER_LINE)
+        .unwrap_or_else(|| panic!("no IA32 loader line on serial:\n{console}"));
+    assert!(
+        IA32_LOADER_LINE.starts_with(line::LOADER_START),
+        "the common start every loader's first line has"
+    );
+    let kernel = console
+        .find(line::KERNEL_BANNER)
+        .unwrap_or_else(|| panic!("no kernel banner on serial:\n{console}"));
+    assert!(loader < kernel, "the loader's line comes first:\n{console}");
+    // Stage 4 handed over a map of UEFI kinds: no video BIOS calls.
+    assert!(
+        console.contains("facts: firmware: Uefi"),
+        "the kernel knows UEFI booted it:\n{console}"
+    );
+    assert!(
+        console.contains("display: UEFI boot: drawing through the firmware framebuffer"),
+        "{console}"
+    );
+    // The RSDP from UEFI's configuration table (none where a BIOS has it).
+    assert!(
+        !console.contains("found no RSDP") && console.contains("acpi: FADT revision"),
+        "the kernel found the ACPI tables:\n{console}"
+    );
+    assert!(
+        !console.contains("PANIC") && !console.contains("panicked"),
+        "{console}"
+    );
+    common::after_each_key_on(&mut qemu, &common::CUBE_KEYS, |screen, model, _, what| {
+        assert_pictures_equal(screen, &presented(model, screen.width, screen.height), what)
+    });
+    qemu.send_key("esc").unwrap();
+    let status = qemu
+        .wait_for_exit(BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("still running after Esc: {e}"));
+    let console = qemu.serial();
+    assert!(console.contains(line::GOODBYE), "{console}");
+    assert!(
+        console.contains("power: switching off (ACPI S5"),
+        "{console}"
+    );
+    assert_eq!(status.code(), Some(0), "{status}\n{console}");
+}
+
+#[test]
+fn on_a_cpu_without_long_mode_the_loader_says_so_and_waits() {
+    // QEMU's 32-bit CPU: PAE, but no long mode.
+    let mut qemu = start(Some("qemu32"));
+    let console = qemu
+        .wait_for_serial(NO_LONG_MODE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(console.contains(IA32_LOADER_LINE), "{console}");
+    // It waits: five more seconds of the guest's progress (QEMU's CPU time;
+    // the firmware's stall loop keeps the CPU busy) with QEMU still running
+    // (`-no-reboot` would end it on a reset) and no kernel.
+    let start = qemu.cpu_time().expect("QEMU is running");
+    let began = Instant::now();
+    loop {
+        if let Some(status) = qemu.wait_exit(Duration::from_millis(200)).unwrap() {
+            panic!(
+                "QEMU ended ({status}) instead of waiting:\n{}",
+                qemu.serial()
+            );
+        }
+        let used = qemu.cpu_time().expect("QEMU is running") - start;
+        if used >= Duration::from_secs(5) {
+            break;
+        }
+        assert!(
+            began.elapsed() < WALL_CLOCK_CEILING,
+            "QEMU stopped using the CPU:\n{}",
+            qemu.serial()
+        );
+    }
+    let console = qemu.serial();
+    assert!(!console.contains(line::KERNEL_BANNER), "{console}");
+    assert_eq!(
+        console.matches(IA32_LOADER_LINE).count(),
+        console.matches(NO_LONG_MODE).count(),
+        "started once, stopped once (the console and COM1 each say both):\n{console}"
+    );
+}
