@@ -298,9 +298,6 @@ pub mod line {
     /// There is no display at all (no legacy VGA, no framebuffer): the demo
     /// runs unseen and keys are read.
     pub const READY_NO_DISPLAY: &str = "screen: none, ready (no display)";
-    /// The bootloader's first line on serial (BIOS stage 2 and the UEFI
-    /// loader), written before it loads the kernel.
-    pub const LOADER_START: &str = "loader: loading kernel";
     /// Printed on COM1 by the bootloader (BIOS stage 2, the UEFI loader) for
     /// every disk read that failed and was tried again; the rest of the line
     /// names the LBA or the file, and the status. Stage 2 also prints it for a
@@ -311,6 +308,9 @@ pub mod line {
     /// status 0x01) ...` (BIOS) or `loader: cannot read kernel-x86_64
     /// (DEVICE_ERROR) ...` (UEFI).
     pub const LOADER_CANNOT_READ: &str = "loader: cannot read";
+    /// The bootloader's first line on serial (BIOS stage 2 and the UEFI
+    /// loader), written before it loads the kernel.
+    pub const LOADER_START: &str = "loader: loading kernel";
     /// The start of the goodbye line after Esc.
     pub const GOODBYE: &str = "demo: goodbye";
     /// The last line before a fault or panic halts the CPU.
