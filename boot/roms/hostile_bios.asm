@@ -28,8 +28,9 @@
 ; Variants (NASM -D): BEV=1 adds a Boot Entry Vector: booted from (QEMU's
 ; `-option-rom FILE,bootindex=0`), it reads sector 0 of drive 80h to 0:7C00
 ; itself and jumps to JUMP_SEG:JUMP_OFF (0000:7C00 or 07C0:0000) with
-; DL=BOOT_DRIVE (JUMP_TEXT and DRIVE_TEXT say them on COM1), and junk in the upper half of ESP and in every other register
-; (the segment registers DS, ES, FS and GS too). Each step is said on COM1.
+; DL=BOOT_DRIVE, and junk in the upper half of ESP and in every other
+; register (the segment registers DS, ES, FS and GS too). The jump is said on
+; COM1 first (JUMP_TEXT and DRIVE_TEXT name its target and DL).
 
 bits 16
 cpu 386
