@@ -30,14 +30,15 @@ pub mod bochs;
 pub mod disk_layout;
 pub mod image;
 pub mod images;
+pub mod option_rom;
 pub mod qemu;
 pub mod secure_boot;
 pub mod usb;
 
 pub use image::{ImageError, RgbImage};
 pub use qemu::{
-    Board, Chipset, DiskAttachment, Display, Firmware, Graphics, Qemu, QemuError, QemuOptions,
-    UsbHost,
+    Board, Chipset, DiskAttachment, Display, Firmware, Graphics, OptionRom, Qemu, QemuError,
+    QemuOptions, RamFile, ReadError, ReadFailures, UsbHost,
 };
 
 /// The line the kernel prints on serial once its first picture is on screen

@@ -67,15 +67,11 @@ pub enum DiskAttachment {
     /// hard disk: the firmware must boot from USB, as a PC booted from a
     /// stick does.
     UsbStick(UsbHost),
-    /// A virtio disk whose reads of `sector` fail with an I/O error (QEMU's
-    /// `blkdebug`): only the first such read when `once`, else every one.
-    /// The firmware sees `EFI_DEVICE_ERROR`, as from a flaky stick.
-    FailingReads {
-        /// A 512-byte sector of the image; every read that covers it fails.
-        sector: u64,
-        /// Fail only the first read that covers it.
-        once: bool,
-    },
+    /// A virtio disk (`virtio-blk-pci`), booted from: a third disk path for
+    /// the firmware beside IDE and AHCI. With [`QemuOptions::read_errors`]
+    /// the firmware's virtio driver sees `EFI_DEVICE_ERROR` as from a flaky
+    /// stick.
+    Virtio,
 }
 
 /// A USB host controller QEMU emulates.
@@ -274,11 +270,79 @@ impl Board {
     }
 }
 
+/// An option ROM for the firmware to run (`-option-rom PATH[,bootindex=N]`):
+/// SeaBIOS runs it during POST, and, if its PnP header has a Boot Entry
+/// Vector and `bootindex` puts it first, boots from it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OptionRom {
+    /// The ROM file: whole 512-byte blocks, its checksum right.
+    pub path: PathBuf,
+    /// Its place in the boot order (0 first), if it is a boot device.
+    pub bootindex: Option<u32>,
+}
+
+/// A disk read that fails, injected under the disk image by QEMU's blkdebug
+/// driver: every read request that covers `sector` fails with EIO, as a
+/// worn disk's or stick's bad sector does, whatever the firmware's disk path
+/// (IDE, AHCI, USB).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ReadError {
+    /// The 512-byte sector (LBA) that cannot be read.
+    pub sector: u64,
+    /// How often reads of it fail.
+    pub failures: ReadFailures,
+}
+
+/// How often an injected read error happens.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ReadFailures {
+    /// The first this many reads that cover the sector fail, then it reads
+    /// (one blkdebug rule with `once = "on"` each).
+    Times(u32),
+    /// Every read of the sector fails.
+    Always,
+}
+
+impl ReadError {
+    /// The blkdebug rules for this error (QEMU's "Block I/O error injection
+    /// using blkdebug" document):
+    /// each `[inject-error]` rule is armed by the `read_aio` event that the
+    /// raw format driver raises before every read, and fires on a read that
+    /// covers `sector`; a `once` rule is removed once it has fired.
+    fn blkdebug_rules(&self) -> String {
+        let rule = |once: bool| {
+            format!(
+                "[inject-error]\nevent = \"read_aio\"\nerrno = \"5\"\nsector = \"{}\"\nonce = \"{}\"\n\n",
+                self.sector,
+                if once { "on" } else { "off" }
+            )
+        };
+        match self.failures {
+            ReadFailures::Times(n) => (0..n).map(|_| rule(true)).collect(),
+            ReadFailures::Always => rule(false),
+        }
+    }
+}
+
+/// A file put into guest RAM at `address` before the firmware starts
+/// (`-device loader,file=PATH,addr=ADDRESS,force-raw=on`): what a real PC's
+/// RAM holds at power-on is whatever it held, not zeros.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct RamFile {
+    /// The bytes.
+    pub path: PathBuf,
+    /// The guest-physical address of the first byte.
+    pub address: u64,
+}
+
 impl Default for Board {
     fn default() -> Self {
         Board::PC
     }
 }
+
+/// The guest's RAM unless [`QemuOptions::memory_mib`] says otherwise.
+pub const DEFAULT_MEMORY_MIB: u32 = 256;
 
 /// How to start QEMU: [`QemuOptions::new`] gives what the tests use, and the
 /// fields are changed from there.
@@ -325,6 +389,15 @@ pub struct QemuOptions {
     /// QEMU's `-cpu` value, when not the board's default (for example
     /// `qemu64,-nx`: a CPU without the no-execute bit).
     pub cpu: Option<String>,
+    /// The guest's RAM in MiB (`-m`).
+    pub memory_mib: u32,
+    /// Option ROMs for SeaBIOS to run (and perhaps boot), in order.
+    pub option_roms: Vec<OptionRom>,
+    /// Reads of the disk image that fail (QEMU's blkdebug under the image;
+    /// the image is still attached in snapshot mode).
+    pub read_errors: Vec<ReadError>,
+    /// Files loaded into RAM before the firmware runs, in order.
+    pub ram_files: Vec<RamFile>,
 }
 
 impl QemuOptions {
@@ -347,6 +420,10 @@ impl QemuOptions {
             instruction_clock: false,
             secure_boot_vars: None,
             cpu: None,
+            memory_mib: DEFAULT_MEMORY_MIB,
+            option_roms: Vec::new(),
+            read_errors: Vec::new(),
+            ram_files: Vec::new(),
         }
     }
 }
@@ -538,7 +615,25 @@ impl Qemu {
         let monitor_path = scratch.path().join("monitor.sock");
 
         let mut command = Command::new(QEMU_BINARY);
-        let image = format!("format=raw,file={},snapshot=on", options.image.display());
+        let image = if options.read_errors.is_empty() {
+            format!("format=raw,file={},snapshot=on", options.image.display())
+        } else {
+            // blkdebug between the raw format and the file: its rules in a
+            // file of their own (`blkdebug:RULES:IMAGE`).
+            let rules = scratch.path().join("blkdebug.conf");
+            let text: String = options
+                .read_errors
+                .iter()
+                .map(ReadError::blkdebug_rules)
+                .collect();
+            std::fs::write(&rules, text)
+                .map_err(|e| QemuError::Io(format!("cannot write {}: {e}", rules.display())))?;
+            format!(
+                "format=raw,file=blkdebug:{}:{},snapshot=on",
+                rules.display(),
+                options.image.display()
+            )
+        };
         match options.disk {
             DiskAttachment::HardDisk => {
                 command.arg("-drive").arg(image);
@@ -554,33 +649,18 @@ impl Qemu {
                         "usb-storage,bus={STICK_HOST_ID}.0,drive=stick,bootindex=0"
                     ));
             }
-            DiskAttachment::FailingReads { sector, once } => {
-                // blkdebug under the raw format, where raw's reads raise the
-                // "read_aio" event its rule waits for; errno 5 is EIO.
-                let config = scratch.path().join("blkdebug.cfg");
-                let once = if once { "on" } else { "off" };
-                std::fs::write(
-                    &config,
-                    format!(
-                        "[inject-error]\nevent = \"read_aio\"\nerrno = \"5\"\n\
-                         sector = \"{sector}\"\nonce = \"{once}\"\n"
-                    ),
-                )
-                .map_err(|e| QemuError::Io(format!("cannot write {}: {e}", config.display())))?;
+            DiskAttachment::Virtio => {
                 command
                     .arg("-drive")
-                    .arg(format!(
-                        "if=none,id=failing,driver=raw,snapshot=on,file.driver=blkdebug,\
-                         file.config={},file.image.filename={}",
-                        config.display(),
-                        options.image.display()
-                    ))
+                    .arg(format!("if=none,id=virtiodisk,{image}"))
                     .arg("-device")
-                    .arg("virtio-blk-pci,drive=failing,bootindex=0");
+                    .arg("virtio-blk-pci,drive=virtiodisk,bootindex=0");
             }
         }
         command
-            .args(["-m", "256M", "-no-reboot", "-serial", "stdio"])
+            .arg("-m")
+            .arg(format!("{}M", options.memory_mib))
+            .args(["-no-reboot", "-serial", "stdio"])
             .arg("-qmp")
             .arg(format!(
                 "unix:{},server=on,wait=off",
@@ -601,6 +681,20 @@ impl Qemu {
         }
         for device in &options.devices {
             command.arg("-device").arg(device);
+        }
+        for rom in &options.option_roms {
+            let mut arg = rom.path.display().to_string();
+            if let Some(index) = rom.bootindex {
+                arg.push_str(&format!(",bootindex={index}"));
+            }
+            command.arg("-option-rom").arg(arg);
+        }
+        for file in &options.ram_files {
+            command.arg("-device").arg(format!(
+                "loader,file={},addr={:#x},force-raw=on",
+                file.path.display(),
+                file.address
+            ));
         }
         match (&options.secure_boot_vars, options.firmware) {
             (Some(vars), Firmware::Uefi) => {
@@ -975,6 +1069,49 @@ impl Qemu {
             ))
         })?;
         RgbImage::from_ppm(&bytes).map_err(QemuError::Screendump)
+    }
+
+    /// `len` bytes of the guest's physical memory from `address`, as the CPU
+    /// would read them (QMP `pmemsave`): RAM, or a device's memory such as
+    /// the VGA's text buffer at 0xB8000.
+    pub fn read_physical(&mut self, address: u64, len: u64) -> Result<Vec<u8>> {
+        let path = self.scratch.path().join("memory.bin");
+        let _ = std::fs::remove_file(&path);
+        self.execute(json!({
+            "execute": "pmemsave",
+            "arguments": { "val": address, "size": len, "filename": path },
+        }))?;
+        let bytes = std::fs::read(&path)
+            .map_err(|e| QemuError::Monitor(format!("pmemsave wrote no file: {e}")))?;
+        if bytes.len() as u64 != len {
+            return Err(QemuError::Monitor(format!(
+                "pmemsave wrote {} bytes, not {len}",
+                bytes.len()
+            )));
+        }
+        Ok(bytes)
+    }
+
+    /// The 80x25 text screen (the VGA's text buffer at 0xB8000, the
+    /// character of each cell, attributes left out), one line a row with
+    /// trailing blanks cut.
+    pub fn text_screen(&mut self) -> Result<String> {
+        let cells = self.read_physical(0xB8000, 80 * 25 * 2)?;
+        let rows: Vec<String> = cells
+            .chunks(160)
+            .map(|row| {
+                let text: String = row
+                    .iter()
+                    .step_by(2)
+                    .map(|&c| match c {
+                        0x20..=0x7E => char::from(c),
+                        _ => ' ',
+                    })
+                    .collect();
+                text.trim_end().to_owned()
+            })
+            .collect();
+        Ok(rows.join("\n"))
     }
 
     /// Waits for QEMU to exit by itself, `budget` bounding the wait as for

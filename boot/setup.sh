@@ -39,6 +39,8 @@ command -v sign-efi-sig-list >/dev/null || missing+=(efitools)
 command -v openssl >/dev/null || missing+=(openssl)
 [ -f /usr/share/OVMF/OVMF_CODE_4M.secboot.fd ] && [ -f /usr/share/OVMF/OVMF_VARS_4M.ms.fd ] || missing+=(ovmf)
 python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)
+# NASM assembles the worst-case BIOS's option ROM (tests/hostile_bios.rs).
+command -v nasm >/dev/null || missing+=(nasm)
 if [ ${#missing[@]} -gt 0 ]; then
     command -v apt-get >/dev/null || die "please install ${missing[*]} with your package manager"
     say "installing ${missing[*]}"

@@ -14,7 +14,10 @@
 mod common;
 
 use boot::qemu::EXIT_SUCCESS;
-use boot::{line, Board, DiskAttachment, Firmware, Graphics, Qemu, QemuError, QemuOptions};
+use boot::{
+    line, Board, DiskAttachment, Firmware, Graphics, Qemu, QemuError, QemuOptions, ReadError,
+    ReadFailures,
+};
 use common::{assert_pictures_equal, assert_same_picture, presented, BOOT_TIMEOUT};
 use std::time::Duration;
 
@@ -123,7 +126,7 @@ fn with_a_blt_only_gop_first_the_usable_second_one_is_drawn_on() {
 fn cube_without_nx(firmware: Firmware) {
     let mut qemu = start(firmware, Graphics::StdVga, Some("qemu64,-nx"));
     let timeout = match firmware {
-        Firmware::Uefi => UEFI_BOOT_TIMEOUT,
+        Firmware::Uefi | Firmware::Uefi32 => UEFI_BOOT_TIMEOUT,
         Firmware::Bios => BOOT_TIMEOUT,
     };
     let console = qemu.wait_for_serial(line::READY, timeout).unwrap();
@@ -135,7 +138,7 @@ fn cube_without_nx(firmware: Firmware) {
         &common::CUBE_KEYS,
         |screen, model, _, what| match firmware {
             Firmware::Bios => assert_same_picture(screen, model, what),
-            Firmware::Uefi => {
+            Firmware::Uefi | Firmware::Uefi32 => {
                 assert_pictures_equal(screen, &presented(model, screen.width, screen.height), what)
             }
         },
@@ -223,11 +226,20 @@ fn start_failing(once: bool) -> Qemu {
     let mut options = QemuOptions::new(images.hybrid);
     options.board = Board::Q35;
     options.firmware = Firmware::Uefi;
-    options.disk = DiskAttachment::FailingReads { sector, once };
+    options.disk = DiskAttachment::Virtio;
+    options.read_errors = vec![ReadError {
+        sector,
+        failures: if once {
+            ReadFailures::Times(1)
+        } else {
+            ReadFailures::Always
+        },
+    }];
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
-const RETRY_LINE: &str = "loader: reading kernel-x86_64 failed (DEVICE_ERROR); trying once more";
+const RETRY_LINE: &str =
+    "loader: read retried: kernel-x86_64 failed (DEVICE_ERROR); trying once more";
 
 #[test]
 fn a_kernel_read_that_fails_once_is_read_again_and_the_cube_runs() {
@@ -240,7 +252,7 @@ fn a_kernel_read_that_fails_once_is_read_again_and_the_cube_runs() {
         .find(RETRY_LINE)
         .unwrap_or_else(|| panic!("no retry line:\n{console}"));
     let worked = console
-        .find("loader: reading kernel-x86_64 worked the second time")
+        .find("loader: read retried: kernel-x86_64 worked the second time")
         .unwrap_or_else(|| panic!("no line for the second read:\n{console}"));
     assert!(retry < worked, "{console}");
     assert!(

@@ -114,6 +114,7 @@ fn start_with(
     let image = match firmware {
         Firmware::Bios => images.bios,
         Firmware::Uefi => images.uefi,
+        Firmware::Uefi32 => unreachable!("the USB tests boot no 32-bit UEFI"),
     };
     let mut options = QemuOptions::new(image);
     options.firmware = firmware;

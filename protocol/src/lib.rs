@@ -298,6 +298,16 @@ pub mod line {
     /// There is no display at all (no legacy VGA, no framebuffer): the demo
     /// runs unseen and keys are read.
     pub const READY_NO_DISPLAY: &str = "screen: none, ready (no display)";
+    /// Printed on COM1 by the bootloader (BIOS stage 2, the UEFI loader) for
+    /// every disk read that failed and was tried again; the rest of the line
+    /// names the LBA or the file, and the status. Stage 2 also prints it for a
+    /// read the boot sector had to try again.
+    pub const LOADER_READ_RETRIED: &str = "loader: read retried";
+    /// A read that failed for good, on the screen and on COM1, before the
+    /// loader waits: `loader: cannot read the disk at LBA 0x00000800 (BIOS
+    /// status 0x01) ...` (BIOS) or `loader: cannot read kernel-x86_64
+    /// (DEVICE_ERROR) ...` (UEFI).
+    pub const LOADER_CANNOT_READ: &str = "loader: cannot read";
     /// The bootloader's first line on serial (BIOS stage 2 and the UEFI
     /// loader), written before it loads the kernel.
     pub const LOADER_START: &str = "loader: loading kernel";

@@ -117,7 +117,7 @@ pub fn read_with_one_retry<T, S: Copy>(
 }
 
 /// The line written when a first attempt failed:
-/// `loader: reading kernel-x86_64 failed (DEVICE_ERROR); trying once more`.
+/// `loader: read retried: kernel-x86_64 failed (DEVICE_ERROR); trying once more`.
 pub struct RetryLine<'a, N, S> {
     /// The file's name.
     pub file: N,
@@ -129,7 +129,7 @@ impl<N: fmt::Display, S: fmt::Debug> fmt::Display for RetryLine<'_, N, S> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "loader: reading {} failed ({}); trying once more",
+            "loader: read retried: {} failed ({}); trying once more",
             self.file, self.failure
         )
     }
@@ -143,7 +143,11 @@ pub struct RecoveredLine<N> {
 
 impl<N: fmt::Display> fmt::Display for RecoveredLine<N> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "loader: reading {} worked the second time", self.file)
+        write!(
+            f,
+            "loader: read retried: {} worked the second time",
+            self.file
+        )
     }
 }
 
@@ -262,7 +266,7 @@ mod tests {
         assert_eq!(calls, 2);
         assert_eq!(
             lines,
-            ["loader: reading kernel-x86_64 failed (DEVICE_ERROR); trying once more"]
+            ["loader: read retried: kernel-x86_64 failed (DEVICE_ERROR); trying once more"]
         );
     }
 
@@ -283,7 +287,7 @@ mod tests {
         assert_eq!(calls, 2);
         assert_eq!(
             lines,
-            ["loader: reading kernel-x86_64 failed (only 12 of 40 bytes); trying once more"]
+            ["loader: read retried: kernel-x86_64 failed (only 12 of 40 bytes); trying once more"]
         );
     }
 
@@ -349,7 +353,7 @@ mod tests {
         assert!(!memory.contains("stick"), "{memory}");
         assert_eq!(
             format!("{}", RecoveredLine { file: "boot.json" }),
-            "loader: reading boot.json worked the second time"
+            "loader: read retried: boot.json worked the second time"
         );
     }
 }

@@ -16,10 +16,11 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 
 mod long_mode;
-mod serial;
 
+// COM1 polled with a bound, and stage 4's span: the BIOS stages' own.
 use bootloader_x86_64_bios_common::{
-    BiosFramebufferInfo, BiosInfo, E820MemoryRegion, FIRMWARE_UEFI, PixelFormat, Region,
+    BiosFramebufferInfo, BiosInfo, E820MemoryRegion, FIRMWARE_UEFI, PixelFormat, Region, serial,
+    stack,
 };
 use core::fmt::{self, Write as _};
 use core::ptr::{self, NonNull};
@@ -32,12 +33,13 @@ use uefi::table::cfg::ConfigTableEntry;
 use uefi::{CStr16, Status, cstr16, entry};
 
 /// Where stage 4 is linked (`bios/stage-4/stage-4-link.ld`).
-const STAGE_4_ADDR: u64 = 0x13_0000;
-/// Zeroed room after stage 4's file for its `.bss`, which the flat binary
-/// does not hold (16 bytes when written).
-const STAGE_4_BSS_ROOM: usize = 64 * 1024;
-/// Stage 4's stack (the BIOS route gives it stage 2's, below 0x7C00).
-const STACK_BYTES: usize = 256 * 1024;
+const STAGE_4_ADDR: u64 = stack::STAGE_4_START as u64;
+/// All the memory stage 4 uses from there: its file, then its `.bss` and its
+/// own stack, which the flat binary does not hold.
+const STAGE_4_SPAN: usize = (stack::STAGE_4_END - stack::STAGE_4_START) as usize;
+/// The stack the switch to long mode and stage 4's entry run on, until
+/// stage 4 moves to its own (`.stack` in its linker script).
+const STACK_BYTES: usize = 16 * 1024;
 /// Everything stage 4 reads must be below 4 GiB (it takes 32-bit addresses).
 const BELOW_4_GIB: u64 = 0xFFFF_F000;
 const PAGE: usize = 4096;
@@ -169,7 +171,7 @@ fn main() -> Status {
             config_file: config,
             // Stage 4's allocator starts after it; the rest of the loader's
             // data is kept from it by the map (reserved).
-            last_used_addr: stage_4.start + stage_4.len + STAGE_4_BSS_ROOM as u64 - 1,
+            last_used_addr: u64::from(stack::STAGE_4_END) - 1,
             framebuffer,
             memory_map_addr: e820 as u32,
             memory_map_len: count as u16,
@@ -375,7 +377,10 @@ fn read_file_once(name: &'static CStr16, placement: Placement) -> Result<Region,
     }
     let size = size as usize;
     let (room, allocation) = match placement {
-        Placement::Stage4 => (size + STAGE_4_BSS_ROOM, AllocateType::Address(STAGE_4_ADDR)),
+        Placement::Stage4 if size >= STAGE_4_SPAN => {
+            return Err(ReadError::Fatal(Failure::BadSize(name)));
+        }
+        Placement::Stage4 => (STAGE_4_SPAN, AllocateType::Address(STAGE_4_ADDR)),
         Placement::Below4Gib => (size, AllocateType::MaxAddress(BELOW_4_GIB)),
     };
     let pages = room.div_ceil(PAGE);

@@ -18,6 +18,12 @@ pub mod stack {
     pub const STACK_TOP: u32 = 0x7c00;
     /// The paint, one 32-bit word at a time.
     pub const PAINT: u32 = 0x5ca1_ab1e;
+    /// Where stage 4 is linked (`bios/stage-4/stage-4-link.ld`).
+    pub const STAGE_4_START: u32 = 0x13_0000;
+    /// The end of all the memory stage 4 uses from [`STAGE_4_START`]: its
+    /// file, its `.bss` and its own stack, none past this (the linker script
+    /// asserts it). A loader that places stage 4 keeps this span free.
+    pub const STAGE_4_END: u32 = 0x20_0000;
 
     /// The bytes used of a stack of `size` bytes, given its 32-bit words from
     /// the bottom up: everything above the lowest word that is no longer the
@@ -127,6 +133,11 @@ pub struct E820MemoryRegion {
 /// Only at a stage's entry, before any static in `.bss` is used, and in a
 /// mode that reaches the whole of it (flat protected or long mode, or unreal
 /// mode).
+///
+/// `#[inline]`: compiled only into the stages that call it, since the
+/// symbols exist only in their linker scripts (the 32-bit UEFI loader links
+/// this crate too).
+#[inline]
 pub unsafe fn zero_bss() {
     unsafe extern "C" {
         static mut __bss_start: u8;

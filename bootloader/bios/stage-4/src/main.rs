@@ -236,14 +236,15 @@ pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
         &mut mappings,
         system_info,
     );
-    report_stack_use();
+    report_stack_use(uefi);
     bootloader_x86_64_common::switch_to_kernel(page_tables, mappings, boot_info);
 }
 
-/// Patched: how deep stages 2 and 3 went on the boot sector's stack, and
-/// stage 4 on its own, on COM1: `loader: stack: stages 2-3 used N of M
-/// bytes, stage 4 used N of M bytes`.
-fn report_stack_use() {
+/// Patched: how deep stages 2 and 3 went on the boot sector's stack (on a
+/// BIOS boot; the 32-bit UEFI loader paints none) and stage 4 on its own, on
+/// COM1: `loader: stack: stages 2-3 used N of M bytes, stage 4 used N of M
+/// bytes`, or `loader: stack: stage 4 used N of M bytes`.
+fn report_stack_use(uefi: bool) {
     use bootloader_x86_64_bios_common::stack::{STACK_BOTTOM, STACK_TOP, used};
     use core::fmt::Write as _;
     unsafe extern "C" {
@@ -257,19 +258,23 @@ fn report_stack_use() {
             unsafe { (address as *const u32).read_volatile() }
         })
     };
-    let (bottom, top) = (STACK_BOTTOM as usize, STACK_TOP as usize);
-    let boot_sector_stack = used(words(bottom, top), (top - bottom) as u32);
+    let mut com1 = bootloader_x86_64_bios_common::serial::Com1;
+    let _ = write!(com1, "loader: stack: ");
+    if !uefi {
+        let (bottom, top) = (STACK_BOTTOM as usize, STACK_TOP as usize);
+        let used_below_7c00 = used(words(bottom, top), (top - bottom) as u32);
+        let _ = write!(
+            com1,
+            "stages 2-3 used {used_below_7c00} of {} bytes, ",
+            top - bottom
+        );
+    }
     let (bottom, top) = (
         &raw const __stack_bottom as usize,
         &raw const __stack_top as usize,
     );
     let own_stack = used(words(bottom, top), (top - bottom) as u32);
-    let _ = writeln!(
-        bootloader_x86_64_bios_common::serial::Com1,
-        "loader: stack: stages 2-3 used {boot_sector_stack} of {} bytes, stage 4 used {own_stack} of {} bytes",
-        STACK_TOP - STACK_BOTTOM,
-        top - bottom
-    );
+    let _ = writeln!(com1, "stage 4 used {own_stack} of {} bytes", top - bottom);
 }
 
 fn init_logger(

@@ -1,0 +1,341 @@
+; A worst-case BIOS, as an option ROM, for tests/hostile_bios.rs (assembled by
+; boot/option_rom.rs with NASM; the checksum byte at the end is fixed there).
+;
+; At init (SeaBIOS calls a PnP ROM's entry at offset 3 during POST) it hooks
+; INT 10h, 13h and 15h. Each hook chains to the BIOS's own handler as an INT
+; would (the caller's flags pushed, IF clear), then returns to the caller
+; with the low 16 bits of every register and the flags exactly as the BIOS
+; returned them, and the upper 16 bits of EAX, EBX, ECX, EDX, ESI, EDI and EBP
+; replaced by junk that changes on every call (bit 31 always set, so that it is
+; never zero), as BIOSes that use 32-bit registers and save only the 16-bit
+; halves do. Exceptions: E820 (INT 15h, AX=E820h) returns 32-bit values in
+; EAX, EBX and ECX, which are left as the BIOS set them; INT 10h also replaces
+; BP whole, as some video BIOSes do, except for AX=1130h, which returns ES:BP.
+;
+; Where its state lives, and why:
+; - the BIOS's own vectors, saved at init, are in this ROM's shadow copy
+;   (`old10` ...): SeaBIOS keeps the copy writable during POST and write-
+;   protects it before it boots, so nothing the boot loader does can change
+;   them afterwards. Writing them changes the ROM's checksum, which SeaBIOS
+;   checks again after init (a ROM with a bad sum gets no boot entry), so
+;   init fixes the sum (`checksum_fix`, the last byte).
+; - the call counters and the junk generator's state change on every call,
+;   after the ROM is read-only, so they live in the interrupt table's slots of
+;   INT 60h-63h (0:0180h-0:018Fh), "reserved for user programs", which neither
+;   the firmware nor the loader uses: a test reads the counters there (QMP
+;   `pmemsave`) to prove the hooks ran.
+;
+; Variants (NASM -D): BEV=1 adds a Boot Entry Vector: booted from (QEMU's
+; `-option-rom FILE,bootindex=0`), it reads sector 0 of drive 80h to 0:7C00
+; itself and jumps to JUMP_SEG:JUMP_OFF (0000:7C00 or 07C0:0000) with
+; DL=BOOT_DRIVE, and junk in the upper half of ESP and in every other
+; register (the segment registers DS, ES, FS and GS too). The jump is said on
+; COM1 first (JUMP_TEXT and DRIVE_TEXT name its target and DL).
+
+bits 16
+cpu 386
+org 0
+
+%ifndef BEV
+%define BEV 0
+%endif
+%ifndef JUMP_SEG
+%define JUMP_SEG 0x0000
+%endif
+%ifndef JUMP_OFF
+%define JUMP_OFF 0x7C00
+%endif
+%ifndef BOOT_DRIVE
+%define BOOT_DRIVE 0x80
+%endif
+%ifndef JUMP_TEXT
+%define JUMP_TEXT '0000:7C00'
+%endif
+%ifndef DRIVE_TEXT
+%define DRIVE_TEXT '80'
+%endif
+
+ROM_BYTES   equ 2048
+COUNT10     equ 0x180           ; INT 60h's slot: INT 10h calls so far
+COUNT13     equ 0x184           ; INT 61h's slot: INT 13h calls so far
+COUNT15     equ 0x188           ; INT 62h's slot: INT 15h calls so far
+SEED        equ 0x18C           ; INT 63h's slot: the junk generator's state
+FIRST_SEED  equ 0x2545F491      ; fixed: every run gets the same junk
+COM1        equ 0x3F8
+
+rom_start:
+    db 0x55, 0xAA
+    db ROM_BYTES / 512
+    jmp init                    ; offset 3: the init entry, called far
+    times 0x18 - ($ - $$) db 0
+    dw 0                        ; 18h: no PCI data structure (not a PCI ROM)
+    dw pnp_header               ; 1Ah: the PnP expansion header
+
+    align 16
+pnp_header:                     ; PnP BIOS spec 1.0A, the expansion header
+    db '$PnP'
+    db 1                        ; structure revision
+    db 2                        ; length in 16-byte units
+    dw 0                        ; no next header
+    db 0                        ; reserved
+    db 0                        ; header checksum, set below (pnp_sum)
+    dd 0                        ; device identifier
+    dw manufacturer
+    dw product
+    db 0, 0, 0                  ; device type code: unspecified
+    db 0                        ; device indicators
+    dw 0                        ; Boot Connection Vector: none
+    dw 0                        ; Disconnect Vector: none
+%if BEV
+    dw bev                      ; Boot Entry Vector: this ROM can be booted
+%else
+    dw 0                        ; no Boot Entry Vector: SeaBIOS only runs init
+%endif
+    dw 0                        ; reserved
+    dw 0                        ; static resource information vector
+pnp_end:
+
+manufacturer: db 'modex-cube tests', 0
+product:      db 'hostile BIOS', 0
+
+; The BIOS's own vectors (offset, segment), written once by init.
+old10: dd 0
+old13: dd 0
+old15: dd 0
+
+; ---------------------------------------------------------------------------
+; The hooks. HOOK name, old vector, counter, junk BP (0/1), keep EAX-ECX (0/1)
+; ---------------------------------------------------------------------------
+
+; Replaces the upper 16 bits of a 32-bit register with the current junk word
+; (at 0:SEED+2, DS=0) xor a constant below 8000h (bit 15 stays set). Changes
+; the flags, which the hook restores afterwards.
+%macro JUNK_UPPER 3             ; 32-bit reg, its low 16-bit reg, constant
+    ror %1, 16
+    mov %2, [SEED + 2]
+    or %2, 0x8000
+    xor %2, %3
+    ror %1, 16
+%endmacro
+
+%macro HOOK 5
+%1:
+    ; Give the BIOS the caller's flags, as an INT from the caller would.
+    push bp
+    mov bp, sp                  ; [bp]: BP, [bp+2]: IP, [bp+4]: CS, [bp+6]: flags
+    push word [ss:bp + 6]
+    popf                        ; the caller's flags
+    pop bp                      ; (no flag changes from here to the call)
+    pushf                       ; the INT frame's flags: the caller's
+    cli                         ; as INT leaves them
+    call far [cs:%2]            ; the BIOS irets (or retf 2): our frame is gone
+    ; Here: registers and flags as the BIOS returned them.
+    pushf
+    push ds
+    push eax
+    push edx
+    xor ax, ax
+    mov ds, ax
+    inc dword [%3]
+    mov eax, [SEED]             ; the next junk: a 32-bit LCG step
+    mov edx, 1103515245
+    mul edx
+    add eax, 12345
+    mov [SEED], eax
+    pop edx
+    pop eax
+%if %5 == 0
+    JUNK_UPPER eax, ax, 0x0000
+    JUNK_UPPER ebx, bx, 0x1111
+    JUNK_UPPER ecx, cx, 0x2222
+%endif
+    JUNK_UPPER edx, dx, 0x3333
+    JUNK_UPPER esi, si, 0x4444
+    JUNK_UPPER edi, di, 0x5555
+    JUNK_UPPER ebp, bp, 0x6666
+%if %4
+    mov bp, [SEED + 1]          ; BP whole: junk too
+    or bp, 0x8001
+%endif
+    pop ds
+    popf                        ; the BIOS's flags
+    retf 2                      ; drop the caller's flags: return with the BIOS's
+%endmacro
+
+hook10:
+    cmp ax, 0x1130              ; get font information: returns ES:BP
+    je hook10_font
+    jmp hook10_any
+    HOOK hook10_any, old10, COUNT10, 1, 0
+    HOOK hook10_font, old10, COUNT10, 0, 0
+
+hook13:
+    HOOK hook13_any, old13, COUNT13, 0, 0
+
+hook15:
+    cmp ax, 0xE820              ; SeaBIOS looks at AX alone, so does this
+    je hook15_e820
+    jmp hook15_any
+    HOOK hook15_any, old15, COUNT15, 0, 0
+    HOOK hook15_e820, old15, COUNT15, 0, 1
+
+; ---------------------------------------------------------------------------
+; Init: hook the three vectors (once), zero the counters, seed the junk.
+; ---------------------------------------------------------------------------
+init:
+    pushf
+    push ds
+    push es
+    pushad
+    cli
+    xor ax, ax
+    mov ds, ax
+    cmp word [0x13 * 4], hook13 ; called again? (SeaBIOS calls PnP init once)
+    jne .hook
+    mov ax, cs
+    cmp [0x13 * 4 + 2], ax
+    je .done
+.hook:
+    mov eax, [0x10 * 4]
+    mov [cs:old10], eax
+    mov eax, [0x13 * 4]
+    mov [cs:old13], eax
+    mov eax, [0x15 * 4]
+    mov [cs:old15], eax
+    mov word [0x10 * 4], hook10
+    mov [0x10 * 4 + 2], cs
+    mov word [0x13 * 4], hook13
+    mov [0x13 * 4 + 2], cs
+    mov word [0x15 * 4], hook15
+    mov [0x15 * 4 + 2], cs
+    mov dword [COUNT10], 0
+    mov dword [COUNT13], 0
+    mov dword [COUNT15], 0
+    mov dword [SEED], FIRST_SEED
+    ; The PnP header's checksum, then the whole ROM's.
+    push cs
+    pop ds
+    mov byte [pnp_header + 9], 0
+    xor al, al
+    mov si, pnp_header
+    mov cx, pnp_end - pnp_header
+.pnp_sum:
+    add al, [si]
+    inc si
+    loop .pnp_sum
+    neg al
+    mov [pnp_header + 9], al
+    mov byte [checksum_fix], 0
+    xor al, al
+    xor si, si
+    mov cx, ROM_BYTES
+.rom_sum:
+    add al, [si]
+    inc si
+    loop .rom_sum
+    neg al
+    mov [checksum_fix], al
+    mov si, msg_hooked
+    call say
+.done:
+    popad
+    pop es
+    pop ds
+    popf
+    retf
+
+; Writes the zero-terminated string at CS:SI to COM1 (no UART set-up needed on
+; QEMU; each byte waits a bounded time for the transmitter).
+say:
+    push ax
+    push cx
+    push dx
+    push si
+.next:
+    mov al, [cs:si]
+    test al, al
+    jz .end
+    mov ah, al
+    mov dx, COM1 + 5            ; line status
+    mov cx, 0xFFFF
+.wait:
+    in al, dx
+    test al, 0x20               ; transmitter holding register empty
+    jnz .send
+    loop .wait
+.send:
+    mov al, ah
+    mov dx, COM1
+    out dx, al
+    inc si
+    jmp .next
+.end:
+    pop si
+    pop dx
+    pop cx
+    pop ax
+    ret
+
+msg_hooked: db 'hostile-bios: INT 10h, 13h and 15h hooked', 10, 0
+
+%if BEV
+; ---------------------------------------------------------------------------
+; The Boot Entry Vector: load the MBR ourselves, then jump with junk.
+; ---------------------------------------------------------------------------
+bev:
+    sti
+    push cs
+    pop ds
+    mov si, dap
+    mov ah, 0x42
+    mov dl, 0x80
+    int 0x13
+    jc .fail
+    xor ax, ax
+    mov es, ax
+    cmp word [es:0x7DFE], 0xAA55
+    jne .fail
+    mov si, msg_bev
+    call say
+    ; Junk everywhere but CS:IP and DL.
+    mov ax, 0x0700
+    mov ss, ax
+    mov esp, 0xBAD10400         ; SS:SP = 0700:0400, the upper half junk
+    mov ax, 0x1357
+    mov ds, ax
+    mov ax, 0xF00D
+    mov es, ax
+    mov ax, 0x2468
+    mov fs, ax
+    mov ax, 0x8642
+    mov gs, ax
+    mov eax, 0xDEAD0E5E
+    mov ebx, 0xFEEDBEEF
+    mov ecx, 0xC0FFEE11
+    mov edx, 0xBAADF000 | BOOT_DRIVE
+    mov esi, 0x8BADF00D
+    mov edi, 0xFACEB00C
+    mov ebp, 0xD15EA5E5
+    jmp JUMP_SEG:JUMP_OFF
+.fail:
+    mov si, msg_fail
+    call say
+.halt:
+    hlt
+    jmp .halt
+
+dap:
+    db 0x10, 0                  ; size, reserved
+    dw 1                        ; one sector
+    dw 0x7C00, 0x0000           ; to 0000:7C00
+    dq 0                        ; LBA 0
+
+msg_bev:
+    db 'hostile-bios: BEV: MBR read, jumping to ', JUMP_TEXT
+    db ' with DL=', DRIVE_TEXT, ' and junk in the upper halves', 10, 0
+msg_fail: db 'hostile-bios: BEV: cannot read the MBR of drive 80h', 10, 0
+%endif
+
+    times ROM_BYTES - 1 - ($ - $$) db 0
+checksum_fix:
+    db 0                        ; set by boot/option_rom.rs, then by init

@@ -1,0 +1,248 @@
+//! Disk reads that fail, as on a worn disk or a cheap stick (issue 38):
+//! QEMU's blkdebug driver under the image (`boot::ReadError`) fails the reads
+//! that cover one sector with EIO, on SeaBIOS's IDE path (`-M pc`). (The
+//! UEFI loader's retries are in `tests/loader.rs`, on OVMF's virtio disk:
+//! OVMF's AHCI driver retries by itself and, for a sector that keeps failing,
+//! returns wrong bytes as a success.) The sectors are found in the image itself: stage 2
+//! from the MBR's first entry, the files from the FAT that the MBR's second
+//! entry holds (read with `fatfs`, then located by their contents).
+//!
+//! A read that fails once must be tried again (the loader says
+//! `line::LOADER_READ_RETRIED`) and the cube must come up; a sector that never
+//! reads must be named on COM1 and on the screen (`line::LOADER_CANNOT_READ`),
+//! and the machine must stay up and do nothing more: no reset (QEMU runs with
+//! `-no-reboot`, so a reset would end it), no kernel.
+
+mod common;
+
+use boot::disk_layout::SECTOR;
+use boot::{line, Board, Firmware, Qemu, QemuOptions, ReadError, ReadFailures};
+use common::BOOT_TIMEOUT;
+use std::io::{Cursor, Read};
+use std::time::{Duration, Instant};
+
+/// OVMF boots in well under 20 s here, but emulation on a loaded machine is
+/// slow (as `tests/loader.rs`).
+const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
+
+/// The image's kernel file, as the BIOS stage 2 and the UEFI loader read it.
+const KERNEL: &str = boot::secure_boot::KERNEL_FILE_NAME;
+/// BIOS stage 4, a file on the FAT that stage 2 loads before the kernel.
+const STAGE_4: &str = "boot-stage-4";
+
+/// The sectors of the one image that the tests make fail.
+#[derive(Debug)]
+struct Sectors {
+    stage_2_first: u64,
+    stage_2_middle: u64,
+    stage_4_middle: u64,
+    kernel_middle: u64,
+}
+
+fn image() -> Vec<u8> {
+    let images = boot::images::publish().expect("the build script made the images");
+    std::fs::read(&images.hybrid).expect("the one image reads")
+}
+
+/// (first LBA, sectors) of MBR entry `index`.
+fn mbr_entry(disk: &[u8], index: usize) -> (u64, u64) {
+    assert_eq!(disk[510..512], [0x55, 0xAA], "no MBR");
+    let raw = &disk[446 + 16 * index..][..16];
+    let start = u32::from_le_bytes(raw[8..12].try_into().unwrap());
+    let sectors = u32::from_le_bytes(raw[12..16].try_into().unwrap());
+    (u64::from(start), u64::from(sectors))
+}
+
+/// The LBA of the sector holding the first byte of the cluster-aligned
+/// chunk in the middle of file `name` on the FAT at `fat_start`: the file is
+/// read with `fatfs`, and its chunk must be found exactly once in the volume,
+/// at a sector boundary.
+fn middle_of_file(disk: &[u8], fat_start: u64, fat_sectors: u64, name: &str) -> u64 {
+    let volume = &disk[(fat_start as usize * SECTOR)..][..(fat_sectors as usize * SECTOR)];
+    let fs = fatfs::FileSystem::new(Cursor::new(volume.to_vec()), fatfs::FsOptions::new())
+        .expect("the ESP is a FAT");
+    let cluster = fs.cluster_size() as usize;
+    let mut contents = Vec::new();
+    fs.root_dir()
+        .open_file(name)
+        .unwrap_or_else(|e| panic!("no {name} on the ESP: {e}"))
+        .read_to_end(&mut contents)
+        .unwrap();
+    assert!(
+        contents.len() >= 2 * cluster,
+        "{name} is {} bytes, less than two clusters of {cluster}",
+        contents.len()
+    );
+    let offset = contents.len() / 2 / cluster * cluster;
+    let chunk = &contents[offset..offset + cluster];
+    let found: Vec<usize> = (0..volume.len() - cluster)
+        .step_by(SECTOR)
+        .filter(|&at| &volume[at..at + cluster] == chunk)
+        .collect();
+    assert_eq!(
+        found.len(),
+        1,
+        "{name}'s bytes {offset}..+{cluster} are found at {found:?} in the FAT volume"
+    );
+    fat_start + (found[0] / SECTOR) as u64
+}
+
+fn sectors() -> Sectors {
+    let disk = image();
+    // The boot sector loads the first entry (stage 2); stage 2 reads its
+    // files from the FAT in the next.
+    let (stage_2, stage_2_sectors) = mbr_entry(&disk, 0);
+    let (fat, fat_sectors) = mbr_entry(&disk, 1);
+    assert!(stage_2_sectors > 2, "stage 2 is {stage_2_sectors} sectors");
+    Sectors {
+        stage_2_first: stage_2,
+        stage_2_middle: stage_2 + stage_2_sectors / 2,
+        stage_4_middle: middle_of_file(&disk, fat, fat_sectors, STAGE_4),
+        kernel_middle: middle_of_file(&disk, fat, fat_sectors, KERNEL),
+    }
+}
+
+fn start(firmware: Firmware, error: ReadError) -> Qemu {
+    let images = boot::images::publish().expect("the build script made the images");
+    let mut options = QemuOptions::new(images.hybrid);
+    if firmware == Firmware::Uefi {
+        options.board = Board::Q35;
+    }
+    options.firmware = firmware;
+    options.read_errors.push(error);
+    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// A read of `sector` fails `times` times: the loader must say it tried
+/// again, and the cube must come up.
+fn retried_and_ready(firmware: Firmware, sector: u64, times: u32, what: &str) {
+    let mut qemu = start(
+        firmware,
+        ReadError {
+            sector,
+            failures: ReadFailures::Times(times),
+        },
+    );
+    let timeout = match firmware {
+        Firmware::Bios => BOOT_TIMEOUT,
+        Firmware::Uefi | Firmware::Uefi32 => UEFI_BOOT_TIMEOUT,
+    };
+    let console = qemu
+        .wait_for_serial(line::READY, timeout)
+        .unwrap_or_else(|e| panic!("{what} (LBA {sector:#x}) failed {times} time(s): {e}"));
+    let retried = console.find(line::LOADER_READ_RETRIED).unwrap_or_else(|| {
+        panic!("{what} (LBA {sector:#x}) failed {times} time(s), yet no retry was said:\n{console}")
+    });
+    let banner = console
+        .find(line::KERNEL_BANNER)
+        .unwrap_or_else(|| panic!("no kernel banner:\n{console}"));
+    assert!(
+        retried < banner,
+        "the retry is said by the loader:\n{console}"
+    );
+    assert!(!console.contains(line::LOADER_CANNOT_READ), "{console}");
+}
+
+#[test]
+fn bios_stage_2s_first_sector_failing_once_is_read_again() {
+    retried_and_ready(
+        Firmware::Bios,
+        sectors().stage_2_first,
+        1,
+        "stage 2's first sector",
+    );
+}
+
+#[test]
+fn bios_a_sector_in_the_middle_of_stage_2_failing_once_is_read_again() {
+    retried_and_ready(
+        Firmware::Bios,
+        sectors().stage_2_middle,
+        1,
+        "stage 2's middle",
+    );
+}
+
+#[test]
+fn bios_a_sector_of_stage_4_failing_once_is_read_again() {
+    retried_and_ready(Firmware::Bios, sectors().stage_4_middle, 1, STAGE_4);
+}
+
+#[test]
+fn bios_a_sector_of_the_kernel_failing_once_is_read_again() {
+    retried_and_ready(Firmware::Bios, sectors().kernel_middle, 1, KERNEL);
+}
+
+/// After the failure's message: the guest runs on for a second of QEMU's CPU
+/// time (or five seconds, if it idles halted), and must still be up with
+/// nothing more on serial.
+fn stays_up_and_quiet(qemu: &mut Qemu, console: &str) {
+    let cpu = qemu.cpu_time().expect("QEMU runs");
+    let started = Instant::now();
+    while qemu
+        .cpu_time()
+        .is_some_and(|now| now < cpu + Duration::from_secs(1))
+        && started.elapsed() < Duration::from_secs(5)
+    {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(
+        qemu.is_running(),
+        "QEMU ended (a reset, with -no-reboot) after the message:\n{}",
+        qemu.serial()
+    );
+    assert_eq!(qemu.serial(), console, "more happened after the message");
+}
+
+#[test]
+fn bios_a_kernel_sector_that_never_reads_is_named_on_com1_and_screen() {
+    let sector = sectors().kernel_middle;
+    let mut qemu = start(
+        Firmware::Bios,
+        ReadError {
+            sector,
+            failures: ReadFailures::Always,
+        },
+    );
+    let console = qemu
+        .wait_for_serial(line::LOADER_CANNOT_READ, BOOT_TIMEOUT)
+        .unwrap();
+    // The message names the LBA of the read that failed: one that covers the
+    // bad sector (a transfer is at most 127 sectors).
+    const AT_LBA: &str = "cannot read the disk at LBA 0x";
+    let at = console
+        .find(AT_LBA)
+        .unwrap_or_else(|| panic!("no LBA named:\n{console}"))
+        + AT_LBA.len();
+    let hex = &console[at..at + 8];
+    let lba = u64::from_str_radix(hex, 16)
+        .unwrap_or_else(|e| panic!("{hex:?} is not 8 hex digits ({e}):\n{console}"));
+    assert!(
+        lba <= sector && sector < lba + 128,
+        "the message names LBA {lba:#x}, not a read covering {sector:#x}:\n{console}"
+    );
+    let screen = qemu.text_screen().unwrap();
+    assert!(
+        screen.contains(&format!("{AT_LBA}{hex}")),
+        "not on the screen:\n{screen}"
+    );
+    assert!(!console.contains(line::KERNEL_BANNER), "{console}");
+    stays_up_and_quiet(&mut qemu, &console);
+}
+
+#[test]
+fn the_sectors_are_where_the_image_says() {
+    let disk = image();
+    let found = sectors();
+    eprintln!("the sectors made to fail: {found:?}");
+    let (stage_2, count) = mbr_entry(&disk, 0);
+    let (fat, fat_sectors) = mbr_entry(&disk, 1);
+    assert_eq!(found.stage_2_first, stage_2);
+    assert!((stage_2..stage_2 + count).contains(&found.stage_2_middle));
+    for lba in [found.stage_4_middle, found.kernel_middle] {
+        assert!((fat..fat + fat_sectors).contains(&lba), "{found:?}");
+    }
+    assert_ne!(found.stage_4_middle, found.kernel_middle);
+    let kernel_sector = &disk[found.kernel_middle as usize * SECTOR..][..SECTOR];
+    assert!(kernel_sector.iter().any(|&b| b != 0), "{found:?}");
+}
