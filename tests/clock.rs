@@ -100,7 +100,7 @@ fn on_every_machine_the_clock_keeps_time_and_the_machine_powers_off_or_resets() 
         check_the_clock(&mut qemu, machine);
         let timeout = match machine.firmware {
             Firmware::Bios => BOOT_TIMEOUT,
-            Firmware::Uefi => UEFI_BOOT_TIMEOUT,
+            Firmware::Uefi | Firmware::Uefi32 => UEFI_BOOT_TIMEOUT,
         };
         qemu.wait_for_serial(line::READY, timeout).unwrap();
         match machine.then {

@@ -111,7 +111,7 @@ fn with_a_blt_only_gop_first_the_usable_second_one_is_drawn_on() {
 fn cube_without_nx(firmware: Firmware) {
     let mut qemu = start(firmware, Graphics::StdVga, Some("qemu64,-nx"));
     let timeout = match firmware {
-        Firmware::Uefi => UEFI_BOOT_TIMEOUT,
+        Firmware::Uefi | Firmware::Uefi32 => UEFI_BOOT_TIMEOUT,
         Firmware::Bios => BOOT_TIMEOUT,
     };
     let console = qemu.wait_for_serial(line::READY, timeout).unwrap();
@@ -123,7 +123,7 @@ fn cube_without_nx(firmware: Firmware) {
         &common::CUBE_KEYS,
         |screen, model, _, what| match firmware {
             Firmware::Bios => assert_same_picture(screen, model, what),
-            Firmware::Uefi => {
+            Firmware::Uefi | Firmware::Uefi32 => {
                 assert_pictures_equal(screen, &presented(model, screen.width, screen.height), what)
             }
         },

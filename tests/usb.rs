@@ -114,6 +114,7 @@ fn start_with(
     let image = match firmware {
         Firmware::Bios => images.bios,
         Firmware::Uefi => images.uefi,
+        Firmware::Uefi32 => images.hybrid,
     };
     let mut options = QemuOptions::new(image);
     options.firmware = firmware;

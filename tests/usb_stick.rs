@@ -55,7 +55,7 @@ fn boots_and_runs(firmware: Firmware, host: UsbHost) {
     let what = format!("{firmware:?} from a stick on {}", host.device());
     let board = match firmware {
         Firmware::Bios => Board::PC,
-        Firmware::Uefi => Board::Q35,
+        Firmware::Uefi | Firmware::Uefi32 => Board::Q35,
     };
     let mut qemu = boot_from_stick(firmware, host, board, Graphics::StdVga, Vec::new());
     let console = qemu
@@ -78,7 +78,7 @@ fn boots_and_runs(firmware: Firmware, host: UsbHost) {
     let model = model_picture(&soft);
     match firmware {
         Firmware::Bios => assert_same_picture(&screen, &model, &what),
-        Firmware::Uefi => {
+        Firmware::Uefi | Firmware::Uefi32 => {
             let expected = presented(&model, screen.width, screen.height);
             assert_pictures_equal(&screen, &expected, &what);
         }
@@ -143,7 +143,7 @@ fn stick_tablet_and_keyboard_on_one_xhci(firmware: Firmware) {
     // is bound to.
     let (board, graphics) = match firmware {
         Firmware::Bios => (Board::PC, Graphics::StdVga),
-        Firmware::Uefi => (Q35_WITHOUT_PS2, Graphics::BochsDisplay),
+        Firmware::Uefi | Firmware::Uefi32 => (Q35_WITHOUT_PS2, Graphics::BochsDisplay),
     };
     let mut qemu = boot_from_stick(firmware, UsbHost::Xhci, board, graphics, devices);
     let console = qemu
@@ -172,7 +172,7 @@ fn stick_tablet_and_keyboard_on_one_xhci(firmware: Firmware) {
             let what = format!("{what}, {key}");
             match firmware {
                 Firmware::Bios => assert_same_picture(screen, model, &what),
-                Firmware::Uefi => assert_presented(screen, model, &what),
+                Firmware::Uefi | Firmware::Uefi32 => assert_presented(screen, model, &what),
             }
         });
     usb_escape_powers_off_with_the_xhci_halted_first(&mut qemu, DISPLAY_ID, BOOT_TIMEOUT);
