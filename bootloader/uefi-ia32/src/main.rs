@@ -143,6 +143,9 @@ fn main() -> Status {
     };
     // Stage 4 reads `E820MemoryRegion`s: the same 24 bytes, written in place.
     let e820 = table.as_ptr().cast::<E820MemoryRegion>();
+    // By index, each entry copied out before its slot is written: no
+    // reference into the table is held across a write through `e820`.
+    #[allow(clippy::needless_range_loop)]
     for index in 0..count {
         let entry = entries[index];
         // SAFETY: index < count <= table_entries; entry `index` was read
