@@ -234,28 +234,11 @@ fn third_party_ca_off_with_the_key_in_db_the_stick_boots() {
 /// firmware through shim, both by the key in `db`) refuses it.
 #[test]
 fn third_party_ca_off_with_the_key_in_db_a_changed_kernel_is_refused() {
-    use std::io::{Read, Seek, SeekFrom, Write};
     let scratch = tempfile::tempdir().unwrap();
     let key = test_key(&scratch.path().join("key"));
-    let mut disk = std::fs::read(signed_stick(scratch.path(), &key)).unwrap();
-    let esp_range = {
-        let esp = sb::esp_of_disk(&disk).unwrap();
-        let start = esp.as_ptr() as usize - disk.as_ptr() as usize;
-        start..start + esp.len()
-    };
-    let mut esp = std::io::Cursor::new(disk[esp_range.clone()].to_vec());
-    {
-        let fs = fatfs::FileSystem::new(&mut esp, fatfs::FsOptions::new()).unwrap();
-        let mut file = fs.root_dir().open_file(sb::KERNEL_FILE_NAME).unwrap();
-        let middle = file.seek(SeekFrom::End(0)).unwrap() / 2;
-        file.seek(SeekFrom::Start(middle)).unwrap();
-        let mut byte = [0u8];
-        file.read_exact(&mut byte).unwrap();
-        file.seek(SeekFrom::Start(middle)).unwrap();
-        file.write_all(&[byte[0] ^ 0x01]).unwrap();
-        file.flush().unwrap();
-    }
-    disk[esp_range].copy_from_slice(&esp.into_inner());
+    let disk = common::with_a_kernel_byte_changed(
+        &std::fs::read(signed_stick(scratch.path(), &key)).unwrap(),
+    );
     let tampered = scratch.path().join("tampered.img");
     std::fs::write(&tampered, &disk).unwrap();
     let vars = microsoft_2023(

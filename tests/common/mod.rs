@@ -510,3 +510,31 @@ pub fn doubled(picture: &RgbImage) -> RgbImage {
         .collect();
     RgbImage::new(width, height, pixels)
 }
+
+/// The disk image `disk` with one bit of one byte in the middle of the
+/// kernel file on its ESP flipped: a kernel the signed loader must refuse.
+#[allow(dead_code)] // used by the Secure Boot test files only
+pub fn with_a_kernel_byte_changed(disk: &[u8]) -> Vec<u8> {
+    use boot::secure_boot as sb;
+    use std::io::{Read, Seek, SeekFrom, Write};
+    let mut disk = disk.to_vec();
+    let esp_range = {
+        let esp = sb::esp_of_disk(&disk).unwrap();
+        let start = esp.as_ptr() as usize - disk.as_ptr() as usize;
+        start..start + esp.len()
+    };
+    let mut esp = std::io::Cursor::new(disk[esp_range.clone()].to_vec());
+    {
+        let fs = fatfs::FileSystem::new(&mut esp, fatfs::FsOptions::new()).unwrap();
+        let mut file = fs.root_dir().open_file(sb::KERNEL_FILE_NAME).unwrap();
+        let middle = file.seek(SeekFrom::End(0)).unwrap() / 2;
+        file.seek(SeekFrom::Start(middle)).unwrap();
+        let mut byte = [0u8];
+        file.read_exact(&mut byte).unwrap();
+        file.seek(SeekFrom::Start(middle)).unwrap();
+        file.write_all(&[byte[0] ^ 0x01]).unwrap();
+        file.flush().unwrap();
+    }
+    disk[esp_range].copy_from_slice(&esp.into_inner());
+    disk
+}
