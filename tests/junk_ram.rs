@@ -12,7 +12,7 @@ mod common;
 
 use boot::qemu::{DEFAULT_MEMORY_MIB, EXIT_SUCCESS};
 use boot::{line, Board, Firmware, Qemu, QemuOptions, RamFile};
-use common::{assert_pictures_equal, assert_same_picture, presented, BOOT_TIMEOUT};
+use common::BOOT_TIMEOUT;
 use std::io::Write;
 use std::path::Path;
 use std::time::Duration;
@@ -98,16 +98,9 @@ fn cube_on_junk(firmware: Firmware) {
         still_junk > 0,
         "no junk found in RAM: the loader device did not fill it"
     );
-    common::after_each_key_on(
-        &mut qemu,
-        &common::CUBE_KEYS,
-        |screen, model, _, what| match firmware {
-            Firmware::Bios => assert_same_picture(screen, model, what),
-            Firmware::Uefi | Firmware::Uefi32 => {
-                assert_pictures_equal(screen, &presented(model, screen.width, screen.height), what)
-            }
-        },
-    );
+    common::after_each_key_on(&mut qemu, &common::CUBE_KEYS, |screen, model, _, what| {
+        common::assert_cube_picture(firmware, screen, model, what)
+    });
     qemu.send_key("esc").unwrap();
     qemu.wait_for_serial(line::GOODBYE, BOOT_TIMEOUT).unwrap();
     let status = qemu.wait_for_exit(BOOT_TIMEOUT).unwrap();

@@ -18,7 +18,7 @@ use boot::{
     line, Board, DiskAttachment, Firmware, Graphics, Qemu, QemuError, QemuOptions, ReadError,
     ReadFailures,
 };
-use common::{assert_pictures_equal, assert_same_picture, presented, BOOT_TIMEOUT};
+use common::{assert_pictures_equal, presented, BOOT_TIMEOUT};
 use std::time::Duration;
 
 /// OVMF boots in well under 20 s here, but emulation on a loaded machine is slow.
@@ -133,16 +133,9 @@ fn cube_without_nx(firmware: Firmware) {
     assert_loader_line_first(&console);
     assert!(console.contains(NX_OFF), "{console}");
     assert!(!console.contains(NX_ON), "{console}");
-    common::after_each_key_on(
-        &mut qemu,
-        &common::CUBE_KEYS,
-        |screen, model, _, what| match firmware {
-            Firmware::Bios => assert_same_picture(screen, model, what),
-            Firmware::Uefi | Firmware::Uefi32 => {
-                assert_pictures_equal(screen, &presented(model, screen.width, screen.height), what)
-            }
-        },
-    );
+    common::after_each_key_on(&mut qemu, &common::CUBE_KEYS, |screen, model, _, what| {
+        common::assert_cube_picture(firmware, screen, model, what)
+    });
 }
 
 #[test]

@@ -277,6 +277,22 @@ pub fn assert_presented(screen: &RgbImage, model: &RgbImage, what: &str) {
     assert_pictures_equal(screen, &expected, what);
 }
 
+/// The screen after a key, by how the machine booted: by BIOS the VGA's own
+/// Mode X picture, by UEFI the model's picture as presented into the
+/// firmware's framebuffer.
+#[allow(dead_code)] // not every test file boots both ways
+pub fn assert_cube_picture(
+    firmware: boot::Firmware,
+    screen: &RgbImage,
+    model: &RgbImage,
+    what: &str,
+) {
+    match firmware {
+        boot::Firmware::Bios => assert_same_picture(screen, model, what),
+        boot::Firmware::Uefi | boot::Firmware::Uefi32 => assert_presented(screen, model, what),
+    }
+}
+
 /// A PC of today: no i8042, and no PIT either (recent Intel platforms gate
 /// its clock), so the kernel idles without `hlt` and polls.
 pub const Q35_WITHOUT_PS2: Board = Board {
