@@ -203,7 +203,7 @@ const KERNEL_SOURCES: &[&str] = &[
     "kernel",
     "protocol",
     "keyboard",
-    "xhci-keyboard",
+    "usb",
     "clock",
     "firmware",
     "memory",

@@ -1112,7 +1112,7 @@ fn paths_are_told_from_other_code() {
 
 #[test]
 fn a_quoted_constant_must_match_the_code() {
-    // xhci-keyboard/src/xhci/enumeration.rs: COMMAND_MICROS = 5_000_000.
+    // usb/src/xhci/enumeration.rs: COMMAND_MICROS = 5_000_000.
     let right = "A command is given up after 5 s (`COMMAND_MICROS`), or\n\
                  5,000 ms (`COMMAND_MICROS`), and a port reset after 0.8 s\n\
                  (`PORT_RESET_MICROS`); Linux's name (`XHCI_CMD_DEFAULT_TIMEOUT`) is not ours.\n";

@@ -1,6 +1,6 @@
 //! What every keyboard path shares, whatever the hardware: PS/2 scan code
 //! set 1 is the kernel's one keyboard language. The PS/2 keyboard sends it,
-//! and the USB driver (the `xhci-keyboard` crate) translates its reports
+//! and the USB driver (the `usb` crate) translates its reports
 //! into it.
 //!
 //! - [`scancode`]: the set-1 byte values every part agrees on;

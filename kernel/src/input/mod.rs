@@ -1,6 +1,6 @@
 //! The keyboards' hardware: the 8042 PS/2 controller ([`ps2`]) and xHCI USB
 //! controllers ([`xhci`]). What the bytes and reports mean is decided in the
-//! portable crates `keyboard` and `xhci-keyboard`; both paths end in the one
+//! portable crates `keyboard` and `usb`; both paths end in the one
 //! scancode queue the frame loop reads.
 
 pub mod ps2;

@@ -1,13 +1,13 @@
 //! USB keyboards through xHCI controllers, polled from the main loops. This
 //! file is the hardware end only: PCI, the register mapping, DMA memory and
-//! the clock; the driver itself is `xhci_keyboard::xhci`, tested on the host.
+//! the clock; the driver itself is `usb::xhci`, tested on the host.
 
 use crate::{dma, input::ps2, pci, serial_println, time};
 use bootloader_api::info::MemoryRegions;
 use core::sync::atomic::{AtomicU64, Ordering};
 use spin::Mutex;
-use xhci_keyboard::xhci::{Handoff, Xhci};
-use xhci_keyboard::{Hardware, Memory};
+use usb::xhci::{Handoff, Xhci};
+use usb::{Hardware, Memory};
 
 /// Controllers driven; more are named and left alone.
 const MAX_CONTROLLERS: usize = 4;

@@ -24,6 +24,7 @@ extern crate std;
 pub mod context;
 pub mod descriptor;
 pub mod hid;
+pub mod host;
 pub mod report;
 pub mod ring;
 pub mod xhci;
@@ -54,4 +55,20 @@ pub trait Hardware: Memory {
     fn now_micros(&mut self) -> u64;
     /// Says something on the kernel's log (one line, no newline).
     fn log(&mut self, message: core::fmt::Arguments<'_>);
+}
+
+/// What an EHCI, OHCI or UHCI driver needs beyond [`Hardware`]: UHCI's
+/// registers are 16-bit I/O ports, and the EHCI and UHCI firmware hand-offs
+/// live in PCI configuration space. `mmio_read`/`mmio_write` reach 32-bit
+/// registers (UHCI's FRBASEADD; every OHCI and EHCI register).
+pub trait PciHardware: Hardware {
+    /// Reads the 16-bit register at `offset` (2-byte aligned).
+    fn read16(&mut self, offset: u32) -> u16;
+    /// Writes the 16-bit register at `offset`.
+    fn write16(&mut self, offset: u32, value: u16);
+    /// Reads the controller function's PCI configuration dword at `offset`
+    /// (4-byte aligned, below 256).
+    fn pci_config_read(&mut self, offset: u8) -> u32;
+    /// Writes the controller function's PCI configuration dword at `offset`.
+    fn pci_config_write(&mut self, offset: u8, value: u32);
 }

@@ -1,0 +1,352 @@
+//! The one narrow, polled interface between the controller-independent
+//! device layer ([`crate::bus`]) and a host controller driver (EHCI, OHCI,
+//! UHCI; xHCI keeps its own enumeration, see `docs/architecture.md`).
+//!
+//! Nothing here waits: every call either does its register and DMA work and
+//! returns, or starts something whose end a later `*_poll` call reports.
+//! The device layer owns every timeout (Linux's, in [`crate::bus`]); a
+//! driver only says [`Transfer::Pending`] until the controller has finished.
+//! Like Linux's `hc_driver`, the device layer never sees a queue head, an
+//! endpoint descriptor or a transfer descriptor.
+
+use core::fmt;
+
+/// Which kind of controller, for the log and the facts record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControllerKind {
+    /// Universal Host Controller Interface (Intel, VIA): USB 1.1, I/O ports.
+    Uhci,
+    /// Open Host Controller Interface (AMD, SiS, ALi, NEC, Apple): USB 1.1.
+    Ohci,
+    /// Enhanced Host Controller Interface: USB 2.0 high speed, with companions.
+    Ehci,
+    /// Extensible Host Controller Interface: every speed.
+    Xhci,
+}
+
+impl ControllerKind {
+    /// The PCI programming interface of class 0C03h that names this kind.
+    pub const fn prog_if(self) -> u8 {
+        match self {
+            ControllerKind::Uhci => 0x00,
+            ControllerKind::Ohci => 0x10,
+            ControllerKind::Ehci => 0x20,
+            ControllerKind::Xhci => 0x30,
+        }
+    }
+
+    /// The kind a PCI class 0C03h programming interface names, if any.
+    pub const fn from_prog_if(prog_if: u8) -> Option<ControllerKind> {
+        match prog_if {
+            0x00 => Some(ControllerKind::Uhci),
+            0x10 => Some(ControllerKind::Ohci),
+            0x20 => Some(ControllerKind::Ehci),
+            0x30 => Some(ControllerKind::Xhci),
+            _ => None,
+        }
+    }
+
+    /// The short lower-case name the log and the facts record use.
+    pub const fn name(self) -> &'static str {
+        match self {
+            ControllerKind::Uhci => "uhci",
+            ControllerKind::Ohci => "ohci",
+            ControllerKind::Ehci => "ehci",
+            ControllerKind::Xhci => "xhci",
+        }
+    }
+}
+
+impl fmt::Display for ControllerKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A device's bus speed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Speed {
+    /// 1.5 Mbit/s.
+    Low,
+    /// 12 Mbit/s.
+    Full,
+    /// 480 Mbit/s.
+    High,
+}
+
+/// A root port as the controller reports it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PortStatus {
+    /// Something is attached.
+    pub connected: bool,
+    /// The port is enabled (after a reset).
+    pub enabled: bool,
+    /// The attached device is low speed (line state before the reset; UHCI
+    /// and OHCI report it directly). High speed is known only after a reset.
+    pub low_speed: bool,
+    /// The connection changed since the last [`HostController::clear_port_change`].
+    pub connect_changed: bool,
+    /// The port belongs to a companion controller (EHCI's PORT_OWNER).
+    pub companion_owned: bool,
+}
+
+/// What a root port reset ended in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResetOutcome {
+    /// The port is enabled with a device at this speed.
+    Enabled(Speed),
+    /// The device is full or low speed on an EHCI root port, and the port
+    /// was handed to the companion controller (PORT_OWNER set): this
+    /// controller forgets it.
+    HandedToCompanion,
+    /// Nothing is attached any more, or the port did not enable.
+    Failed,
+}
+
+/// The transaction translator a full- or low-speed device behind a
+/// high-speed hub is reached through (EHCI split transactions): the
+/// high-speed hub's address and the hub port the device's subtree hangs on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TransactionTranslator {
+    /// The high-speed hub's USB address.
+    pub hub_address: u8,
+    /// The port of that hub (1-based) the device is below.
+    pub hub_port: u8,
+}
+
+/// Everything a driver needs to reach a device's endpoint 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceInfo {
+    /// The device's speed.
+    pub speed: Speed,
+    /// The root port (1-based) the device is below.
+    pub root_port: u8,
+    /// For a full- or low-speed device reached through a high-speed hub:
+    /// that hub's transaction translator. `None` on UHCI and OHCI.
+    pub translator: Option<TransactionTranslator>,
+}
+
+/// A device as the driver knows it: an index in the driver's own table,
+/// which the driver gives from [`HostController::device_new`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceId(pub u8);
+
+/// An interrupt-in pipe, as [`HostController::interrupt_open`] gives it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PipeId(pub u8);
+
+/// A control request's SETUP packet (USB 2.0 9.3).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Setup {
+    /// bmRequestType.
+    pub request_type: u8,
+    /// bRequest.
+    pub request: u8,
+    /// wValue.
+    pub value: u16,
+    /// wIndex.
+    pub index: u16,
+    /// wLength: the bytes of the data stage.
+    pub length: u16,
+}
+
+impl Setup {
+    /// The eight bytes on the wire.
+    pub fn bytes(&self) -> [u8; 8] {
+        let [v0, v1] = self.value.to_le_bytes();
+        let [i0, i1] = self.index.to_le_bytes();
+        let [l0, l1] = self.length.to_le_bytes();
+        [self.request_type, self.request, v0, v1, i0, i1, l0, l1]
+    }
+
+    /// Whether the data stage (if any) is device-to-host.
+    pub fn is_in(&self) -> bool {
+        self.request_type & 0x80 != 0
+    }
+}
+
+/// Where a transfer stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Transfer {
+    /// Not finished (or, for an interrupt pipe, no new report).
+    Pending,
+    /// Finished with this many data bytes (copied into the caller's buffer
+    /// for an IN transfer).
+    Complete(usize),
+    /// The device answered STALL (the pipe needs CLEAR_FEATURE(ENDPOINT_HALT)
+    /// for an interrupt endpoint; endpoint 0 clears at the next SETUP).
+    Stalled,
+    /// The transfer failed; the driver has retired it.
+    Failed(TransferError),
+}
+
+/// Why a transfer failed, as the controller says.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransferError {
+    /// No handshake after the controller's retries (CRC or timeout).
+    NoResponse,
+    /// The device sent more than asked for.
+    Babble,
+    /// The controller could not keep up with memory (overrun/underrun).
+    DataBuffer,
+    /// A data toggle mismatch the controller could not resolve.
+    Toggle,
+    /// A split transaction's translator failed (EHCI).
+    Split,
+    /// The controller is halted, dead or reported something impossible.
+    Controller,
+    /// The driver has no room (descriptors, DMA memory) for another transfer.
+    NoRoom,
+}
+
+impl fmt::Display for TransferError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            TransferError::NoResponse => "no response",
+            TransferError::Babble => "babble",
+            TransferError::DataBuffer => "data buffer error",
+            TransferError::Toggle => "data toggle error",
+            TransferError::Split => "split transaction error",
+            TransferError::Controller => "controller error",
+            TransferError::NoRoom => "no room",
+        })
+    }
+}
+
+/// Why a driver refused a request.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum HostError {
+    /// No room for another device or pipe.
+    NoRoom,
+    /// The device or pipe is not one this driver gave out.
+    UnknownHandle,
+    /// A transfer is already running on this device's endpoint 0.
+    Busy,
+    /// The request cannot be done (too long, bad endpoint or packet size).
+    Invalid,
+    /// The controller is halted or gone.
+    ControllerGone,
+}
+
+impl fmt::Display for HostError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            HostError::NoRoom => "no room",
+            HostError::UnknownHandle => "unknown device or pipe",
+            HostError::Busy => "busy",
+            HostError::Invalid => "invalid request",
+            HostError::ControllerGone => "controller halted or gone",
+        })
+    }
+}
+
+/// Largest data stage the device layer asks for (a configuration
+/// descriptor of a keyboard with many interfaces, a report descriptor).
+pub const MAX_CONTROL_DATA: usize = 1024;
+/// Largest interrupt report read.
+pub const MAX_REPORT: usize = 64;
+
+/// A polled host controller, as the device layer drives it. Ports are
+/// 1-based. A driver checks every handle and index it is given.
+pub trait HostController {
+    /// Which kind this is.
+    fn kind(&self) -> ControllerKind;
+
+    /// The clock every wait of the device layer is bounded by, in microseconds.
+    fn now_micros(&mut self) -> u64;
+
+    /// Says something on the kernel's log (one line, no newline).
+    fn log(&mut self, message: fmt::Arguments<'_>);
+
+    /// The number of root ports.
+    fn root_ports(&self) -> u8;
+
+    /// A root port's status.
+    fn port_status(&mut self, port: u8) -> PortStatus;
+
+    /// Acknowledges a root port's connect (and enable) change.
+    fn clear_port_change(&mut self, port: u8);
+
+    /// Starts a root port reset; the device layer calls [`Self::port_reset_end`]
+    /// 50 ms later (USB 2.0 7.1.7.5, TDRSTR).
+    fn port_reset_begin(&mut self, port: u8);
+
+    /// Ends the reset (drivers whose hardware ends it itself check that it
+    /// has) and enables the port; says what is there. An EHCI driver hands
+    /// a full- or low-speed device to its companion here.
+    fn port_reset_end(&mut self, port: u8) -> ResetOutcome;
+
+    /// Disables a root port (a device given up, or gone).
+    fn port_disable(&mut self, port: u8);
+
+    /// Makes a device at the default address 0 with an 8-byte endpoint 0.
+    fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError>;
+
+    /// The device now answers at `address` (after its SET_ADDRESS completed).
+    fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError>;
+
+    /// The device's endpoint 0 packet size, from its device descriptor.
+    fn device_set_max_packet(&mut self, device: DeviceId, max_packet: u16)
+        -> Result<(), HostError>;
+
+    /// The device is a hub: `ports` downstream ports; `multi_tt` if it has a
+    /// translator per port. Drivers that need nothing of this ignore it.
+    fn device_is_hub(
+        &mut self,
+        device: DeviceId,
+        ports: u8,
+        multi_tt: bool,
+    ) -> Result<(), HostError>;
+
+    /// Forgets the device: its pipes are closed and its memory reused.
+    fn device_remove(&mut self, device: DeviceId);
+
+    /// Starts a control transfer on the device's endpoint 0. An OUT data
+    /// stage's bytes are `out` (`setup.length` of them); an IN data stage
+    /// of `setup.length` bytes is read at [`Self::control_poll`].
+    fn control_begin(
+        &mut self,
+        device: DeviceId,
+        setup: Setup,
+        out: &[u8],
+    ) -> Result<(), HostError>;
+
+    /// Where the device's control transfer stands; when complete, an IN
+    /// data stage's bytes are copied into `into`.
+    fn control_poll(&mut self, device: DeviceId, into: &mut [u8]) -> Transfer;
+
+    /// Stops the device's control transfer (the device layer's timeout).
+    fn control_cancel(&mut self, device: DeviceId);
+
+    /// Opens an interrupt-in pipe on `endpoint` (1-15) of `max_packet`
+    /// bytes, polled every `interval` frames (a power of two the driver
+    /// may round down), and starts its first transfer.
+    fn interrupt_open(
+        &mut self,
+        device: DeviceId,
+        endpoint: u8,
+        max_packet: u16,
+        interval: u8,
+    ) -> Result<PipeId, HostError>;
+
+    /// A new report, if one came: copied into `into`, and the next
+    /// transfer started with the right data toggle. After `Stalled` or
+    /// `Failed` the pipe waits for [`Self::interrupt_restart`].
+    fn interrupt_poll(&mut self, pipe: PipeId, into: &mut [u8]) -> Transfer;
+
+    /// Starts the pipe again after a stall or error; `reset_toggle` after a
+    /// CLEAR_FEATURE(ENDPOINT_HALT), which resets the device's toggle to DATA0.
+    fn interrupt_restart(&mut self, pipe: PipeId, reset_toggle: bool) -> Result<(), HostError>;
+
+    /// Closes the pipe.
+    fn interrupt_close(&mut self, pipe: PipeId);
+
+    /// One register read or DMA word: whether anything may have happened
+    /// (a transfer completed, a root port changed) since the last call.
+    /// The device layer skips the rest of an idle poll when this is false.
+    fn anything_happened(&mut self) -> bool;
+
+    /// Halts the controller, bounded, and hands shared ports back (EHCI
+    /// clears CONFIGFLAG), before power-off or reset. Says whether it halted.
+    fn halt(&mut self) -> bool;
+}
