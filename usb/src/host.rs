@@ -350,3 +350,18 @@ pub trait HostController {
     /// clears CONFIGFLAG), before power-off or reset. Says whether it halted.
     fn halt(&mut self) -> bool;
 }
+
+/// How a controller was taken from the firmware (BIOS legacy support or SMM).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Handoff {
+    /// The firmware did not own it.
+    NotOwned,
+    /// The firmware let go after this many microseconds.
+    Released {
+        /// How long it took.
+        micros: u64,
+    },
+    /// The firmware never let go within the bound: the driver logged it
+    /// and leaves the controller alone (no reset, no schedule).
+    NeverReleased,
+}
