@@ -332,6 +332,14 @@ impl<H: PciHardware> Uhci<H> {
         Ok(())
     }
 
+    /// Devices and pipes in use, for the tests.
+    #[cfg(test)]
+    fn slots_in_use(&self) -> (usize, usize) {
+        let devices = self.devices.iter().filter(|d| d.in_use).count();
+        let pipes = self.pipes.iter().filter(|p| p.in_use).count();
+        (devices, pipes)
+    }
+
     /// Linux's `uhci_count_ports`: the port registers are read until one
     /// has bit 7 (always 1) clear or reads all ones; more than 7 means the
     /// guess went wrong and 2 are taken, as the specification has.

@@ -153,6 +153,8 @@ pub struct UhciModel {
     pub dma_reads: u64,
     /// Transactions put on the bus.
     pub transactions: u64,
+    /// IN transactions on endpoints other than 0, by address and endpoint.
+    pub interrupt_polls: BTreeMap<(u8, u8), u64>,
     /// IN packets dropped for a wrong data toggle (ACKed, TD kept active).
     pub toggle_mismatches: u32,
     /// Every LEGSUP value written (the low 16 bits).
@@ -200,6 +202,7 @@ impl UhciModel {
             register_writes: 0,
             dma_reads: 0,
             transactions: 0,
+            interrupt_polls: BTreeMap::new(),
             toggle_mismatches: 0,
             legsup_writes: Vec::new(),
             dma_high_water: 0,
@@ -341,6 +344,12 @@ impl UhciModel {
     /// Moves the clock on, running the frames it passes.
     fn tick(&mut self, micros: u64) {
         self.now += micros;
+        self.catch_up();
+    }
+
+    /// Runs what the controller did while the clock moved on (a test may
+    /// move it by hand): HCRESET's end, the frames passed.
+    fn catch_up(&mut self) {
         if let Some(until) = self.host_reset_until {
             if self.now >= until {
                 self.host_reset_until = None;
@@ -546,6 +555,9 @@ impl UhciModel {
             speed,
         };
         self.transactions += 1;
+        if endpoint != 0 && pid == Pid::In {
+            *self.interrupt_polls.entry((address, endpoint)).or_default() += 1;
+        }
         let reply = self.broadcast(&packet);
         let moved = match (pid, reply) {
             (_, Reply::Nak) => {
@@ -618,22 +630,11 @@ impl UhciModel {
     }
 
     /// The packet goes out on every enabled root port; the device that
-    /// answers, answers. A low-speed device never sees full-speed packets.
+    /// answers, answers. A low-speed device on a root port hears only
+    /// low-speed packets (the tree checks every device's speed).
     fn broadcast(&mut self, packet: &Packet) -> Reply {
         for port in 1..=self.ports {
             if self.portsc[usize::from(port - 1)] & PORT_ENABLED == 0 {
-                continue;
-            }
-            let Some(speed) = self.tree.root_device(port) else {
-                continue;
-            };
-            if speed == Speed::Low && packet.speed != Speed::Low {
-                let reply = self.tree.transact(port, packet, None);
-                if reply != Reply::Timeout {
-                    self.error(format!(
-                        "a full-speed packet reached the low-speed device on port {port}: {packet:?}"
-                    ));
-                }
                 continue;
             }
             let reply = self.tree.transact(port, packet, None);
@@ -846,12 +847,14 @@ impl UhciModel {
 
 impl Memory for UhciModel {
     fn mem_read(&mut self, address: u64) -> u32 {
+        self.catch_up();
         self.dma_reads += 1;
         self.dma_high_water = self.dma_high_water.max(address + 4);
         self.memory[self.word(address)]
     }
 
     fn mem_write(&mut self, address: u64, value: u32) {
+        self.catch_up();
         self.dma_high_water = self.dma_high_water.max(address + 4);
         let word = self.word(address);
         self.memory[word] = value;
