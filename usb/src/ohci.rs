@@ -20,6 +20,8 @@
 
 mod descriptors;
 mod registers;
+#[cfg(test)]
+mod tests;
 
 pub use crate::host::Handoff;
 use crate::host::{
@@ -195,11 +197,15 @@ impl<H: PciHardware> Ohci<H> {
         if mmio_bytes < HC_RH_PORT_STATUS + 4 {
             return Err(OhciError::RegistersTooSmall);
         }
-        let layout = Layout::new(dma_base);
+        // OHCI's pointers are 32 bits: the whole region is below 4 GiB.
         let region_end = dma_base
             .checked_add(dma_bytes)
             .ok_or(OhciError::BadDmaRegion)?;
-        if layout.end > region_end || region_end > 1 << 32 {
+        if region_end > 1 << 32 {
+            return Err(OhciError::BadDmaRegion);
+        }
+        let layout = Layout::new(dma_base);
+        if layout.end > region_end {
             return Err(OhciError::BadDmaRegion);
         }
         Ok(Ohci {
