@@ -23,6 +23,7 @@ extern crate std;
 
 pub mod context;
 pub mod descriptor;
+pub mod ehci;
 pub mod hid;
 pub mod host;
 pub mod report;
