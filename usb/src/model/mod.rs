@@ -6,3 +6,4 @@ mod xhci;
 pub use xhci::*;
 pub mod devices;
 pub mod ehci;
+pub mod loopback;

@@ -1,0 +1,1 @@
+//! The device layer against the loopback controller over the device tree.
