@@ -179,6 +179,8 @@ pub struct Model {
     pub mmio_writes: u32,
     /// Root ports handed to the companion, in order.
     pub handed_to_companion: Vec<u8>,
+    /// Root ports reset (PR written 1), in order.
+    pub port_resets: Vec<u8>,
     /// Every split transaction run, with its queue head's fields.
     pub split_log: Vec<SplitRecord>,
     /// Interrupt-in transactions run on the periodic schedule, by frame.
@@ -232,6 +234,7 @@ impl Model {
             routes: [None; 128],
             mmio_writes: 0,
             handed_to_companion: Vec::new(),
+            port_resets: Vec::new(),
             split_log: Vec::new(),
             periodic_transactions: 0,
             async_advances: 0,
@@ -502,6 +505,7 @@ impl Model {
                 p.enabled = false;
                 p.reset_since = Some(now);
                 p.reset_ends = None;
+                self.port_resets.push(port);
                 self.tree.reset_root_port(port);
             }
             (false, Some(since)) if p.reset_ends.is_none() => {
