@@ -190,7 +190,7 @@ fn plug_in_type_and_pull(
 }
 
 /// What the kernel says of a device pulled out.
-const GONE: &str = ": device gone";
+const GONE: &str = ": keyboard gone";
 
 #[test]
 fn uhci_ohci_and_ehci_keyboards_drive_the_demo_and_come_and_go_on_ovmf() {

@@ -12,7 +12,6 @@
 //! first, the EHCIs last (their CONFIGFLAG cleared hands every port back).
 
 mod hardware;
-mod pending;
 mod xhci;
 
 use crate::{dma, facts, input::ps2, pci, serial_println, time};
@@ -20,10 +19,13 @@ use bootloader_api::info::MemoryRegions;
 use core::fmt::{self, Write};
 use core::sync::atomic::{AtomicU64, Ordering};
 use hardware::{Reads, Registers, Window};
-use pending::{Bus, Ehci, Ohci, Uhci};
 use protocol::line::{self, UsbKeyboards};
 use spin::Mutex;
-use usb::host::{ControllerKind, Handoff};
+use usb::bus::Bus;
+use usb::ehci::Ehci;
+use usb::host::{ControllerKind, Handoff, HostController};
+use usb::ohci::Ohci;
+use usb::uhci::Uhci;
 use usb::xhci::Xhci;
 
 /// Controllers driven; more are named and left alone. ICH9 has two EHCIs
@@ -59,6 +61,16 @@ enum Controller {
     Ehci(Bus<Ehci<Registers>>),
     Ohci(Bus<Ohci<Registers>>),
     Uhci(Bus<Uhci<Registers>>),
+    /// Taken from the firmware, not started yet (the device layer is
+    /// made once the driver knows its ports).
+    Taken(Legacy),
+}
+
+/// An EHCI, OHCI or UHCI driver before its start.
+enum Legacy {
+    Ehci(Ehci<Registers>),
+    Ohci(Ohci<Registers>),
+    Uhci(Uhci<Registers>),
 }
 
 /// What the kernel needs of a driven controller, whichever its kind.
@@ -148,7 +160,7 @@ driven_bus!(Uhci);
 macro_rules! with_driven {
     ($place:expr, |$driver:ident| $body:expr) => {
         match $place {
-            Controller::Absent => None,
+            Controller::Absent | Controller::Taken(_) => None,
             Controller::Xhci($driver) => Some($body),
             Controller::Ehci($driver) => Some($body),
             Controller::Ohci($driver) => Some($body),
@@ -165,6 +177,9 @@ impl Controller {
             Controller::Ehci(_) => Some(ControllerKind::Ehci),
             Controller::Ohci(_) => Some(ControllerKind::Ohci),
             Controller::Uhci(_) => Some(ControllerKind::Uhci),
+            Controller::Taken(Legacy::Ehci(_)) => Some(ControllerKind::Ehci),
+            Controller::Taken(Legacy::Ohci(_)) => Some(ControllerKind::Ohci),
+            Controller::Taken(Legacy::Uhci(_)) => Some(ControllerKind::Uhci),
         }
     }
 }
@@ -357,6 +372,13 @@ pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
             if place.kind() != Some(pass) {
                 continue;
             }
+            if let Controller::Taken(_) = place {
+                let Controller::Taken(legacy) = core::mem::replace(place, Controller::Absent)
+                else {
+                    continue;
+                };
+                *place = start_legacy(legacy);
+            }
             let started = with_driven!(place, |driven| {
                 let started = Start::start(driven);
                 if started {
@@ -415,21 +437,21 @@ fn open(
             }
         },
         ControllerKind::Ehci => match Ehci::new(registers, window_bytes, base, bytes) {
-            Ok(ehci) => Controller::Ehci(Bus::new(ehci)),
+            Ok(ehci) => Controller::Taken(Legacy::Ehci(ehci)),
             Err(problem) => {
                 refused(&problem);
                 return None;
             }
         },
         ControllerKind::Ohci => match Ohci::new(registers, window_bytes, base, bytes) {
-            Ok(ohci) => Controller::Ohci(Bus::new(ohci)),
+            Ok(ohci) => Controller::Taken(Legacy::Ohci(ohci)),
             Err(problem) => {
                 refused(&problem);
                 return None;
             }
         },
         ControllerKind::Uhci => match Uhci::new(registers, base, bytes) {
-            Ok(uhci) => Controller::Uhci(Bus::new(uhci)),
+            Ok(uhci) => Controller::Taken(Legacy::Uhci(uhci)),
             Err(problem) => {
                 refused(&problem);
                 return None;
@@ -448,7 +470,9 @@ fn take_from_firmware(
 ) -> Option<Controller> {
     let name = label(kind);
     let handoff = match &mut controller {
-        Controller::Absent => return None,
+        Controller::Absent | Controller::Ehci(_) | Controller::Ohci(_) | Controller::Uhci(_) => {
+            return None
+        }
         Controller::Xhci(xhci) => {
             let capabilities = xhci.capabilities();
             serial_println!(
@@ -474,9 +498,9 @@ fn take_from_firmware(
                 }
             };
         }
-        Controller::Ehci(bus) => bus.controller().take_ownership(),
-        Controller::Ohci(bus) => bus.controller().take_ownership(),
-        Controller::Uhci(bus) => bus.controller().take_ownership(),
+        Controller::Taken(Legacy::Ehci(ehci)) => ehci.take_ownership(),
+        Controller::Taken(Legacy::Ohci(ohci)) => ohci.take_ownership(),
+        Controller::Taken(Legacy::Uhci(uhci)) => uhci.take_ownership(),
     };
     match handoff {
         Handoff::NotOwned => {
@@ -581,29 +605,50 @@ trait Start {
     fn start(&mut self) -> bool;
 }
 
-macro_rules! start_bus {
-    ($driver:ident, $kind:expr) => {
-        impl Start for Bus<$driver<Registers>> {
-            fn start(&mut self) -> bool {
-                let function = self.controller().hardware().function;
-                let name = label($kind);
-                if let Err(problem) = self.controller().reset_and_start() {
+/// Resets and starts an EHCI, OHCI or UHCI taken from the firmware, and
+/// puts the device layer over it; `Absent` (logged, and halted again) if
+/// it would not start.
+fn start_legacy(legacy: Legacy) -> Controller {
+    /// The start of one kind of driver.
+    macro_rules! start {
+        ($driver:ident, $variant:ident) => {{
+            let mut driver = $driver;
+            match driver.reset_and_start() {
+                Ok(()) => Controller::$variant(Bus::new(driver)),
+                Err(problem) => {
+                    let function = driver.hardware().function;
                     serial_println!(
                         "usb: {} {}: {}; USB keyboards on it not used",
-                        name,
+                        label(driver.kind()),
                         function,
                         problem
                     );
                     // Whatever the reset left running is stopped.
-                    self.shut_down();
-                    return false;
+                    driver.halt();
+                    Controller::Absent
                 }
+            }
+        }};
+    }
+    match legacy {
+        Legacy::Ehci(ehci) => start!(ehci, Ehci),
+        Legacy::Ohci(ohci) => start!(ohci, Ohci),
+        Legacy::Uhci(uhci) => start!(uhci, Uhci),
+    }
+}
+
+macro_rules! start_bus {
+    ($driver:ident) => {
+        impl Start for Bus<$driver<Registers>> {
+            fn start(&mut self) -> bool {
                 // Boot enumeration: bounded by the device layer, then it
                 // carries on from the frame loop's polls.
                 if self.enumerate() == 0 {
+                    let function = self.controller().hardware().function;
+                    let kind = self.controller().kind();
                     serial_println!(
                         "usb: no USB keyboard on the {} {} at boot; its ports stay watched",
-                        name,
+                        label(kind),
                         function
                     );
                 }
@@ -613,9 +658,9 @@ macro_rules! start_bus {
     };
 }
 
-start_bus!(Ehci, ControllerKind::Ehci);
-start_bus!(Ohci, ControllerKind::Ohci);
-start_bus!(Uhci, ControllerKind::Uhci);
+start_bus!(Ehci);
+start_bus!(Ohci);
+start_bus!(Uhci);
 
 /// Says a keyboard's controller and location (`usb: keyboard on ...`).
 fn say_keyboard(kind: ControllerKind, function: pci::Function, location: &Text) {
