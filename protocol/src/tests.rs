@@ -269,7 +269,10 @@ fn usb_lines_read_back_as_written() {
     let text = on.to_string();
     assert_eq!(text, "usb: keyboard on uhci 8086:2934 at 00:1d.0 2.1");
     assert_eq!(line::UsbKeyboardOn::parse(&text), Some(on));
-    assert_eq!(line::UsbKeyboardOn::parse("usb: keyboard on vhci 1 2"), None);
+    assert_eq!(
+        line::UsbKeyboardOn::parse("usb: keyboard on vhci 1 2"),
+        None
+    );
 
     let halted = line::UsbHalted {
         kind: "ehci",
@@ -281,12 +284,18 @@ fn usb_lines_read_back_as_written() {
     assert_eq!(line::UsbHalted::parse(&text), Some(halted));
     let xhci = "usb: xhci 1b36:000d at 00:02.0 halted and reset, ports switched off";
     assert!(line::UsbHalted::parse(xhci).is_some_and(|h| h.halted && h.kind == "xhci"));
-    let not = line::UsbHalted::parse("usb: ohci 106b:003f at 00:03.0 not halted: still running")
-        .unwrap();
+    let not =
+        line::UsbHalted::parse("usb: ohci 106b:003f at 00:03.0 not halted: still running").unwrap();
     assert!(!not.halted);
     assert_eq!(not.function, "106b:003f at 00:03.0");
-    assert_eq!(line::UsbHalted::parse("usb: ohci 106b:003f at 00:03.0, 3 ports"), None);
-    assert_eq!(line::UsbHalted::parse("usb: keyboard on uhci x at 1:2 halted"), None);
+    assert_eq!(
+        line::UsbHalted::parse("usb: ohci 106b:003f at 00:03.0, 3 ports"),
+        None
+    );
+    assert_eq!(
+        line::UsbHalted::parse("usb: keyboard on uhci x at 1:2 halted"),
+        None
+    );
 
     let mut keyboards = line::UsbKeyboards::default();
     assert_eq!(keyboards.to_string(), "USB keyboards: none");
@@ -299,6 +308,9 @@ fn usb_lines_read_back_as_written() {
         line::UsbKeyboards::parse("USB keyboards: none"),
         Some(line::UsbKeyboards::default())
     );
-    assert_eq!(line::UsbKeyboards::parse("USB keyboards: 1 ehci, 2 ehci"), None);
+    assert_eq!(
+        line::UsbKeyboards::parse("USB keyboards: 1 ehci, 2 ehci"),
+        None
+    );
     assert_eq!(line::UsbKeyboards::parse("USB keyboards: 0 ehci"), None);
 }

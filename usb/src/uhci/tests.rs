@@ -65,7 +65,10 @@ fn control(
             done => return done,
         }
     }
-    panic!("control transfer {setup:?} never ended: {:?}", uhci.hardware().log);
+    panic!(
+        "control transfer {setup:?} never ended: {:?}",
+        uhci.hardware().log
+    );
 }
 
 fn get_descriptor(kind: u8, length: u16) -> Setup {
@@ -297,7 +300,13 @@ fn the_device_descriptor_is_read_whatever_the_packet_size_and_length() {
     // packet of 2 ends the data stage early (short packet detect).
     for length in [8u16, 18, 64, 255] {
         let mut buffer = [0xEE; 255];
-        let got = control(&mut uhci, device, get_descriptor(1, length), &[], &mut buffer);
+        let got = control(
+            &mut uhci,
+            device,
+            get_descriptor(1, length),
+            &[],
+            &mut buffer,
+        );
         let expected = usize::from(length).min(18);
         assert_eq!(got, Transfer::Complete(expected), "wLength {length}");
         assert_eq!(buffer[..expected], KEYBOARD_DEVICE[..expected]);
@@ -385,7 +394,10 @@ fn a_stalled_pipe_waits_for_its_restart_and_starts_again_at_data0() {
     let polls_while_waiting = uhci.hardware().interrupt_polls[&(4, 1)];
     wait(&mut uhci, 50_000);
     let _ = uhci.interrupt_poll(pipe, &mut [0; 8]);
-    assert_eq!(uhci.hardware().interrupt_polls[&(4, 1)], polls_while_waiting);
+    assert_eq!(
+        uhci.hardware().interrupt_polls[&(4, 1)],
+        polls_while_waiting
+    );
     // CLEAR_FEATURE(ENDPOINT_HALT) on endpoint 0x81 resets the device's
     // toggle to DATA0, and so does the restart.
     let clear_halt = Setup {
@@ -551,7 +563,17 @@ fn each_pipe_is_polled_at_its_interval() {
     uhci.interrupt_close(first);
     // One pipe at a time on the keyboard's endpoint, which NAKs (no key):
     // every poll is a transaction the model counts.
-    for (interval, period) in [(1u8, 1u64), (2, 2), (3, 2), (4, 4), (8, 8), (10, 8), (16, 16), (32, 32), (255, 32)] {
+    for (interval, period) in [
+        (1u8, 1u64),
+        (2, 2),
+        (3, 2),
+        (4, 4),
+        (8, 8),
+        (10, 8),
+        (16, 16),
+        (32, 32),
+        (255, 32),
+    ] {
         let pipe = uhci.interrupt_open(device, 1, 8, interval).unwrap();
         let polls = |uhci: &mut Uhci<UhciModel>| {
             let counts = &uhci.hardware().interrupt_polls;
@@ -696,7 +718,11 @@ fn a_controller_that_never_halts_is_given_up_within_the_bound() {
     assert!(!uhci.halt());
     let took = uhci.hardware().now - start;
     assert!(took <= HALT_MICROS + 1_000, "{took} us");
-    assert!(uhci.hardware().log.iter().any(|l| l.contains("did not halt")));
+    assert!(uhci
+        .hardware()
+        .log
+        .iter()
+        .any(|l| l.contains("did not halt")));
     assert_clean(uhci.hardware());
 }
 
@@ -888,7 +914,10 @@ fn requests_the_driver_cannot_do_are_refused() {
         uhci.control_poll(device, &mut []),
         Transfer::Failed(TransferError::Controller)
     );
-    assert_eq!(Uhci::new(UhciModel::new(2), DMA_BASE, 4096).err(), Some(UhciError::DmaRegion));
+    assert_eq!(
+        Uhci::new(UhciModel::new(2), DMA_BASE, 4096).err(),
+        Some(UhciError::DmaRegion)
+    );
     assert_eq!(
         Uhci::new(UhciModel::new(2), 0xFFFF_0000, DMA_BYTES).err(),
         Some(UhciError::DmaRegion)
