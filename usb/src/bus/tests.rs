@@ -367,7 +367,7 @@ fn a_keyboard_whose_configuration_lies_about_its_length_is_refused() {
         "{:#?}",
         log(&mut bus)
     );
-    assert!(bus.controller().calls.contains(&"port_disable"));
+    assert!(!bus.controller().port_enabled(1));
     assert_eq!(bus.devices(), 0);
     assert_eq!(bus.addresses_in_use(), 0);
     assert_eq!(bus.controller().devices_open(), 0);
@@ -510,6 +510,7 @@ fn a_dead_device_is_given_up_and_its_port_left_alone() {
     );
     assert_eq!((bus.devices(), bus.addresses_in_use()), (0, 0));
     assert_eq!(bus.controller().devices_open(), 0);
+    assert!(!bus.controller().port_enabled(2));
     let sent = bus.controller().transactions[1];
     run_for(&mut bus, 10_000_000);
     let now_sent = bus.controller().transactions[1];
