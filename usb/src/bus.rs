@@ -381,6 +381,12 @@ impl<C: HostController> Bus<C> {
         }
     }
 
+    /// Which kind of controller the bus is on (for the log and the facts
+    /// record, beside [`Bus::keyboards`]).
+    pub fn kind(&self) -> ControllerKind {
+        self.kind
+    }
+
     /// The controller, for the caller's checks and for its driver's own calls.
     pub fn controller(&mut self) -> &mut C {
         &mut self.controller

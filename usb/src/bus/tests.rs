@@ -104,6 +104,7 @@ fn a_keyboard_on_a_root_port_types_set_1_bytes_and_repeats() {
     let keyboard = tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
     assert_eq!(bus.enumerate(), 1, "{:#?}", log(&mut bus));
     assert_eq!(keyboards(&bus), ["1"]);
+    assert_eq!(bus.kind(), ControllerKind::Uhci);
     // Configured, kept in the report protocol (its descriptor describes
     // it), at the first address.
     assert_eq!(tree(&mut bus).keyboard_state(keyboard), (1, 1, 1));
