@@ -1094,7 +1094,7 @@ impl UsbTree {
                 request,
                 expected,
                 received,
-                toggle,
+                toggle: _,
             } => {
                 if received.len() < expected {
                     self.error(
@@ -1110,7 +1110,6 @@ impl UsbTree {
                 if !packet.toggle {
                     self.error(index, "status IN expects DATA0");
                 }
-                let _ = toggle;
                 self.apply_out(index, request, &received);
                 Reply::Data {
                     bytes: Vec::new(),
