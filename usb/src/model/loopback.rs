@@ -154,6 +154,14 @@ impl Loopback {
         self.devices.iter().flatten().count()
     }
 
+    /// Whether root port `port` is enabled.
+    pub fn port_enabled(&self, port: u8) -> bool {
+        usize::from(port)
+            .checked_sub(1)
+            .and_then(|i| self.ports.get(i))
+            .is_some_and(|p| p.enabled)
+    }
+
     /// Interrupt pipes open.
     pub fn pipes_open(&self) -> usize {
         self.pipes.iter().flatten().count()
