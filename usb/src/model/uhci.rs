@@ -522,7 +522,9 @@ impl UhciModel {
             self.error(format!("TD {td:#x}: isochronous"));
         }
         if length > 0 && !Self::in_dma(u64::from(buffer), length as u64) {
-            self.fault(format!("TD {td:#x}: buffer {buffer:#x}+{length} outside DMA"));
+            self.fault(format!(
+                "TD {td:#x}: buffer {buffer:#x}+{length} outside DMA"
+            ));
             return Outcome::Stop;
         }
         if pid == Pid::Setup && (length != 8 || toggle) {
@@ -579,7 +581,13 @@ impl UhciModel {
                 return Outcome::Stop;
             }
             (Pid::Setup | Pid::Out, Reply::Ack) => length,
-            (Pid::In, Reply::Data { bytes, toggle: sent }) => {
+            (
+                Pid::In,
+                Reply::Data {
+                    bytes,
+                    toggle: sent,
+                },
+            ) => {
                 if bytes.len() > length {
                     self.retire(td, control | TD_BABBLE | TD_STALLED, true);
                     return Outcome::Stop;
@@ -766,8 +774,7 @@ impl UhciModel {
             self.port_reset_since[index] = Some(self.now);
         } else if !reset && was_reset {
             stored &= !PORT_RESET;
-            let held = self
-                .port_reset_since[index]
+            let held = self.port_reset_since[index]
                 .take()
                 .map_or(0, |since| self.now - since);
             if held < 10_000 {

@@ -65,7 +65,10 @@ fn control(
             done => return done,
         }
     }
-    panic!("control transfer {setup:?} never ended: {:?}", uhci.hardware().log);
+    panic!(
+        "control transfer {setup:?} never ended: {:?}",
+        uhci.hardware().log
+    );
 }
 
 fn get_descriptor(kind: u8, length: u16) -> Setup {
@@ -297,7 +300,13 @@ fn the_device_descriptor_is_read_whatever_the_packet_size_and_length() {
     // packet of 2 ends the data stage early (short packet detect).
     for length in [8u16, 18, 64, 255] {
         let mut buffer = [0xEE; 255];
-        let got = control(&mut uhci, device, get_descriptor(1, length), &[], &mut buffer);
+        let got = control(
+            &mut uhci,
+            device,
+            get_descriptor(1, length),
+            &[],
+            &mut buffer,
+        );
         let expected = usize::from(length).min(18);
         assert_eq!(got, Transfer::Complete(expected), "wLength {length}");
         assert_eq!(buffer[..expected], KEYBOARD_DEVICE[..expected]);
@@ -385,7 +394,10 @@ fn a_stalled_pipe_waits_for_its_restart_and_starts_again_at_data0() {
     let polls_while_waiting = uhci.hardware().interrupt_polls[&(4, 1)];
     wait(&mut uhci, 50_000);
     let _ = uhci.interrupt_poll(pipe, &mut [0; 8]);
-    assert_eq!(uhci.hardware().interrupt_polls[&(4, 1)], polls_while_waiting);
+    assert_eq!(
+        uhci.hardware().interrupt_polls[&(4, 1)],
+        polls_while_waiting
+    );
     // CLEAR_FEATURE(ENDPOINT_HALT) on endpoint 0x81 resets the device's
     // toggle to DATA0, and so does the restart.
     let clear_halt = Setup {
@@ -551,7 +563,17 @@ fn each_pipe_is_polled_at_its_interval() {
     uhci.interrupt_close(first);
     // One pipe at a time on the keyboard's endpoint, which NAKs (no key):
     // every poll is a transaction the model counts.
-    for (interval, period) in [(1u8, 1u64), (2, 2), (3, 2), (4, 4), (8, 8), (10, 8), (16, 16), (32, 32), (255, 32)] {
+    for (interval, period) in [
+        (1u8, 1u64),
+        (2, 2),
+        (3, 2),
+        (4, 4),
+        (8, 8),
+        (10, 8),
+        (16, 16),
+        (32, 32),
+        (255, 32),
+    ] {
         let pipe = uhci.interrupt_open(device, 1, 8, interval).unwrap();
         let polls = |uhci: &mut Uhci<UhciModel>| {
             let counts = &uhci.hardware().interrupt_polls;
@@ -619,6 +641,7 @@ fn the_bios_is_relieved_of_the_controller_as_linux_does() {
     assert_eq!(model.usbcmd() & 1, 0, "the BIOS schedule stopped");
     uhci.reset_and_start().unwrap();
     assert!(!uhci.hardware().bios_schedule_runs());
+    assert_eq!(u64::from(uhci.hardware().frame_list()), DMA_BASE);
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     assert_clean(uhci.hardware());
 }
@@ -696,7 +719,11 @@ fn a_controller_that_never_halts_is_given_up_within_the_bound() {
     assert!(!uhci.halt());
     let took = uhci.hardware().now - start;
     assert!(took <= HALT_MICROS + 1_000, "{took} us");
-    assert!(uhci.hardware().log.iter().any(|l| l.contains("did not halt")));
+    assert!(uhci
+        .hardware()
+        .log
+        .iter()
+        .any(|l| l.contains("did not halt")));
     assert_clean(uhci.hardware());
 }
 
@@ -888,11 +915,76 @@ fn requests_the_driver_cannot_do_are_refused() {
         uhci.control_poll(device, &mut []),
         Transfer::Failed(TransferError::Controller)
     );
-    assert_eq!(Uhci::new(UhciModel::new(2), DMA_BASE, 4096).err(), Some(UhciError::DmaRegion));
+    assert_eq!(
+        Uhci::new(UhciModel::new(2), DMA_BASE, 4096).err(),
+        Some(UhciError::DmaRegion)
+    );
     assert_eq!(
         Uhci::new(UhciModel::new(2), 0xFFFF_0000, DMA_BYTES).err(),
         Some(UhciError::DmaRegion)
     );
     let _ = vec![0u8; 0];
     assert_clean(uhci.hardware());
+}
+
+#[test]
+fn port_writes_keep_the_change_bits_they_do_not_mean_to_clear() {
+    let mut model = UhciModel::new(2);
+    model.plug(&[1], Device::Keyboard(Speed::Full));
+    let mut uhci = started(model);
+    assert!(uhci.port_status(1).connect_changed);
+    assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
+    uhci.clear_port_change(1);
+    assert!(!uhci.port_status(1).connect_changed);
+    // Pulled and plugged again behind the driver's back: a disable or a
+    // reset begun now must not swallow the connect change.
+    uhci.hardware().unplug(&[1]);
+    uhci.hardware().plug(&[1], Device::Keyboard(Speed::Full));
+    uhci.port_disable(1);
+    assert!(uhci.port_status(1).connect_changed);
+    uhci.port_reset_begin(1);
+    assert!(uhci.port_status(1).connect_changed);
+    wait(&mut uhci, 50_000);
+    // The reset's end clears what the reset itself changed.
+    assert_eq!(uhci.port_reset_end(1), ResetOutcome::Enabled(Speed::Full));
+    assert_clean(uhci.hardware());
+}
+
+#[test]
+fn a_keyboard_plugged_into_a_hub_after_boot_is_found() {
+    let mut model = UhciModel::new(2);
+    model.plug(
+        &[2],
+        Device::Hub {
+            speed: Speed::Full,
+            ports: 4,
+            multi_tt: false,
+        },
+    );
+    let mut bus = bus_with(model);
+    assert_eq!(bus.enumerate(), 0);
+    let keyboard = bus
+        .controller()
+        .hardware()
+        .plug(&[2, 1], Device::Keyboard(Speed::Low));
+    typed(&mut bus, 1_000);
+    assert_eq!(
+        bus.keyboards().count(),
+        1,
+        "{:?}",
+        bus.controller().hardware().log
+    );
+    let model = bus.controller().hardware();
+    assert!(model.tree.send_report(keyboard, KEY_A));
+    assert!(model.tree.send_report(keyboard, RELEASED));
+    assert_eq!(typed(&mut bus, 100), [0x1E, 0x9E]);
+    bus.controller().hardware().unplug(&[2, 1]);
+    typed(&mut bus, 1_000);
+    assert_eq!(bus.keyboards().count(), 0);
+    assert_eq!(
+        bus.controller().slots_in_use(),
+        (1, 1),
+        "the hub and its pipe"
+    );
+    assert_clean(bus.controller().hardware());
 }
