@@ -530,14 +530,7 @@ impl<C: HostController> Bus<C> {
                 continue;
             }
             self.controller.clear_port_change(port);
-            let location = Location::root(port);
-            self.release_under(location, out);
-            if status.connected {
-                self.say_at(location, format_args!("device plugged in"));
-                self.queue_port(location, false);
-            } else {
-                self.say_at(location, format_args!("device pulled out"));
-            }
+            self.port_changed(Location::root(port), status.connected, out);
         }
     }
 
