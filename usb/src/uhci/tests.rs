@@ -641,6 +641,7 @@ fn the_bios_is_relieved_of_the_controller_as_linux_does() {
     assert_eq!(model.usbcmd() & 1, 0, "the BIOS schedule stopped");
     uhci.reset_and_start().unwrap();
     assert!(!uhci.hardware().bios_schedule_runs());
+    assert_eq!(u64::from(uhci.hardware().frame_list()), DMA_BASE);
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     assert_clean(uhci.hardware());
 }
@@ -924,4 +925,66 @@ fn requests_the_driver_cannot_do_are_refused() {
     );
     let _ = vec![0u8; 0];
     assert_clean(uhci.hardware());
+}
+
+#[test]
+fn port_writes_keep_the_change_bits_they_do_not_mean_to_clear() {
+    let mut model = UhciModel::new(2);
+    model.plug(&[1], Device::Keyboard(Speed::Full));
+    let mut uhci = started(model);
+    assert!(uhci.port_status(1).connect_changed);
+    assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
+    uhci.clear_port_change(1);
+    assert!(!uhci.port_status(1).connect_changed);
+    // Pulled and plugged again behind the driver's back: a disable or a
+    // reset begun now must not swallow the connect change.
+    uhci.hardware().unplug(&[1]);
+    uhci.hardware().plug(&[1], Device::Keyboard(Speed::Full));
+    uhci.port_disable(1);
+    assert!(uhci.port_status(1).connect_changed);
+    uhci.port_reset_begin(1);
+    assert!(uhci.port_status(1).connect_changed);
+    wait(&mut uhci, 50_000);
+    // The reset's end clears what the reset itself changed.
+    assert_eq!(uhci.port_reset_end(1), ResetOutcome::Enabled(Speed::Full));
+    assert_clean(uhci.hardware());
+}
+
+#[test]
+fn a_keyboard_plugged_into_a_hub_after_boot_is_found() {
+    let mut model = UhciModel::new(2);
+    model.plug(
+        &[2],
+        Device::Hub {
+            speed: Speed::Full,
+            ports: 4,
+            multi_tt: false,
+        },
+    );
+    let mut bus = bus_with(model);
+    assert_eq!(bus.enumerate(), 0);
+    let keyboard = bus
+        .controller()
+        .hardware()
+        .plug(&[2, 1], Device::Keyboard(Speed::Low));
+    typed(&mut bus, 1_000);
+    assert_eq!(
+        bus.keyboards().count(),
+        1,
+        "{:?}",
+        bus.controller().hardware().log
+    );
+    let model = bus.controller().hardware();
+    assert!(model.tree.send_report(keyboard, KEY_A));
+    assert!(model.tree.send_report(keyboard, RELEASED));
+    assert_eq!(typed(&mut bus, 100), [0x1E, 0x9E]);
+    bus.controller().hardware().unplug(&[2, 1]);
+    typed(&mut bus, 1_000);
+    assert_eq!(bus.keyboards().count(), 0);
+    assert_eq!(
+        bus.controller().slots_in_use(),
+        (1, 1),
+        "the hub and its pipe"
+    );
+    assert_clean(bus.controller().hardware());
 }
