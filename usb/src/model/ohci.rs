@@ -1294,6 +1294,15 @@ impl Memory for OhciModel {
         );
         self.check_driver_write(address);
         self.memory[((address - DMA_BASE) / 4) as usize] = value;
+        // An ED the driver un-halts or un-skips is live again at once.
+        let descriptor = address & !0xF;
+        if address & 0xF != 4 && self.listed_eds.get(&descriptor) == Some(&true) {
+            let flags = self.memory[((descriptor - DMA_BASE) / 4) as usize];
+            let head = self.memory[((descriptor + 8 - DMA_BASE) / 4) as usize];
+            if flags & ED_SKIP == 0 && head & ED_HALTED == 0 {
+                self.listed_eds.insert(descriptor, false);
+            }
+        }
     }
 }
 

@@ -199,6 +199,10 @@ fn a_full_speed_keyboard_on_a_root_port_types() {
         assert!(ohci.hardware().tree.send_report(handle, key(usage)));
         assert_eq!(report_bytes(&mut ohci, pipe), key(usage));
     }
+    // A restart of a pipe that is running keeps it in step.
+    ohci.interrupt_restart(pipe, false).unwrap();
+    assert!(ohci.hardware().tree.send_report(handle, key(7)));
+    assert_eq!(report_bytes(&mut ohci, pipe), key(7));
     assert!(
         ohci.done_heads_consumed() > 0,
         "the done queue was never taken"
@@ -567,6 +571,12 @@ fn every_device_and_pipe_slot_can_be_used_and_the_next_is_refused() {
         ohci.interrupt_open(devices[0], 1, 8, 8),
         Err(HostError::NoRoom)
     );
+    // A slot given back is reused at once: the controller must be off it.
+    wait(&mut ohci, 5_000);
+    ohci.interrupt_close(pipes[5]);
+    assert_eq!(ohci.interrupt_open(devices[1], 1, 8, 8), Ok(pipes[5]));
+    ohci.device_remove(devices[31]);
+    assert_eq!(ohci.device_new(info), Ok(devices[31]));
     for pipe in pipes.iter().step_by(2) {
         ohci.interrupt_close(*pipe);
     }
