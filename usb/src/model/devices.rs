@@ -1723,4 +1723,1243 @@ mod tests {
         assert_eq!(interrupt(&mut tree, FULL_ON_1, 5, false), Reply::Nak);
         assert_eq!(tree.errors(), &[] as &[String]);
     }
+
+    #[test]
+    fn set_address_takes_effect_after_the_status_stage() {
+        let mut tree = UsbTree::new(1);
+        let keyboard = tree.plug(&[1], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        let set_address = setup(0, SET_ADDRESS, 7, 0, 0).bytes();
+        let r = FULL_ON_1;
+        assert_eq!(
+            send(&mut tree, r, 0, 0, Pid::Setup, false, &set_address),
+            Reply::Ack
+        );
+        // Until the status stage ends the device is still at 0.
+        let get = get_descriptor(1, 8).bytes();
+        assert_eq!(
+            send(&mut tree, r, 7, 0, Pid::Setup, false, &get),
+            Reply::Timeout
+        );
+        assert_eq!(tree.keyboard_state(keyboard).2, 0);
+        assert_eq!(
+            send(&mut tree, r, 0, 0, Pid::In, true, &[]),
+            Reply::Data {
+                bytes: Vec::new(),
+                toggle: true
+            }
+        );
+        assert_eq!(tree.keyboard_state(keyboard).2, 7);
+        assert_eq!(
+            send(&mut tree, r, 0, 0, Pid::Setup, false, &get),
+            Reply::Timeout
+        );
+        assert_eq!(
+            control(&mut tree, r, 7, get_descriptor(1, 8), &[], 8).unwrap(),
+            KEYBOARD_DEVICE[..8]
+        );
+        // A SET_ADDRESS whose status stage never comes changes nothing.
+        let again = setup(0, SET_ADDRESS, 9, 0, 0).bytes();
+        assert_eq!(
+            send(&mut tree, r, 7, 0, Pid::Setup, false, &again),
+            Reply::Ack
+        );
+        assert_eq!(
+            send(&mut tree, r, 7, 0, Pid::Setup, false, &get),
+            Reply::Ack
+        );
+        assert_eq!(tree.keyboard_state(keyboard).2, 7);
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn control_stages_keep_to_chapter_8() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(&[1], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        let r = FULL_ON_1;
+        enumerate(&mut tree, r, 3);
+        // wLength cuts the reply; packets are 8 bytes, toggles alternate
+        // (the helper checks both).
+        let cut = control(&mut tree, r, 3, get_descriptor(2, 20), &[], 8).unwrap();
+        assert_eq!(cut, KEYBOARD_CONFIGURATION[..20]);
+        // A request the device does not know: the SETUP is taken, the
+        // data stage stalls, and stays stalled until the next SETUP.
+        let unknown = setup(0x80, 0x33, 0, 0, 4).bytes();
+        assert_eq!(
+            send(&mut tree, r, 3, 0, Pid::Setup, false, &unknown),
+            Reply::Ack
+        );
+        assert_eq!(send(&mut tree, r, 3, 0, Pid::In, true, &[]), Reply::Stall);
+        assert_eq!(send(&mut tree, r, 3, 0, Pid::In, true, &[]), Reply::Stall);
+        assert_eq!(send(&mut tree, r, 3, 0, Pid::Out, true, &[]), Reply::Stall);
+        assert_eq!(
+            control(&mut tree, r, 3, setup(0x80, GET_STATUS, 0, 0, 2), &[], 8).unwrap(),
+            [0, 0]
+        );
+        // A SETUP in the middle of a data stage starts afresh at DATA1.
+        let config = get_descriptor(2, 34).bytes();
+        assert_eq!(
+            send(&mut tree, r, 3, 0, Pid::Setup, false, &config),
+            Reply::Ack
+        );
+        assert!(matches!(
+            send(&mut tree, r, 3, 0, Pid::In, true, &[]),
+            Reply::Data { toggle: true, .. }
+        ));
+        assert!(matches!(
+            send(&mut tree, r, 3, 0, Pid::In, false, &[]),
+            Reply::Data { toggle: false, .. }
+        ));
+        let device = control(&mut tree, r, 3, get_descriptor(1, 18), &[], 8).unwrap();
+        assert_eq!(device, KEYBOARD_DEVICE);
+        // An IN past wLength stalls: the data stage is over.
+        let eight = get_descriptor(1, 8).bytes();
+        assert_eq!(
+            send(&mut tree, r, 3, 0, Pid::Setup, false, &eight),
+            Reply::Ack
+        );
+        assert!(matches!(
+            send(&mut tree, r, 3, 0, Pid::In, true, &[]),
+            Reply::Data { .. }
+        ));
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+        assert_eq!(send(&mut tree, r, 3, 0, Pid::In, false, &[]), Reply::Stall);
+        assert_eq!(tree.errors().len(), 1, "{:?}", tree.errors());
+        // A SETUP with DATA1 is not a SETUP: no answer, and it is noted.
+        assert_eq!(
+            send(&mut tree, r, 3, 0, Pid::Setup, true, &eight),
+            Reply::Timeout
+        );
+        assert_eq!(tree.errors().len(), 2, "{:?}", tree.errors());
+        // The strings: 0 the languages, 2 the product in UTF-16LE.
+        assert_eq!(
+            control(&mut tree, r, 3, get_descriptor(3, 255), &[], 8).unwrap(),
+            LANGUAGES
+        );
+        let product = control(
+            &mut tree,
+            r,
+            3,
+            setup(0x80, GET_DESCRIPTOR, 0x0302, 0x0409, 255),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(usize::from(product[0]), product.len());
+        let text: Vec<u16> = product[2..]
+            .chunks(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .collect();
+        assert_eq!(String::from_utf16(&text).unwrap(), KEYBOARD_STRINGS[1]);
+        // SET_CONFIGURATION to a configuration it does not have stalls in
+        // the status stage.
+        assert_eq!(
+            control(
+                &mut tree,
+                r,
+                3,
+                setup(0, SET_CONFIGURATION, 2, 0, 0),
+                &[],
+                8
+            ),
+            Err(Reply::Stall)
+        );
+        // A status OUT with data stalls.
+        assert_eq!(
+            send(&mut tree, r, 3, 0, Pid::Setup, false, &eight),
+            Reply::Ack
+        );
+        assert!(matches!(
+            send(&mut tree, r, 3, 0, Pid::In, true, &[]),
+            Reply::Data { .. }
+        ));
+        assert_eq!(send(&mut tree, r, 3, 0, Pid::Out, true, &[1]), Reply::Stall);
+        // Endpoint 1 OUT does not exist.
+        assert_eq!(
+            send(&mut tree, r, 3, 1, Pid::Out, false, &[0]),
+            Reply::Timeout
+        );
+        assert_eq!(tree.errors().len(), 4, "{:?}", tree.errors());
+    }
+
+    /// Configures the hub at `address` and powers and resets its `port`,
+    /// clearing the changes that brings: the device there is at address 0.
+    fn bring_up_port(tree: &mut UsbTree, route: Route, address: u8, max_packet: usize, port: u16) {
+        for request in [
+            setup(0x23, SET_FEATURE, PORT_POWER, port, 0),
+            setup(0x23, CLEAR_FEATURE, C_PORT_CONNECTION, port, 0),
+            setup(0x23, SET_FEATURE, PORT_RESET, port, 0),
+            setup(0x23, CLEAR_FEATURE, C_PORT_RESET, port, 0),
+        ] {
+            control(tree, route, address, request, &[], max_packet).unwrap();
+        }
+    }
+
+    fn hub_port_status(
+        tree: &mut UsbTree,
+        route: Route,
+        address: u8,
+        max_packet: usize,
+        port: u16,
+    ) -> u32 {
+        let bytes = control(
+            tree,
+            route,
+            address,
+            setup(0xA3, GET_STATUS, 0, port, 4),
+            &[],
+            max_packet,
+        )
+        .unwrap();
+        u32::from_le_bytes(bytes.try_into().unwrap())
+    }
+
+    #[test]
+    fn a_hub_port_reset_enables_the_port_and_resets_the_device() {
+        use port_bits::*;
+        let mut tree = UsbTree::new(1);
+        let hub = tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let keyboard = tree.plug(&[1, 3], Device::Keyboard(Speed::Full));
+        tree.plug(&[1, 4], Device::Keyboard(Speed::Low));
+        tree.reset_root_port(1);
+        let r = FULL_ON_1;
+        let (device, configuration) = enumerate(&mut tree, r, 1);
+        assert_eq!(device, HUB_DEVICE);
+        assert!(matches!(
+            descriptor::configuration(&configuration).unwrap().function,
+            Some(descriptor::Function::Hub {
+                status_change: Some(_)
+            })
+        ));
+        let hub_descriptor = control(
+            &mut tree,
+            r,
+            1,
+            setup(0xA0, GET_DESCRIPTOR, 0x2900, 0, 71),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(descriptor::hub(&hub_descriptor).unwrap().ports, 4);
+        // Unpowered ports say nothing, and their devices are not reached.
+        assert_eq!(hub_port_status(&mut tree, r, 1, 8, 3), 0);
+        assert_eq!(interrupt(&mut tree, r, 1, false), Reply::Nak);
+        for port in 1..=4 {
+            control(
+                &mut tree,
+                r,
+                1,
+                setup(0x23, SET_FEATURE, PORT_POWER, port, 0),
+                &[],
+                8,
+            )
+            .unwrap();
+        }
+        assert_eq!(hub_port_status(&mut tree, r, 1, 8, 1), POWER);
+        assert_eq!(
+            hub_port_status(&mut tree, r, 1, 8, 3),
+            POWER | CONNECTION | C_CONNECTION
+        );
+        assert_eq!(
+            hub_port_status(&mut tree, r, 1, 8, 4),
+            POWER | CONNECTION | LOW_SPEED | C_CONNECTION
+        );
+        // The status change endpoint: bits 3 and 4.
+        assert_eq!(
+            interrupt(&mut tree, r, 1, false),
+            Reply::Data {
+                bytes: vec![0b1_1000],
+                toggle: false
+            }
+        );
+        // Connected but not enabled: the keyboard is not reached.
+        assert_eq!(
+            control(&mut tree, r, 0, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        control(
+            &mut tree,
+            r,
+            1,
+            setup(0x23, SET_FEATURE, PORT_RESET, 3, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(
+            hub_port_status(&mut tree, r, 1, 8, 3),
+            POWER | CONNECTION | ENABLE | C_CONNECTION | C_RESET
+        );
+        for change in [C_PORT_CONNECTION, C_PORT_RESET] {
+            control(
+                &mut tree,
+                r,
+                1,
+                setup(0x23, CLEAR_FEATURE, change, 3, 0),
+                &[],
+                8,
+            )
+            .unwrap();
+        }
+        control(
+            &mut tree,
+            r,
+            1,
+            setup(0x23, CLEAR_FEATURE, C_PORT_CONNECTION, 4, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(
+            hub_port_status(&mut tree, r, 1, 8, 3),
+            POWER | CONNECTION | ENABLE
+        );
+        assert_eq!(interrupt(&mut tree, r, 1, true), Reply::Nak);
+        enumerate(&mut tree, r, 2);
+        assert_eq!(tree.keyboard_state(keyboard), (1, 1, 2));
+        // A second reset puts the keyboard back at address 0, unconfigured.
+        control(
+            &mut tree,
+            r,
+            1,
+            setup(0x23, SET_FEATURE, PORT_RESET, 3, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(tree.keyboard_state(keyboard), (1, 0, 0));
+        assert_eq!(
+            interrupt(&mut tree, r, 1, true),
+            Reply::Data {
+                bytes: vec![0b1000],
+                toggle: true
+            }
+        );
+        assert_eq!(
+            control(&mut tree, r, 2, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        assert_eq!(
+            control(&mut tree, r, 0, get_descriptor(1, 8), &[], 8).unwrap(),
+            KEYBOARD_DEVICE[..8]
+        );
+        // The hub's own reset powers its ports off (USB 2.0 11.5.1.1).
+        tree.reset_root_port(1);
+        assert_eq!(tree.port_status(hub, 3), Some(0));
+        assert_eq!(tree.keyboard_state(keyboard), (1, 0, 0));
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn port_requests_out_of_range_or_before_configuration_stall() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 2,
+                multi_tt: false,
+            },
+        );
+        tree.reset_root_port(1);
+        let r = FULL_ON_1;
+        control(&mut tree, r, 0, setup(0, SET_ADDRESS, 1, 0, 0), &[], 8).unwrap();
+        let power = setup(0x23, SET_FEATURE, PORT_POWER, 1, 0);
+        assert_eq!(control(&mut tree, r, 1, power, &[], 8), Err(Reply::Stall));
+        control(
+            &mut tree,
+            r,
+            1,
+            setup(0, SET_CONFIGURATION, 1, 0, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        control(&mut tree, r, 1, power, &[], 8).unwrap();
+        for port in [0, 3] {
+            let status = setup(0xA3, GET_STATUS, 0, port, 4);
+            assert_eq!(control(&mut tree, r, 1, status, &[], 8), Err(Reply::Stall));
+        }
+        let enable = setup(0x23, SET_FEATURE, PORT_ENABLE, 1, 0);
+        assert_eq!(control(&mut tree, r, 1, enable, &[], 8), Err(Reply::Stall));
+        // A full-speed hub has no translator to clear.
+        let clear_tt = setup(0x23, CLEAR_TT_BUFFER, 0, 1, 0);
+        assert_eq!(
+            control(&mut tree, r, 1, clear_tt, &[], 8),
+            Err(Reply::Stall)
+        );
+    }
+
+    /// A high-speed hub on root port 1 at address 1 with a full-speed hub
+    /// (address 2) on its port 2, a low-speed keyboard (address 3) on
+    /// that hub's port 4, and a full-speed keyboard (address 4) on the
+    /// high-speed hub's port 3, all enumerated. Gives the handles.
+    fn translated_tree() -> (UsbTree, [usize; 4]) {
+        let mut tree = UsbTree::new(1);
+        let high = Route {
+            port: 1,
+            speed: Speed::High,
+            split: None,
+        };
+        let hs_hub = tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::High,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let fs_hub = tree.plug(
+            &[1, 2],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let low_keyboard = tree.plug(&[1, 2, 4], Device::Keyboard(Speed::Low));
+        let full_keyboard = tree.plug(&[1, 3], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        let (device, _) = enumerate(&mut tree, high, 1);
+        assert_eq!(device, HIGH_SPEED_HUB_DEVICE);
+        let below_2 = Route {
+            speed: Speed::Full,
+            split: Some(Split {
+                hub_address: 1,
+                hub_port: 2,
+            }),
+            ..high
+        };
+        let below_3 = Route {
+            speed: Speed::Full,
+            split: Some(Split {
+                hub_address: 1,
+                hub_port: 3,
+            }),
+            ..high
+        };
+        bring_up_port(&mut tree, high, 1, 64, 2);
+        enumerate(&mut tree, below_2, 2);
+        bring_up_port(&mut tree, below_2, 2, 8, 4);
+        enumerate(
+            &mut tree,
+            Route {
+                speed: Speed::Low,
+                ..below_2
+            },
+            3,
+        );
+        bring_up_port(&mut tree, high, 1, 64, 3);
+        enumerate(&mut tree, below_3, 4);
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+        (tree, [hs_hub, fs_hub, low_keyboard, full_keyboard])
+    }
+
+    #[test]
+    fn splits_must_name_the_nearest_high_speed_hub_and_port() {
+        let (mut tree, [hs_hub, _, low_keyboard, full_keyboard]) = translated_tree();
+        assert_eq!(tree.keyboard_state(low_keyboard), (1, 1, 3));
+        assert_eq!(tree.keyboard_state(full_keyboard), (1, 1, 4));
+        assert_eq!(
+            tree.port_status(hs_hub, 3).unwrap() & (port_bits::HIGH_SPEED | port_bits::LOW_SPEED),
+            0
+        );
+        let split = |hub_address, hub_port| {
+            Some(Split {
+                hub_address,
+                hub_port,
+            })
+        };
+        let get = get_descriptor(1, 8);
+        let splits_before = tree.splits().len();
+        let mut expected = Vec::new();
+        for (speed, address, split, answers) in [
+            (Speed::Full, 4, split(1, 3), true),
+            (Speed::Full, 4, None, false),
+            (Speed::High, 4, None, false),
+            (Speed::Full, 4, split(1, 2), false),
+            (Speed::Full, 4, split(2, 3), false),
+            (Speed::Low, 4, split(1, 3), false),
+            (Speed::Low, 3, split(1, 2), true),
+            // The nearest high-speed hub, not the full-speed one above it.
+            (Speed::Low, 3, split(2, 4), false),
+            (Speed::Full, 3, split(1, 2), false),
+            (Speed::Full, 2, split(1, 2), true),
+            // The high-speed hub itself takes no split.
+            (Speed::High, 1, None, true),
+            (Speed::High, 1, split(1, 1), false),
+            (Speed::Full, 1, split(1, 1), false),
+        ] {
+            let route = Route {
+                port: 1,
+                speed,
+                split,
+            };
+            let reply = control(&mut tree, route, address, get, &[], 8);
+            assert_eq!(
+                reply.is_ok(),
+                answers,
+                "{speed:?} to {address} with {split:?}: {reply:?}"
+            );
+            // Every split packet is recorded: SETUP, IN, OUT when the
+            // device answered, the SETUP alone when not.
+            if let Some(split) = split {
+                let pids: &[Pid] = if answers {
+                    &[Pid::Setup, Pid::In, Pid::Out]
+                } else {
+                    &[Pid::Setup]
+                };
+                expected.extend(pids.iter().map(|&pid| (split, address, pid, speed)));
+            }
+        }
+        let recorded: Vec<_> = tree.splits()[splits_before..]
+            .iter()
+            .map(|(split, packet)| (*split, packet.address, packet.pid, packet.speed))
+            .collect();
+        assert_eq!(recorded, expected);
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn a_split_to_a_device_with_no_translator_above_times_out() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        tree.plug(&[1, 1], Device::Keyboard(Speed::Low));
+        tree.reset_root_port(1);
+        let get = get_descriptor(1, 8);
+        let split = Route {
+            split: Some(Split {
+                hub_address: 0,
+                hub_port: 1,
+            }),
+            ..FULL_ON_1
+        };
+        assert_eq!(
+            control(&mut tree, split, 0, get, &[], 8),
+            Err(Reply::Timeout)
+        );
+        enumerate(&mut tree, FULL_ON_1, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
+        // Below a full-speed hub a low-speed device takes low-speed
+        // packets (PRE), and nothing else.
+        let low = Route {
+            speed: Speed::Low,
+            ..FULL_ON_1
+        };
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 0, get, &[], 8),
+            Err(Reply::Timeout)
+        );
+        let split_low = Route {
+            split: Some(Split {
+                hub_address: 1,
+                hub_port: 1,
+            }),
+            ..low
+        };
+        assert_eq!(
+            control(&mut tree, split_low, 0, get, &[], 8),
+            Err(Reply::Timeout)
+        );
+        assert_eq!(
+            control(&mut tree, low, 0, get, &[], 8).unwrap(),
+            LOW_SPEED_KEYBOARD_DEVICE[..8]
+        );
+        assert_eq!(tree.splits().len(), 2);
+    }
+
+    #[test]
+    fn a_high_speed_hub_below_a_full_speed_hub_runs_at_full_speed() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let inner = tree.plug(
+            &[1, 2],
+            Device::Hub {
+                speed: Speed::High,
+                ports: 4,
+                multi_tt: true,
+            },
+        );
+        let keyboard = tree.plug(&[1, 2, 1], Device::Keyboard(Speed::High));
+        tree.reset_root_port(1);
+        enumerate(&mut tree, FULL_ON_1, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 2);
+        let (device, configuration) = enumerate(&mut tree, FULL_ON_1, 2);
+        assert_eq!(
+            device, HUB_DEVICE,
+            "protocol 0: no translator at full speed"
+        );
+        assert_eq!(configuration, HUB_CONFIGURATION);
+        assert_eq!(tree.speed(inner), Speed::Full);
+        // Its qualifier tells how it would be at high speed: multi TT.
+        let qualifier = control(&mut tree, FULL_ON_1, 2, get_descriptor(6, 10), &[], 8).unwrap();
+        assert_eq!(qualifier, [10, 6, 0, 2, 9, 0, 2, 64, 1, 0]);
+        bring_up_port(&mut tree, FULL_ON_1, 2, 8, 1);
+        assert_eq!(
+            tree.port_status(inner, 1).unwrap() & port_bits::HIGH_SPEED,
+            0
+        );
+        let (device, _) = enumerate(&mut tree, FULL_ON_1, 3);
+        assert_eq!(device, KEYBOARD_DEVICE);
+        assert_eq!(tree.keyboard_state(keyboard), (1, 1, 3));
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn a_multi_tt_hub_offers_its_second_alternate_setting() {
+        let mut tree = UsbTree::new(1);
+        let high = Route {
+            port: 1,
+            speed: Speed::High,
+            split: None,
+        };
+        let hub = tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::High,
+                ports: 9,
+                multi_tt: true,
+            },
+        );
+        let keyboard = tree.plug(&[1, 9], Device::Keyboard(Speed::High));
+        tree.reset_root_port(1);
+        let (device, configuration) = enumerate(&mut tree, high, 1);
+        assert_eq!(device, HIGH_SPEED_MULTI_TT_HUB_DEVICE);
+        assert_eq!(
+            configuration.len(),
+            HIGH_SPEED_MULTI_TT_HUB_CONFIGURATION.len()
+        );
+        // Nine ports and bit 0: a 2-byte bitmap on both alternates' endpoints.
+        assert_eq!((configuration[22], configuration[38]), (2, 2));
+        let hub_descriptor = control(
+            &mut tree,
+            high,
+            1,
+            setup(0xA0, GET_DESCRIPTOR, 0x2900, 0, 71),
+            &[],
+            64,
+        )
+        .unwrap();
+        assert_eq!(hub_descriptor.len(), 11);
+        assert_eq!(descriptor::hub(&hub_descriptor).unwrap().ports, 9);
+        for alternate in [1, 0, 1] {
+            control(
+                &mut tree,
+                high,
+                1,
+                setup(1, SET_INTERFACE, alternate, 0, 0),
+                &[],
+                64,
+            )
+            .unwrap();
+            let got = control(
+                &mut tree,
+                high,
+                1,
+                setup(0x81, GET_INTERFACE, 0, 0, 1),
+                &[],
+                64,
+            )
+            .unwrap();
+            assert_eq!(got, [alternate as u8]);
+        }
+        assert_eq!(
+            control(
+                &mut tree,
+                high,
+                1,
+                setup(1, SET_INTERFACE, 2, 0, 0),
+                &[],
+                64
+            ),
+            Err(Reply::Stall)
+        );
+        for request in [
+            setup(0x23, CLEAR_TT_BUFFER, 0, 9, 0),
+            setup(0x23, RESET_TT, 0, 9, 0),
+        ] {
+            control(&mut tree, high, 1, request, &[], 64).unwrap();
+        }
+        bring_up_port(&mut tree, high, 1, 64, 9);
+        assert_ne!(tree.port_status(hub, 9).unwrap() & port_bits::HIGH_SPEED, 0);
+        // A high-speed keyboard below a high-speed hub: no split.
+        let (device, configuration) = enumerate(&mut tree, high, 2);
+        assert_eq!(
+            (device, configuration),
+            (
+                HIGH_SPEED_KEYBOARD_DEVICE.to_vec(),
+                HIGH_SPEED_KEYBOARD_CONFIGURATION.to_vec()
+            )
+        );
+        assert_eq!(tree.keyboard_state(keyboard), (1, 1, 2));
+        // Bitmap bit 9 sits in the second byte.
+        control(
+            &mut tree,
+            high,
+            1,
+            setup(0x23, CLEAR_FEATURE, PORT_POWER, 9, 0),
+            &[],
+            64,
+        )
+        .unwrap();
+        tree.unplug(&[1, 9]);
+        control(
+            &mut tree,
+            high,
+            1,
+            setup(0x23, SET_FEATURE, PORT_POWER, 9, 0),
+            &[],
+            64,
+        )
+        .unwrap();
+        tree.plug(&[1, 9], Device::Keyboard(Speed::Full));
+        assert_eq!(
+            interrupt(&mut tree, high, 1, false),
+            Reply::Data {
+                bytes: vec![0, 0b10],
+                toggle: false
+            }
+        );
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    /// A full-speed keyboard on root port 1, enumerated at `address` and
+    /// in the boot protocol.
+    fn boot_keyboard(address: u8) -> (UsbTree, usize) {
+        let mut tree = UsbTree::new(1);
+        let keyboard = tree.plug(&[1], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        enumerate(&mut tree, FULL_ON_1, address);
+        control(
+            &mut tree,
+            FULL_ON_1,
+            address,
+            setup(0x21, SET_PROTOCOL, 0, 0, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        (tree, keyboard)
+    }
+
+    #[test]
+    fn a_repeated_toggle_is_dropped_and_the_keyboard_stays_in_step() {
+        let (mut tree, keyboard) = boot_keyboard(1);
+        let a = [0, 0, 4, 0, 0, 0, 0, 0];
+        let b = [0, 0, 5, 0, 0, 0, 0, 0];
+        // The knob waits for a report to repeat.
+        tree.repeat_next_toggle(keyboard);
+        assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, false), Reply::Nak);
+        assert!(tree.send_report(keyboard, a));
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, false),
+            Reply::Data {
+                bytes: a.to_vec(),
+                toggle: false
+            }
+        );
+        assert!(tree.send_report(keyboard, b));
+        // The repeat of A comes with DATA0 where the host expects DATA1:
+        // the host drops it and still expects DATA1, which B comes with.
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, true),
+            Reply::Data {
+                bytes: a.to_vec(),
+                toggle: false
+            }
+        );
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, true),
+            Reply::Data {
+                bytes: b.to_vec(),
+                toggle: true
+            }
+        );
+        assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, false), Reply::Nak);
+        assert_eq!(tree.reports_queued(keyboard), 0);
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+        // A host out of step loses the report, and the tree says so.
+        assert!(tree.send_report(keyboard, a));
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, true),
+            Reply::Data {
+                bytes: a.to_vec(),
+                toggle: false
+            }
+        );
+        assert_eq!(tree.errors().len(), 1);
+    }
+
+    #[test]
+    fn the_report_queue_is_bounded_and_needs_a_configured_keyboard() {
+        let mut tree = UsbTree::new(1);
+        let keyboard = tree.plug(&[1], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        assert!(!tree.send_report(keyboard, [0; 8]), "not configured yet");
+        enumerate(&mut tree, FULL_ON_1, 1);
+        for _ in 0..REPORT_QUEUE {
+            assert!(tree.send_report(keyboard, [0; 8]));
+        }
+        assert!(!tree.send_report(keyboard, [0; 8]));
+        tree.reset_root_port(1);
+        assert_eq!(tree.reports_queued(keyboard), 0);
+    }
+
+    #[test]
+    fn a_stalled_interrupt_endpoint_clears_to_data0() {
+        let (mut tree, keyboard) = boot_keyboard(1);
+        let report = [0, 0, 4, 0, 0, 0, 0, 0];
+        assert!(tree.send_report(keyboard, report));
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, false),
+            Reply::Data {
+                bytes: report.to_vec(),
+                toggle: false
+            }
+        );
+        tree.stall_interrupt(keyboard);
+        assert!(tree.send_report(keyboard, report));
+        assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, true), Reply::Stall);
+        assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, true), Reply::Stall);
+        let status = setup(0x82, GET_STATUS, 0, 0x81, 2);
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 1, status, &[], 8).unwrap(),
+            [1, 0]
+        );
+        // The endpoint's halt, not ep0's: a SETUP does not clear it.
+        control(
+            &mut tree,
+            FULL_ON_1,
+            1,
+            setup(0x02, CLEAR_FEATURE, ENDPOINT_HALT, 0x81, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 1, status, &[], 8).unwrap(),
+            [0, 0]
+        );
+        // DATA0 again, though DATA1 was next before the stall.
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, false),
+            Reply::Data {
+                bytes: report.to_vec(),
+                toggle: false
+            }
+        );
+        // SET_FEATURE(ENDPOINT_HALT) halts it from the host's side too.
+        control(
+            &mut tree,
+            FULL_ON_1,
+            1,
+            setup(0x02, SET_FEATURE, ENDPOINT_HALT, 0x81, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, true), Reply::Stall);
+        // A halt on an endpoint it does not have is a request error.
+        let other = setup(0x02, CLEAR_FEATURE, ENDPOINT_HALT, 0x82, 0);
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 1, other, &[], 8),
+            Err(Reply::Stall)
+        );
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn unplugging_below_a_hub_reports_a_connection_change() {
+        use port_bits::*;
+        let mut tree = UsbTree::new(1);
+        let hub = tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let first = tree.plug(&[1, 2], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        enumerate(&mut tree, FULL_ON_1, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 2);
+        enumerate(&mut tree, FULL_ON_1, 2);
+        assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, false), Reply::Nak);
+        tree.unplug(&[1, 2]);
+        assert!(!tree.is_attached(first));
+        assert_eq!(tree.handle_at(&[1, 2]), None);
+        assert!(!tree.send_report(first, [0; 8]));
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, false),
+            Reply::Data {
+                bytes: vec![0b100],
+                toggle: false
+            }
+        );
+        assert_eq!(
+            hub_port_status(&mut tree, FULL_ON_1, 1, 8, 2),
+            POWER | C_CONNECTION
+        );
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 2, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        control(
+            &mut tree,
+            FULL_ON_1,
+            1,
+            setup(0x23, CLEAR_FEATURE, C_PORT_CONNECTION, 2, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, true), Reply::Nak);
+        // Plugged in again: a new device, in its power-on state.
+        let second = tree.plug(&[1, 2], Device::Keyboard(Speed::Low));
+        assert_ne!(first, second);
+        assert_eq!(
+            tree.port_status(hub, 2),
+            Some(POWER | CONNECTION | LOW_SPEED | C_CONNECTION)
+        );
+        assert_eq!(
+            interrupt(&mut tree, FULL_ON_1, 1, true),
+            Reply::Data {
+                bytes: vec![0b100],
+                toggle: true
+            }
+        );
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 2);
+        enumerate(
+            &mut tree,
+            Route {
+                speed: Speed::Low,
+                ..FULL_ON_1
+            },
+            2,
+        );
+        assert_eq!(tree.keyboard_state(second), (1, 1, 2));
+        // Pulling the hub pulls everything below it.
+        tree.unplug(&[1]);
+        assert_eq!(tree.root_device(1), None);
+        assert!(!tree.is_attached(second));
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 1, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn powering_a_hub_port_off_and_on_needs_a_new_reset() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let keyboard = tree.plug(&[1, 1], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        enumerate(&mut tree, FULL_ON_1, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
+        enumerate(&mut tree, FULL_ON_1, 2);
+        let power = |set| {
+            setup(
+                0x23,
+                if set { SET_FEATURE } else { CLEAR_FEATURE },
+                PORT_POWER,
+                1,
+                0,
+            )
+        };
+        control(&mut tree, FULL_ON_1, 1, power(false), &[], 8).unwrap();
+        assert_eq!(tree.keyboard_state(keyboard), (1, 0, 0));
+        assert_eq!(hub_port_status(&mut tree, FULL_ON_1, 1, 8, 1), 0);
+        control(&mut tree, FULL_ON_1, 1, power(true), &[], 8).unwrap();
+        assert_eq!(
+            hub_port_status(&mut tree, FULL_ON_1, 1, 8, 1),
+            port_bits::POWER | port_bits::CONNECTION | port_bits::C_CONNECTION
+        );
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        // Disabled: not reached even after the reset.
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
+        control(
+            &mut tree,
+            FULL_ON_1,
+            1,
+            setup(0x23, CLEAR_FEATURE, PORT_ENABLE, 1, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        // Suspended: not reached until resumed (C_PORT_SUSPEND then).
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
+        control(
+            &mut tree,
+            FULL_ON_1,
+            1,
+            setup(0x23, SET_FEATURE, PORT_SUSPEND, 1, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        control(
+            &mut tree,
+            FULL_ON_1,
+            1,
+            setup(0x23, CLEAR_FEATURE, PORT_SUSPEND, 1, 0),
+            &[],
+            8,
+        )
+        .unwrap();
+        assert_ne!(
+            hub_port_status(&mut tree, FULL_ON_1, 1, 8, 1) & port_bits::C_SUSPEND,
+            0
+        );
+        assert!(control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 8), &[], 8).is_ok());
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn five_tiers_of_hubs_reach_a_keyboard() {
+        let mut tree = UsbTree::new(1);
+        let high = Route {
+            port: 1,
+            speed: Speed::High,
+            split: None,
+        };
+        let mut path = vec![1];
+        for _ in 0..MAX_HUB_TIERS {
+            tree.plug(
+                &path,
+                Device::Hub {
+                    speed: Speed::High,
+                    ports: 4,
+                    multi_tt: false,
+                },
+            );
+            path.push(4);
+        }
+        let keyboard = tree.plug(&path, Device::Keyboard(Speed::Low));
+        tree.reset_root_port(1);
+        for tier in 1..=MAX_HUB_TIERS as u8 {
+            enumerate(&mut tree, high, tier);
+            bring_up_port(&mut tree, high, tier, 64, 4);
+        }
+        // The translator is the last hub's, port 4.
+        let low = Route {
+            speed: Speed::Low,
+            split: Some(Split {
+                hub_address: 5,
+                hub_port: 4,
+            }),
+            ..high
+        };
+        enumerate(&mut tree, low, 6);
+        assert_eq!(tree.keyboard_state(keyboard), (1, 1, 6));
+        assert!(tree.send_report(keyboard, [1; 8]));
+        assert_eq!(
+            interrupt(&mut tree, low, 6, false),
+            Reply::Data {
+                bytes: vec![1; 8],
+                toggle: false
+            }
+        );
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    #[should_panic(expected = "tier 6")]
+    fn a_sixth_tier_of_hubs_is_refused() {
+        let mut tree = UsbTree::new(1);
+        let mut path = vec![1];
+        for _ in 0..=MAX_HUB_TIERS {
+            tree.plug(
+                &path,
+                Device::Hub {
+                    speed: Speed::Full,
+                    ports: 4,
+                    multi_tt: false,
+                },
+            );
+            path.push(1);
+        }
+    }
+
+    #[test]
+    fn two_devices_at_address_0_collide() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        tree.plug(&[1, 1], Device::Keyboard(Speed::Full));
+        tree.plug(&[1, 2], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        enumerate(&mut tree, FULL_ON_1, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 2);
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        assert_eq!(tree.errors().len(), 1, "{:?}", tree.errors());
+        assert!(
+            tree.errors()[0].contains("device at 1.1, device at 1.2")
+                || tree.errors()[0].contains("device at 1.2, device at 1.1"),
+            "{:?}",
+            tree.errors()
+        );
+    }
+
+    #[test]
+    fn a_dead_device_answers_nothing() {
+        let mut tree = UsbTree::new(2);
+        tree.plug(&[2], Device::Dead(Speed::Full));
+        assert_eq!(tree.root_device(2), Some(Speed::Full));
+        tree.reset_root_port(2);
+        let route = Route {
+            port: 2,
+            ..FULL_ON_1
+        };
+        assert_eq!(
+            control(&mut tree, route, 0, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        assert_eq!(
+            send(&mut tree, route, 0, 0, Pid::In, true, &[]),
+            Reply::Timeout
+        );
+        assert_eq!(
+            send(&mut tree, route, 0, 1, Pid::In, false, &[]),
+            Reply::Timeout
+        );
+        // Nor does an empty root port.
+        assert_eq!(
+            control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 8), &[], 8),
+            Err(Reply::Timeout)
+        );
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn the_lying_keyboard_is_refused_by_the_parser() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(&[1], Device::LyingKeyboard(Speed::Full));
+        tree.reset_root_port(1);
+        let device = control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 18), &[], 8).unwrap();
+        assert_eq!(device, KEYBOARD_DEVICE);
+        let header = control(&mut tree, FULL_ON_1, 0, get_descriptor(2, 9), &[], 8).unwrap();
+        let total = descriptor::configuration_total_length(&header).unwrap();
+        let all = control(&mut tree, FULL_ON_1, 0, get_descriptor(2, total), &[], 8).unwrap();
+        assert!(all.len() < usize::from(total), "{} of {total}", all.len());
+        assert_eq!(
+            descriptor::configuration(&all),
+            Err(descriptor::DescriptorError::BadLength(0))
+        );
+    }
+
+    #[test]
+    fn the_descriptors_are_what_they_say() {
+        for (name, device) in [
+            ("keyboard", &KEYBOARD_DEVICE),
+            ("low-speed keyboard", &LOW_SPEED_KEYBOARD_DEVICE),
+            ("high-speed keyboard", &HIGH_SPEED_KEYBOARD_DEVICE),
+            ("hub", &HUB_DEVICE),
+            ("high-speed hub", &HIGH_SPEED_HUB_DEVICE),
+            ("multi-TT hub", &HIGH_SPEED_MULTI_TT_HUB_DEVICE),
+        ] {
+            let parsed = descriptor::device(device).unwrap();
+            assert_eq!(usize::from(device[0]), device.len(), "{name}");
+            assert_eq!(parsed.configurations, 1, "{name}");
+        }
+        for (name, configuration, hub) in [
+            ("keyboard", &KEYBOARD_CONFIGURATION[..], false),
+            (
+                "high-speed keyboard",
+                &HIGH_SPEED_KEYBOARD_CONFIGURATION[..],
+                false,
+            ),
+            ("hub", &HUB_CONFIGURATION[..], true),
+            ("high-speed hub", &HIGH_SPEED_HUB_CONFIGURATION[..], true),
+            (
+                "multi-TT hub",
+                &HIGH_SPEED_MULTI_TT_HUB_CONFIGURATION[..],
+                true,
+            ),
+        ] {
+            let total = descriptor::configuration_total_length(configuration).unwrap();
+            assert_eq!(usize::from(total), configuration.len(), "{name}");
+            let function = descriptor::configuration(configuration).unwrap().function;
+            assert_eq!(
+                matches!(function, Some(descriptor::Function::Hub { .. })),
+                hub,
+                "{name}"
+            );
+        }
+        assert_eq!(hub_descriptor(7).len(), 9);
+        assert_eq!(hub_descriptor(8).len(), 11);
+        assert_eq!(descriptor::hub(&hub_descriptor(4)).unwrap().ports, 4);
+        assert_eq!(descriptor::hub(&HUB_DESCRIPTOR).unwrap().ports, 4);
+        assert_eq!(
+            (
+                LOW_SPEED_KEYBOARD_DEVICE[7],
+                HIGH_SPEED_KEYBOARD_DEVICE[7],
+                HIGH_SPEED_HUB_DEVICE[7]
+            ),
+            (8, 64, 64)
+        );
+        assert_eq!(
+            (
+                HIGH_SPEED_HUB_DEVICE[6],
+                HIGH_SPEED_MULTI_TT_HUB_DEVICE[6],
+                HUB_DEVICE[6]
+            ),
+            (1, 2, 0)
+        );
+        assert_eq!(
+            descriptor::configuration_total_length(&LYING_KEYBOARD_CONFIGURATION),
+            Ok(64)
+        );
+    }
 }

@@ -5,4 +5,5 @@
 mod xhci;
 pub use xhci::*;
 pub mod devices;
+pub mod loopback;
 pub mod ohci;
