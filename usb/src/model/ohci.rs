@@ -216,6 +216,10 @@ pub struct OhciModel {
     pub packets: u64,
     /// Software resets done.
     pub software_resets: u32,
+    /// When each software reset was asked for.
+    pub software_resets_at: Vec<u64>,
+    /// Every HcControl write: when, and the value.
+    pub control_writes: Vec<(u64, u32)>,
     /// Done queue heads written to the HCCA.
     pub done_queue_writes: u32,
     /// Register writes while SMM owned the controller (offset, value),
@@ -275,6 +279,8 @@ impl OhciModel {
             frames: 0,
             packets: 0,
             software_resets: 0,
+            software_resets_at: Vec::new(),
+            control_writes: Vec::new(),
             done_queue_writes: 0,
             writes_while_owned: Vec::new(),
             halts_requested: 0,
@@ -302,6 +308,14 @@ impl OhciModel {
         self.control = HCFS_OPERATIONAL;
         self.fm_interval = self.firmware_frame_interval | 0x2778 << 16;
         self.next_frame = self.now + FRAME_MICROS;
+    }
+
+    /// The firmware left the controller suspended (UsbSuspend), its
+    /// schedule set up, without SMM.
+    pub fn firmware_left_suspended(&mut self) {
+        self.firmware_schedule = true;
+        self.control = HCFS_SUSPEND;
+        self.fm_interval = self.firmware_frame_interval | 0x2778 << 16;
     }
 
     /// HcControl.HCFS: 0 reset, 1 resume, 2 operational, 3 suspend.
@@ -1094,6 +1108,7 @@ impl OhciModel {
     }
 
     fn write_control(&mut self, value: u32) {
+        self.control_writes.push((self.now, value));
         let old = self.control;
         let mut new = value & 0x7FF;
         if old & HCFS == HCFS_OPERATIONAL && new & HCFS != HCFS_OPERATIONAL {
@@ -1131,6 +1146,7 @@ impl OhciModel {
 
     fn software_reset(&mut self) {
         self.software_resets += 1;
+        self.software_resets_at.push(self.now);
         self.firmware_schedule = false;
         self.command_status = HCR;
         self.reset_until = Some(self.now + SOFTWARE_RESET_MICROS);

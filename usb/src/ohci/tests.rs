@@ -732,6 +732,34 @@ fn a_controller_the_firmware_left_running_is_reset_and_types() {
 }
 
 #[test]
+fn what_the_firmware_left_is_stopped_as_linux_does_before_the_reset() {
+    /// How the firmware leaves the controller.
+    type Leave = fn(&mut OhciModel);
+    // (firmware state, HCFS the driver writes first, the wait before HCR)
+    let cases: [(Leave, u32, u64); 3] = [
+        (|_| {}, 0, 50_000),
+        (OhciModel::firmware_left_suspended, 1, 10_000),
+        (OhciModel::firmware_left_running, 2, 0),
+    ];
+    for (leave, state, wait) in cases {
+        let mut model = OhciModel::new(1);
+        leave(&mut model);
+        let mut ohci = started(model);
+        let model = ohci.hardware();
+        let (written_at, value) = model.control_writes[0];
+        assert_eq!((value >> 6) & 3, state, "{:#x?}", model.control_writes);
+        let reset_at = model.software_resets_at[0];
+        assert!(
+            (wait..wait + 2_000).contains(&(reset_at - written_at)),
+            "HCFS {state}: the reset came {} us later",
+            reset_at - written_at
+        );
+        assert_eq!(model.functional_state(), 2);
+        assert_clean(&mut ohci);
+    }
+}
+
+#[test]
 fn an_implausible_frame_interval_from_the_firmware_is_replaced() {
     let mut model = OhciModel::new(1);
     model.firmware_frame_interval = 0;
