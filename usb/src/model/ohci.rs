@@ -180,7 +180,6 @@ pub struct OhciModel {
     fm_interval: u32,
     frame_number: u16,
     periodic_start: u32,
-    global_power: bool,
     ports: Vec<Port>,
     // Timers.
     ocr_at: Option<u64>,
@@ -260,7 +259,6 @@ impl OhciModel {
             fm_interval: FM_INTERVAL_DEFAULT,
             frame_number: 0,
             periodic_start: 0,
-            global_power: false,
             ports: vec![Port::default(); usize::from(ports)],
             ocr_at: None,
             reset_until: None,
@@ -838,7 +836,7 @@ impl OhciModel {
             ),
             Reply::Ack if pid != Pid::In => {
                 let (pointer, done) = advance(size);
-                let control = with_toggle(control, toggle_field, !toggle) & !(3 << 26);
+                let control = with_toggle(control, !toggle) & !(3 << 26);
                 if done {
                     self.retire(
                         ed,
@@ -853,7 +851,6 @@ impl OhciModel {
                 } else {
                     self.poke(td, control);
                     self.poke(td + 4, pointer);
-                    self.set_carry(ed, head_word, !toggle);
                     Step::Continue
                 }
             }
@@ -894,7 +891,7 @@ impl OhciModel {
                     self.poke_byte(address, byte);
                 }
                 let (pointer, done) = advance(got);
-                let control = with_toggle(control, toggle_field, !toggle) & !(3 << 26);
+                let control = with_toggle(control, !toggle) & !(3 << 26);
                 if done {
                     self.retire(
                         ed,
@@ -933,7 +930,6 @@ impl OhciModel {
                 } else {
                     self.poke(td, control);
                     self.poke(td + 4, pointer);
-                    self.set_carry(ed, head_word, !toggle);
                     Step::Continue
                 }
             }
@@ -951,11 +947,6 @@ impl OhciModel {
                 )
             }
         }
-    }
-
-    fn set_carry(&mut self, ed: u64, head_word: u32, toggle: bool) {
-        let word = head_word & !ED_CARRY | if toggle { ED_CARRY } else { 0 };
-        self.poke(ed + 8, word);
     }
 
     /// A transmission error: ErrorCount goes up, and at 3 the TD retires
@@ -1260,16 +1251,14 @@ impl OhciModel {
             0x40 => self.periodic_start = value & 0x3FFF,
             0x48 | 0x4C => self.error(format!("the driver rewrote HcRhDescriptor at {offset:#x}")),
             0x50 => {
-                if value & (1 << 16) != 0 && self.power_switching != PowerSwitching::None {
-                    self.global_power = true;
-                    if self.power_switching == PowerSwitching::Ganged {
-                        for index in 0..self.ports.len() {
-                            self.power_port(index, true);
-                        }
+                // SetGlobalPower and ClearGlobalPower reach ganged ports
+                // only (every port is in PortPowerControlMask with PSM).
+                if value & (1 << 16) != 0 && self.power_switching == PowerSwitching::Ganged {
+                    for index in 0..self.ports.len() {
+                        self.power_port(index, true);
                     }
                 }
                 if value & 1 != 0 && self.power_switching == PowerSwitching::Ganged {
-                    self.global_power = false;
                     for index in 0..self.ports.len() {
                         self.power_port(index, false);
                     }
@@ -1284,13 +1273,10 @@ impl OhciModel {
     }
 }
 
-/// TD dword 0 with the toggle's low bit updated, when the TD carries it.
-fn with_toggle(control: u32, toggle_field: u32, toggle: bool) -> u32 {
-    if toggle_field & 2 != 0 {
-        control & !(1 << 24) | u32::from(toggle) << 24
-    } else {
-        control
-    }
+/// TD dword 0 after a packet: the toggle for the next one is the TD's
+/// own from now on (T = 1x), whether it came from the TD or the ED.
+fn with_toggle(control: u32, toggle: bool) -> u32 {
+    control & !(3 << 24) | (2 | u32::from(toggle)) << 24
 }
 
 impl Memory for OhciModel {
