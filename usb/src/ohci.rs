@@ -52,7 +52,7 @@ const USB_RESUME_MICROS: u64 = 10_000;
 const FRAME_WAIT_MICROS: u64 = 5_000;
 /// How long a root port reset may still run when the device layer ends
 /// it (the controller's own reset is about 10 ms, begun 50 ms earlier).
-const PORT_RESET_END_MICROS: u64 = 20_000;
+const PORT_RESET_END_MICROS: u64 = 10_000;
 /// How long HcControl may take to show UsbReset after a halt.
 const HALT_MICROS: u64 = 10_000;
 /// Frame intervals (FI, bit times minus one) taken as plausible from the

@@ -180,7 +180,6 @@ pub struct OhciModel {
     fm_interval: u32,
     frame_number: u16,
     periodic_start: u32,
-    global_power: bool,
     ports: Vec<Port>,
     // Timers.
     ocr_at: Option<u64>,
@@ -216,6 +215,10 @@ pub struct OhciModel {
     pub packets: u64,
     /// Software resets done.
     pub software_resets: u32,
+    /// When each software reset was asked for.
+    pub software_resets_at: Vec<u64>,
+    /// Every HcControl write: when, and the value.
+    pub control_writes: Vec<(u64, u32)>,
     /// Done queue heads written to the HCCA.
     pub done_queue_writes: u32,
     /// Register writes while SMM owned the controller (offset, value),
@@ -256,7 +259,6 @@ impl OhciModel {
             fm_interval: FM_INTERVAL_DEFAULT,
             frame_number: 0,
             periodic_start: 0,
-            global_power: false,
             ports: vec![Port::default(); usize::from(ports)],
             ocr_at: None,
             reset_until: None,
@@ -275,6 +277,8 @@ impl OhciModel {
             frames: 0,
             packets: 0,
             software_resets: 0,
+            software_resets_at: Vec::new(),
+            control_writes: Vec::new(),
             done_queue_writes: 0,
             writes_while_owned: Vec::new(),
             halts_requested: 0,
@@ -302,6 +306,14 @@ impl OhciModel {
         self.control = HCFS_OPERATIONAL;
         self.fm_interval = self.firmware_frame_interval | 0x2778 << 16;
         self.next_frame = self.now + FRAME_MICROS;
+    }
+
+    /// The firmware left the controller suspended (UsbSuspend), its
+    /// schedule set up, without SMM.
+    pub fn firmware_left_suspended(&mut self) {
+        self.firmware_schedule = true;
+        self.control = HCFS_SUSPEND;
+        self.fm_interval = self.firmware_frame_interval | 0x2778 << 16;
     }
 
     /// HcControl.HCFS: 0 reset, 1 resume, 2 operational, 3 suspend.
@@ -824,7 +836,7 @@ impl OhciModel {
             ),
             Reply::Ack if pid != Pid::In => {
                 let (pointer, done) = advance(size);
-                let control = with_toggle(control, toggle_field, !toggle) & !(3 << 26);
+                let control = with_toggle(control, !toggle) & !(3 << 26);
                 if done {
                     self.retire(
                         ed,
@@ -839,7 +851,6 @@ impl OhciModel {
                 } else {
                     self.poke(td, control);
                     self.poke(td + 4, pointer);
-                    self.set_carry(ed, head_word, !toggle);
                     Step::Continue
                 }
             }
@@ -880,7 +891,7 @@ impl OhciModel {
                     self.poke_byte(address, byte);
                 }
                 let (pointer, done) = advance(got);
-                let control = with_toggle(control, toggle_field, !toggle) & !(3 << 26);
+                let control = with_toggle(control, !toggle) & !(3 << 26);
                 if done {
                     self.retire(
                         ed,
@@ -919,7 +930,6 @@ impl OhciModel {
                 } else {
                     self.poke(td, control);
                     self.poke(td + 4, pointer);
-                    self.set_carry(ed, head_word, !toggle);
                     Step::Continue
                 }
             }
@@ -937,11 +947,6 @@ impl OhciModel {
                 )
             }
         }
-    }
-
-    fn set_carry(&mut self, ed: u64, head_word: u32, toggle: bool) {
-        let word = head_word & !ED_CARRY | if toggle { ED_CARRY } else { 0 };
-        self.poke(ed + 8, word);
     }
 
     /// A transmission error: ErrorCount goes up, and at 3 the TD retires
@@ -1094,6 +1099,7 @@ impl OhciModel {
     }
 
     fn write_control(&mut self, value: u32) {
+        self.control_writes.push((self.now, value));
         let old = self.control;
         let mut new = value & 0x7FF;
         if old & HCFS == HCFS_OPERATIONAL && new & HCFS != HCFS_OPERATIONAL {
@@ -1131,6 +1137,7 @@ impl OhciModel {
 
     fn software_reset(&mut self) {
         self.software_resets += 1;
+        self.software_resets_at.push(self.now);
         self.firmware_schedule = false;
         self.command_status = HCR;
         self.reset_until = Some(self.now + SOFTWARE_RESET_MICROS);
@@ -1244,16 +1251,14 @@ impl OhciModel {
             0x40 => self.periodic_start = value & 0x3FFF,
             0x48 | 0x4C => self.error(format!("the driver rewrote HcRhDescriptor at {offset:#x}")),
             0x50 => {
-                if value & (1 << 16) != 0 && self.power_switching != PowerSwitching::None {
-                    self.global_power = true;
-                    if self.power_switching == PowerSwitching::Ganged {
-                        for index in 0..self.ports.len() {
-                            self.power_port(index, true);
-                        }
+                // SetGlobalPower and ClearGlobalPower reach ganged ports
+                // only (every port is in PortPowerControlMask with PSM).
+                if value & (1 << 16) != 0 && self.power_switching == PowerSwitching::Ganged {
+                    for index in 0..self.ports.len() {
+                        self.power_port(index, true);
                     }
                 }
                 if value & 1 != 0 && self.power_switching == PowerSwitching::Ganged {
-                    self.global_power = false;
                     for index in 0..self.ports.len() {
                         self.power_port(index, false);
                     }
@@ -1268,13 +1273,10 @@ impl OhciModel {
     }
 }
 
-/// TD dword 0 with the toggle's low bit updated, when the TD carries it.
-fn with_toggle(control: u32, toggle_field: u32, toggle: bool) -> u32 {
-    if toggle_field & 2 != 0 {
-        control & !(1 << 24) | u32::from(toggle) << 24
-    } else {
-        control
-    }
+/// TD dword 0 after a packet: the toggle for the next one is the TD's
+/// own from now on (T = 1x), whether it came from the TD or the ED.
+fn with_toggle(control: u32, toggle: bool) -> u32 {
+    control & !(3 << 24) | (2 | u32::from(toggle)) << 24
 }
 
 impl Memory for OhciModel {
@@ -1294,6 +1296,15 @@ impl Memory for OhciModel {
         );
         self.check_driver_write(address);
         self.memory[((address - DMA_BASE) / 4) as usize] = value;
+        // An ED the driver un-halts or un-skips is live again at once.
+        let descriptor = address & !0xF;
+        if address & 0xF != 4 && self.listed_eds.get(&descriptor) == Some(&true) {
+            let flags = self.memory[((descriptor - DMA_BASE) / 4) as usize];
+            let head = self.memory[((descriptor + 8 - DMA_BASE) / 4) as usize];
+            if flags & ED_SKIP == 0 && head & ED_HALTED == 0 {
+                self.listed_eds.insert(descriptor, false);
+            }
+        }
     }
 }
 

@@ -47,17 +47,21 @@ pub struct Layout {
 
 impl Layout {
     /// The layout from `base` up (rounded up to the HCCA's alignment).
+    /// The control data buffers come first, each aligned to its 1 KiB, so
+    /// that no buffer crosses a 4 KiB page (nothing relies on a
+    /// controller's page crossing, which some got wrong); report buffers
+    /// and SETUP buffers are aligned to their sizes for the same reason.
     pub fn new(base: u64) -> Layout {
         let hcca = base.next_multiple_of(HCCA_BYTES);
-        let tree = hcca + HCCA_BYTES;
+        let control_data = (hcca + HCCA_BYTES).next_multiple_of(CONTROL_DATA_BYTES);
+        let reports = control_data + MAX_DEVICES as u64 * CONTROL_DATA_BYTES;
+        let tree = reports + MAX_PIPES as u64 * REPORT_BYTES;
         let control_eds = tree + TREE_NODES as u64 * ED_BYTES;
         let pipe_eds = control_eds + MAX_DEVICES as u64 * ED_BYTES;
         let control_tds = pipe_eds + MAX_PIPES as u64 * ED_BYTES;
         let pipe_tds = control_tds + (MAX_DEVICES * CONTROL_TDS) as u64 * TD_BYTES;
         let setups = pipe_tds + (MAX_PIPES * PIPE_TDS) as u64 * TD_BYTES;
-        let control_data = setups + MAX_DEVICES as u64 * SETUP_BYTES;
-        let reports = control_data + MAX_DEVICES as u64 * CONTROL_DATA_BYTES;
-        let end = reports + MAX_PIPES as u64 * REPORT_BYTES;
+        let end = setups + MAX_DEVICES as u64 * SETUP_BYTES;
         Layout {
             hcca,
             tree,
@@ -294,5 +298,19 @@ mod tests {
         assert!(layout.is_td(layout.pipe_td(MAX_PIPES - 1, 1)));
         assert!(!layout.is_td(layout.setup(0)));
         assert!(layout.end - 0x10_0010 <= 256 * 1024);
+        let page = |address: u64| address / 4096;
+        for device in 0..MAX_DEVICES {
+            let data = layout.control_data(device);
+            assert_eq!(
+                page(data),
+                page(data + CONTROL_DATA_BYTES - 1),
+                "device {device}"
+            );
+            assert_eq!(page(layout.setup(device)), page(layout.setup(device) + 7));
+        }
+        for pipe in 0..MAX_PIPES {
+            let report = layout.report(pipe);
+            assert_eq!(page(report), page(report + REPORT_BYTES - 1), "pipe {pipe}");
+        }
     }
 }

@@ -199,6 +199,10 @@ fn a_full_speed_keyboard_on_a_root_port_types() {
         assert!(ohci.hardware().tree.send_report(handle, key(usage)));
         assert_eq!(report_bytes(&mut ohci, pipe), key(usage));
     }
+    // A restart of a pipe that is running keeps it in step.
+    ohci.interrupt_restart(pipe, false).unwrap();
+    assert!(ohci.hardware().tree.send_report(handle, key(7)));
+    assert_eq!(report_bytes(&mut ohci, pipe), key(7));
     assert!(
         ohci.done_heads_consumed() > 0,
         "the done queue was never taken"
@@ -567,6 +571,12 @@ fn every_device_and_pipe_slot_can_be_used_and_the_next_is_refused() {
         ohci.interrupt_open(devices[0], 1, 8, 8),
         Err(HostError::NoRoom)
     );
+    // A slot given back is reused at once: the controller must be off it.
+    wait(&mut ohci, 5_000);
+    ohci.interrupt_close(pipes[5]);
+    assert_eq!(ohci.interrupt_open(devices[1], 1, 8, 8), Ok(pipes[5]));
+    ohci.device_remove(devices[31]);
+    assert_eq!(ohci.device_new(info), Ok(devices[31]));
     for pipe in pipes.iter().step_by(2) {
         ohci.interrupt_close(*pipe);
     }
@@ -722,6 +732,34 @@ fn a_controller_the_firmware_left_running_is_reset_and_types() {
 }
 
 #[test]
+fn what_the_firmware_left_is_stopped_as_linux_does_before_the_reset() {
+    /// How the firmware leaves the controller.
+    type Leave = fn(&mut OhciModel);
+    // (firmware state, HCFS the driver writes first, the wait before HCR)
+    let cases: [(Leave, u32, u64); 3] = [
+        (|_| {}, 0, 50_000),
+        (OhciModel::firmware_left_suspended, 1, 10_000),
+        (OhciModel::firmware_left_running, 2, 0),
+    ];
+    for (leave, state, wait) in cases {
+        let mut model = OhciModel::new(1);
+        leave(&mut model);
+        let mut ohci = started(model);
+        let model = ohci.hardware();
+        let (written_at, value) = model.control_writes[0];
+        assert_eq!((value >> 6) & 3, state, "{:#x?}", model.control_writes);
+        let reset_at = model.software_resets_at[0];
+        assert!(
+            (wait..wait + 2_000).contains(&(reset_at - written_at)),
+            "HCFS {state}: the reset came {} us later",
+            reset_at - written_at
+        );
+        assert_eq!(model.functional_state(), 2);
+        assert_clean(&mut ohci);
+    }
+}
+
+#[test]
 fn an_implausible_frame_interval_from_the_firmware_is_replaced() {
     let mut model = OhciModel::new(1);
     model.firmware_frame_interval = 0;
@@ -850,4 +888,191 @@ fn registers_and_memory_the_driver_cannot_use_are_refused() {
         Ohci::new(OhciModel::new(1), BAR_BYTES, u64::MAX - 10, DMA_BYTES).err(),
         Some(OhciError::BadDmaRegion)
     );
+}
+
+// ---------------------------------------------------------------------------
+// Through the device layer, as the kernel runs it.
+
+mod through_the_bus {
+    use super::*;
+    use crate::bus::Bus;
+    use std::format;
+    use std::string::String;
+    use std::vec;
+
+    const A: [u8; 8] = [0, 0, 0x04, 0, 0, 0, 0, 0];
+
+    fn bus(model: OhciModel) -> Bus<Driver> {
+        Bus::new(started(model))
+    }
+
+    fn hw(bus: &mut Bus<Driver>) -> &mut OhciModel {
+        bus.controller().hardware()
+    }
+
+    /// Polls a frame apart for `micros` of model time; the bytes typed.
+    fn run_for(bus: &mut Bus<Driver>, micros: u64) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        let end = hw(bus).now + micros;
+        while hw(bus).now < end {
+            bus.poll(&mut |b| bytes.push(b));
+            hw(bus).now += 1_000;
+        }
+        bytes
+    }
+
+    /// Polls a frame apart until nothing is left to enumerate.
+    fn settle(bus: &mut Bus<Driver>) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        let mut polls = 0;
+        while polls == 0 || !bus.enumeration_idle() {
+            polls += 1;
+            assert!(
+                polls < 100_000,
+                "enumeration never ends: {:#?}",
+                hw(bus).log
+            );
+            bus.poll(&mut |b| bytes.push(b));
+            hw(bus).now += 1_000;
+        }
+        bytes
+    }
+
+    /// Polls until `count` bytes came, bounded.
+    fn typed(bus: &mut Bus<Driver>, count: usize) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        for _ in 0..200 {
+            bus.poll(&mut |b| bytes.push(b));
+            if bytes.len() >= count {
+                break;
+            }
+            hw(bus).now += 1_000;
+        }
+        bytes
+    }
+
+    fn keyboards(bus: &Bus<Driver>) -> Vec<String> {
+        bus.keyboards().map(|at| format!("{at}")).collect()
+    }
+
+    fn assert_clean(bus: &mut Bus<Driver>) {
+        let errors = hw(bus).all_errors();
+        assert!(errors.is_empty(), "{errors:#?}\nlog: {:#?}", hw(bus).log);
+    }
+
+    #[test]
+    fn a_keyboard_on_a_root_port_is_found_at_boot_and_types() {
+        let mut model = OhciModel::new(2);
+        let keyboard = model.tree.plug(&[2], Device::Keyboard(Speed::Full));
+        let mut bus = bus(model);
+        assert_eq!(bus.enumerate(), 1, "{:#?}", model_log(&mut bus));
+        assert_eq!(keyboards(&bus), ["2"]);
+        assert!(hw(&mut bus).tree.send_report(keyboard, A));
+        assert_eq!(typed(&mut bus, 1), [0x1E]);
+        assert!(hw(&mut bus).tree.send_report(keyboard, [0; 8]));
+        assert_eq!(typed(&mut bus, 1), [0x9E]);
+        assert!(bus.shut_down());
+        assert_eq!(hw(&mut bus).functional_state(), 0);
+        assert_clean(&mut bus);
+    }
+
+    #[test]
+    fn a_low_speed_keyboard_behind_a_hub_is_found_and_types() {
+        let mut model = OhciModel::new(2);
+        model.tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let keyboard = model.tree.plug(&[1, 3], Device::Keyboard(Speed::Low));
+        let mut bus = bus(model);
+        assert_eq!(bus.enumerate(), 1, "{:#?}", model_log(&mut bus));
+        assert_eq!(keyboards(&bus), ["1.3"]);
+        assert!(hw(&mut bus).tree.send_report(keyboard, A));
+        assert_eq!(typed(&mut bus, 1), [0x1E]);
+        assert_clean(&mut bus);
+    }
+
+    #[test]
+    fn a_keyboard_plugged_in_and_pulled_out_a_thousand_times_comes_and_goes() {
+        let mut model = OhciModel::new(2);
+        model.tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let mut bus = bus(model);
+        bus.enumerate();
+        settle(&mut bus);
+        let tables = |bus: &mut Bus<Driver>| {
+            (
+                bus.devices(),
+                bus.controller().devices_in_use(),
+                bus.controller().pipes_in_use(),
+            )
+        };
+        let before = tables(&mut bus);
+        assert_eq!(before, (1, 1, 1));
+        for cycle in 0..1_000u32 {
+            let (path, speed) = match cycle % 4 {
+                0 => (vec![2], Speed::Full),
+                1 => (vec![2], Speed::Low),
+                2 => (vec![1, 1 + (cycle / 4 % 4) as u8], Speed::Full),
+                _ => (vec![1, 1 + (cycle / 4 % 4) as u8], Speed::Low),
+            };
+            let keyboard = hw(&mut bus).tree.plug(&path, Device::Keyboard(speed));
+            // A hub's status change endpoint is polled every 32 ms.
+            run_for(&mut bus, 50_000);
+            settle(&mut bus);
+            assert_eq!(
+                keyboards(&bus).len(),
+                1,
+                "cycle {cycle}: {:#?}",
+                model_log(&mut bus)
+            );
+            assert!(hw(&mut bus).tree.send_report(keyboard, A));
+            assert_eq!(typed(&mut bus, 1), [0x1E], "cycle {cycle}");
+            hw(&mut bus).tree.unplug(&path);
+            let mut bytes = settle(&mut bus);
+            bytes.extend(run_for(&mut bus, 50_000));
+            assert_eq!(bytes, [0x9E], "cycle {cycle}");
+            assert_eq!(tables(&mut bus), before, "cycle {cycle}");
+        }
+        assert_clean(&mut bus);
+    }
+
+    #[test]
+    fn a_stall_and_a_repeated_toggle_are_recovered_and_no_key_is_lost_or_doubled() {
+        let mut model = OhciModel::new(1);
+        let keyboard = model.tree.plug(&[1], Device::Keyboard(Speed::Low));
+        let mut bus = bus(model);
+        assert_eq!(bus.enumerate(), 1);
+        assert!(hw(&mut bus).tree.send_report(keyboard, A));
+        assert_eq!(typed(&mut bus, 1), [0x1E]);
+        // The ACK was lost: the release comes after a repeat of A.
+        hw(&mut bus).tree.repeat_next_toggle(keyboard);
+        assert!(hw(&mut bus).tree.send_report(keyboard, [0; 8]));
+        let mut bytes = typed(&mut bus, 1);
+        bytes.extend(run_for(&mut bus, 50_000));
+        assert_eq!(bytes, [0x9E]);
+        assert_eq!(hw(&mut bus).toggle_mismatches, 1);
+        // A stall: the bus clears the halt and the pipe starts again.
+        hw(&mut bus).tree.stall_interrupt(keyboard);
+        assert!(hw(&mut bus).tree.send_report(keyboard, A));
+        let mut bytes = typed(&mut bus, 1);
+        bytes.extend(run_for(&mut bus, 50_000));
+        assert_eq!(bytes, [0x1E], "{:#?}", model_log(&mut bus));
+        assert_eq!(keyboards(&bus), ["1"]);
+        assert_clean(&mut bus);
+    }
+
+    fn model_log(bus: &mut Bus<Driver>) -> Vec<String> {
+        hw(bus).log.clone()
+    }
 }
