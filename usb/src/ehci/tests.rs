@@ -425,10 +425,29 @@ fn anything_happened_is_one_register_read() {
 #[test]
 fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     let mut m = Model::new(2);
+    // At high speed it says endpoint 0 is 8 bytes; at full speed, behind a
+    // translator, its configuration's lengths lie.
     m.tree.plug(&[1], Device::LyingKeyboard(Speed::High));
+    m.tree.plug(
+        &[2],
+        Device::Hub {
+            speed: Speed::High,
+            ports: 4,
+            multi_tt: false,
+        },
+    );
+    m.tree.plug(&[2, 1], Device::LyingKeyboard(Speed::Full));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 0, "{:#?}", model(&mut bus).log);
-    assert_clean(model(&mut bus));
+    let m = model(&mut bus);
+    assert!(logged(m, "port 1: endpoint 0 packet size 8 is impossible"));
+    assert!(logged(m, "port 2.1: 34 bytes came of the 64 asked for"));
+    assert_clean(m);
+    // Only the hub and its status pipe hold driver memory.
+    assert_eq!(
+        bus.controller().free_slots(),
+        (MAX_DEVICES - 1, MAX_PIPES - 1)
+    );
     // Whatever the device layer kept of it, the driver refuses what no
     // device may have: a high-speed endpoint 0 of 8 bytes, interrupt
     // packets past 64 bytes, endpoints past 15.
@@ -757,6 +776,45 @@ fn a_control_transfer_cancelled_leaves_the_device_usable() {
     let (done, bytes) = control(&mut ehci, device, GET_DEVICE_DESCRIPTOR);
     assert_eq!(done, Transfer::Complete(18));
     assert_eq!(&bytes[..2], [18, 1]);
+    // A request the device does not know stalls.
+    let unknown = Setup {
+        value: 0x0F00,
+        ..GET_DEVICE_DESCRIPTOR
+    };
+    assert_eq!(control(&mut ehci, device, unknown).0, Transfer::Stalled);
+    // A report longer than the pipe's packet size is babble.
+    let keyboard = ehci.hardware().tree.handle_at(&[1]).unwrap();
+    let pipe = ehci.interrupt_open(device, 1, 4, 1).unwrap();
+    assert!(ehci.hardware().tree.send_report(keyboard, KEY_A));
+    ehci.hardware().advance(2_000);
+    let mut report = [0u8; 8];
+    assert_eq!(
+        ehci.interrupt_poll(pipe, &mut report),
+        Transfer::Failed(TransferError::Babble)
+    );
+    assert_eq!(ehci.interrupt_poll(pipe, &mut report), Transfer::Pending);
+    ehci.interrupt_close(pipe);
+    // The device's toggle moved on: CLEAR_FEATURE(ENDPOINT_HALT) puts it
+    // back to DATA0, where a new pipe starts.
+    let clear_halt = Setup {
+        request_type: 0x02,
+        request: 1,
+        value: 0,
+        index: 0x81,
+        length: 0,
+    };
+    assert_eq!(
+        control(&mut ehci, device, clear_halt).0,
+        Transfer::Complete(0)
+    );
+    let pipe = ehci.interrupt_open(device, 1, 8, 1).unwrap();
+    assert!(ehci.hardware().tree.send_report(keyboard, KEY_B));
+    ehci.hardware().advance(2_000);
+    assert_eq!(
+        ehci.interrupt_poll(pipe, &mut report),
+        Transfer::Complete(8)
+    );
+    assert_eq!(report, KEY_B);
     // A transfer to a device that answers nothing fails after three tries.
     ehci.hardware().tree.unplug(&[1]);
     let (done, _) = control(&mut ehci, device, GET_DEVICE_DESCRIPTOR);

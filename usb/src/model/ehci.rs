@@ -71,7 +71,6 @@ const PORT_CCS: u32 = 1 << 0;
 const PORT_CSC: u32 = 1 << 1;
 const PORT_PE: u32 = 1 << 2;
 const PORT_PEC: u32 = 1 << 3;
-const PORT_OCC: u32 = 1 << 5;
 const PORT_PR: u32 = 1 << 8;
 const PORT_PP: u32 = 1 << 12;
 const PORT_PO: u32 = 1 << 13;
@@ -1050,7 +1049,7 @@ impl Model {
             }
             Pid::In => Vec::new(),
         };
-        let split = (eps != 2).then(|| Split {
+        let split = (eps != 2).then_some(Split {
             hub_address: (capabilities >> 16 & 0x7F) as u8,
             hub_port: (capabilities >> 23 & 0x7F) as u8,
         });
