@@ -3,13 +3,13 @@
 //!
 //! - root ports and hub ports watched for devices plugged in and pulled
 //!   out, a connection debounced before it is enumerated;
-//! - enumeration a step per poll ([`enumeration`]): reset, address,
+//! - enumeration a step per poll (`bus/enumeration.rs`): reset, address,
 //!   descriptors, then a keyboard set up or a hub configured and its ports
 //!   powered, to the five hub tiers USB allows, with the transaction
 //!   translator a full- or low-speed device behind a high-speed hub needs;
 //! - keyboards' reports read through their interrupt pipes and turned
-//!   into PS/2 set-1 bytes ([`report`]: typematic repeat too), by the boot
-//!   report or by the keyboard's own report descriptor ([`hid`]);
+//!   into PS/2 set-1 bytes ([`crate::report`]: typematic repeat too), by the boot
+//!   report or by the keyboard's own report descriptor ([`crate::hid`]);
 //! - stalls and errors on interrupt pipes recovered, a device that keeps
 //!   failing given up, every control transfer bounded by the clock.
 //!
@@ -381,6 +381,12 @@ impl<C: HostController> Bus<C> {
         }
     }
 
+    /// Which kind of controller the bus is on (for the log and the facts
+    /// record, beside [`Bus::keyboards`]).
+    pub fn kind(&self) -> ControllerKind {
+        self.kind
+    }
+
     /// The controller, for the caller's checks and for its driver's own calls.
     pub fn controller(&mut self) -> &mut C {
         &mut self.controller
@@ -530,14 +536,7 @@ impl<C: HostController> Bus<C> {
                 continue;
             }
             self.controller.clear_port_change(port);
-            let location = Location::root(port);
-            self.release_under(location, out);
-            if status.connected {
-                self.say_at(location, format_args!("device plugged in"));
-                self.queue_port(location, false);
-            } else {
-                self.say_at(location, format_args!("device pulled out"));
-            }
+            self.port_changed(Location::root(port), status.connected, out);
         }
     }
 

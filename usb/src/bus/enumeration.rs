@@ -268,6 +268,8 @@ type Result<T> = core::result::Result<T, BusError>;
 pub(super) enum Step {
     /// A root port in reset, for [`ROOT_RESET_MICROS`].
     ResettingRootPort,
+    /// GET_STATUS of a hub port about to be reset: is anything there?
+    CheckingHubPortConnection,
     /// SET_FEATURE(PORT_RESET) sent to the hub.
     StartingHubPortReset,
     /// Between two checks of a hub port's reset.
@@ -325,6 +327,7 @@ impl fmt::Display for Step {
         use Step::*;
         match self {
             ResettingRootPort => write!(f, "resetting the root port"),
+            CheckingHubPortConnection => write!(f, "reading the hub port's status"),
             StartingHubPortReset | WaitingForHubPortReset | CheckingHubPortReset => {
                 write!(f, "resetting the hub port")
             }
@@ -432,6 +435,9 @@ pub(super) struct Job {
     hub_setup: HubSetUp,
     /// Only a hub's changes, no enumeration.
     changes_only: bool,
+    /// The device went away during its root port's reset: the reset is
+    /// ended in its time (a driver may have to end it), and that is all.
+    abandoned: bool,
 }
 
 impl Job {
@@ -455,6 +461,16 @@ impl Job {
             keyboard: None,
             hub_setup: HubSetUp::default(),
             changes_only: false,
+            abandoned: false,
+        }
+    }
+
+    /// When its control transfer began, if it waits for one.
+    #[cfg(test)]
+    pub(super) fn control_started(&self) -> Option<u64> {
+        match self.awaiting {
+            Awaiting::Control { until, .. } => until.checked_sub(TRANSFER_MICROS),
+            Awaiting::Time { .. } => None,
         }
     }
 
@@ -511,33 +527,65 @@ fn interval_frames(speed: Speed, interval: u8, most: u8) -> u8 {
 }
 
 impl<C: HostController> Bus<C> {
-    /// Queues a port whose connection changed (`settled`: it has had its
-    /// connect time already, as at boot or after a hub's power-on).
-    pub(super) fn queue_port(&mut self, location: Location, settled: bool) {
+    /// A port's connection changed (a device plugged in, pulled out, or a
+    /// contact bouncing): whatever was behind it is let go of, and the port
+    /// is queued, to be looked at once it has kept still for
+    /// [`DEBOUNCE_MICROS`]. When it first changed is kept across changes,
+    /// so that a port still bouncing after [`DEBOUNCE_TIMEOUT_MICROS`] is
+    /// dropped (Linux's `hub_port_debounce`).
+    pub(super) fn port_changed(
+        &mut self,
+        location: Location,
+        connected: bool,
+        out: &mut impl FnMut(u8),
+    ) {
+        let bouncing = self.queue.first_change(location);
+        self.release_under(location, out);
+        if bouncing.is_none() {
+            if connected {
+                self.say_at(location, format_args!("device plugged in"));
+            } else {
+                self.say_at(location, format_args!("device pulled out"));
+            }
+        }
+        if connected || bouncing.is_some() {
+            self.queue_port(location, false, bouncing);
+        }
+    }
+
+    /// Queues a port to be looked at (`settled`: it has had its connect
+    /// time already, as at boot or after a hub's power-on), its connection
+    /// first changed at `first_change` (None: now).
+    pub(super) fn queue_port(
+        &mut self,
+        location: Location,
+        settled: bool,
+        first_change: Option<u64>,
+    ) {
         let now = self.controller.now_micros();
         let changed = if settled {
             now.saturating_sub(DEBOUNCE_MICROS)
         } else {
             now
         };
-        // A port that kept bouncing past the debounce timeout is dropped.
-        if let Some(first_change) = self.queue.first_change(location) {
-            if now.saturating_sub(first_change) > DEBOUNCE_TIMEOUT_MICROS {
-                self.queue
-                    .remove(|w| matches!(w, Work::Port { location: at, .. } if *at == location));
-                self.say_at(
-                    location,
-                    format_args!(
-                        "connection never settled within {} ms; left until it changes again",
-                        DEBOUNCE_TIMEOUT_MICROS / 1_000
-                    ),
-                );
-                return;
-            }
+        let first_change = first_change
+            .or(self.queue.first_change(location))
+            .unwrap_or(changed);
+        if now.saturating_sub(first_change) > DEBOUNCE_TIMEOUT_MICROS {
+            self.queue
+                .remove(|w| matches!(w, Work::Port { location: at, .. } if *at == location));
+            self.say_at(
+                location,
+                format_args!(
+                    "connection never settled within {} ms; left until it changes again",
+                    DEBOUNCE_TIMEOUT_MICROS / 1_000
+                ),
+            );
+            return;
         }
         let work = Work::Port {
             location,
-            first_change: changed,
+            first_change,
             last_change: changed,
         };
         if !self.queue.push(work) {
@@ -576,15 +624,28 @@ impl<C: HostController> Bus<C> {
         if !cancel {
             return;
         }
-        let Some(job) = self.job.take() else {
+        let Some(mut job) = self.job.take() else {
             return;
         };
+        let (at, step) = (job.location, job.step);
+        if step == Step::ResettingRootPort {
+            if !job.abandoned {
+                self.say_at(
+                    at,
+                    format_args!(
+                        "the device went away while {step}; the reset ends, and that is all"
+                    ),
+                );
+            }
+            job.abandoned = true;
+            self.job = Some(job);
+            return;
+        }
         if let Awaiting::Control { device, .. } = job.awaiting {
             if let Some(id) = self.devices[device].as_ref().map(|d| d.id) {
                 self.controller.control_cancel(id);
             }
         }
-        let (at, step) = (job.location, job.step);
         self.say_at(
             at,
             format_args!("the device went away while {step}; enumeration stopped"),
@@ -670,6 +731,7 @@ impl<C: HostController> Bus<C> {
         use Step::*;
         match job.step {
             ResettingRootPort => self.resetting_root_port(job),
+            CheckingHubPortConnection => self.checking_hub_port_connection(job, done),
             StartingHubPortReset => self.starting_hub_port_reset(job, done),
             WaitingForHubPortReset => self.waiting_for_hub_port_reset(job),
             CheckingHubPortReset => self.checking_hub_port_reset(job, done),
@@ -715,7 +777,7 @@ impl<C: HostController> Bus<C> {
                 self.controller.clear_port_change(port);
             }
             // They have had the connect time to settle.
-            self.queue_port(Location::root(port), true);
+            self.queue_port(Location::root(port), true, None);
         }
     }
 
@@ -882,7 +944,15 @@ impl<C: HostController> Bus<C> {
 
     fn resetting_root_port(&mut self, job: &mut Job) -> Result<Next> {
         let port = job.location.root_port();
-        match self.controller.port_reset_end(port) {
+        let outcome = self.controller.port_reset_end(port);
+        if job.abandoned {
+            // Whatever is there now is queued, and reset again in its turn.
+            if let ResetOutcome::Enabled(_) = outcome {
+                self.controller.port_disable(port);
+            }
+            return Ok(Next::Done);
+        }
+        match outcome {
             ResetOutcome::Enabled(speed) => {
                 // A change the reset itself made is not a new device (as
                 // Linux clears C_PORT_CONNECTION after a reset).
@@ -909,12 +979,24 @@ impl<C: HostController> Bus<C> {
             return Ok(Next::Done);
         };
         job.hub = Some(index);
+        let port = job.location.port();
+        self.get_hub_status(job, Step::CheckingHubPortConnection, index, port)
+    }
+
+    /// The port's connection before its reset: a port that bounced and
+    /// ended up empty has nothing to reset.
+    fn checking_hub_port_connection(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
+        done?;
+        let hub = job.hub()?;
+        if self.received_status(job)? & HUB_PORT_CONNECTION == 0 {
+            return Ok(Next::Done);
+        }
         job.reset_deadline = self.controller.now_micros() + HUB_RESET_MICROS;
         let port = u16::from(job.location.port());
         self.request(
             job,
             Step::StartingHubPortReset,
-            index,
+            hub,
             (0x23, SET_FEATURE, PORT_RESET, port),
         )
     }
@@ -1574,18 +1656,13 @@ impl<C: HostController> Bus<C> {
             let Some(location) = job.location.below(port) else {
                 return self.examine_next_hub_port(job);
             };
+            let connected = status & HUB_PORT_CONNECTION != 0;
             if !first_look {
-                self.release_under(location, out);
-            }
-            if status & HUB_PORT_CONNECTION != 0 {
-                if !first_look {
-                    self.say_at(location, format_args!("device plugged in"));
-                }
+                self.port_changed(location, connected, out);
+            } else if connected {
                 // Ports looked at right after the power-on wait have had
                 // their connect time.
-                self.queue_port(location, first_look);
-            } else if !first_look {
-                self.say_at(location, format_args!("device pulled out"));
+                self.queue_port(location, true, None);
             }
         }
         self.examine_next_hub_port(job)
@@ -1593,7 +1670,7 @@ impl<C: HostController> Bus<C> {
 
     /// The work is done: said, with what it took.
     fn finish(&mut self, job: Job) {
-        if job.changes_only || job.step == Step::DisablingHubPort {
+        if job.changes_only || job.abandoned || job.step == Step::DisablingHubPort {
             return;
         }
         let Some(index) = job.device else {

@@ -558,6 +558,9 @@ pub struct UsbTree {
     root: Vec<Option<usize>>,
     splits: Vec<(Split, Packet)>,
     errors: Vec<String>,
+    /// The root ports are USB 1.1 (UHCI, OHCI): high-speed devices on
+    /// them run at full speed.
+    full_speed_root: bool,
 }
 
 impl UsbTree {
@@ -567,6 +570,13 @@ impl UsbTree {
             root: vec![None; usize::from(root_ports)],
             ..UsbTree::default()
         }
+    }
+
+    /// Makes the root ports USB 1.1 ones (a UHCI or OHCI controller's):
+    /// a high-speed device there runs at full speed, as does everything
+    /// below it. Without this a root port takes a device at its own speed.
+    pub fn set_root_ports_full_speed(&mut self) {
+        self.full_speed_root = true;
     }
 
     /// Plugs `device` in at `path` (the parent hub must be there). Gives
@@ -646,7 +656,7 @@ impl UsbTree {
 
     /// Whether a device is attached to root port `port`, and its speed.
     pub fn root_device(&self, port: u8) -> Option<Speed> {
-        self.root_node(port).map(|i| self.nodes[i].device.speed())
+        self.root_node(port).map(|i| self.speed_of(i))
     }
 
     /// Resets the device on root port `port`: it goes back to the default
@@ -668,6 +678,10 @@ impl UsbTree {
     /// one reset since power-on, at `packet.address`, running at
     /// `packet.speed`, and reached with exactly the split its place needs
     /// (none unless a high-speed hub's translator is above it).
+    ///
+    /// An IN's data packet is as long as the device's endpoint sends (up
+    /// to its wMaxPacketSize), whatever `packet.max_packet` says: a reply
+    /// longer than that is babble for the controller model to report.
     pub fn transact(&mut self, port: u8, packet: &Packet, split: Option<Split>) -> Reply {
         if let Some(split) = split {
             self.splits.push((split, packet.clone()));
@@ -685,7 +699,9 @@ impl UsbTree {
                 continue;
             }
             let speed = self.speed_of(index);
-            if node.address == packet.address {
+            // A dead device drives nothing onto the wire: it cannot collide.
+            let silent = matches!(node.device, Device::Dead(_));
+            if node.address == packet.address && !silent {
                 let needed = translator.map(|(hub, hub_port)| Split {
                     hub_address: self.nodes[hub].address,
                     hub_port,
@@ -882,14 +898,18 @@ impl UsbTree {
     }
 
     /// The speed the device runs at: a high-speed device below a hub that
-    /// is not high speed chirps in vain and stays at full speed.
+    /// is not high speed (or on a USB 1.1 root port) chirps in vain and
+    /// stays at full speed.
     fn speed_of(&self, index: usize) -> Speed {
         let own = self.nodes[index].device.speed();
-        match self.nodes[index].parent {
-            Some((hub, _)) if own == Speed::High && self.speed_of(hub) != Speed::High => {
-                Speed::Full
-            }
-            _ => own,
+        let port_is_high_speed = match self.nodes[index].parent {
+            Some((hub, _)) => self.speed_of(hub) == Speed::High,
+            None => !self.full_speed_root,
+        };
+        if own == Speed::High && !port_is_high_speed {
+            Speed::Full
+        } else {
+            own
         }
     }
 
@@ -935,9 +955,6 @@ impl UsbTree {
     // One device's answers.
 
     fn answer(&mut self, index: usize, packet: &Packet) -> Reply {
-        if matches!(self.nodes[index].device, Device::Dead(_)) {
-            return Reply::Timeout;
-        }
         match (packet.endpoint, packet.pid) {
             (0, Pid::Setup) => self.setup_stage(index, packet),
             (0, Pid::In) => self.control_in(index, packet),
@@ -1077,7 +1094,7 @@ impl UsbTree {
                 request,
                 expected,
                 received,
-                toggle,
+                toggle: _,
             } => {
                 if received.len() < expected {
                     self.error(
@@ -1093,7 +1110,6 @@ impl UsbTree {
                 if !packet.toggle {
                     self.error(index, "status IN expects DATA0");
                 }
-                let _ = toggle;
                 self.apply_out(index, request, &received);
                 Reply::Data {
                     bytes: Vec::new(),
@@ -2961,5 +2977,49 @@ mod tests {
             descriptor::configuration_total_length(&LYING_KEYBOARD_CONFIGURATION),
             Ok(64)
         );
+    }
+
+    #[test]
+    fn a_high_speed_hub_on_a_usb_1_1_root_port_runs_at_full_speed() {
+        let mut tree = UsbTree::new(1);
+        tree.set_root_ports_full_speed();
+        tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::High,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        let keyboard = tree.plug(&[1, 1], Device::Keyboard(Speed::Full));
+        assert_eq!(tree.root_device(1), Some(Speed::Full));
+        tree.reset_root_port(1);
+        let (device, _) = enumerate(&mut tree, FULL_ON_1, 1);
+        assert_eq!(device, HUB_DEVICE);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
+        enumerate(&mut tree, FULL_ON_1, 2);
+        assert_eq!(tree.keyboard_state(keyboard), (1, 1, 2));
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
+    }
+
+    #[test]
+    fn a_dead_device_at_address_0_does_not_collide() {
+        let mut tree = UsbTree::new(1);
+        tree.plug(
+            &[1],
+            Device::Hub {
+                speed: Speed::Full,
+                ports: 4,
+                multi_tt: false,
+            },
+        );
+        tree.plug(&[1, 1], Device::Dead(Speed::Full));
+        tree.plug(&[1, 2], Device::Keyboard(Speed::Full));
+        tree.reset_root_port(1);
+        enumerate(&mut tree, FULL_ON_1, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
+        bring_up_port(&mut tree, FULL_ON_1, 1, 8, 2);
+        enumerate(&mut tree, FULL_ON_1, 2);
+        assert!(tree.errors().is_empty(), "{:?}", tree.errors());
     }
 }

@@ -113,6 +113,9 @@ pub struct Loopback {
     /// Control requests (bmRequestType, bRequest) answered with a stall
     /// without reaching the device.
     pub stall_requests: Vec<(u8, u8)>,
+    /// The next this many interrupt INs get no answer (CRC errors on the
+    /// wire), whatever device they go to.
+    pub interrupt_errors: u32,
     /// Transactions sent through each root port (index 0: port 1).
     pub transactions: Vec<u32>,
     /// Whether `halt` was called.
@@ -136,6 +139,7 @@ impl Loopback {
             calls: Vec::new(),
             wedged: false,
             stall_requests: Vec::new(),
+            interrupt_errors: 0,
             transactions: vec![0; usize::from(root_ports)],
             halted: false,
             ports: vec![RootPort::default(); usize::from(root_ports)],
@@ -148,6 +152,14 @@ impl Loopback {
     /// Devices with a handle.
     pub fn devices_open(&self) -> usize {
         self.devices.iter().flatten().count()
+    }
+
+    /// Whether root port `port` is enabled.
+    pub fn port_enabled(&self, port: u8) -> bool {
+        usize::from(port)
+            .checked_sub(1)
+            .and_then(|i| self.ports.get(i))
+            .is_some_and(|p| p.enabled)
     }
 
     /// Interrupt pipes open.
@@ -391,7 +403,12 @@ impl Loopback {
         };
         let mut packet = self.packet(device, Pid::In, endpoint, toggle, Vec::new());
         packet.max_packet = usize::from(max_packet);
-        let reply = self.transact(device, packet);
+        let reply = if self.interrupt_errors > 0 {
+            self.interrupt_errors -= 1;
+            Reply::Timeout
+        } else {
+            self.transact(device, packet)
+        };
         let p = self.pipes[pipe].as_mut()?;
         match reply {
             Reply::Data { bytes, toggle } => {
