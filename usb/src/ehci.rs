@@ -27,8 +27,9 @@ use layout::{
     FRAME_LIST_ENTRIES, HEAD_OF_RECLAMATION, INTERRUPT_C_MASK, INTERRUPT_S_MASK, LINK_TERMINATE,
     PID_IN, PID_OUT, PID_SETUP, QH_CAPABILITIES, QH_CHARACTERISTICS, QH_HORIZONTAL,
     QH_OVERLAY_ALTERNATE, QH_OVERLAY_NEXT, QH_OVERLAY_TOKEN, QTD_ALTERNATE, QTD_BUFFERS,
-    QTD_BUFFERS_HIGH, QTD_NEXT, QTD_TOKEN, TOKEN_ACTIVE, TOKEN_BABBLE, TOKEN_DATA_BUFFER,
-    TOKEN_ERRORS, TOKEN_HALTED, TOKEN_MISSED_MICRO_FRAME, TOKEN_TOGGLE, TOKEN_TRANSACTION_ERROR,
+    QTD_BUFFERS_HIGH, QTD_NEXT, QTD_TOKEN, TOKEN_ACTIVE, TOKEN_BABBLE, TOKEN_CERR,
+    TOKEN_DATA_BUFFER, TOKEN_ERRORS, TOKEN_HALTED, TOKEN_MISSED_MICRO_FRAME, TOKEN_TOGGLE,
+    TOKEN_TRANSACTION_ERROR,
 };
 pub use layout::{DMA_BYTES_USED, MAX_DEVICES, MAX_PIPES};
 
@@ -609,18 +610,22 @@ impl<H: PciHardware> Ehci<H> {
         self.hw.mem_write(qh + QH_OVERLAY_NEXT, first as u32);
     }
 
-    /// What a halted token's status says went wrong.
+    /// What a halted token's status says went wrong, in Linux's order
+    /// (ehci-q.c, qtd_copy_status): errors halt only once the error
+    /// counter has run out, so a halt with CERR left is a STALL.
     fn halt_reason(token: u32) -> Transfer {
         if token & TOKEN_BABBLE != 0 {
             Transfer::Failed(TransferError::Babble)
-        } else if token & TOKEN_DATA_BUFFER != 0 {
-            Transfer::Failed(TransferError::DataBuffer)
+        } else if token & TOKEN_CERR != 0 {
+            Transfer::Stalled
         } else if token & TOKEN_MISSED_MICRO_FRAME != 0 {
             Transfer::Failed(TransferError::Split)
+        } else if token & TOKEN_DATA_BUFFER != 0 {
+            Transfer::Failed(TransferError::DataBuffer)
         } else if token & TOKEN_TRANSACTION_ERROR != 0 {
             Transfer::Failed(TransferError::NoResponse)
         } else {
-            Transfer::Stalled
+            Transfer::Failed(TransferError::Controller)
         }
     }
 

@@ -67,7 +67,9 @@ pub const PID_OUT: u32 = 0 << 8;
 pub const PID_IN: u32 = 1 << 8;
 /// PID code SETUP.
 pub const PID_SETUP: u32 = 2 << 8;
-/// The error counter (bits 11:10): three tries, as Linux.
+/// The error counter (bits 11:10).
+pub const TOKEN_CERR: u32 = 3 << 10;
+/// Three tries, as Linux.
 const TOKEN_CERR_3: u32 = 3 << 10;
 /// Interrupt on complete: USBSTS.USBINT when the qTD retires.
 const TOKEN_IOC: u32 = 1 << 15;

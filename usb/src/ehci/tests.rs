@@ -78,6 +78,7 @@ fn logged(model: &Model, text: &str) -> bool {
 #[test]
 fn a_high_speed_keyboard_on_a_root_port_types() {
     let mut m = Model::new(4);
+    m.port_power_control = true;
     let keyboard = m.tree.plug(&[2], Device::Keyboard(Speed::High));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 1, "{:#?}", model(&mut bus).log);
@@ -242,7 +243,7 @@ fn full_and_low_speed_keyboards_on_root_ports_go_to_the_companion() {
 
 #[test]
 fn the_firmware_that_lets_go_is_waited_for_and_its_smis_turned_off() {
-    let mut m = Model::new(2);
+    let mut m = Model::new(2).left_running();
     m.firmware_releases_after = Some(30_000);
     let mut ehci = Ehci::new(m, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
     let Handoff::Released { micros } = ehci.take_ownership() else {
@@ -424,10 +425,29 @@ fn anything_happened_is_one_register_read() {
 #[test]
 fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     let mut m = Model::new(2);
+    // At high speed it says endpoint 0 is 8 bytes; at full speed, behind a
+    // translator, its configuration's lengths lie.
     m.tree.plug(&[1], Device::LyingKeyboard(Speed::High));
+    m.tree.plug(
+        &[2],
+        Device::Hub {
+            speed: Speed::High,
+            ports: 4,
+            multi_tt: false,
+        },
+    );
+    m.tree.plug(&[2, 1], Device::LyingKeyboard(Speed::Full));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 0, "{:#?}", model(&mut bus).log);
-    assert_clean(model(&mut bus));
+    let m = model(&mut bus);
+    assert!(logged(m, "port 1: endpoint 0 packet size 8 is impossible"));
+    assert!(logged(m, "port 2.1: 34 bytes came of the 64 asked for"));
+    assert_clean(m);
+    // Only the hub and its status pipe hold driver memory.
+    assert_eq!(
+        bus.controller().free_slots(),
+        (MAX_DEVICES - 1, MAX_PIPES - 1)
+    );
     // Whatever the device layer kept of it, the driver refuses what no
     // device may have: a high-speed endpoint 0 of 8 bytes, interrupt
     // packets past 64 bytes, endpoints past 15.
@@ -542,7 +562,14 @@ fn a_repeated_report_is_dropped_and_a_stall_recovered() {
         // next press is not taken for a repeat either.
         model(&mut bus).tree.repeat_next_toggle(keyboard);
         assert_eq!(type_key(&mut bus, keyboard, KEY_B), [B_MAKE, B_BREAK]);
-        // A stall: cleared by the device layer, the toggle back to DATA0.
+        // An odd number of reports, so the host's toggle is DATA1...
+        let m = model(&mut bus);
+        assert!(m.tree.send_report(keyboard, KEY_A));
+        assert!(m.tree.send_report(keyboard, NO_KEYS));
+        assert!(m.tree.send_report(keyboard, NO_KEYS));
+        assert_eq!(run(&mut bus, 20_000), [A_MAKE, A_BREAK]);
+        // ...when a stall comes: the device layer clears it, which puts
+        // the device's toggle back to DATA0, and so must the driver.
         model(&mut bus).tree.stall_interrupt(keyboard);
         run(&mut bus, 100_000);
         for _ in 0..3 {
@@ -667,4 +694,176 @@ fn a_thousand_plug_cycles_never_run_the_pools_dry() {
         (MAX_DEVICES - 1, MAX_PIPES - 1)
     );
     assert_clean(model(&mut bus));
+}
+
+/// A high-speed keyboard on root `port`, reset, addressed at `address`
+/// and configured, through [`HostController`] alone.
+fn addressed_keyboard(ehci: &mut Ehci<Model>, port: u8, address: u8) -> DeviceId {
+    ehci.hardware().advance(1_000);
+    ehci.port_reset_begin(port);
+    ehci.hardware().advance(50_000);
+    assert_eq!(
+        ehci.port_reset_end(port),
+        ResetOutcome::Enabled(Speed::High)
+    );
+    let device = ehci
+        .device_new(DeviceInfo {
+            speed: Speed::High,
+            root_port: port,
+            translator: None,
+        })
+        .unwrap();
+    let set_address = Setup {
+        request_type: 0,
+        request: 5,
+        value: u16::from(address),
+        index: 0,
+        length: 0,
+    };
+    assert_eq!(control(ehci, device, set_address).0, Transfer::Complete(0));
+    ehci.device_set_address(device, address).unwrap();
+    let set_configuration = Setup {
+        request_type: 0,
+        request: 9,
+        value: 1,
+        index: 0,
+        length: 0,
+    };
+    assert_eq!(
+        control(ehci, device, set_configuration).0,
+        Transfer::Complete(0)
+    );
+    device
+}
+
+/// Runs a control transfer to its end; what it ended in, and the bytes.
+fn control(ehci: &mut Ehci<Model>, device: DeviceId, setup: Setup) -> (Transfer, Vec<u8>) {
+    ehci.control_begin(device, setup, &[]).unwrap();
+    let mut bytes = std::vec![0u8; usize::from(setup.length)];
+    for _ in 0..1_000 {
+        match ehci.control_poll(device, &mut bytes) {
+            Transfer::Pending => ehci.hardware().advance(100),
+            done => return (done, bytes),
+        }
+    }
+    panic!("the transfer never ended");
+}
+
+const GET_DEVICE_DESCRIPTOR: Setup = Setup {
+    request_type: 0x80,
+    request: 6,
+    value: 0x0100,
+    index: 0,
+    length: 18,
+};
+
+#[test]
+fn a_control_transfer_cancelled_leaves_the_device_usable() {
+    let mut ehci = started(Model::new(2));
+    ehci.hardware()
+        .tree
+        .plug(&[1], Device::Keyboard(Speed::High));
+    let device = addressed_keyboard(&mut ehci, 1, 7);
+    let advances = ehci.hardware().async_advances;
+    ehci.control_begin(device, GET_DEVICE_DESCRIPTOR, &[])
+        .unwrap();
+    ehci.control_cancel(device);
+    assert_eq!(
+        ehci.hardware().async_advances,
+        advances + 1,
+        "off the ring first"
+    );
+    let (done, bytes) = control(&mut ehci, device, GET_DEVICE_DESCRIPTOR);
+    assert_eq!(done, Transfer::Complete(18));
+    assert_eq!(&bytes[..2], [18, 1]);
+    // A request the device does not know stalls.
+    let unknown = Setup {
+        value: 0x0F00,
+        ..GET_DEVICE_DESCRIPTOR
+    };
+    assert_eq!(control(&mut ehci, device, unknown).0, Transfer::Stalled);
+    // A report longer than the pipe's packet size is babble.
+    let keyboard = ehci.hardware().tree.handle_at(&[1]).unwrap();
+    let pipe = ehci.interrupt_open(device, 1, 4, 1).unwrap();
+    assert!(ehci.hardware().tree.send_report(keyboard, KEY_A));
+    ehci.hardware().advance(2_000);
+    let mut report = [0u8; 8];
+    assert_eq!(
+        ehci.interrupt_poll(pipe, &mut report),
+        Transfer::Failed(TransferError::Babble)
+    );
+    assert_eq!(ehci.interrupt_poll(pipe, &mut report), Transfer::Pending);
+    ehci.interrupt_close(pipe);
+    // The device's toggle moved on: CLEAR_FEATURE(ENDPOINT_HALT) puts it
+    // back to DATA0, where a new pipe starts.
+    let clear_halt = Setup {
+        request_type: 0x02,
+        request: 1,
+        value: 0,
+        index: 0x81,
+        length: 0,
+    };
+    assert_eq!(
+        control(&mut ehci, device, clear_halt).0,
+        Transfer::Complete(0)
+    );
+    let pipe = ehci.interrupt_open(device, 1, 8, 1).unwrap();
+    assert!(ehci.hardware().tree.send_report(keyboard, KEY_B));
+    ehci.hardware().advance(2_000);
+    assert_eq!(
+        ehci.interrupt_poll(pipe, &mut report),
+        Transfer::Complete(8)
+    );
+    assert_eq!(report, KEY_B);
+    // A transfer to a device that answers nothing fails after three tries.
+    ehci.hardware().tree.unplug(&[1]);
+    let (done, _) = control(&mut ehci, device, GET_DEVICE_DESCRIPTOR);
+    assert_eq!(done, Transfer::Failed(TransferError::NoResponse));
+    assert_clean(ehci.hardware());
+}
+
+#[test]
+fn a_pipe_closed_and_opened_again_at_once_waits_for_the_frames() {
+    let mut ehci = started(Model::new(2));
+    ehci.hardware()
+        .tree
+        .plug(&[1], Device::Keyboard(Speed::High));
+    ehci.hardware()
+        .tree
+        .plug(&[2], Device::Keyboard(Speed::High));
+    let first = addressed_keyboard(&mut ehci, 1, 1);
+    let second = addressed_keyboard(&mut ehci, 2, 2);
+    let pipe = ehci.interrupt_open(first, 1, 8, 8).unwrap();
+    // Every 8 frames, the other every frame (10 rounds down to 8).
+    let other = ehci.interrupt_open(second, 1, 8, 10).unwrap();
+    ehci.interrupt_close(other);
+    let other = ehci.interrupt_open(second, 1, 8, 1).unwrap();
+    let polls = ehci.hardware().polls;
+    ehci.hardware().advance(64_000);
+    let m = ehci.hardware();
+    assert!(
+        (7..=9).contains(&(m.polls[1] - polls[1])),
+        "{}",
+        m.polls[1] - polls[1]
+    );
+    assert!(
+        (63..=65).contains(&(m.polls[2] - polls[2])),
+        "{}",
+        m.polls[2] - polls[2]
+    );
+    ehci.interrupt_close(other);
+    let before = ehci.hardware().now;
+    ehci.interrupt_close(pipe);
+    assert!(
+        ehci.hardware().now - before >= 1_000,
+        "a whole frame passed"
+    );
+    // The same slot, another device: the queue head is rewritten only now.
+    let again = ehci.interrupt_open(second, 1, 8, 1).unwrap();
+    assert_eq!(again, pipe);
+    ehci.hardware().advance(20_000);
+    ehci.device_remove(first);
+    ehci.device_remove(second);
+    assert_eq!(ehci.free_slots(), (MAX_DEVICES, MAX_PIPES));
+    assert_clean(ehci.hardware());
 }

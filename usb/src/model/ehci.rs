@@ -71,7 +71,6 @@ const PORT_CCS: u32 = 1 << 0;
 const PORT_CSC: u32 = 1 << 1;
 const PORT_PE: u32 = 1 << 2;
 const PORT_PEC: u32 = 1 << 3;
-const PORT_OCC: u32 = 1 << 5;
 const PORT_PR: u32 = 1 << 8;
 const PORT_PP: u32 = 1 << 12;
 const PORT_PO: u32 = 1 << 13;
@@ -183,8 +182,10 @@ pub struct Model {
     pub port_resets: Vec<u8>,
     /// Every split transaction run, with its queue head's fields.
     pub split_log: Vec<SplitRecord>,
-    /// Interrupt-in transactions run on the periodic schedule, by frame.
+    /// Interrupt-in transactions run on the periodic schedule.
     pub periodic_transactions: u64,
+    /// The same, by device address.
+    pub polls: [u64; 128],
     /// Times the async advance doorbell was answered.
     pub async_advances: u32,
     /// The driver's log.
@@ -237,6 +238,7 @@ impl Model {
             port_resets: Vec::new(),
             split_log: Vec::new(),
             periodic_transactions: 0,
+            polls: [0; 128],
             async_advances: 0,
             log: Vec::new(),
             errors: Vec::new(),
@@ -246,6 +248,30 @@ impl Model {
     /// The firmware does not own the controller at all.
     pub fn firmware_not_owning(mut self) -> Model {
         self.legacy &= !(1 << 16);
+        self
+    }
+
+    /// The firmware left the controller running, its schedules on and
+    /// every port routed to it (its keyboard emulation).
+    pub fn left_running(mut self) -> Model {
+        self.usbcmd = 0x0008_0000 | CMD_RUN | CMD_ASE | CMD_PSE;
+        self.usbsts = STS_ASS | STS_PSS;
+        self.configflag = 1;
+        // The firmware's own schedules, in the last two pages of memory:
+        // an empty frame list and a head queue head on its own.
+        let frame_list = DMA_BASE + DMA_BYTES - 0x2000;
+        let head = DMA_BASE + DMA_BYTES - 0x1000;
+        for entry in 0..1024 {
+            self.hc_write(frame_list + 4 * entry, 1);
+        }
+        self.hc_write(head, head as u32 | 2);
+        self.hc_write(head + 4, 1 << 15 | 2 << 12 | 64 << 16 | 1 << 14);
+        self.hc_write(head + 8, 1 << 30);
+        self.hc_write(head + 0x10, 1);
+        self.hc_write(head + 0x14, 1);
+        self.hc_write(head + 0x18, TOKEN_HALTED);
+        self.periodic_base = frame_list as u32;
+        self.async_base = head as u32;
         self
     }
 
@@ -1023,7 +1049,7 @@ impl Model {
             }
             Pid::In => Vec::new(),
         };
-        let split = (eps != 2).then(|| Split {
+        let split = (eps != 2).then_some(Split {
             hub_address: (capabilities >> 16 & 0x7F) as u8,
             hub_port: (capabilities >> 23 & 0x7F) as u8,
         });
@@ -1051,6 +1077,7 @@ impl Model {
         };
         if periodic {
             self.periodic_transactions += 1;
+            self.polls[usize::from(address)] += 1;
         }
         let reply = self.deliver(&packet, split);
         let ioc = token & TOKEN_IOC != 0;
@@ -1097,9 +1124,14 @@ impl Model {
                 self.retire(qh, token & !TOKEN_ACTIVE | TOKEN_HALTED, false);
             }
             (_, Reply::Timeout) => {
+                // CERR 0 counts nothing: the transaction is tried for ever.
                 let errors = token >> 10 & 3;
+                if errors == 0 {
+                    self.hc_write(qh + 0x18, token | TOKEN_XACT);
+                    return true;
+                }
                 let token = token & !(3 << 10) | TOKEN_XACT;
-                if errors <= 1 {
+                if errors == 1 {
                     self.retire(qh, token & !TOKEN_ACTIVE | TOKEN_HALTED, false);
                 } else {
                     let token = token | (errors - 1) << 10;
