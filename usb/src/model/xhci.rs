@@ -28,31 +28,14 @@ const EXTENDED: u32 = 0x1000;
 const PORTS: usize = 2;
 const MICROS_PER_CLOCK_READ: u64 = 5;
 
-/// QEMU's usb-kbd descriptors.
-pub const KEYBOARD_DEVICE: [u8; 18] = [
-    18, 1, 0x00, 0x02, 0, 0, 0, 8, 0x27, 0x06, 0x01, 0x00, 0, 0, 1, 2, 3, 1,
-];
-pub const HUB_DEVICE: [u8; 18] = [
-    18, 1, 0x00, 0x02, 9, 0, 0, 8, 0x09, 0x04, 0x11, 0x11, 0, 0, 0, 0, 0, 1,
-];
-pub const HUB_CONFIGURATION: [u8; 25] = [
-    9, 2, 25, 0, 1, 1, 0, 0xE0, 0, 9, 4, 0, 0, 1, 9, 0, 0, 0, 7, 5, 0x81, 3, 1, 0, 12,
-];
-pub const HUB_DESCRIPTOR: [u8; 9] = [9, 0x29, 4, 0, 0, 50, 0, 0, 0xFF];
+/// The descriptors the xHCI model's devices give, shared with the tree
+/// of devices the other controllers' models use.
+pub use super::devices::{
+    HUB_CONFIGURATION, HUB_DESCRIPTOR, HUB_DEVICE, KEYBOARD_CONFIGURATION, KEYBOARD_DEVICE,
+    KEYBOARD_REPORT_DESCRIPTOR,
+};
 /// A SuperSpeed hub's descriptor: 4 ports, 100 ms to power good.
 pub const SUPERSPEED_HUB_DESCRIPTOR: [u8; 12] = [12, 0x2A, 4, 0, 0, 50, 0, 0, 0, 0, 0, 0];
-/// QEMU's usb-kbd report descriptor: the boot report (HID 1.11 appendix
-/// E.6): modifier bits, a constant byte, LED outputs, six key bytes.
-pub const KEYBOARD_REPORT_DESCRIPTOR: [u8; 63] = [
-    0x05, 0x01, 0x09, 0x06, 0xA1, 0x01, 0x75, 0x01, 0x95, 0x08, 0x05, 0x07, 0x19, 0xE0, 0x29, 0xE7,
-    0x15, 0x00, 0x25, 0x01, 0x81, 0x02, 0x95, 0x01, 0x75, 0x08, 0x81, 0x01, 0x95, 0x05, 0x75, 0x01,
-    0x05, 0x08, 0x19, 0x01, 0x29, 0x05, 0x91, 0x02, 0x95, 0x01, 0x75, 0x03, 0x91, 0x01, 0x95, 0x06,
-    0x75, 0x08, 0x15, 0x00, 0x25, 0xFF, 0x05, 0x07, 0x19, 0x00, 0x29, 0xFF, 0x81, 0x00, 0xC0,
-];
-pub const KEYBOARD_CONFIGURATION: [u8; 34] = [
-    9, 2, 34, 0, 1, 1, 0, 0xA0, 50, 9, 4, 0, 0, 1, 3, 1, 1, 0, 9, 0x21, 0x11, 0x01, 0, 1, 0x22, 63,
-    0, 7, 5, 0x81, 3, 8, 0, 10,
-];
 
 /// A consumer's place on a producer ring.
 #[derive(Clone, Copy, Debug, Default)]
