@@ -28,6 +28,7 @@ pub mod hid;
 pub mod host;
 pub mod report;
 pub mod ring;
+pub mod uhci;
 pub mod xhci;
 
 #[cfg(test)]

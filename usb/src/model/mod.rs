@@ -6,3 +6,4 @@ mod xhci;
 pub use xhci::*;
 pub mod devices;
 pub mod loopback;
+pub mod uhci;
