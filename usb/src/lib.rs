@@ -26,6 +26,7 @@ pub mod context;
 pub mod descriptor;
 pub mod hid;
 pub mod host;
+pub mod ohci;
 pub mod report;
 pub mod ring;
 pub mod uhci;

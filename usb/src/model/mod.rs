@@ -6,4 +6,5 @@ mod xhci;
 pub use xhci::*;
 pub mod devices;
 pub mod loopback;
+pub mod ohci;
 pub mod uhci;
