@@ -36,6 +36,7 @@ extern crate std;
 pub mod bus;
 pub mod context;
 pub mod descriptor;
+pub mod ehci;
 pub mod hid;
 pub mod host;
 pub mod ohci;

@@ -5,6 +5,7 @@
 mod xhci;
 pub use xhci::*;
 pub mod devices;
+pub mod ehci;
 pub mod loopback;
 pub mod ohci;
 pub mod uhci;
