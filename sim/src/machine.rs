@@ -137,24 +137,40 @@ impl Machine {
     /// Sets Mode X and draws the first frame, as the kernel does at boot
     /// before it reads any key.
     pub fn new() -> Self {
+        let mut machine = Self::with_mode_set(OpLog::default());
+        machine.frame();
+        machine
+    }
+
+    /// As [`Machine::new`], with the bus operations of the mode set and the
+    /// first frame, from a VGA as the BIOS leaves it (`SoftVga::new`).
+    pub fn new_logged() -> (Self, Vec<LoggedOp>) {
+        let mut log = OpLog::default();
+        log.start();
+        let mut machine = Self::with_mode_set(log);
+        machine.frame();
+        let log = machine.vga.bus_mut().log.take();
+        (machine, log)
+    }
+
+    /// The machine with Mode X set (through a bus keeping `log`), no frame run.
+    fn with_mode_set(log: OpLog) -> Self {
         let micros = Rc::new(Cell::new(0));
         let bus = ClockedVga {
             soft: Box::new(SoftVga::new()),
             micros: Rc::clone(&micros),
-            log: OpLog::default(),
+            log,
         };
         let mut vga = ModeX::new(bus);
         vga.set_mode();
-        let mut machine = Machine {
+        Machine {
             vga,
             app: App::new(),
             micros,
             frames: 0,
             planes_before: vec![0; PLANE_COUNT * PLANE_BYTES],
             last_cost: FrameCost::default(),
-        };
-        machine.frame();
-        machine
+        }
     }
 
     /// Scan-code bytes, decoded as the kernel decodes its keyboard's.
@@ -332,6 +348,16 @@ mod tests {
         assert!(stats.frame_micros > 0 && stats.frame_micros < frame_micros);
     }
 
+    /// Runs `test` with 16 MiB of stack: a frame of the demo takes about
+    /// 2 MiB in a test build, all a test thread has, and these tests hold a
+    /// second machine or a copy of the VGA besides.
+    fn on_big_stack(test: impl FnOnce() + Send + 'static) {
+        let thread = std::thread::Builder::new().stack_size(16 << 20).spawn(test);
+        if let Err(panic) = thread.expect("a test thread starts").join() {
+            std::panic::resume_unwind(panic);
+        }
+    }
+
     /// Everything a picture or the inspector shows of a software VGA.
     fn visible_state(vga: &SoftVga) -> (Vec<u8>, u16, Vec<modex::Rgb6>, u8) {
         let planes = (0..PLANE_COUNT)
@@ -344,21 +370,38 @@ mod tests {
 
     #[test]
     fn a_logged_frame_replayed_on_a_copy_gives_the_same_vga() {
-        let mut machine = Machine::new();
-        machine.tap(key("m")); // several cubes: many Map Masks a frame
-        machine.frame();
-        for _ in 0..3 {
-            let mut copy = Box::new(machine.vga().clone());
-            let (_, log) = machine.frame_logged();
-            assert!(log.len() > 10, "{} entries", log.len());
+        on_big_stack(|| {
+            let mut machine = Machine::new();
+            machine.tap(key("m")); // several cubes: many Map Masks a frame
+            machine.frame();
+            for _ in 0..3 {
+                let mut copy = Box::new(machine.vga().clone());
+                let (_, log) = machine.frame_logged();
+                assert!(log.len() > 10, "{} entries", log.len());
+                for entry in &log {
+                    entry.replay(&mut copy);
+                }
+                assert!(visible_state(&copy) == visible_state(machine.vga()));
+            }
+            // Not recording: no log kept.
+            machine.frame();
+            assert!(machine.vga.bus_mut().log.take().is_empty());
+        });
+    }
+
+    #[test]
+    fn the_mode_set_is_logged_from_the_vga_the_bios_leaves() {
+        on_big_stack(|| {
+            let (machine, log) = Machine::new_logged();
+            let first = log.first().expect("the mode set is logged");
+            assert_eq!(first.callers.names(), ["ModeX::set_mode", "ModeX::program"]);
+            let mut copy = Box::new(SoftVga::new());
             for entry in &log {
                 entry.replay(&mut copy);
             }
             assert!(visible_state(&copy) == visible_state(machine.vga()));
-        }
-        // Not recording: no log kept.
-        machine.frame();
-        assert!(machine.vga.bus_mut().log.take().is_empty());
+            assert!(visible_state(Machine::new().vga()) == visible_state(machine.vga()));
+        });
     }
 
     #[test]
