@@ -66,12 +66,19 @@ impl Page {
     /// named in [`Page::message`] and left out.
     pub fn new(query: &str) -> Self {
         let (replay, problem) = parse_query(query);
-        let machine = Machine::new();
+        let (machine, slow) = if replay.mode_set {
+            // The mode set in slow motion, from text mode as the BIOS left it.
+            let (machine, log) = Machine::new_logged();
+            let slow = SlowMotion::new(Box::new(SoftVga::new()), log, 0);
+            (machine, Some(slow))
+        } else {
+            (Machine::new(), None)
+        };
         let pacer = Pacer::new(machine.vga().timing().frame_ns());
         let mut page = Page {
             machine,
             history: History::default(),
-            paused: replay.paused || replay.frames == Some(0),
+            paused: replay.paused || replay.mode_set || replay.ops > 0 || replay.frames == Some(0),
             replay,
             queue: VecDeque::new(),
             held: Vec::new(),
@@ -81,15 +88,21 @@ impl Page {
             inspector: true,
             previous_byte: None,
             pacer,
-            slow: None,
+            slow,
             last_op: String::new(),
             message: problem.unwrap_or_default(),
-            screen: vec![0; PICTURE_WIDTH * PICTURE_HEIGHT * 4],
+            // Black until the first Mode X picture.
+            screen: [0, 0, 0, 255].repeat(PICTURE_WIDTH * PICTURE_HEIGHT),
             indices: vec![0; PICTURE_WIDTH * PICTURE_HEIGHT],
             panel: Vec::new(),
             ops_panel: Vec::new(),
         };
-        page.render();
+        let ops = page.replay.ops;
+        if ops > 0 {
+            page.step_ops(ops);
+        } else {
+            page.render();
+        }
         page
     }
 

@@ -1,7 +1,9 @@
 //! The page's URL as a replay script: `?keys=left,left,up&frames=120` taps
 //! the k-th key before frame k (as `sim::record::Script` does with one frame
 //! between keys), runs `frames` frames and pauses; `&paused=1` starts paused
-//! after the mode set; `&every=N` puts N frames between keys.
+//! after the mode set; `&every=N` puts N frames between keys. For the book's
+//! step-by-step views: `&modeset=1` starts in slow motion before the mode
+//! set, and `&ops=N` steps N bus operations at once (in slow motion).
 //!
 //! A bad token does not stop the page: it is left out, and the first one is
 //! named in one line for the page to show.
@@ -21,6 +23,10 @@ pub struct Replay {
     pub frames: Option<u32>,
     /// Start paused, at frame 0 after the mode set.
     pub paused: bool,
+    /// Start in slow motion before the mode set, on the VGA the BIOS leaves.
+    pub mode_set: bool,
+    /// Bus operations to step in slow motion once loaded.
+    pub ops: u32,
 }
 
 impl Default for Replay {
@@ -32,6 +38,8 @@ impl Default for Replay {
             },
             frames: None,
             paused: false,
+            mode_set: false,
+            ops: 0,
         }
     }
 }
@@ -75,10 +83,18 @@ pub fn parse_query(query: &str) -> (Replay, Option<String>) {
                     "bad frame count {value:?} in the URL's every (1 to {MAX_FRAMES})"
                 )),
             },
-            "paused" => match value.as_str() {
-                "1" | "" | "true" => replay.paused = true,
-                "0" | "false" => replay.paused = false,
-                _ => complain(format!("bad value {value:?} in the URL's paused (0 or 1)")),
+            "paused" | "modeset" => match (value.as_str(), name) {
+                ("1" | "" | "true", "paused") => replay.paused = true,
+                ("0" | "false", "paused") => replay.paused = false,
+                ("1" | "" | "true", _) => replay.mode_set = true,
+                ("0" | "false", _) => replay.mode_set = false,
+                _ => complain(format!("bad value {value:?} in the URL's {name} (0 or 1)")),
+            },
+            "ops" => match count(&value, 0) {
+                Some(ops) => replay.ops = ops,
+                None => complain(format!(
+                    "bad operation count {value:?} in the URL's ops (0 to {MAX_FRAMES})"
+                )),
             },
             _ => complain(format!("unknown URL parameter {name:?}")),
         }
@@ -152,6 +168,9 @@ mod tests {
         assert_eq!(replay.script.keys, [key("r"), key("f1")]);
         assert_eq!(replay.script.key_before(30), Some(key("f1")));
         assert_eq!(parse_query(""), (Replay::default(), None));
+        let (replay, problem) = parse_query("modeset=1&ops=45");
+        assert_eq!(problem, None);
+        assert!(replay.mode_set && replay.ops == 45);
         assert_eq!(
             parse_query(&query_for(&["l", "m"], 5, 99)).0.frames,
             Some(99)
@@ -174,6 +193,8 @@ mod tests {
             ("frames=99999999999", "bad frame count \"99999999999\""),
             ("every=0", "bad frame count \"0\" in the URL's every"),
             ("paused=maybe", "bad value \"maybe\" in the URL's paused"),
+            ("modeset=2", "bad value \"2\" in the URL's modeset"),
+            ("ops=x", "bad operation count \"x\" in the URL's ops"),
             ("keys=%zz", "malformed escape in the URL's keys: \"%zz\""),
             ("keys=left%2", "malformed escape in the URL's keys"),
             ("colour=red", "unknown URL parameter \"colour\""),

@@ -206,3 +206,86 @@ fn esc_ends_the_demo_and_the_page_says_so() {
         assert!(page.paused());
     });
 }
+
+#[test]
+fn the_mode_set_steps_from_text_mode() {
+    crate::with_big_stack(|| {
+        let mut page = Page::new("?modeset=1");
+        assert!(page.in_slow_motion() && page.paused());
+        assert_eq!(
+            page.vga().picture_size(),
+            (720, 400),
+            "text mode, as the BIOS left it"
+        );
+        page.step_ops(1);
+        assert!(
+            page.last_op().starts_with("frame 0, operation 1 of "),
+            "{}",
+            page.last_op()
+        );
+        assert!(page
+            .last_op()
+            .ends_with("from ModeX::set_mode > ModeX::program"));
+        // A frame step finishes the mode set and its first frame: frame 0.
+        page.step_frames(1);
+        assert_eq!(page.frames(), 0);
+        let machine = Machine::new();
+        assert!(page.screen_rgba() == rgba_of_rgb(&machine.scanout_rgb()));
+    });
+}
+
+/// The replay URLs `docs/vga.md` gives, with what each must show.
+const BOOK_URLS: &[(&str, &[&str])] = &[
+    (
+        "?modeset=1&ops=3",
+        &["Miscellaneous Output = 0xE3", "ModeX::program"],
+    ),
+    (
+        "?modeset=1&ops=4",
+        &["Map Mask = 0x0F: planes 0 1 2 3 open"],
+    ),
+    (
+        "?modeset=1&ops=72",
+        &["DAC Write Index = 0x00", "ModeX::load_palette"],
+    ),
+    (
+        "?modeset=1&ops=691",
+        &["fill 32768 bytes of colour 0", "clear_video_memory"],
+    ),
+    (
+        "?modeset=1&ops=695",
+        &["Start Address Low", "ModeX::set_mode > ModeX::show_page"],
+    ),
+    (
+        "?paused=1&ops=229",
+        &["Map Mask = 0x0F: planes 0 1 2 3 open", "update_page"],
+    ),
+    (
+        "?paused=1&ops=230",
+        &["fill ", "through planes 0 1 2 3", "update_page"],
+    ),
+    (
+        "?paused=1&ops=345",
+        &["CRTC Start Address High", "ModeX::show_page"],
+    ),
+    ("?paused=1&ops=347", &["Input Status 1", "ModeX::show_page"]),
+];
+
+#[test]
+fn the_books_replay_urls_show_what_the_book_says() {
+    crate::with_big_stack(|| {
+        let book = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/vga.md"))
+            .expect("docs/vga.md");
+        for (url, shows) in BOOK_URLS {
+            assert!(
+                book.contains(&format!("`{url}`")),
+                "docs/vga.md lacks {url}"
+            );
+            let page = Page::new(url);
+            assert_eq!(page.message(), "", "{url}");
+            for words in *shows {
+                assert!(page.last_op().contains(words), "{url}: {}", page.last_op());
+            }
+        }
+    });
+}
