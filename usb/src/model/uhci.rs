@@ -30,7 +30,7 @@ pub const DMA_BYTES: u64 = 256 * 1024;
 /// What a register read or a clock read costs.
 pub const MICROS_PER_READ: u64 = 2;
 /// A frame.
-pub const FRAME_MICROS: u64 = 1_000;
+pub const MICROS_PER_USB_FRAME: u64 = 1_000;
 /// HCRESET takes this long to clear itself.
 const HOST_RESET_TAKES: u64 = 20;
 /// Where the BIOS's own frame list is (outside the driver's memory).
@@ -192,7 +192,7 @@ impl UhciModel {
             host_reset_until: None,
             port_reset_since: vec![None; ports_usize],
             refusals_left: vec![0; ports_usize],
-            next_frame_at: FRAME_MICROS,
+            next_frame_at: MICROS_PER_USB_FRAME,
             bios_schedule: false,
             control: BTreeMap::new(),
             errors: Vec::new(),
@@ -357,7 +357,7 @@ impl UhciModel {
             }
         }
         while self.now >= self.next_frame_at {
-            self.next_frame_at += FRAME_MICROS;
+            self.next_frame_at += MICROS_PER_USB_FRAME;
             self.frame();
         }
     }
