@@ -1173,7 +1173,8 @@ impl OhciModel {
             0x30 => self.done_head,
             0x34 => self.fm_interval,
             0x38 => {
-                let left = (self.next_frame.saturating_sub(self.now)).min(MICROS_PER_USB_FRAME) as u32;
+                let left =
+                    (self.next_frame.saturating_sub(self.now)).min(MICROS_PER_USB_FRAME) as u32;
                 left * 12
             }
             0x3C => u32::from(self.frame_number),
