@@ -84,10 +84,16 @@ struct Args {
     /// e.g. an older build's, to compare.
     #[arg(long, value_name = "FILE", conflicts_with = "image")]
     disk: Option<PathBuf>,
-    /// Attach the image as a USB stick on this USB host controller (xhci or
-    /// ehci) instead of as the hard disk: the firmware boots from USB.
+    /// Attach the image as a USB stick on this USB host controller (xhci,
+    /// ehci, ohci, uhci, or ich9: ICH9's EHCI with three UHCI companions)
+    /// instead of as the hard disk: the firmware boots from USB.
     #[arg(long, value_name = "HOST", value_parser = usb_host)]
     usb_stick: Option<UsbHost>,
+    /// Fit a USB host controller of this kind (as for --usb-stick) with a
+    /// usb-kbd on it; may be given again for more (on ich9 the keyboard is
+    /// a full-speed one, which the EHCI hands to a UHCI companion).
+    #[arg(long, value_name = "HOST", value_parser = usb_host)]
+    usb_keyboard: Vec<UsbHost>,
     /// Boot headless, wait for the kernel's ready line, print how long after
     /// QEMU's start the first serial output, the kernel's banner and the
     /// ready line arrived, then stop.
@@ -146,11 +152,10 @@ fn adapter(name: &str) -> Result<Graphics, String> {
 }
 
 fn usb_host(name: &str) -> Result<UsbHost, String> {
-    match name {
-        "xhci" => Ok(UsbHost::Xhci),
-        "ehci" => Ok(UsbHost::Ehci),
-        _ => Err(format!("unknown USB host {name:?}; one of: xhci, ehci")),
-    }
+    UsbHost::from_name(name).ok_or_else(|| {
+        let names: Vec<_> = UsbHost::ALL.into_iter().map(UsbHost::name).collect();
+        format!("unknown USB host {name:?}; one of: {}", names.join(", "))
+    })
 }
 
 fn chipset(name: &str) -> Result<Chipset, String> {
@@ -227,6 +232,18 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     options.board.chipset = args.machine;
     if let Some(host) = args.usb_stick {
         options.disk = DiskAttachment::UsbStick(host);
+    }
+    for (n, host) in args.usb_keyboard.iter().enumerate() {
+        let id = format!("usbkbdhost{n}");
+        options.devices.extend(host.devices(&id));
+        let full_speed = if *host == UsbHost::Ich9EhciWithCompanions {
+            ",usb_version=1"
+        } else {
+            ""
+        };
+        options
+            .devices
+            .push(format!("usb-kbd,bus={id}.0{full_speed}"));
     }
     if args.secure_boot {
         options.secure_boot_vars = Some(secure_boot_vars(&image)?);
@@ -467,5 +484,29 @@ mod tests {
         assert!(!Args::try_parse_from(["runner"]).unwrap().icount);
         let args = Args::try_parse_from(["runner", "--uefi", "--icount"]).unwrap();
         assert!(args.icount && args.uefi);
+    }
+
+    #[test]
+    fn usb_hosts_are_named_and_keyboards_may_be_fitted_on_several() {
+        let args = Args::try_parse_from([
+            "runner",
+            "--usb-stick",
+            "ich9",
+            "--usb-keyboard",
+            "uhci",
+            "--usb-keyboard",
+            "ohci",
+        ])
+        .unwrap();
+        assert_eq!(args.usb_stick, Some(UsbHost::Ich9EhciWithCompanions));
+        assert_eq!(args.usb_keyboard, [UsbHost::Uhci, UsbHost::Ohci]);
+        let error = Args::try_parse_from(["runner", "--usb-keyboard", "vhci"]).unwrap_err();
+        assert!(
+            error.to_string().contains("xhci, ehci, ohci, uhci, ich9"),
+            "{error}"
+        );
+        for host in UsbHost::ALL {
+            assert_eq!(UsbHost::from_name(host.name()), Some(host));
+        }
     }
 }

@@ -79,16 +79,75 @@ pub enum DiskAttachment {
 pub enum UsbHost {
     /// `qemu-xhci`: USB 3 (xHCI), what a PC of today has.
     Xhci,
-    /// `usb-ehci`: USB 2 (EHCI), what a PC of the 2000s has.
+    /// `usb-ehci`: USB 2 (EHCI), what a PC of the 2000s has, alone (no
+    /// companion: full- and low-speed devices work only if QEMU lets it
+    /// keep them).
     Ehci,
+    /// `pci-ohci`: USB 1.1 (OHCI), as on AMD, SiS and VIA chipsets.
+    Ohci,
+    /// `piix3-usb-uhci`: USB 1.1 (UHCI), as on Intel and VIA chipsets.
+    Uhci,
+    /// ICH9's EHCI (`ich9-usb-ehci1`, 00:1d.7) with its three UHCI
+    /// companions (`ich9-usb-uhci1..3`, 00:1d.0-2, two ports each), as
+    /// QEMU's `docs/config/ich9-ehci-uhci.cfg` lays them out: devices go on
+    /// the EHCI's bus, and full- and low-speed ones are handed to a
+    /// companion.
+    Ich9EhciWithCompanions,
 }
 
 impl UsbHost {
-    /// QEMU's device name.
+    /// QEMU's device name (the EHCI's, for ICH9's set).
     pub fn device(self) -> &'static str {
         match self {
             UsbHost::Xhci => "qemu-xhci",
             UsbHost::Ehci => "usb-ehci",
+            UsbHost::Ohci => "pci-ohci",
+            UsbHost::Uhci => "piix3-usb-uhci",
+            UsbHost::Ich9EhciWithCompanions => "ich9-usb-ehci1",
+        }
+    }
+
+    /// Every host, for the runner's list.
+    pub const ALL: [UsbHost; 5] = [
+        UsbHost::Xhci,
+        UsbHost::Ehci,
+        UsbHost::Ohci,
+        UsbHost::Uhci,
+        UsbHost::Ich9EhciWithCompanions,
+    ];
+
+    /// The runner's name for it (`--usb-stick`, `--usb-keyboard`).
+    pub fn name(self) -> &'static str {
+        match self {
+            UsbHost::Xhci => "xhci",
+            UsbHost::Ehci => "ehci",
+            UsbHost::Ohci => "ohci",
+            UsbHost::Uhci => "uhci",
+            UsbHost::Ich9EhciWithCompanions => "ich9",
+        }
+    }
+
+    /// The host of that name.
+    pub fn from_name(name: &str) -> Option<UsbHost> {
+        UsbHost::ALL.into_iter().find(|host| host.name() == name)
+    }
+
+    /// The `-device` values that fit the host with QEMU id `id`: devices then
+    /// go on bus `{id}.0`.
+    pub fn devices(self, id: &str) -> Vec<String> {
+        match self {
+            UsbHost::Ich9EhciWithCompanions => {
+                let mut devices =
+                    vec![format!("ich9-usb-ehci1,id={id},addr=1d.7,multifunction=on")];
+                for (n, first_port) in [(1, 0), (2, 2), (3, 4)] {
+                    devices.push(format!(
+                        "ich9-usb-uhci{n},id={id}-uhci{n},addr=1d.{},multifunction=on,masterbus={id}.0,firstport={first_port}",
+                        n - 1
+                    ));
+                }
+                devices
+            }
+            host => vec![format!("{},id={id}", host.device())],
         }
     }
 }
@@ -641,13 +700,13 @@ impl Qemu {
             DiskAttachment::UsbStick(host) => {
                 command
                     .arg("-drive")
-                    .arg(format!("if=none,id=stick,{image}"))
-                    .arg("-device")
-                    .arg(format!("{},id={STICK_HOST_ID}", host.device()))
-                    .arg("-device")
-                    .arg(format!(
-                        "usb-storage,bus={STICK_HOST_ID}.0,drive=stick,bootindex=0"
-                    ));
+                    .arg(format!("if=none,id=stick,{image}"));
+                for device in host.devices(STICK_HOST_ID) {
+                    command.arg("-device").arg(device);
+                }
+                command.arg("-device").arg(format!(
+                    "usb-storage,bus={STICK_HOST_ID}.0,drive=stick,bootindex=0"
+                ));
             }
             DiskAttachment::Virtio => {
                 command

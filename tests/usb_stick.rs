@@ -15,6 +15,13 @@
 //! takes neither, the cube test's keys sent to the USB keyboard act once
 //! each with the software VGA's pictures, and Esc powers off with the xHCI
 //! halted first.
+//!
+//! Two more boot from a stick on ICH9's EHCI, with its three UHCI
+//! companions and a full-speed keyboard beside the stick (OVMF on a Q35
+//! without PS/2 or PIT, SeaBIOS on a PC): the EHCI keeps the high-speed
+//! stick and hands the keyboard to the first companion, the cube test's
+//! keys on it give the software VGA's pictures, and Esc powers off with
+//! the companions halted before the EHCI.
 
 mod common;
 
@@ -22,8 +29,10 @@ use boot::qemu::{DISPLAY_ID, STICK_HOST_ID};
 use boot::{line, Board, DiskAttachment, Firmware, Graphics, Qemu, QemuOptions, UsbHost};
 use common::flood::commands_done;
 use common::{
-    assert_pictures_equal, assert_presented, assert_same_picture, model_picture, presented,
-    soft_vga_in_mode_x, usb_escape_powers_off_with_the_xhci_halted_first,
+    assert_cube_picture, assert_pictures_equal, assert_presented, assert_same_picture,
+    model_picture, presented, soft_vga_in_mode_x,
+    usb_escape_powers_off_with_every_controller_halted_first,
+    usb_escape_powers_off_with_the_xhci_halted_first, usb_keyboards_on,
     usb_keys_match_the_software_vga, BOOT_TIMEOUT, CUBE_KEYS, Q35_WITHOUT_PS2,
 };
 use demo::app::App;
@@ -192,4 +201,69 @@ fn ovmf_boots_from_a_stick_beside_a_usb_keyboard_and_tablet() {
 #[test]
 fn seabios_boots_from_a_stick_beside_a_usb_keyboard_and_tablet() {
     stick_tablet_and_keyboard_on_one_xhci(Firmware::Bios);
+}
+
+/// The stick on ICH9's EHCI with a full-speed keyboard beside it: the
+/// keyboard is handed to the UHCI companion of its port, its keys give the
+/// software VGA's pictures, and Esc (on it) powers off with the three
+/// companions halted before the EHCI.
+fn stick_on_ich9_ehci_keyboard_on_a_companion(firmware: Firmware) {
+    let what = format!("{firmware:?} from a stick on ICH9's EHCI");
+    let mut devices = Vec::new();
+    if firmware == Firmware::Bios {
+        devices.push(format!("secondary-vga,id={DISPLAY_ID}"));
+    }
+    // The stick is on bus port 1; the keyboard, full speed, on port 3: the
+    // second companion's first port.
+    devices.push(format!(
+        "usb-kbd,id=usbkbd,display={DISPLAY_ID},bus={STICK_HOST_ID}.0,port=3,usb_version=1"
+    ));
+    let (board, graphics) = match firmware {
+        Firmware::Bios => (Board::PC, Graphics::StdVga),
+        Firmware::Uefi | Firmware::Uefi32 => (Q35_WITHOUT_PS2, Graphics::BochsDisplay),
+    };
+    let mut qemu = boot_from_stick(
+        firmware,
+        UsbHost::Ich9EhciWithCompanions,
+        board,
+        graphics,
+        devices,
+    );
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("{what}: {e}"));
+    assert_eq!(
+        usb_keyboards_on(&console),
+        [(
+            "uhci".to_string(),
+            "8086:2935 at 00:1d.1".to_string(),
+            "1".to_string()
+        )],
+        "{what}: the keyboard on the second companion:\n{console}"
+    );
+    let done =
+        usb_keys_match_the_software_vga(&mut qemu, DISPLAY_ID, &CUBE_KEYS, |screen, model, key| {
+            assert_cube_picture(firmware, screen, model, &format!("{what}, {key}"));
+        });
+    usb_escape_powers_off_with_every_controller_halted_first(
+        &mut qemu,
+        |qemu| qemu.press_key_on(DISPLAY_ID, "esc").unwrap(),
+        &[("uhci", 3), ("ehci", 1)],
+        BOOT_TIMEOUT,
+    );
+    assert_eq!(
+        commands_done(&qemu.serial()),
+        done,
+        "{what}: a key acted twice"
+    );
+}
+
+#[test]
+fn ovmf_boots_from_a_stick_on_ich9_ehci_with_a_keyboard_on_a_companion() {
+    stick_on_ich9_ehci_keyboard_on_a_companion(Firmware::Uefi);
+}
+
+#[test]
+fn seabios_boots_from_a_stick_on_ich9_ehci_with_a_keyboard_on_a_companion() {
+    stick_on_ich9_ehci_keyboard_on_a_companion(Firmware::Bios);
 }

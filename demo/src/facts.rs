@@ -29,6 +29,7 @@ use core::fmt;
 use firmware::boot_firmware::Firmware;
 use firmware::secure_boot::SecureBoot;
 use kernel_log::text_of_field;
+use protocol::line::UsbKeyboards;
 
 /// The machine's facts, filled in at boot.
 #[derive(Clone, Copy, Debug)]
@@ -50,8 +51,10 @@ pub struct MachineFacts {
     pub display: Display,
     /// The PS/2 keyboard controller.
     pub ps2: Ps2,
-    /// xHCI USB controllers the driver took.
+    /// USB host controllers driven (xHCI, EHCI, OHCI, UHCI).
     pub usb_controllers: u8,
+    /// USB keyboards set up, by the kind of controller each is on.
+    pub usb_keyboards: UsbKeyboards,
     /// The clock's rate and source; `None` before it was found.
     pub clock: Option<TscRate>,
     /// Whether Secure Boot was on and who checked the loader; `None` before
@@ -130,6 +133,7 @@ impl MachineFacts {
             display: Display::Unknown,
             ps2: Ps2::Unknown,
             usb_controllers: 0,
+            usb_keyboards: UsbKeyboards { on: [0; 4] },
             clock: None,
             secure_boot: None,
         }
@@ -137,7 +141,7 @@ impl MachineFacts {
 
     /// Hands each fact's row, in the report's order, to `row`: the build, the
     /// CPU, NX, the firmware, the adapter, the display, the keyboards, the
-    /// clock, Secure Boot. Facts not yet known say so.
+    /// USB keyboards' controllers, the clock, Secure Boot. Facts not yet known say so.
     pub fn rows(&self, mut row: impl FnMut(&dyn fmt::Display)) {
         row(&format_args!(
             "modex-cube {} commit {}",
@@ -149,13 +153,14 @@ impl MachineFacts {
         row(&AdapterRow(self.adapter));
         row(&self.display);
         row(&KeyboardRow(self.ps2, self.usb_controllers));
+        row(&self.usb_keyboards);
         row(&ClockRow(self.clock));
         row(&SecureBootRow(self.secure_boot));
     }
 }
 
 /// The rows [`MachineFacts::rows`] gives.
-pub const FACT_COUNT: usize = 9;
+pub const FACT_COUNT: usize = 10;
 
 struct CpuRow<'a>(&'a Cpu);
 
@@ -261,9 +266,9 @@ impl fmt::Display for KeyboardRow {
             Ps2::Failed(why) => write!(f, "keyboard: PS/2 failed ({why})")?,
         }
         match self.1 {
-            0 => f.write_str("; no xHCI"),
-            1 => f.write_str("; USB on 1 xHCI"),
-            n => write!(f, "; USB on {n} xHCIs"),
+            0 => f.write_str("; no USB host"),
+            1 => f.write_str("; USB on 1 host"),
+            n => write!(f, "; USB on {n} hosts"),
         }
     }
 }
@@ -333,7 +338,8 @@ mod tests {
             write_combining: Some(true),
         };
         facts.ps2 = Ps2::Ready;
-        facts.usb_controllers = 1;
+        facts.usb_controllers = 3;
+        facts.usb_keyboards.on = [0, 1, 0, 2];
         facts.clock = Some(TscRate {
             hz: 1_992_000_000,
             source: Source::PmTimer,
@@ -356,7 +362,8 @@ mod tests {
                 "firmware: Uefi",
                 "adapter: PCI 8086:3ea0 Intel",
                 "display: framebuffer 1920x1080x4 scale 4, WC",
-                "keyboard: PS/2 ready; USB on 1 xHCI",
+                "keyboard: PS/2 ready; USB on 3 hosts",
+                "USB keyboards: 1 ehci, 2 uhci",
                 "clock: TSC 1992.000 MHz from the PM timer, 20 ppm",
                 "Secure Boot: on (your key in db)",
             ]
@@ -375,8 +382,9 @@ mod tests {
         assert_eq!(rows[2], "nx: not looked at");
         assert_eq!(rows[3], "firmware: not told yet");
         assert_eq!(rows[5], "display: not set up yet");
-        assert_eq!(rows[7], "clock: not calibrated yet");
-        assert_eq!(rows[8], "Secure Boot: unknown");
+        assert_eq!(rows[7], "USB keyboards: none");
+        assert_eq!(rows[8], "clock: not calibrated yet");
+        assert_eq!(rows[9], "Secure Boot: unknown");
     }
 
     #[test]
@@ -419,10 +427,12 @@ mod tests {
             assert!(text.len() <= FACT_COLUMNS, "{text:?}");
         }
         for ps2 in [Ps2::Unknown, Ps2::Ready, Ps2::Absent, Ps2::Failed("no ACK")] {
-            for usb in [0, 1, 4] {
+            for usb in [0, 1, 8] {
                 let text = KeyboardRow(ps2, usb).to_string();
                 assert!(text.len() <= FACT_COLUMNS, "{text:?}");
             }
         }
+        let text = UsbKeyboards { on: [99; 4] }.to_string();
+        assert!(text.len() <= FACT_COLUMNS, "{text:?}");
     }
 }

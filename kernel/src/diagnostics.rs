@@ -3,7 +3,7 @@
 //! measurement of how many page flips a second vertical retrace allows, and
 //! a check of the kernel's clock against the host's.
 
-use crate::{input::ps2, input::xhci, serial_println, time};
+use crate::{input::ps2, input::usb as usb_input, serial_println, time};
 use clock::pacing::Pacing;
 use keyboard::scancode::{BREAK_BIT, EXTENDED_PREFIX};
 use modex::{ModeX, Page, VgaBus};
@@ -19,7 +19,7 @@ pub fn test_pattern<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     serial_println!("{}", protocol::line::READY);
     loop {
         crate::idle::idle();
-        xhci::poll();
+        usb_input::poll();
         let mut pressed = false;
         while let Some(byte) = ps2::SCANCODES.pop() {
             // Only make codes: a release must not flip again.

@@ -37,7 +37,7 @@ mod vga_bus;
 use bootloader_api::config::{BootloaderConfig, Mapping};
 use bootloader_api::{entry_point, BootInfo};
 use firmware::acpi::Presence;
-use input::{ps2, xhci};
+use input::ps2;
 use keyboard::i8042::FirmwareSays;
 use platform::{acpi, qemu};
 use protocol::{line, BootOption, BootRequest};
@@ -78,7 +78,7 @@ fn kernel_main(boot_info: &'static mut BootInfo) -> ! {
     let request = boot_request();
     let rate = time::init(acpi, physical_memory_offset, request.clock);
     facts::record(|facts| facts.clock = Some(rate));
-    xhci::init(&boot_info.memory_regions, physical_memory_offset);
+    input::usb::init(&boot_info.memory_regions, physical_memory_offset);
     serial_println!("kernel: initialised");
     let booted_by = platform::boot_firmware::firmware(&boot_info.memory_regions);
     serial_println!("firmware: {:?} (told by the memory map)", booted_by);

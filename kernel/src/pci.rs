@@ -1,6 +1,7 @@
 //! PCI configuration space through the legacy ports (mechanism #1): finding
-//! the display controller to name its maker, and finding and enabling xHCI
-//! USB controllers.
+//! the display controller to name its maker, and finding and enabling USB
+//! host controllers (UHCI, OHCI, EHCI, xHCI) and reading and writing their
+//! configuration registers for the drivers' firmware hand-offs.
 
 use x86_64::instructions::port::Port;
 
@@ -61,19 +62,24 @@ pub fn display_controller() -> Option<(u16, u16)> {
 fn write(bus: u8, device: u8, function: u8, offset: u8, value: u32) {
     let address = address(bus, device, function, offset);
     // SAFETY: as in `read`; callers write only registers of a function they
-    // found by its class (the xHCI's command, BAR and port-routing registers).
+    // found by its class: a USB controller's command, BAR, port-routing
+    // and firmware hand-off registers.
     unsafe {
         Port::<u32>::new(CONFIG_ADDRESS).write(address);
         Port::<u32>::new(CONFIG_DATA).write(value);
     }
 }
 
-/// Class 0C (serial bus), subclass 03 (USB), programming interface 30 (xHCI).
-const CLASS_XHCI: u32 = 0x0C_03_30;
+/// Class 0C (serial bus), subclass 03 (USB); the programming interface
+/// names the controller kind (`usb::host::ControllerKind::from_prog_if`).
+const CLASS_USB: u32 = 0x0C_03;
 const COMMAND: u8 = 0x04;
+const COMMAND_IO: u32 = 1 << 0;
 const COMMAND_MEMORY: u32 = 1 << 1;
 const COMMAND_BUS_MASTER: u32 = 1 << 2;
 const BAR0: u8 = 0x10;
+/// UHCI's I/O registers (USBBASE, PCI config offset 20h).
+pub const BAR4: u8 = 0x20;
 const BAR_64_BIT: u32 = 0b100;
 const BAR_IO: u32 = 1;
 
@@ -97,8 +103,17 @@ impl core::fmt::Display for Function {
     }
 }
 
-/// Every xHCI controller (up to `N`), in bus order.
-pub fn xhci_controllers<const N: usize>() -> ([Option<Function>; N], usize) {
+/// A USB host controller found on PCI: where, and its programming
+/// interface (class 0C03h), which names its kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UsbFunction {
+    pub function: Function,
+    pub prog_if: u8,
+}
+
+/// Every USB host controller (class 0C03h, any programming interface; up
+/// to `N`), in bus order, and how many there are.
+pub fn usb_controllers<const N: usize>() -> ([Option<UsbFunction>; N], usize) {
     let mut found = [None; N];
     let mut count = 0;
     for bus in 0..=255u8 {
@@ -114,16 +129,20 @@ pub fn xhci_controllers<const N: usize>() -> ([Option<Function>; N], usize) {
             };
             for function in 0..functions {
                 let id = read(bus, device, function, 0x00);
-                if id as u16 == NO_DEVICE || read(bus, device, function, 0x08) >> 8 != CLASS_XHCI {
+                let class = read(bus, device, function, 0x08);
+                if id as u16 == NO_DEVICE || class >> 16 != CLASS_USB {
                     continue;
                 }
                 if count < N {
-                    found[count] = Some(Function {
-                        bus,
-                        device,
-                        function,
-                        vendor: id as u16,
-                        id: (id >> 16) as u16,
+                    found[count] = Some(UsbFunction {
+                        function: Function {
+                            bus,
+                            device,
+                            function,
+                            vendor: id as u16,
+                            id: (id >> 16) as u16,
+                        },
+                        prog_if: (class >> 8) as u8,
                     });
                 }
                 count += 1;
@@ -133,15 +152,27 @@ pub fn xhci_controllers<const N: usize>() -> ([Option<Function>; N], usize) {
     (found, count)
 }
 
-/// BAR0 of an xHCI: its physical address and size.
+/// Reads the function's configuration dword at `offset` (4-aligned).
+pub fn config_read(f: Function, offset: u8) -> u32 {
+    read(f.bus, f.device, f.function, offset)
+}
+
+/// Writes the function's configuration dword at `offset` (4-aligned): for
+/// the USB drivers' hand-off registers (UHCI's LEGSUP, EHCI's USBLEGSUP).
+pub fn config_write(f: Function, offset: u8, value: u32) {
+    write(f.bus, f.device, f.function, offset, value)
+}
+
+/// A memory BAR: its physical address and size.
 #[derive(Clone, Copy, Debug)]
 pub struct MemoryBar {
     pub address: u64,
     pub bytes: u64,
 }
 
-/// Sizes BAR0 (with memory decoding off meanwhile), then turns on memory
-/// decoding and bus mastering. `None` if BAR0 is not a memory BAR.
+/// Sizes BAR0 (with memory decoding off meanwhile; a 64-bit BAR's upper
+/// half read too), then turns on memory decoding and bus mastering. `None`
+/// if BAR0 is not a memory BAR.
 pub fn enable_memory_and_bus_master(f: Function) -> Option<MemoryBar> {
     let command = read(f.bus, f.device, f.function, COMMAND);
     write(
@@ -174,6 +205,48 @@ pub fn enable_memory_and_bus_master(f: Function) -> Option<MemoryBar> {
     Some(MemoryBar {
         address: (u64::from(high) << 32) | u64::from(low & !0xF),
         bytes: u64::from((!size_mask).wrapping_add(1)),
+    })
+}
+
+/// An I/O BAR: its first port and how many ports.
+#[derive(Clone, Copy, Debug)]
+pub struct IoBar {
+    pub base: u16,
+    pub ports: u32,
+}
+
+/// Sizes the I/O BAR at `bar` (with I/O decoding off meanwhile), then
+/// turns on I/O decoding and bus mastering. `None` if it is not an I/O BAR
+/// or it lies beyond the 64 KiB of x86 port space.
+pub fn enable_io_and_bus_master(f: Function, bar: u8) -> Option<IoBar> {
+    let command = read(f.bus, f.device, f.function, COMMAND);
+    write(
+        f.bus,
+        f.device,
+        f.function,
+        COMMAND,
+        command & !COMMAND_IO & 0xFFFF,
+    );
+    let original = read(f.bus, f.device, f.function, bar);
+    write(f.bus, f.device, f.function, bar, u32::MAX);
+    // The upper 16 bits of an I/O BAR may read back zero (16-bit decoding).
+    let size_mask = read(f.bus, f.device, f.function, bar) & 0xFFFC;
+    write(f.bus, f.device, f.function, bar, original);
+    write(
+        f.bus,
+        f.device,
+        f.function,
+        COMMAND,
+        (command | COMMAND_IO | COMMAND_BUS_MASTER) & 0xFFFF,
+    );
+    let base = original & !0x3;
+    if original & BAR_IO == 0 || size_mask == 0 || base > 0xFFFF {
+        return None;
+    }
+    let ports = (!size_mask & 0xFFFF) + 1;
+    (u32::from(base as u16) + ports <= 0x1_0000).then_some(IoBar {
+        base: base as u16,
+        ports,
     })
 }
 

@@ -3,7 +3,10 @@
 //! an idle cube costs no bus traffic at all. While the cube spins it also
 //! keeps count of missed retraces. Ctrl+Alt+Del resets the machine.
 
-use crate::{goodbye, idle, input::ps2, input::xhci, platform::power, serial_println, stack, time};
+use crate::{
+    goodbye, idle, input::ps2, input::usb as usb_input, platform::power, serial_println, stack,
+    time,
+};
 use clock::pacing::Pacing;
 use core::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use demo::app::App;
@@ -75,7 +78,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     let mut pacing = Pacing::default();
     let mut reset_chord = ResetChord::new();
     loop {
-        xhci::poll();
+        usb_input::poll();
         ps2::poll();
         let echoing = ECHO_SCANCODES.load(Ordering::Relaxed);
         let mut echoed = [0u8; ECHO_LINE_BYTES];

@@ -349,3 +349,173 @@ impl fmt::Display for CommandDone {
         write!(f, "{}{}{}", Self::PREFIX, self.0, Self::SUFFIX)
     }
 }
+
+/// The USB host controller kinds, by the names lines and facts give them
+/// (`usb::host::ControllerKind::name`), in the facts row's order.
+pub const USB_HOST_KINDS: [&str; 4] = ["xhci", "ehci", "ohci", "uhci"];
+
+/// The index of `kind` in [`USB_HOST_KINDS`].
+pub fn usb_host_index(kind: &str) -> Option<usize> {
+    USB_HOST_KINDS.iter().position(|&known| known == kind)
+}
+
+/// "usb: keyboard on KIND FUNCTION LOCATION": the kernel has a USB keyboard
+/// on a controller of kind KIND (one of [`USB_HOST_KINDS`]) at PCI FUNCTION
+/// (`8086:2934 at 00:1d.0`), at LOCATION (the root port, then the hub port
+/// of each tier: `2.1`). Said once a keyboard is set up, at boot or later.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UsbKeyboardOn<'a, F = &'a str, L = &'a str> {
+    /// The controller's kind.
+    pub kind: &'a str,
+    /// The controller's PCI function.
+    pub function: F,
+    /// Where the keyboard hangs.
+    pub location: L,
+}
+
+impl<F, L> UsbKeyboardOn<'_, F, L> {
+    const PREFIX: &'static str = "usb: keyboard on ";
+}
+
+impl UsbKeyboardOn<'_> {
+    /// The parts of a line that is this message.
+    pub fn parse(line: &str) -> Option<UsbKeyboardOn<'_>> {
+        let rest = line.trim_end().strip_prefix(Self::PREFIX)?;
+        let (kind, rest) = rest.split_once(' ')?;
+        let (function, location) = rest.rsplit_once(' ')?;
+        let kind = USB_HOST_KINDS[usb_host_index(kind)?];
+        Some(UsbKeyboardOn {
+            kind,
+            function,
+            location,
+        })
+    }
+}
+
+impl<F: fmt::Display, L: fmt::Display> fmt::Display for UsbKeyboardOn<'_, F, L> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}{} {} {}",
+            Self::PREFIX,
+            self.kind,
+            self.function,
+            self.location
+        )
+    }
+}
+
+/// Before power-off or reset, for each USB controller the kernel drove:
+/// "usb: KIND FUNCTION halted" (an xHCI adds ", and reset, ports switched
+/// off"), or "usb: KIND FUNCTION not halted: WHY".
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UsbHalted<'a, F = &'a str> {
+    /// The controller's kind (one of [`USB_HOST_KINDS`]).
+    pub kind: &'a str,
+    /// The controller's PCI function.
+    pub function: F,
+    /// Whether it halted.
+    pub halted: bool,
+}
+
+impl<F> UsbHalted<'_, F> {
+    const PREFIX: &'static str = "usb: ";
+    const HALTED: &'static str = " halted";
+    const NOT_HALTED: &'static str = " not halted: ";
+}
+
+impl UsbHalted<'_> {
+    /// The parts of a line that is this message.
+    pub fn parse(line: &str) -> Option<UsbHalted<'_>> {
+        let rest = line.strip_prefix(Self::PREFIX)?;
+        let (kind, rest) = rest.split_once(' ')?;
+        let kind = USB_HOST_KINDS[usb_host_index(kind)?];
+        // The function is three words: `VVVV:DDDD at BB:DD.F`.
+        let mut words = rest.split(' ');
+        let (id, at, address) = (words.next()?, words.next()?, words.next()?);
+        if at != "at" || !id.contains(':') || !address.contains(':') {
+            return None;
+        }
+        let (function, after) = rest.split_at(id.len() + at.len() + address.len() + 2);
+        let halted = if after.starts_with(Self::NOT_HALTED) {
+            false
+        } else if after.starts_with(Self::HALTED) {
+            true
+        } else {
+            return None;
+        };
+        Some(UsbHalted {
+            kind,
+            function,
+            halted,
+        })
+    }
+}
+
+impl<F: fmt::Display> fmt::Display for UsbHalted<'_, F> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}{} {}", Self::PREFIX, self.kind, self.function)?;
+        f.write_str(if self.halted {
+            Self::HALTED
+        } else {
+            Self::NOT_HALTED
+        })
+    }
+}
+
+/// The machine's facts row of USB keyboards, by the kind of controller
+/// each is on: "USB keyboards: 1 ehci, 2 uhci", or "USB keyboards: none".
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UsbKeyboards {
+    /// Keyboards on each kind, in [`USB_HOST_KINDS`]' order.
+    pub on: [u8; USB_HOST_KINDS.len()],
+}
+
+impl UsbKeyboards {
+    const PREFIX: &'static str = "USB keyboards: ";
+    const NONE: &'static str = "none";
+
+    /// The counts of a row that is this fact.
+    pub fn parse(row: &str) -> Option<UsbKeyboards> {
+        let rest = row.trim_end().strip_prefix(Self::PREFIX)?;
+        let mut keyboards = UsbKeyboards::default();
+        if rest == Self::NONE {
+            return Some(keyboards);
+        }
+        for part in rest.split(", ") {
+            let (count, kind) = part.split_once(' ')?;
+            let count: u8 = count.parse().ok()?;
+            let slot = &mut keyboards.on[usb_host_index(kind)?];
+            if *slot != 0 || count == 0 {
+                return None;
+            }
+            *slot = count;
+        }
+        Some(keyboards)
+    }
+
+    /// Keyboards in all.
+    pub fn total(&self) -> u32 {
+        self.on.iter().map(|&n| u32::from(n)).sum()
+    }
+}
+
+impl fmt::Display for UsbKeyboards {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(Self::PREFIX)?;
+        if self.total() == 0 {
+            return f.write_str(Self::NONE);
+        }
+        let mut first = true;
+        for (count, kind) in self.on.iter().zip(USB_HOST_KINDS) {
+            if *count != 0 {
+                if !first {
+                    f.write_str(", ")?;
+                }
+                first = false;
+                write!(f, "{count} {kind}")?;
+            }
+        }
+        Ok(())
+    }
+}

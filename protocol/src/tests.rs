@@ -257,3 +257,60 @@ fn a_fault_report_is_read_from_a_console() {
     assert!(line::FaultReport::parse("PANIC: oops\n").is_none());
     assert!(line::FaultReport::parse("EXCEPTION: breakpoint at 0x1\nHALTED\n").is_none());
 }
+
+#[test]
+fn usb_lines_read_back_as_written() {
+    use std::string::ToString;
+    let on = line::UsbKeyboardOn {
+        kind: "uhci",
+        function: "8086:2934 at 00:1d.0",
+        location: "2.1",
+    };
+    let text = on.to_string();
+    assert_eq!(text, "usb: keyboard on uhci 8086:2934 at 00:1d.0 2.1");
+    assert_eq!(line::UsbKeyboardOn::parse(&text), Some(on));
+    assert_eq!(
+        line::UsbKeyboardOn::parse("usb: keyboard on vhci 1 2"),
+        None
+    );
+
+    let halted = line::UsbHalted {
+        kind: "ehci",
+        function: "8086:293a at 00:1d.7",
+        halted: true,
+    };
+    let text = halted.to_string();
+    assert_eq!(text, "usb: ehci 8086:293a at 00:1d.7 halted");
+    assert_eq!(line::UsbHalted::parse(&text), Some(halted));
+    let xhci = "usb: xhci 1b36:000d at 00:02.0 halted and reset, ports switched off";
+    assert!(line::UsbHalted::parse(xhci).is_some_and(|h| h.halted && h.kind == "xhci"));
+    let not =
+        line::UsbHalted::parse("usb: ohci 106b:003f at 00:03.0 not halted: still running").unwrap();
+    assert!(!not.halted);
+    assert_eq!(not.function, "106b:003f at 00:03.0");
+    assert_eq!(
+        line::UsbHalted::parse("usb: ohci 106b:003f at 00:03.0, 3 ports"),
+        None
+    );
+    assert_eq!(
+        line::UsbHalted::parse("usb: keyboard on uhci x at 1:2 halted"),
+        None
+    );
+
+    let mut keyboards = line::UsbKeyboards::default();
+    assert_eq!(keyboards.to_string(), "USB keyboards: none");
+    keyboards.on[1] = 1;
+    keyboards.on[3] = 12;
+    let text = keyboards.to_string();
+    assert_eq!(text, "USB keyboards: 1 ehci, 12 uhci");
+    assert_eq!(line::UsbKeyboards::parse(&text), Some(keyboards));
+    assert_eq!(
+        line::UsbKeyboards::parse("USB keyboards: none"),
+        Some(line::UsbKeyboards::default())
+    );
+    assert_eq!(
+        line::UsbKeyboards::parse("USB keyboards: 1 ehci, 2 ehci"),
+        None
+    );
+    assert_eq!(line::UsbKeyboards::parse("USB keyboards: 0 ehci"), None);
+}

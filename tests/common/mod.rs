@@ -554,3 +554,84 @@ pub fn with_a_kernel_byte_changed(disk: &[u8]) -> Vec<u8> {
     disk[esp_range].copy_from_slice(&esp.into_inner());
     disk
 }
+
+/// Esc (sent by `press_esc`) on a machine without isa-debug-exit: QEMU must
+/// exit with 0 after the goodbye, and before ACPI S5's SLP_EN the log must
+/// show every USB controller halted (`expected`: how many of each kind, by
+/// `line::USB_HOST_KINDS` name), the EHCIs after every other (their
+/// CONFIGFLAG hands the ports back to companions that are already halted),
+/// as Linux's shutdown path orders it.
+pub fn usb_escape_powers_off_with_every_controller_halted_first(
+    qemu: &mut Qemu,
+    press_esc: impl FnOnce(&mut Qemu),
+    expected: &[(&str, usize)],
+    budget: Duration,
+) {
+    press_esc(qemu);
+    let status = qemu
+        .wait_exit(budget)
+        .unwrap()
+        .unwrap_or_else(|| panic!("still running after Esc:\n{}", qemu.serial()));
+    let console = qemu.serial();
+    let lines: Vec<&str> = console.lines().collect();
+    let halts: Vec<(usize, line::UsbHalted)> = lines
+        .iter()
+        .enumerate()
+        .filter_map(|(at, text)| Some((at, line::UsbHalted::parse(text)?)))
+        .collect();
+    for (_, halt) in &halts {
+        assert!(halt.halted, "{halt:?} did not halt:\n{console}");
+    }
+    for &(kind, count) in expected {
+        let halted = halts.iter().filter(|(_, halt)| halt.kind == kind).count();
+        assert_eq!(halted, count, "{kind} controllers halted:\n{console}");
+    }
+    assert_eq!(
+        halts.len(),
+        expected.iter().map(|(_, count)| count).sum::<usize>(),
+        "controllers halted:\n{console}"
+    );
+    let last_other = halts
+        .iter()
+        .filter(|(_, halt)| halt.kind != "ehci")
+        .map(|(at, _)| *at)
+        .max();
+    let first_ehci = halts
+        .iter()
+        .filter(|(_, halt)| halt.kind == "ehci")
+        .map(|(at, _)| *at)
+        .min();
+    if let (Some(other), Some(ehci)) = (last_other, first_ehci) {
+        assert!(
+            other < ehci,
+            "an EHCI halted before a companion:\n{console}"
+        );
+    }
+    let switching_off = lines
+        .iter()
+        .position(|text| text.starts_with("power: switching off (ACPI S5"))
+        .unwrap_or_else(|| panic!("no ACPI S5:\n{console}"));
+    let last_halt = halts.iter().map(|(at, _)| *at).max().unwrap_or(0);
+    assert!(
+        last_halt < switching_off,
+        "every controller halts before SLP_EN:\n{console}"
+    );
+    assert!(console.contains(line::GOODBYE), "{console}");
+    assert_eq!(status.code(), Some(0), "{console}");
+}
+
+/// The kernel's `usb: keyboard on KIND FUNCTION LOCATION` lines so far, as
+/// (kind, function, location).
+pub fn usb_keyboards_on(console: &str) -> Vec<(String, String, String)> {
+    console
+        .lines()
+        .filter_map(line::UsbKeyboardOn::parse)
+        .map(|on| {
+            (
+                on.kind.to_owned(),
+                on.function.to_owned(),
+                on.location.to_owned(),
+            )
+        })
+        .collect()
+}

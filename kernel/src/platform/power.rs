@@ -18,7 +18,7 @@ const TAKE_EFFECT_MICROS: u64 = 500_000;
 /// Powers the machine off through ACPI S5; returns (having said why) only
 /// if that is not possible or did not work.
 pub fn off() {
-    crate::input::xhci::shut_down();
+    crate::input::usb::shut_down();
     let Some(soft_off) = acpi::facts().soft_off else {
         serial_println!(
             "power: no ACPI soft-off on this machine (see the acpi: lines); halting instead"
@@ -77,7 +77,7 @@ pub fn off() {
 /// reset line, then a triple fault, each given half a second.
 pub fn reset() -> ! {
     serial_println!("power: Ctrl+Alt+Del: resetting");
-    crate::input::xhci::shut_down();
+    crate::input::usb::shut_down();
     x86_64::instructions::interrupts::disable();
     let facts = acpi::facts();
     // The 8042 probe's answer, where there was one, over the FADT's flag.
