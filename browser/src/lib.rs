@@ -430,6 +430,12 @@ impl Browser {
         page.call("Page.enable", json!({}))?;
         page.call("Page.setLifecycleEventsEnabled", json!({"enabled": true}))?;
         page.call("Runtime.enable", json!({}))?;
+        // Each tab behaves as the focused one, so that key events reach the
+        // focused element whichever tab was opened last.
+        page.call(
+            "Emulation.setFocusEmulationEnabled",
+            json!({"enabled": true}),
+        )?;
         page.navigate(url)?;
         Ok(page)
     }
@@ -940,6 +946,23 @@ impl Page<'_> {
             )?;
         }
         Ok(())
+    }
+
+    /// The page as the browser composites it, a PNG: the region `clip`
+    /// (left, top, width, height in CSS pixels) or the whole viewport.
+    pub fn screenshot_png(&self, clip: Option<[f64; 4]>) -> Result<Vec<u8>> {
+        let mut params = json!({"format": "png", "fromSurface": true});
+        if let Some([x, y, width, height]) = clip {
+            params["clip"] = json!({"x": x, "y": y, "width": width, "height": height, "scale": 1});
+        }
+        let shot = self.call("Page.captureScreenshot", params)?;
+        let data = string_field(&shot, "data")?;
+        base64::engine::general_purpose::STANDARD
+            .decode(&data)
+            .map_err(|error| BrowserError::Unexpected {
+                what: format!("screenshot (not base64: {error})"),
+                value: truncated(&Value::from(data)),
+            })
     }
 
     /// What the page wrote to its console, and its uncaught exceptions, so
