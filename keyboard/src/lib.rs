@@ -12,7 +12,7 @@
 //! - [`i8042`]: the PS/2 controller's set-up and byte taking, behind a port
 //!   trait, tested against a model of the controller.
 //!
-//! The kernel's shells are `kernel/src/input/ps2.rs` and `kernel/src/input/xhci.rs`.
+//! The kernel's shells are `kernel/src/input/ps2.rs` and `kernel/src/input/usb/`.
 
 #![no_std]
 #![forbid(unsafe_code)]
