@@ -159,7 +159,11 @@ mod tests {
             while ns < u64::MAX / 4 {
                 for probe in [ns - 1, ns, ns + 999_999_999, ns.wrapping_mul(7) / 3] {
                     let exact = u128::from(probe) * u128::from(hz) / 1_000_000_000;
-                    assert_eq!(u128::from(timing.dots_at(probe)), exact, "{probe} ns at {hz} Hz");
+                    assert_eq!(
+                        u128::from(timing.dots_at(probe)),
+                        exact,
+                        "{probe} ns at {hz} Hz"
+                    );
                 }
                 ns = ns * 3 + 1;
             }

@@ -113,6 +113,9 @@ pub struct UhciModel {
     pub never_halts: bool,
     /// HCRESET never clears.
     pub host_reset_stuck: bool,
+    /// Frames run this many microseconds late (an emulator whose timer
+    /// thread a busy host has not scheduled), until the clock passes it.
+    pub frames_late_until: u64,
     /// Every port register reads this.
     pub port_nonsense: Option<u16>,
     /// The first this many Port Enabled writes after a port reset are
@@ -177,6 +180,7 @@ impl UhciModel {
             bios_keeps_legsup: false,
             never_halts: false,
             host_reset_stuck: false,
+            frames_late_until: 0,
             port_nonsense: None,
             port_enable_refusals: 0,
             usbcmd: 0,
@@ -356,7 +360,7 @@ impl UhciModel {
                 self.usbcmd &= !CMD_HOST_RESET;
             }
         }
-        while self.now >= self.next_frame_at {
+        while self.now >= self.next_frame_at.max(self.frames_late_until) {
             self.next_frame_at += MICROS_PER_USB_FRAME;
             self.frame();
         }
