@@ -6,7 +6,7 @@
 //!   `uhci_check_and_reset_hc` does; bounded.
 //! - Reset: a global reset held 20 ms, then a host controller reset with a
 //!   bounded wait; the root ports counted as Linux does (bit 7 reads 1).
-//! - The schedule ([`layout`]): a 1024-entry frame list whose entries point
+//! - The schedule (`usb/src/uhci/layout.rs`): a 1024-entry frame list whose entries point
 //!   at one of five interrupt skeleton queue heads (periods 2 to 32), each
 //!   of which ends in the period-1 skeleton, which ends in the control
 //!   skeleton: every frame visits its interrupt queues, then every device's
