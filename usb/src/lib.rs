@@ -21,6 +21,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod bus;
 pub mod context;
 pub mod descriptor;
 pub mod hid;

@@ -5,3 +5,4 @@
 mod xhci;
 pub use xhci::*;
 pub mod devices;
+pub mod loopback;
