@@ -19,8 +19,8 @@ mod enumeration;
 mod host;
 #[cfg(test)]
 mod host_tests;
-pub use host::HOST_DEVICES;
 pub use enumeration::BOOT_ENUMERATION_MICROS;
+pub use host::HOST_DEVICES;
 
 /// Bytes in a page: DMA memory is handed out a page at a time.
 pub const PAGE_BYTES: u64 = 4096;

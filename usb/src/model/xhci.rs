@@ -488,9 +488,7 @@ impl Model {
                     }
                     self.complete_command(address, 1, slot)
                 }
-                RESET_ENDPOINT | SET_TR_DEQUEUE | STOP_ENDPOINT
-                    if (trb.0[3] >> 16) & 0x1F == 1 =>
-                {
+                RESET_ENDPOINT | SET_TR_DEQUEUE | STOP_ENDPOINT if (trb.0[3] >> 16) & 0x1F == 1 => {
                     // Endpoint 0: Reset Endpoint takes Halted to Stopped,
                     // Stop Endpoint a running one to Stopped, Set TR
                     // Dequeue Pointer moves a stopped one's ring.

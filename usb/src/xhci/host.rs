@@ -122,11 +122,18 @@ enum Op {
     /// Configure Endpoint: the interrupt pipe's endpoint dropped.
     ClosePipe,
     /// Reset Endpoint (Transfer State Preserve: the data toggle kept).
-    ResetEndpoint { dci: u8, preserve: bool },
+    ResetEndpoint {
+        dci: u8,
+        preserve: bool,
+    },
     /// Set TR Dequeue Pointer: past everything queued on the endpoint.
-    SetDequeue { dci: u8 },
+    SetDequeue {
+        dci: u8,
+    },
     /// Stop Endpoint: a control transfer given up.
-    StopEndpoint { dci: u8 },
+    StopEndpoint {
+        dci: u8,
+    },
 }
 
 /// A device's commands, the first on the command ring (from `since`,
@@ -326,7 +333,9 @@ impl HostState {
 
 /// The hub tiers a route string names (its non-zero nibbles from the lowest).
 fn route_depth(route: u32) -> u32 {
-    (0..5).take_while(|tier| (route >> (4 * tier)) & 0xF != 0).count() as u32
+    (0..5)
+        .take_while(|tier| (route >> (4 * tier)) & 0xF != 0)
+        .count() as u32
 }
 
 /// What a transfer's completion code means to the device layer.
@@ -759,7 +768,12 @@ impl<H: Hardware> Xhci<H> {
                 let pointer = if dci == 1 {
                     slot.ep0.enqueue_pointer()
                 } else {
-                    device.pipe.as_ref().filter(|p| p.dci == dci)?.ring.enqueue_pointer()
+                    device
+                        .pipe
+                        .as_ref()
+                        .filter(|p| p.dci == dci)?
+                        .ring
+                        .enqueue_pointer()
                 };
                 let mut dequeue = command::SetTrDequeuePointer::new();
                 dequeue
@@ -960,10 +974,7 @@ impl<H: Hardware> Xhci<H> {
         }
         // Reports finished and not yet read keep their buffers too.
         while pipe.outstanding + pipe.done_len < PIPE_QUEUED {
-            let trb = pipe
-                .ring
-                .index_of(pipe.ring.enqueue_address())
-                .unwrap_or(0);
+            let trb = pipe.ring.index_of(pipe.ring.enqueue_address()).unwrap_or(0);
             let mut normal = transfer::Normal::new();
             normal
                 .set_data_buffer_pointer(pipe.buffers + u64::from(trb) * PIPE_BUFFER_BYTES)
@@ -1126,10 +1137,7 @@ impl<H: Hardware> HostController for Xhci<H> {
             return;
         }
         // PED is write-1-to-disable; the change bits are left as they are.
-        self.write(
-            register,
-            PORT_POWER | (status & PORT_KEEP) | PORT_ENABLED,
-        );
+        self.write(register, PORT_POWER | (status & PORT_KEEP) | PORT_ENABLED);
     }
 
     fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError> {
@@ -1155,9 +1163,10 @@ impl<H: Hardware> HostController for Xhci<H> {
         let (tt_hub_slot, tt_port, multi_tt) = match info.translator {
             None => (0, 0, false),
             Some(tt) => {
-                let hub = self.host.devices.iter().flatten().find(|d| {
-                    d.hub && d.address == tt.hub_address && d.info.speed == Speed::High
-                });
+                let hub =
+                    self.host.devices.iter().flatten().find(|d| {
+                        d.hub && d.address == tt.hub_address && d.info.speed == Speed::High
+                    });
                 let Some((slot, multi_tt)) =
                     hub.and_then(|d| d.slot.as_ref().map(|s| (s.id, d.multi_tt)))
                 else {
