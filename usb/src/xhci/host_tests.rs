@@ -500,3 +500,20 @@ fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
     assert_eq!(bytes, [0x01]);
     assert_eq!(bus.controller().kind(), crate::host::ControllerKind::Xhci);
 }
+
+#[test]
+fn a_data_stage_shorter_than_asked_says_how_many_bytes_came() {
+    // The configuration says it is 40 bytes long and sends its 34: the
+    // data stage's event says 6 did not come, and the device layer
+    // refuses a device that sends less than it announces.
+    let mut model = Model::new();
+    let announced = model.configuration.len() as u16 + 6;
+    model.configuration[2..4].copy_from_slice(&announced.to_le_bytes());
+    let mut bus = with_keyboards(model, 0);
+    assert!(
+        logged(&mut bus, "34 bytes came of the 40 asked for"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert_eq!(hw(&mut bus).slots_disabled.len(), 1);
+}
