@@ -152,6 +152,10 @@ pub struct Model {
     /// Dequeue Pointer (the driver's own enumeration never resets it: off
     /// by default).
     pub ep0_halts: bool,
+    /// With `hub`: the hubs are high speed with one transaction translator
+    /// each, and the full-speed keyboard is reached through the last one's
+    /// (its slot and port 2 in the keyboard's slot context).
+    pub high_speed_hub: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
     /// With `hub`: this many hubs chained, each on port 2 of the one
@@ -217,6 +221,7 @@ impl Model {
             ignores_set_protocol: false,
             needs_two_step: false,
             ep0_halts: false,
+            high_speed_hub: false,
             hub: false,
             hub_tiers: 1,
             empty_at_start: false,
@@ -414,12 +419,23 @@ impl Model {
                     };
                     // SuperSpeed: speed 4, 512-byte packets on endpoint 0,
                     // and no transaction translator anywhere.
+                    let high_speed = self.high_speed_hub && kind == Some(Kind::Hub);
                     let (speed, ep0_packet) = if self.usb3 {
                         (4, 512)
+                    } else if high_speed {
+                        (3, 64)
                     } else {
                         (1, self.slots[usize::from(slot)].ep0_max_packet.max(8))
                     };
                     let translator = self.mem_read(input + ctx + 8) & 0xFFFF;
+                    // Behind high-speed hubs the keyboard names the last
+                    // one's translator: its slot, port 2.
+                    let expected_translator = match kind {
+                        Some(Kind::Keyboard) if self.high_speed_hub && tiers > 0 => {
+                            u32::from(self.hub_states[tiers - 1].slot) | 2 << 8
+                        }
+                        _ => 0,
+                    };
                     let valid = add == 0b11
                         && kind.is_some()
                         && (slot_dw0 >> 20) & 0xF == speed
@@ -428,6 +444,7 @@ impl Model {
                         && (ep0_dw1 >> 3) & 7 == 4
                         && ep0_dw1 >> 16 == u32::from(ep0_packet)
                         && !(self.usb3 && translator != 0)
+                        && (!self.high_speed_hub || translator == expected_translator)
                         && ep0_dequeue != 0
                         && self.slots[usize::from(slot)].enabled;
                     let block_set_address = trb.0[3] & (1 << 9) != 0;
@@ -665,6 +682,9 @@ impl Model {
                         (false, 0x81, 6, 0x22) => {
                             self.report_descriptor.clone().unwrap_or_default()
                         }
+                        (true, 0x80, 6, 1) if self.high_speed_hub => {
+                            super::devices::HIGH_SPEED_HUB_DEVICE.to_vec()
+                        }
                         (true, 0x80, 6, 1) => {
                             let mut device = HUB_DEVICE;
                             if self.usb3 {
@@ -774,6 +794,24 @@ impl Model {
         true
     }
 
+    /// Root port 1's speed ID: full speed, or high with `high_speed_hub`.
+    fn port_1_speed(&self) -> u32 {
+        if self.hub && self.high_speed_hub {
+            3 << 10
+        } else {
+            1 << 10
+        }
+    }
+
+    /// PORT_HIGH_SPEED for port 2 of hub `tier` when a high-speed hub hangs there.
+    fn high_speed_below(&self, tier: usize) -> u32 {
+        if self.high_speed_hub && tier + 1 < self.hub_tiers {
+            1 << 10
+        } else {
+            0
+        }
+    }
+
     /// A hub class (or standard) request's effect; whether the hub knows it.
     fn hub_request(&mut self, tier: usize, setup: u64) -> bool {
         const CONNECTED: u32 = 1;
@@ -802,7 +840,7 @@ impl Model {
                 if port == 2 && !self.hub_states[tier].port_2_empty {
                     // A device found at power-on is a connection change.
                     self.hub_states[tier].keyboard_port_status =
-                        CONNECTED | powered | CONNECTION_CHANGE;
+                        CONNECTED | powered | CONNECTION_CHANGE | self.high_speed_below(tier);
                 }
                 true
             }
@@ -892,7 +930,7 @@ impl Model {
         };
         self.hub_states = vec![HubState::default(); 6];
         self.endpoint_stopped = false;
-        self.portsc[0] = 1 | 1 << 9 | 1 << 10 | CONNECT_CHANGE;
+        self.portsc[0] = 1 | 1 << 9 | self.port_1_speed() | CONNECT_CHANGE;
         self.post_event(Trb([
             1 << 24,
             0,
@@ -924,8 +962,9 @@ impl Model {
         self.endpoint_stopped = false;
         self.hub_states[tier].port_2_empty = false;
         let powered = if self.usb3 { 1 << 9 } else { 1 << 8 };
+        let high_speed = self.high_speed_below(tier);
         let hub = &mut self.hub_states[tier];
-        hub.keyboard_port_status = 1 | powered | 1 << 16;
+        hub.keyboard_port_status = 1 | powered | 1 << 16 | high_speed;
         self.notify_hub_change(tier);
     }
 
@@ -1106,7 +1145,7 @@ impl Hardware for Model {
                         // A USB 3 port trains and enables by itself.
                         1 | 1 << 1 | 1 << 9 | 4 << 10
                     } else {
-                        1 | 1 << 9 | 1 << 10 // connected, powered, full speed
+                        1 | 1 << 9 | self.port_1_speed() // connected, powered
                     };
                     self.portsc[1] = if self.port_2.is_some() {
                         1 | 1 << 9 | 1 << 10

@@ -517,3 +517,20 @@ fn a_data_stage_shorter_than_asked_says_how_many_bytes_came() {
     );
     assert_eq!(hw(&mut bus).slots_disabled.len(), 1);
 }
+
+#[test]
+fn a_full_speed_keyboard_behind_high_speed_hubs_names_the_last_ones_translator() {
+    for tiers in [1, 2] {
+        let mut model = Model::new();
+        model.hub = true;
+        model.hub_tiers = tiers;
+        model.high_speed_hub = true;
+        let mut bus = with_keyboards(model, 1);
+        // The model refuses an Address Device without the translator's
+        // slot and port: clean means they were right.
+        assert_clean(&mut bus);
+        assert!(hw(&mut bus).hub_states[tiers - 1].marked);
+        assert!(hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+        assert_eq!(poll(&mut bus), [0x01], "tiers {tiers}");
+    }
+}
