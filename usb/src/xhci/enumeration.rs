@@ -11,7 +11,7 @@ use super::*;
 
 /// How long an xHCI command may take: Linux's `XHCI_CMD_DEFAULT_TIMEOUT`
 /// (drivers/usb/host/xhci.h, 5 * HZ).
-const COMMAND_MICROS: u64 = 5_000_000;
+pub(super) const COMMAND_MICROS: u64 = 5_000_000;
 /// How long a control transfer may take: Linux's `USB_CTRL_GET_TIMEOUT` and
 /// `USB_CTRL_SET_TIMEOUT` (include/linux/usb.h, 5000 ms).
 const TRANSFER_MICROS: u64 = 5_000_000;
