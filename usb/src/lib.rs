@@ -21,9 +21,10 @@
 //!   descriptors, the control list and the interrupt tree;
 //! - [`ehci`]: EHCI (USB 2.0): the asynchronous and periodic schedules, split
 //!   transactions through a hub's transaction translator, companions;
-//! - [`xhci`]: the xHCI controller, with its own enumeration (its controller
-//!   addresses devices itself), using [`ring`] (the command, transfer and
-//!   event rings) and [`context`] (slot and endpoint contexts).
+//! - [`xhci`]: the xHCI controller, with its own enumeration (which also
+//!   knows SuperSpeed) and an implementation of [`host::HostController`],
+//!   using [`ring`] (the command, transfer and event rings) and [`context`]
+//!   (slot and endpoint contexts).
 
 #![no_std]
 #![forbid(unsafe_code)]
