@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up for building, running and testing modex-cube on Debian or
-# Ubuntu with rustup: QEMU, OVMF, Bochs and an X toolbox for the tests from
-# apt, the pinned nightly with its components and target from rustup. Safe to run again; it only installs what is missing.
+# Ubuntu with rustup: QEMU, OVMF, Bochs, an X toolbox and headless Chromium for the tests from
+# apt, the pinned nightly with its components and targets from rustup. Safe to run again; it only installs what is missing.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -41,6 +41,11 @@ command -v openssl >/dev/null || missing+=(openssl)
 python3 -c 'import venv, ensurepip' 2>/dev/null || missing+=(python3-venv)
 # NASM assembles the worst-case BIOS's option ROM (tests/hostile_bios.rs).
 command -v nasm >/dev/null || missing+=(nasm)
+# Headless Chromium runs the web page in its tests and benchmark
+# (tests/web_page.rs, benches/web_page.rs, the browser/ crate); the full
+# chromium package serves as well if it is there.
+command -v chromium-headless-shell >/dev/null || command -v chromium >/dev/null \
+    || missing+=(chromium-headless-shell)
 if [ ${#missing[@]} -gt 0 ]; then
     command -v apt-get >/dev/null || die "please install ${missing[*]} with your package manager"
     say "installing ${missing[*]}"
@@ -105,6 +110,7 @@ else
     python3 -m venv "$venv"
     "$venv/bin/pip" install -q virt-firmware
 fi
+say "$(command -v chromium-headless-shell || command -v chromium): $(chromium-headless-shell --version 2>/dev/null || chromium --version)"
 say "bochs $(dpkg-query -W -f='${Version}' bochs 2>/dev/null || echo '(version unknown)')"
 
 command -v rustup >/dev/null || die "rustup not found: install it from the Rust website, then run this again"
@@ -119,5 +125,12 @@ else
     say "installing toolchain $toolchain (from rust-toolchain.toml)"
 fi
 rustup toolchain install >/dev/null 2>&1 || rustup toolchain install
+# A toolchain installed before rust-toolchain.toml named a target lacks it
+# ('toolchain install' does not add it then): add each one missing, such as
+# wasm32-unknown-unknown for the web page.
+installed_targets=$(rustup target list --installed --toolchain "$toolchain")
+for target in $(sed -n 's/^targets = \[\(.*\)\]/\1/p' rust-toolchain.toml | tr -d '",'); do
+    grep -qx "$target" <<<"$installed_targets" || rustup target add --toolchain "$toolchain" "$target"
+done
 say "$(rustup run "$toolchain" rustc --version)"
 say "ready: 'cargo run --release' boots the kernel, 'cargo test' tests it"

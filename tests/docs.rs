@@ -64,6 +64,7 @@ struct Context {
     root: PathBuf,
     runner_options: BTreeSet<String>,
     sim_options: BTreeSet<String>,
+    web_options: BTreeSet<String>,
     constants: Vec<Constant>,
 }
 
@@ -73,6 +74,7 @@ impl Context {
             root: repository(),
             runner_options: runner_options(),
             sim_options: sim_options(),
+            web_options: web_options(),
             constants: constants_in(&repository()),
         }
     }
@@ -109,6 +111,24 @@ fn long_options_in(help: &str) -> BTreeSet<String> {
 
 /// The simulator's long options, from its clap fields (`#[arg(long ...)]`
 /// then the field's name, or `long = "name"`), plus clap's own.
+/// The long options the web page builder's usage text lists
+/// (`web/src/main.rs`'s `USAGE`, which its argument parser matches).
+fn web_options() -> BTreeSet<String> {
+    let source = std::fs::read_to_string(repository().join("web/src/main.rs"))
+        .expect("web/src/main.rs exists");
+    let usage = source
+        .split("const USAGE: &str = \"")
+        .nth(1)
+        .and_then(|rest| rest.split("\";").next())
+        .expect("web/src/main.rs has a USAGE text");
+    let options = long_options_in(usage);
+    assert!(
+        options.contains("--out") && options.contains("--serve"),
+        "the web builder's USAGE lists no options: {usage}"
+    );
+    options
+}
+
 fn sim_options() -> BTreeSet<String> {
     let source = std::fs::read_to_string(repository().join("sim/src/main.rs"))
         .expect("sim/src/main.rs exists");
@@ -806,8 +826,9 @@ fn check_cargo_run(context: &Context, command: &str) -> Vec<String> {
             continue;
         };
         let cargo_args = &words[..separator];
-        let is_sim = cargo_args.windows(2).any(|p| p[0] == "-p" && p[1] == "sim");
-        let is_other_package = !is_sim && cargo_args.iter().any(|w| w == "-p");
+        let package = |name: &str| cargo_args.windows(2).any(|p| p[0] == "-p" && p[1] == name);
+        let (is_sim, is_web) = (package("sim"), package("web"));
+        let is_other_package = !is_sim && !is_web && cargo_args.iter().any(|w| w == "-p");
         if is_other_package {
             problems.push(format!(
                 "`{}`: a package the docs test does not know",
@@ -817,6 +838,8 @@ fn check_cargo_run(context: &Context, command: &str) -> Vec<String> {
         }
         let (known, program) = if is_sim {
             (&context.sim_options, "the simulator")
+        } else if is_web {
+            (&context.web_options, "the web page builder")
         } else {
             (&context.runner_options, "the runner")
         };

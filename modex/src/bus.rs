@@ -90,6 +90,17 @@ pub trait VgaBus {
     /// to a framebuffer presents (after text is written, say, which no page
     /// flip follows).
     fn flush(&mut self) {}
+    /// The driver starts `function`, a [`ModeX`](crate::ModeX) method named
+    /// as `ModeX::fill_rect`: the bus operations until the matching
+    /// [`VgaBus::leave`] are its (calls nest). A slow-motion view records
+    /// the names beside the operations; every other bus keeps this default,
+    /// which does nothing and inlines to nothing, so the tag costs the
+    /// kernel's bus no code.
+    #[inline(always)]
+    fn enter(&mut self, _function: &'static str) {}
+    /// The function of the innermost [`VgaBus::enter`] has returned.
+    #[inline(always)]
+    fn leave(&mut self) {}
 }
 
 /// A borrowed bus is a bus, so a large software VGA can stay in its `Box`.
@@ -117,5 +128,13 @@ impl<T: VgaBus + ?Sized> VgaBus for &mut T {
     }
     fn flush(&mut self) {
         (**self).flush();
+    }
+    #[inline(always)]
+    fn enter(&mut self, function: &'static str) {
+        (**self).enter(function);
+    }
+    #[inline(always)]
+    fn leave(&mut self) {
+        (**self).leave();
     }
 }

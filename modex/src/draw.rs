@@ -95,30 +95,36 @@ impl<B: VgaBus> ModeX<B> {
     /// assert_eq!(&screen[4..12], &[0, 9, 9, 9, 9, 9, 9, 0]);
     /// ```
     pub fn fill_rect(&mut self, page: Page, x0: i32, y0: i32, x1: i32, y1: i32, color: u8) {
-        let (Some((x0, x1)), Some((y0, y1))) =
-            (clip(x0, x1, SCREEN_WIDTH), clip(y0, y1, SCREEN_HEIGHT))
-        else {
-            return;
-        };
-        self.fill_runs(line_offset(page, y0), (y1 - y0) as u16, runs(x0, x1), color);
+        self.issued_by("ModeX::fill_rect", |vga| {
+            let (Some((x0, x1)), Some((y0, y1))) =
+                (clip(x0, x1, SCREEN_WIDTH), clip(y0, y1, SCREEN_HEIGHT))
+            else {
+                return;
+            };
+            vga.fill_runs(line_offset(page, y0), (y1 - y0) as u16, runs(x0, x1), color);
+        })
     }
 
     /// Fills the half-open span [x0, x1) of line `y` of `page`, clipped to the screen.
     pub fn fill_span(&mut self, page: Page, y: i32, x0: i32, x1: i32, color: u8) {
-        // Checked first, so that y + 1 cannot overflow.
-        if (0..SCREEN_HEIGHT).contains(&y) {
-            self.fill_rect(page, x0, y, x1, y + 1, color);
-        }
+        self.issued_by("ModeX::fill_span", |vga| {
+            // Checked first, so that y + 1 cannot overflow.
+            if (0..SCREEN_HEIGHT).contains(&y) {
+                vga.fill_rect(page, x0, y, x1, y + 1, color);
+            }
+        })
     }
 
     /// Sets one pixel, if it is on the screen.
     pub fn put_pixel(&mut self, page: Page, x: i32, y: i32, color: u8) {
-        if (0..SCREEN_WIDTH).contains(&x) && (0..SCREEN_HEIGHT).contains(&y) {
-            self.io
-                .set_map_mask(PlaneMask::plane((x % PIXELS_PER_BYTE) as u8));
-            self.io
-                .write_vram8(line_offset(page, y) + (x / PIXELS_PER_BYTE) as u16, color);
-        }
+        self.issued_by("ModeX::put_pixel", |vga| {
+            if (0..SCREEN_WIDTH).contains(&x) && (0..SCREEN_HEIGHT).contains(&y) {
+                vga.io
+                    .set_map_mask(PlaneMask::plane((x % PIXELS_PER_BYTE) as u8));
+                vga.io
+                    .write_vram8(line_offset(page, y) + (x / PIXELS_PER_BYTE) as u16, color);
+            }
+        })
     }
 
     /// Sets one pixel, if it is on the screen, the way a driver without a
@@ -127,18 +133,22 @@ impl<B: VgaBus> ModeX<B> {
     /// The baseline that [`ModeX::put_pixel`] and the span fills are measured
     /// against.
     pub fn put_pixel_uncached(&mut self, page: Page, x: i32, y: i32, color: u8) {
-        if (0..SCREEN_WIDTH).contains(&x) && (0..SCREEN_HEIGHT).contains(&y) {
-            self.io
-                .write_map_mask(PlaneMask::plane((x % PIXELS_PER_BYTE) as u8));
-            self.io
-                .write_vram8(line_offset(page, y) + (x / PIXELS_PER_BYTE) as u16, color);
-        }
+        self.issued_by("ModeX::put_pixel_uncached", |vga| {
+            if (0..SCREEN_WIDTH).contains(&x) && (0..SCREEN_HEIGHT).contains(&y) {
+                vga.io
+                    .write_map_mask(PlaneMask::plane((x % PIXELS_PER_BYTE) as u8));
+                vga.io
+                    .write_vram8(line_offset(page, y) + (x / PIXELS_PER_BYTE) as u16, color);
+            }
+        })
     }
 
     /// Fills the whole of `page` with `color`.
     pub fn clear_page(&mut self, page: Page, color: u8) {
-        self.io.set_map_mask(PlaneMask::ALL);
-        self.io.fill_vram(page.base(), PAGE_BYTES, color);
+        self.issued_by("ModeX::clear_page", |vga| {
+            vga.io.set_map_mask(PlaneMask::ALL);
+            vga.io.fill_vram(page.base(), PAGE_BYTES, color);
+        })
     }
 
     /// Writes each run down `lines` lines from `top`, one Map Mask per run.

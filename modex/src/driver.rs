@@ -89,6 +89,22 @@ impl<B: VgaBus> ModeX<B> {
     /// software VGA mirrored to a framebuffer presents (after text, which no
     /// page flip follows).
     pub fn flush(&mut self) {
-        self.io.flush();
+        self.issued_by("ModeX::flush", |vga| vga.io.flush());
+    }
+
+    /// Runs `body` as `function`, telling the bus where it starts and ends
+    /// ([`VgaBus::enter`]), so a slow-motion view can name the function
+    /// that issued each bus operation. On a bus without the tag (the
+    /// kernel's) this is `body(self)`.
+    #[inline(always)]
+    pub(crate) fn issued_by<R>(
+        &mut self,
+        function: &'static str,
+        body: impl FnOnce(&mut Self) -> R,
+    ) -> R {
+        self.io.bus_mut().enter(function);
+        let result = body(self);
+        self.io.bus_mut().leave();
+        result
     }
 }

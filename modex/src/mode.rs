@@ -295,72 +295,80 @@ impl<B: VgaBus> ModeX<B> {
     /// programmed, the DAC loaded with the default palette, all four planes
     /// cleared to colour 0, and Page::Zero shown (start address latched).
     pub fn set_mode(&mut self) {
-        self.program(&MODE_X);
-        self.load_palette(0, &DEFAULT_PALETTE);
-        self.clear_video_memory();
-        // Also waits until the start address has been latched by a retrace.
-        self.show_page(Page::Zero);
+        self.issued_by("ModeX::set_mode", |vga| {
+            vga.program(&MODE_X);
+            vga.load_palette(0, &DEFAULT_PALETTE);
+            vga.clear_video_memory();
+            // Also waits until the start address has been latched by a retrace.
+            vga.show_page(Page::Zero);
+        })
     }
 
     /// Programs every register of `mode`, from any prior state.
     pub(crate) fn program(&mut self, mode: &ModeRegisters) {
-        let io = &mut self.io;
-        io.invalidate_caches();
+        self.issued_by("ModeX::program", |vga| {
+            let io = &mut vga.io;
+            io.invalidate_caches();
 
-        // An extended mode (a VBE linear framebuffer left by the bootloader)
-        // would override the standard VGA registers.
-        io.reset_extensions();
+            // An extended mode (a VBE linear framebuffer left by the bootloader)
+            // would override the standard VGA registers.
+            io.reset_extensions();
 
-        // The dot clock (Misc Output) and the character clock (Clocking Mode)
-        // may only change while the sequencer is held in synchronous reset.
-        // Misc Output also selects colour I/O addressing, which the CRTC
-        // writes below rely on.
-        io.write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
-        io.write_sequencer(
-            Sequencer::ClockingMode,
-            mode.sequencer_value(Sequencer::ClockingMode),
-        );
-        io.write_misc_output(mode.misc_output);
-        for (register, value) in mode.sequencer {
-            if !matches!(register, Sequencer::Reset | Sequencer::ClockingMode) {
-                io.write_sequencer(register, value);
+            // The dot clock (Misc Output) and the character clock (Clocking Mode)
+            // may only change while the sequencer is held in synchronous reset.
+            // Misc Output also selects colour I/O addressing, which the CRTC
+            // writes below rely on.
+            io.write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
+            io.write_sequencer(
+                Sequencer::ClockingMode,
+                mode.sequencer_value(Sequencer::ClockingMode),
+            );
+            io.write_misc_output(mode.misc_output);
+            for (register, value) in mode.sequencer {
+                if !matches!(register, Sequencer::Reset | Sequencer::ClockingMode) {
+                    io.write_sequencer(register, value);
+                }
             }
-        }
-        io.write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
+            io.write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
 
-        // CRTC 0-7 are write-protected until Vertical Retrace End bit 7 is
-        // clear; the table's own value (written after them) may protect them again.
-        let retrace_end = mode.crtc_value(Crtc::VerticalRetraceEnd);
-        io.write_crtc(Crtc::VerticalRetraceEnd, retrace_end & !crtc::PROTECT_0_7);
-        for (register, value) in mode.crtc {
-            io.write_crtc(register, value);
-        }
+            // CRTC 0-7 are write-protected until Vertical Retrace End bit 7 is
+            // clear; the table's own value (written after them) may protect them again.
+            let retrace_end = mode.crtc_value(Crtc::VerticalRetraceEnd);
+            io.write_crtc(Crtc::VerticalRetraceEnd, retrace_end & !crtc::PROTECT_0_7);
+            for (register, value) in mode.crtc {
+                io.write_crtc(register, value);
+            }
 
-        for (register, value) in mode.graphics {
-            io.write_graphics(register, value);
-        }
+            for (register, value) in mode.graphics {
+                io.write_graphics(register, value);
+            }
 
-        io.reset_attribute_flip_flop();
-        for (register, value) in mode.attribute {
-            io.write_attribute(register, value);
-        }
-        io.show_video();
+            io.reset_attribute_flip_flop();
+            for (register, value) in mode.attribute {
+                io.write_attribute(register, value);
+            }
+            io.show_video();
+        })
     }
 
     /// Loads DAC entries `first`, `first + 1`, ... with `colours` and opens the
     /// DAC Pixel Mask fully. Entries that would run past 255 are left out: the
     /// DAC's index would wrap round and overwrite entry 0 onwards.
     pub fn load_palette(&mut self, first: u8, colours: &[Rgb6]) {
-        let room = 256 - usize::from(first);
-        self.io.load_dac(first, &colours[..colours.len().min(room)]);
+        self.issued_by("ModeX::load_palette", |vga| {
+            let room = 256 - usize::from(first);
+            vga.io.load_dac(first, &colours[..colours.len().min(room)]);
+        })
     }
 
     /// Clears all four planes through the whole CPU window.
     fn clear_video_memory(&mut self) {
-        self.io.set_map_mask(PlaneMask::ALL);
-        for chunk in 0..(CPU_WINDOW_BYTES / u32::from(CLEAR_CHUNK_BYTES)) as u16 {
-            self.io
-                .fill_vram(chunk * CLEAR_CHUNK_BYTES, CLEAR_CHUNK_BYTES, 0);
-        }
+        self.issued_by("ModeX::clear_video_memory", |vga| {
+            vga.io.set_map_mask(PlaneMask::ALL);
+            for chunk in 0..(CPU_WINDOW_BYTES / u32::from(CLEAR_CHUNK_BYTES)) as u16 {
+                vga.io
+                    .fill_vram(chunk * CLEAR_CHUNK_BYTES, CLEAR_CHUNK_BYTES, 0);
+            }
+        })
     }
 }

@@ -105,16 +105,20 @@ impl<B: VgaBus> ModeX<B> {
     /// assert!(report.retrace_wait_timed_out && !report.display_wait_timed_out);
     /// ```
     pub fn show_page(&mut self, page: Page) -> FlipReport {
-        let display_wait_timed_out = !self
-            .poll_status(|bits| bits & (status::VERTICAL_RETRACE | status::DISPLAY_DISABLED) == 0);
-        let [high, low] = page.base().to_be_bytes();
-        self.io.write_crtc(Crtc::StartAddressHigh, high);
-        self.io.write_crtc(Crtc::StartAddressLow, low);
-        let retrace_wait_timed_out = !self.poll_status(|bits| bits & status::VERTICAL_RETRACE != 0);
-        FlipReport {
-            display_wait_timed_out,
-            retrace_wait_timed_out,
-        }
+        self.issued_by("ModeX::show_page", |vga| {
+            let display_wait_timed_out = !vga.poll_status(|bits| {
+                bits & (status::VERTICAL_RETRACE | status::DISPLAY_DISABLED) == 0
+            });
+            let [high, low] = page.base().to_be_bytes();
+            vga.io.write_crtc(Crtc::StartAddressHigh, high);
+            vga.io.write_crtc(Crtc::StartAddressLow, low);
+            let retrace_wait_timed_out =
+                !vga.poll_status(|bits| bits & status::VERTICAL_RETRACE != 0);
+            FlipReport {
+                display_wait_timed_out,
+                retrace_wait_timed_out,
+            }
+        })
     }
 
     /// Reads Input Status 1 until `done` holds or [`STATUS_POLL_LIMIT`] reads

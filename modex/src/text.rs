@@ -55,7 +55,9 @@ impl<B: VgaBus> ModeX<B> {
     /// row bit 7 leftmost) in plane 2 with each row shown twice, a blank
     /// light-grey screen, and the cursor parked off screen.
     pub fn set_text_mode(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
-        self.enter_text_mode(&TEXT_80X25, font, false);
+        self.issued_by("ModeX::set_text_mode", |vga| {
+            vga.enter_text_mode(&TEXT_80X25, font, false);
+        })
     }
 
     /// As [`ModeX::set_text_mode`], but with 8-dot cells (640x400),
@@ -67,28 +69,33 @@ impl<B: VgaBus> ModeX<B> {
     /// white on black spaces of the font. Each cell can so carry eight
     /// modules of a QR code.
     pub fn set_text_mode_with_blocks(&mut self, font: &[[u8; GLYPH_ROWS]; 128]) {
-        self.enter_text_mode(&TEXT_80X25_TWO_MAPS, font, true);
+        self.issued_by("ModeX::set_text_mode_with_blocks", |vga| {
+            vga.enter_text_mode(&TEXT_80X25_TWO_MAPS, font, true);
+        })
     }
 
     /// Writes raw character codes (any of 256, no translation) at (`row`,
     /// `col`) with `attribute`, cut at the end of the line.
     pub fn write_characters(&mut self, row: u8, col: u8, characters: &[u8], attribute: u8) {
-        if row >= TEXT_ROWS || col >= TEXT_COLUMNS {
-            return;
-        }
-        let start = (u16::from(row) * u16::from(TEXT_COLUMNS) + u16::from(col)) * BYTES_PER_CELL;
-        let room = usize::from(TEXT_COLUMNS - col);
-        self.with_text_window(|vga| {
-            vga.io.set_map_mask(TEXT_PLANES);
-            for (offset, &character) in (start..)
-                .step_by(usize::from(BYTES_PER_CELL))
-                .zip(characters.iter().take(room))
-            {
-                // Odd/even addressing: the even byte goes to plane 0, the odd to plane 1.
-                vga.io.write_vram8(offset, character);
-                vga.io.write_vram8(offset + 1, attribute);
+        self.issued_by("ModeX::write_characters", |vga| {
+            if row >= TEXT_ROWS || col >= TEXT_COLUMNS {
+                return;
             }
-        });
+            let start =
+                (u16::from(row) * u16::from(TEXT_COLUMNS) + u16::from(col)) * BYTES_PER_CELL;
+            let room = usize::from(TEXT_COLUMNS - col);
+            vga.with_text_window(|vga| {
+                vga.io.set_map_mask(TEXT_PLANES);
+                for (offset, &character) in (start..)
+                    .step_by(usize::from(BYTES_PER_CELL))
+                    .zip(characters.iter().take(room))
+                {
+                    // Odd/even addressing: the even byte goes to plane 0, the odd to plane 1.
+                    vga.io.write_vram8(offset, character);
+                    vga.io.write_vram8(offset + 1, attribute);
+                }
+            });
+        })
     }
 
     fn enter_text_mode(
@@ -126,17 +133,19 @@ impl<B: VgaBus> ModeX<B> {
     /// (background << 4 | foreground), cut at the end of the line. Characters
     /// outside ASCII show as '?'; a position off screen writes nothing.
     pub fn write_text(&mut self, row: u8, col: u8, text: &str, attribute: u8) {
-        let mut glyphs = [0u8; TEXT_COLUMNS as usize];
-        let mut count = 0;
-        for (glyph, character) in glyphs.iter_mut().zip(text.chars()) {
-            *glyph = if character.is_ascii() {
-                character as u8
-            } else {
-                REPLACEMENT_CHARACTER
-            };
-            count += 1;
-        }
-        self.write_characters(row, col, &glyphs[..count], attribute);
+        self.issued_by("ModeX::write_text", |vga| {
+            let mut glyphs = [0u8; TEXT_COLUMNS as usize];
+            let mut count = 0;
+            for (glyph, character) in glyphs.iter_mut().zip(text.chars()) {
+                *glyph = if character.is_ascii() {
+                    character as u8
+                } else {
+                    REPLACEMENT_CHARACTER
+                };
+                count += 1;
+            }
+            vga.write_characters(row, col, &glyphs[..count], attribute);
+        })
     }
 
     /// Map B of [`ModeX::set_text_mode_with_blocks`], 8 KiB into plane 2
@@ -167,48 +176,47 @@ impl<B: VgaBus> ModeX<B> {
     /// Loads the font into plane 2 (glyph n at n * 32), rows doubled and the
     /// unused slots blank, then restores text addressing.
     fn load_font(&mut self, font: &[[u8; GLYPH_ROWS]; 128], blocks: bool) {
-        // Plane 2 as plain sequential memory, the way the BIOS loads fonts.
-        self.io
-            .write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
-        self.io.write_map_mask(FONT_PLANE);
-        self.io
-            .write_sequencer(Sequencer::MemoryMode, MEMORY_MODE_SEQUENTIAL);
-        self.io
-            .write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
-        self.io
-            .write_graphics(Graphics::ReadMapSelect, FONT_PLANE_INDEX);
-        self.io.write_graphics(Graphics::Mode, 0x00);
-        self.io.write_graphics(Graphics::Misc, MISC_FONT_AT_A0000);
+        self.issued_by("ModeX::load_font", |vga| {
+            // Plane 2 as plain sequential memory, the way the BIOS loads fonts.
+            vga.io
+                .write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
+            vga.io.write_map_mask(FONT_PLANE);
+            vga.io
+                .write_sequencer(Sequencer::MemoryMode, MEMORY_MODE_SEQUENTIAL);
+            vga.io.write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
+            vga.io
+                .write_graphics(Graphics::ReadMapSelect, FONT_PLANE_INDEX);
+            vga.io.write_graphics(Graphics::Mode, 0x00);
+            vga.io.write_graphics(Graphics::Misc, MISC_FONT_AT_A0000);
 
-        self.io.fill_vram(0, GLYPH_SLOTS * GLYPH_SLOT_BYTES, 0);
-        for (slot, glyph) in (0..)
-            .step_by(usize::from(GLYPH_SLOT_BYTES))
-            .zip(font.iter())
-        {
-            for (row, &bits) in (0..)
-                .step_by(usize::from(SCAN_LINES_PER_GLYPH_ROW))
-                .zip(glyph.iter())
+            vga.io.fill_vram(0, GLYPH_SLOTS * GLYPH_SLOT_BYTES, 0);
+            for (slot, glyph) in (0..)
+                .step_by(usize::from(GLYPH_SLOT_BYTES))
+                .zip(font.iter())
             {
-                self.io
-                    .fill_vram(slot + row, SCAN_LINES_PER_GLYPH_ROW, bits);
+                for (row, &bits) in (0..)
+                    .step_by(usize::from(SCAN_LINES_PER_GLYPH_ROW))
+                    .zip(glyph.iter())
+                {
+                    vga.io.fill_vram(slot + row, SCAN_LINES_PER_GLYPH_ROW, bits);
+                }
             }
-        }
-        if blocks {
-            self.load_block_map();
-        }
+            if blocks {
+                vga.load_block_map();
+            }
 
-        // Back to the text mode's odd/even addressing.
-        self.io
-            .write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
-        for register in [Sequencer::MapMask, Sequencer::MemoryMode] {
-            self.io
-                .write_sequencer(register, TEXT_80X25.sequencer_value(register));
-        }
-        self.io
-            .write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
-        for register in [Graphics::ReadMapSelect, Graphics::Mode, Graphics::Misc] {
-            self.io
-                .write_graphics(register, TEXT_80X25.graphics_value(register));
-        }
+            // Back to the text mode's odd/even addressing.
+            vga.io
+                .write_sequencer(Sequencer::Reset, seq::RESET_SYNCHRONOUS);
+            for register in [Sequencer::MapMask, Sequencer::MemoryMode] {
+                vga.io
+                    .write_sequencer(register, TEXT_80X25.sequencer_value(register));
+            }
+            vga.io.write_sequencer(Sequencer::Reset, seq::RESET_RUNNING);
+            for register in [Graphics::ReadMapSelect, Graphics::Mode, Graphics::Misc] {
+                vga.io
+                    .write_graphics(register, TEXT_80X25.graphics_value(register));
+            }
+        })
     }
 }

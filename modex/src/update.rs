@@ -35,48 +35,53 @@ impl<B: VgaBus> ModeX<B> {
     /// without a list of them, each line keeps the set of masks it needs, and
     /// a pass visits only the lines that need its mask.
     pub fn update_page(&mut self, page: Page, shadow: &mut PageImage, target: &PageImage) -> u32 {
-        let width = SCREEN_WIDTH as usize;
-        // Each line's changed bytes, found eight at a time: the rest of the
-        // work is bounded by what changed, not by the screen.
-        let mut changed: [Option<Range<usize>>; SCREEN_HEIGHT as usize] =
-            [const { None }; SCREEN_HEIGHT as usize];
-        for (y, range) in changed.iter_mut().enumerate() {
-            *range = changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width]);
-        }
-        let mut writes = Writes::new();
-        let written = if writes.collect(&changed, shadow, target) {
-            self.write_by_mask(page, &writes)
-        } else {
-            // More writes than the list holds (a whole new picture): the
-            // same writes in the same order, found again for each mask.
-            self.write_by_passes(page, &changed, shadow, target)
-        };
-        for (y, range) in changed.iter().enumerate() {
-            if let Some(range) = range {
-                let line = y * width;
-                shadow[line + range.start..line + range.end]
-                    .copy_from_slice(&target[line + range.start..line + range.end]);
+        self.issued_by("ModeX::update_page", |vga| {
+            let width = SCREEN_WIDTH as usize;
+            // Each line's changed bytes, found eight at a time: the rest of the
+            // work is bounded by what changed, not by the screen.
+            let mut changed: [Option<Range<usize>>; SCREEN_HEIGHT as usize] =
+                [const { None }; SCREEN_HEIGHT as usize];
+            for (y, range) in changed.iter_mut().enumerate() {
+                *range =
+                    changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width]);
             }
-        }
-        written
+            let mut writes = Writes::new();
+            let written = if writes.collect(&changed, shadow, target) {
+                vga.write_by_mask(page, &writes)
+            } else {
+                // More writes than the list holds (a whole new picture): the
+                // same writes in the same order, found again for each mask.
+                vga.write_by_passes(page, &changed, shadow, target)
+            };
+            for (y, range) in changed.iter().enumerate() {
+                if let Some(range) = range {
+                    let line = y * width;
+                    shadow[line + range.start..line + range.end]
+                        .copy_from_slice(&target[line + range.start..line + range.end]);
+                }
+            }
+            written
+        })
     }
 
     /// Writes the whole of `image` into `page`, whatever it held: one pass
     /// per plane, every address written. For a picture with no shadow to
     /// compare with (the report screen on the spare page); 76,800 writes.
     pub fn write_page(&mut self, page: Page, image: &PageImage) {
-        let width = SCREEN_WIDTH as usize;
-        for plane in 0..4u8 {
-            self.io.set_map_mask(PlaneMask::plane(plane));
-            for y in 0..SCREEN_HEIGHT as usize {
-                let line = &image[y * width..][..width];
-                let line_base = page.base() + y as u16 * BYTES_PER_LINE;
-                for i in 0..usize::from(BYTES_PER_LINE) {
-                    self.io
-                        .write_vram8(line_base + i as u16, line[4 * i + usize::from(plane)]);
+        self.issued_by("ModeX::write_page", |vga| {
+            let width = SCREEN_WIDTH as usize;
+            for plane in 0..4u8 {
+                vga.io.set_map_mask(PlaneMask::plane(plane));
+                for y in 0..SCREEN_HEIGHT as usize {
+                    let line = &image[y * width..][..width];
+                    let line_base = page.base() + y as u16 * BYTES_PER_LINE;
+                    for i in 0..usize::from(BYTES_PER_LINE) {
+                        vga.io
+                            .write_vram8(line_base + i as u16, line[4 * i + usize::from(plane)]);
+                    }
                 }
             }
-        }
+        })
     }
 
     /// The Map Masks in the order they are set: the one already set first,

@@ -53,13 +53,17 @@ pub fn lower_bound(old_page: &[u8], new_page: &[u8]) -> u64 {
         .iter()
         .zip(new_page.as_chunks::<4>().0)
         .map(|(old, new)| {
-            let mut colours: Vec<u8> = (0..4)
-                .filter(|&p| old[p] != new[p])
-                .map(|p| new[p])
-                .collect();
-            colours.sort_unstable();
-            colours.dedup();
-            colours.len() as u64
+            // No allocation: this runs for every address of every frame
+            // (in the web page too, where an allocation costs more).
+            let mut colours = [0u8; 4];
+            let mut distinct = 0;
+            for plane in (0..4).filter(|&p| old[p] != new[p]) {
+                if !colours[..distinct].contains(&new[plane]) {
+                    colours[distinct] = new[plane];
+                    distinct += 1;
+                }
+            }
+            distinct as u64
         })
         .sum()
 }
@@ -69,9 +73,13 @@ pub fn lower_bound(old_page: &[u8], new_page: &[u8]) -> u64 {
 pub fn page_image<'a>(plane: impl Fn(usize) -> &'a [u8], page: Page) -> Vec<u8> {
     let planes = [plane(0), plane(1), plane(2), plane(3)];
     let base = usize::from(page.base());
-    (0..PAGE_PIXELS)
-        .map(|i| planes[i % 4][base + i / 4])
-        .collect()
+    let mut image = vec![0; PAGE_PIXELS];
+    for (address, pixels) in image.as_chunks_mut::<4>().0.iter_mut().enumerate() {
+        for (pixel, plane) in pixels.iter_mut().zip(planes) {
+            *pixel = plane[base + address];
+        }
+    }
+    image
 }
 
 /// The registers the inspector shows.

@@ -1,12 +1,16 @@
 //! Host keys as a PC keyboard would send them: each host key has the runner's
 //! name for it, and `keyboard::keys` has the one table of names and PS/2 scan
 //! codes, so a key sequence means the same to the runner and to the simulator.
+//! The host keys of the window are the `desktop` feature's; the names, the
+//! key lists and taps are everyone's (the web page's too).
 
+#[cfg(feature = "desktop")]
 use minifb::Key;
 
 pub use keyboard::keys::{scancode_for_name, Scancode};
 
 /// Every host key the simulator passes on, with its name in `keyboard::keys`.
+#[cfg(feature = "desktop")]
 const HOST_KEYS: &[(Key, &str)] = &[
     (Key::Escape, "esc"),
     (Key::Key1, "1"),
@@ -114,6 +118,7 @@ const HOST_KEYS: &[(Key, &str)] = &[
 
 /// The scan code of a host key; `None` for keys a PC keyboard has no plain
 /// scan code for (F13 and up, Pause's E1 sequence).
+#[cfg(feature = "desktop")]
 pub fn scancode_for_key(key: Key) -> Option<Scancode> {
     HOST_KEYS
         .iter()
@@ -156,6 +161,7 @@ pub fn tap(scancode: Scancode) -> Vec<u8> {
 mod tests {
     use super::*;
 
+    #[cfg(feature = "desktop")]
     #[test]
     fn every_host_key_has_a_known_name_and_each_is_listed_once() {
         for (index, (key, name)) in HOST_KEYS.iter().enumerate() {

@@ -8,6 +8,8 @@
 //! * [`keys`]: host keys and the runner's key names as PS/2 scan codes (set 1);
 //! * [`machine`]: the demo on the software VGA, one retrace period at a time;
 //! * [`inspector`]: the numbers and the panel image of the VGA inspector;
+//! * [`oplog`]: a frame's bus operations, named by the `modex` function
+//!   that issued each, and their replay (the web page's slow motion);
 //! * [`screen`]: the picture scaled, with the panel beside it, as the window shows it;
 //! * [`record`]: the scan-outs of a run as an animated GIF.
 //!
@@ -44,5 +46,6 @@
 pub mod inspector;
 pub mod keys;
 pub mod machine;
+pub mod oplog;
 pub mod record;
 pub mod screen;

@@ -15,6 +15,7 @@ use modex::{ModeX, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 use crate::inspector::{frame_cost, page_image, FrameCost};
 use crate::keys::Scancode;
+use crate::oplog::{BusOp, LoggedOp, OpLog};
 
 /// Pixels in the Mode X picture.
 pub const PICTURE_PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
@@ -26,44 +27,90 @@ const PLANE_COUNT: usize = 4;
 
 /// The software VGA with the model's time in microseconds beside it, kept up
 /// to date after every bus operation for the app's clock to read while the
-/// driver holds the bus.
+/// driver holds the bus; and, while a frame is recorded, its operations.
 struct ClockedVga {
     soft: Box<SoftVga>,
     micros: Rc<Cell<u64>>,
+    log: OpLog,
 }
 
 impl ClockedVga {
     fn tick(&self) {
         self.micros.set(self.soft.now_ns() / NANOS_PER_MICRO);
     }
+
+    /// Does `op` on the software VGA (through `action`), logs it, and ticks.
+    fn operate<T>(
+        &mut self,
+        op: impl FnOnce(T) -> BusOp,
+        action: impl FnOnce(&mut SoftVga) -> T,
+    ) -> T
+    where
+        T: Copy,
+    {
+        let start_ns = self.soft.now_ns();
+        let result = action(&mut self.soft);
+        self.log.note(op(result), start_ns);
+        self.tick();
+        result
+    }
 }
 
 impl VgaBus for ClockedVga {
     fn write_port8(&mut self, port: Port, value: u8) {
-        self.soft.write_port8(port, value);
-        self.tick();
+        self.operate(
+            |()| BusOp::WritePort8 { port, value },
+            |soft| soft.write_port8(port, value),
+        );
     }
     fn write_port16(&mut self, port: Port, value: u16) {
-        self.soft.write_port16(port, value);
-        self.tick();
+        self.operate(
+            |()| BusOp::WritePort16 { port, value },
+            |soft| soft.write_port16(port, value),
+        );
     }
     fn read_port8(&mut self, port: Port) -> u8 {
-        let value = self.soft.read_port8(port);
-        self.tick();
-        value
+        self.operate(
+            |value| BusOp::ReadPort8 { port, value },
+            |soft| soft.read_port8(port),
+        )
+    }
+    fn read_port16(&mut self, port: Port) -> u16 {
+        self.operate(
+            |value| BusOp::ReadPort16 { port, value },
+            |soft| soft.read_port16(port),
+        )
     }
     fn write_vram8(&mut self, offset: u16, value: u8) {
-        self.soft.write_vram8(offset, value);
-        self.tick();
+        self.operate(
+            |()| BusOp::WriteVram8 { offset, value },
+            |soft| soft.write_vram8(offset, value),
+        );
     }
     fn read_vram8(&mut self, offset: u16) -> u8 {
-        let value = self.soft.read_vram8(offset);
-        self.tick();
-        value
+        self.operate(
+            |value| BusOp::ReadVram8 { offset, value },
+            |soft| soft.read_vram8(offset),
+        )
     }
     fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
-        self.soft.fill_vram(offset, count, value);
-        self.tick();
+        self.operate(
+            |()| BusOp::FillVram {
+                offset,
+                count,
+                value,
+            },
+            |soft| soft.fill_vram(offset, count, value),
+        );
+    }
+    fn flush(&mut self) {
+        self.operate(|()| BusOp::Flush, |soft| soft.flush());
+    }
+    fn enter(&mut self, function: &'static str) {
+        self.log.enter(function);
+    }
+    fn leave(&mut self) {
+        self.log.leave();
     }
 }
 
@@ -90,23 +137,40 @@ impl Machine {
     /// Sets Mode X and draws the first frame, as the kernel does at boot
     /// before it reads any key.
     pub fn new() -> Self {
+        let mut machine = Self::with_mode_set(OpLog::default());
+        machine.frame();
+        machine
+    }
+
+    /// As [`Machine::new`], with the bus operations of the mode set and the
+    /// first frame, from a VGA as the BIOS leaves it (`SoftVga::new`).
+    pub fn new_logged() -> (Self, Vec<LoggedOp>) {
+        let mut log = OpLog::default();
+        log.start();
+        let mut machine = Self::with_mode_set(log);
+        machine.frame();
+        let log = machine.vga.bus_mut().log.take();
+        (machine, log)
+    }
+
+    /// The machine with Mode X set (through a bus keeping `log`), no frame run.
+    fn with_mode_set(log: OpLog) -> Self {
         let micros = Rc::new(Cell::new(0));
         let bus = ClockedVga {
             soft: Box::new(SoftVga::new()),
             micros: Rc::clone(&micros),
+            log,
         };
         let mut vga = ModeX::new(bus);
         vga.set_mode();
-        let mut machine = Machine {
+        Machine {
             vga,
             app: App::new(),
             micros,
             frames: 0,
             planes_before: vec![0; PLANE_COUNT * PLANE_BYTES],
             last_cost: FrameCost::default(),
-        };
-        machine.frame();
-        machine
+        }
     }
 
     /// Scan-code bytes, decoded as the kernel decodes its keyboard's.
@@ -166,6 +230,14 @@ impl Machine {
         self.frames += 1;
         self.last_cost = frame_cost(counts_before, soft.counts(), &old_page, &new_page);
         self.last_cost
+    }
+
+    /// One frame as [`Machine::frame`] runs it, with every bus operation it
+    /// made, in order, each with the `modex` functions that issued it.
+    pub fn frame_logged(&mut self) -> (FrameCost, Vec<LoggedOp>) {
+        self.vga.bus_mut().log.start();
+        let cost = self.frame();
+        (cost, self.vga.bus_mut().log.take())
     }
 
     /// The report screen (I): the simulator has no machine to report on and
@@ -274,6 +346,82 @@ mod tests {
         assert_eq!(stats.frames_per_second_tenths, Some(tenths as u32));
         let frame_micros = u32::try_from(frame_ns / 1000).unwrap();
         assert!(stats.frame_micros > 0 && stats.frame_micros < frame_micros);
+    }
+
+    /// Runs `test` with 16 MiB of stack: a frame of the demo takes about
+    /// 2 MiB in a test build, all a test thread has, and these tests hold a
+    /// second machine or a copy of the VGA besides.
+    fn on_big_stack(test: impl FnOnce() + Send + 'static) {
+        let thread = std::thread::Builder::new().stack_size(16 << 20).spawn(test);
+        if let Err(panic) = thread.expect("a test thread starts").join() {
+            std::panic::resume_unwind(panic);
+        }
+    }
+
+    /// Everything a picture or the inspector shows of a software VGA.
+    fn visible_state(vga: &SoftVga) -> (Vec<u8>, u16, Vec<modex::Rgb6>, u8) {
+        let planes = (0..PLANE_COUNT)
+            .flat_map(|p| vga.plane(p).to_vec())
+            .collect();
+        let dac = (0..=255).map(|i| vga.dac_entry(i)).collect();
+        let map_mask = vga.sequencer(modex::regs::Sequencer::MapMask);
+        (planes, vga.displayed_start(), dac, map_mask)
+    }
+
+    #[test]
+    fn a_logged_frame_replayed_on_a_copy_gives_the_same_vga() {
+        on_big_stack(|| {
+            let mut machine = Machine::new();
+            machine.tap(key("m")); // several cubes: many Map Masks a frame
+            machine.frame();
+            for _ in 0..3 {
+                let mut copy = Box::new(machine.vga().clone());
+                let (_, log) = machine.frame_logged();
+                assert!(log.len() > 10, "{} entries", log.len());
+                for entry in &log {
+                    entry.replay(&mut copy);
+                }
+                assert!(visible_state(&copy) == visible_state(machine.vga()));
+            }
+            // Not recording: no log kept.
+            machine.frame();
+            assert!(machine.vga.bus_mut().log.take().is_empty());
+        });
+    }
+
+    #[test]
+    fn the_mode_set_is_logged_from_the_vga_the_bios_leaves() {
+        on_big_stack(|| {
+            let (machine, log) = Machine::new_logged();
+            let first = log.first().expect("the mode set is logged");
+            assert_eq!(first.callers.names(), ["ModeX::set_mode", "ModeX::program"]);
+            let mut copy = Box::new(SoftVga::new());
+            for entry in &log {
+                entry.replay(&mut copy);
+            }
+            assert!(visible_state(&copy) == visible_state(machine.vga()));
+            assert!(visible_state(Machine::new().vga()) == visible_state(machine.vga()));
+        });
+    }
+
+    #[test]
+    fn each_logged_operation_names_the_modex_function_that_issued_it() {
+        let mut machine = Machine::new();
+        let (_, log) = machine.frame_logged();
+        let map_mask = log
+            .iter()
+            .find(|entry| {
+                matches!(entry.op, BusOp::WritePort16 { port, value }
+                    if port == Port::SEQUENCER_INDEX && value & 0xFF == 2)
+            })
+            .expect("a frame sets the Map Mask");
+        assert_eq!(map_mask.callers.innermost(), Some("ModeX::update_page"));
+        let status = log
+            .iter()
+            .find(|entry| matches!(entry.op, BusOp::ReadPort8 { port, .. } if port == Port::INPUT_STATUS_1))
+            .expect("a flip waits for retrace");
+        assert_eq!(status.callers.names(), ["ModeX::show_page"]);
+        assert!(status.repeat > 1, "a wait is one entry with a count");
     }
 
     #[test]

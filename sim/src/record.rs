@@ -62,12 +62,31 @@ impl Script {
 /// Runs `frames` frames of the demo, typing the script's keys, and hands
 /// the machine to `after_frame` after each with the frame's number; stops
 /// early when a key (Esc) ends the demo. Returns the frames run.
-pub fn run_script(script: &Script, frames: u32, mut after_frame: impl FnMut(&Machine, u32)) -> u32 {
-    let mut machine = Machine::new();
-    for frame in 0..frames {
+pub fn run_script(script: &Script, frames: u32, after_frame: impl FnMut(&Machine, u32)) -> u32 {
+    run_with(frames, script_keys(script), after_frame)
+}
+
+/// Types the script's key due before each frame.
+fn script_keys(script: &Script) -> impl FnMut(&mut Machine, u32) + '_ {
+    move |machine, frame| {
         if let Some(key) = script.key_before(frame) {
             machine.tap(key);
         }
+    }
+}
+
+/// Runs `frames` frames of the demo on a new machine: `before_frame` gets
+/// the machine and the frame's number before each (to feed it keys), and
+/// `after_frame` after it. Stops early when a key (Esc) ends the demo.
+/// Returns the frames run.
+pub fn run_with(
+    frames: u32,
+    mut before_frame: impl FnMut(&mut Machine, u32),
+    mut after_frame: impl FnMut(&Machine, u32),
+) -> u32 {
+    let mut machine = Machine::new();
+    for frame in 0..frames {
+        before_frame(&mut machine, frame);
         if machine.app().quit_requested() {
             return frame;
         }
@@ -104,13 +123,25 @@ pub fn record_gif(
     every: u32,
     out: impl Write,
 ) -> Result<Recorded, RecordError> {
+    record_gif_with(frames, every, script_keys(script), out)
+}
+
+/// As [`record_gif`], with the keys fed by `before_frame` (see
+/// [`run_with`]): for a run whose keys were pressed and released at any
+/// frame (the web page's), not typed to a script.
+pub fn record_gif_with(
+    frames: u32,
+    every: u32,
+    before_frame: impl FnMut(&mut Machine, u32),
+    out: impl Write,
+) -> Result<Recorded, RecordError> {
     let mut encoder: Option<Encoder<_>> = None;
     let mut out = Some(out);
     let mut previous: Option<(Vec<u8>, Vec<u8>)> = None;
     let mut images = 0;
     let mut delay = 0;
     let mut failure = None;
-    let frames_run = run_script(script, frames, |machine, frame| {
+    let frames_run = run_with(frames, before_frame, |machine, frame| {
         if !recorded(frame, every) || failure.is_some() {
             return;
         }

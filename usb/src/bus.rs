@@ -28,7 +28,12 @@ use core::fmt;
 
 mod enumeration;
 pub use enumeration::BOOT_ENUMERATION_MICROS;
+// Linux's hub timeouts, shared with the xHCI driver's own enumeration.
 use enumeration::{Job, WorkQueue};
+pub(crate) use enumeration::{
+    CONNECT_MICROS, DEBOUNCE_MICROS, DEBOUNCE_TIMEOUT_MICROS, HUB_CONNECT_MICROS,
+    HUB_RESET_CHECK_MICROS, RESET_RECOVERY_MICROS, SET_ADDRESS_RECOVERY_MICROS,
+};
 
 #[cfg(test)]
 mod tests;

@@ -2,8 +2,12 @@
 //! device layer ([`crate::bus`]) and a host controller driver (EHCI, OHCI,
 //! UHCI; xHCI keeps its own enumeration, see `docs/architecture.md`).
 //!
-//! Nothing here waits: every call either does its register and DMA work and
-//! returns, or starts something whose end a later `*_poll` call reports.
+//! Nothing here waits for a device: every call either does its register and
+//! DMA work and returns, or starts something whose end a later `*_poll` call
+//! reports. The only waits are for the controller itself, bounded to a few
+//! milliseconds: a reset, a halt, and the removal calls, which wait until
+//! the controller has let go of the memory they reuse (a frame boundary, or
+//! EHCI's doorbell).
 //! The device layer owns every timeout (Linux's, in [`crate::bus`]); a
 //! driver only says [`Transfer::Pending`] until the controller has finished.
 //! Like Linux's `hc_driver`, the device layer never sees a queue head, an
@@ -273,13 +277,16 @@ pub trait HostController {
 
     /// Ends the reset (drivers whose hardware ends it itself check that it
     /// has) and enables the port; says what is there. An EHCI driver hands
-    /// a full- or low-speed device to its companion here.
+    /// a full- or low-speed device to its companion here. The driver clears
+    /// the change bits its own reset caused; the device layer also calls
+    /// [`Self::clear_port_change`] after [`ResetOutcome::Enabled`], as Linux does.
     fn port_reset_end(&mut self, port: u8) -> ResetOutcome;
 
     /// Disables a root port (a device given up, or gone).
     fn port_disable(&mut self, port: u8);
 
-    /// Makes a device at the default address 0 with an 8-byte endpoint 0.
+    /// Makes a device at the default address 0 with an 8-byte endpoint 0
+    /// (64 bytes at high speed, the only size high speed allows).
     fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError>;
 
     /// The device now answers at `address` (after its SET_ADDRESS completed).

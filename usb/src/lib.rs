@@ -1,17 +1,30 @@
-//! A polled xHCI driver for USB boot keyboards, written against a small
-//! trait over the hardware ([`Hardware`]: the controller's registers, DMA
-//! memory, a clock and a log) so that the same code runs on the machine and
-//! on the host against a register model of the controller.
+//! USB keyboards on every PC host controller, polled: no interrupts, MSI or
+//! IOAPIC routing. Everything is written against small traits over the
+//! hardware ([`Hardware`] and [`PciHardware`]: the controller's registers,
+//! DMA memory, PCI configuration space, a clock and a log), so the same code
+//! runs on the machine and on the host against register models.
 //!
+//! The device layer and the interface below it:
+//! - [`host`]: the one polled host-controller trait the device layer drives;
+//! - [`bus`]: the device layer over it: debounce, resets, addresses,
+//!   descriptors, hubs and their transaction translators, keyboards, stalls
+//!   and errors, hot-plug, a step per poll;
 //! - [`report`]: boot reports become PS/2 set-1 scancodes, with typematic repeat;
 //! - [`descriptor`]: USB descriptors, every length checked;
 //! - [`hid`]: HID report descriptors, for keyboards that do not keep to
-//!   the boot report (N-key rollover bitmaps, report IDs);
-//! - [`ring`]: the command, transfer and event rings and their cycle bits;
-//! - [`context`]: slot and endpoint contexts, 32- or 64-byte (CSZ);
-//! - [`xhci`]: the controller: taking it from the firmware, resetting it,
-//!   enumerating keyboards and hubs (USB 2 and USB 3, five tiers) a step
-//!   per poll, hot-plug at root and hub ports, and polling the reports.
+//!   the boot report (N-key rollover bitmaps, report IDs).
+//!
+//! The host controller drivers:
+//! - [`uhci`]: UHCI (Intel and VIA USB 1.1): I/O registers, the frame list,
+//!   queue heads and transfer descriptors;
+//! - [`ohci`]: OHCI (AMD, SiS, NEC USB 1.1): the HCCA, endpoint and transfer
+//!   descriptors, the control list and the interrupt tree;
+//! - [`ehci`]: EHCI (USB 2.0): the asynchronous and periodic schedules, split
+//!   transactions through a hub's transaction translator, companions;
+//! - [`xhci`]: the xHCI controller, with its own enumeration (which also
+//!   knows SuperSpeed) and an implementation of [`host::HostController`],
+//!   using [`ring`] (the command, transfer and event rings) and [`context`]
+//!   (slot and endpoint contexts).
 
 #![no_std]
 #![forbid(unsafe_code)]

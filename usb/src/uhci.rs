@@ -6,7 +6,7 @@
 //!   `uhci_check_and_reset_hc` does; bounded.
 //! - Reset: a global reset held 20 ms, then a host controller reset with a
 //!   bounded wait; the root ports counted as Linux does (bit 7 reads 1).
-//! - The schedule ([`layout`]): a 1024-entry frame list whose entries point
+//! - The schedule (`usb/src/uhci/layout.rs`): a 1024-entry frame list whose entries point
 //!   at one of five interrupt skeleton queue heads (periods 2 to 32), each
 //!   of which ends in the period-1 skeleton, which ends in the control
 //!   skeleton: every frame visits its interrupt queues, then every device's
@@ -480,7 +480,8 @@ impl<H: PciHardware> Uhci<H> {
 
     /// Waits until the controller has left frame `frame` (or is halted),
     /// at most [`FRAME_WAIT_MICROS`]: after that it can no longer be
-    /// looking at what was unlinked during that frame.
+    /// looking at what was unlinked during that frame. A frame that does
+    /// not end in time is logged and the wait ends anyway.
     fn wait_frame_after(&mut self, frame: u16) {
         let start = self.hw.now_micros();
         loop {
@@ -491,10 +492,15 @@ impl<H: PciHardware> Uhci<H> {
                 return;
             }
             if self.hw.now_micros().saturating_sub(start) > FRAME_WAIT_MICROS {
+                // Real controllers move on every millisecond; an emulated
+                // one moves on its host's timer, which a busy host runs
+                // late. Giving up the controller would lose every keyboard
+                // on it for a slow frame: the memory is reused, and at
+                // worst one transfer fails and is recovered. A controller
+                // that has really stopped is caught by USBSTS in `poll`.
                 self.hw.log(format_args!(
-                    "uhci: frame number stuck at {frame}; the controller is given up"
+                    "uhci: frame number stuck at {frame} for {FRAME_WAIT_MICROS} us; going on"
                 ));
-                self.state = State::Stopped;
                 return;
             }
         }

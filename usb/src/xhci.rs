@@ -16,7 +16,11 @@ use super::Hardware;
 use xhci::ring::trb::{command, transfer};
 
 mod enumeration;
+mod host;
+#[cfg(test)]
+mod host_tests;
 pub use enumeration::BOOT_ENUMERATION_MICROS;
+pub use host::HOST_DEVICES;
 
 /// Bytes in a page: DMA memory is handed out a page at a time.
 pub const PAGE_BYTES: u64 = 4096;
@@ -475,6 +479,9 @@ pub struct Xhci<H: Hardware> {
     /// out), handed on by the poll that ran it.
     released: [u8; RELEASED_BYTES],
     released_count: usize,
+    /// What the [`crate::host::HostController`] side keeps (devices by
+    /// handle, their commands and pipes); unused by [`Xhci::poll`].
+    host: host::HostState,
 }
 
 /// Room for the releases of every key a keyboard can hold down (each up
@@ -546,6 +553,7 @@ impl<H: Hardware> Xhci<H> {
             scan_at: None,
             released: [0; RELEASED_BYTES],
             released_count: 0,
+            host: host::HostState::new(),
         })
     }
 

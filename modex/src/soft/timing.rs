@@ -14,7 +14,7 @@ pub const PORT_ACCESS_NS: u64 = 1000;
 /// Simulated cost of one byte of video memory access.
 pub const VRAM_ACCESS_NS: u64 = 100;
 
-const NANOS_PER_SECOND: u128 = 1_000_000_000;
+const NANOS_PER_SECOND: u64 = 1_000_000_000;
 /// The dot clocks Misc Output selects; 2 and 3 are card-specific, and like
 /// QEMU the model gives them the 25 MHz clock.
 const DOT_CLOCK_HZ: [u64; 4] = [25_175_000, 28_322_000, 25_175_000, 25_175_000];
@@ -82,19 +82,24 @@ impl CrtTiming {
     }
 
     /// Length of a frame, rounded down to a nanosecond.
+    /// (At most 260 characters of 9 dots by 1,025 lines: 2.4 million dots,
+    /// times 10^9 stays below 2^52.)
     pub fn frame_ns(&self) -> u64 {
-        (u128::from(self.dots_per_frame()) * NANOS_PER_SECOND / u128::from(self.dot_clock_hz))
-            as u64
+        self.dots_per_frame() * NANOS_PER_SECOND / self.dot_clock_hz
     }
 
-    /// Dots since time 0.
-    fn dots_at(&self, ns: u64) -> u128 {
-        u128::from(ns) * u128::from(self.dot_clock_hz) / NANOS_PER_SECOND
+    /// Dots since time 0, exactly `ns * dot_clock_hz / 10^9` rounded down,
+    /// in u64 arithmetic: whole seconds and the rest are scaled apart, so no
+    /// product exceeds 2^60. (u128 division is a library call in wasm32 and
+    /// on 32-bit targets, and this runs on every port read of a wait loop.)
+    fn dots_at(&self, ns: u64) -> u64 {
+        let (seconds, rest) = (ns / NANOS_PER_SECOND, ns % NANOS_PER_SECOND);
+        seconds * self.dot_clock_hz + rest * self.dot_clock_hz / NANOS_PER_SECOND
     }
 
     /// (line, character) of the beam at `ns`.
     fn beam_at(&self, ns: u64) -> (u64, u64) {
-        let dot_in_frame = (self.dots_at(ns) % u128::from(self.dots_per_frame())) as u64;
+        let dot_in_frame = self.dots_at(ns) % self.dots_per_frame();
         (
             dot_in_frame / self.dots_per_line(),
             dot_in_frame % self.dots_per_line() / self.dots_per_character,
@@ -121,12 +126,47 @@ impl CrtTiming {
         if self.retrace_start_line >= self.lines_per_frame {
             return 0;
         }
-        let first = u128::from(self.retrace_start_line * self.dots_per_line());
+        let first = self.retrace_start_line * self.dots_per_line();
         let dots = self.dots_at(ns);
         if dots < first {
             0
         } else {
-            ((dots - first) / u128::from(self.dots_per_frame()) + 1) as u64
+            (dots - first) / self.dots_per_frame() + 1
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The u64 split gives what the exact u128 product gives, at every
+    /// scale of time and for every dot clock.
+    #[test]
+    fn dots_at_is_the_exact_product_rounded_down() {
+        for &hz in &DOT_CLOCK_HZ {
+            let timing = CrtTiming {
+                dot_clock_hz: hz,
+                dots_per_character: 8,
+                characters_per_line: 100,
+                display_characters: 80,
+                lines_per_frame: 525,
+                display_lines: 480,
+                retrace_start_line: 490,
+                retrace_lines: 2,
+            };
+            let mut ns: u64 = 1;
+            while ns < u64::MAX / 4 {
+                for probe in [ns - 1, ns, ns + 999_999_999, ns.wrapping_mul(7) / 3] {
+                    let exact = u128::from(probe) * u128::from(hz) / 1_000_000_000;
+                    assert_eq!(
+                        u128::from(timing.dots_at(probe)),
+                        exact,
+                        "{probe} ns at {hz} Hz"
+                    );
+                }
+                ns = ns * 3 + 1;
+            }
         }
     }
 }

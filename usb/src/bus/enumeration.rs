@@ -14,7 +14,7 @@ use crate::host::{DeviceInfo, HostError, ResetOutcome, TransferError};
 
 /// Root ports are first looked at this long after the controller starts
 /// (devices need time to connect after the reset), as the xHCI driver does.
-pub(super) const CONNECT_MICROS: u64 = 200_000;
+pub(crate) const CONNECT_MICROS: u64 = 200_000;
 /// How long boot enumeration may hold the boot up; what is left carries on
 /// from the frame loop. Five tiers of hubs take 200 ms each (power-on and
 /// connect times) after the root ports' 200 ms: 2 s holds them.
@@ -27,7 +27,7 @@ pub const ROOT_RESET_MICROS: u64 = 50_000;
 const HUB_RESET_MICROS: u64 = 800_000;
 /// Between a hub port's status checks during its reset: Linux's
 /// `HUB_SHORT_RESET_TIME` (hub.c, 10 ms); each check is a control transfer.
-const HUB_RESET_CHECK_MICROS: u64 = 10_000;
+pub(crate) const HUB_RESET_CHECK_MICROS: u64 = 10_000;
 /// A new connection must stay this long before it is enumerated: Linux's
 /// `HUB_DEBOUNCE_STABLE` (hub.c, 100 ms)...
 pub const DEBOUNCE_MICROS: u64 = 100_000;
@@ -41,7 +41,7 @@ pub const RESET_RECOVERY_MICROS: u64 = 10_000;
 pub const SET_ADDRESS_RECOVERY_MICROS: u64 = 2_000;
 /// Devices need up to 100 ms to connect after a hub powers its ports
 /// (USB 2.0 7.1.7.3), after the hub's own power-on-to-good time.
-const HUB_CONNECT_MICROS: u64 = 100_000;
+pub(crate) const HUB_CONNECT_MICROS: u64 = 100_000;
 /// Ports and hubs waiting for their turn (a hub's worth of ports).
 const QUEUE_LENGTH: usize = MAX_DEVICES;
 

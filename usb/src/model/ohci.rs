@@ -35,9 +35,9 @@ pub const BAR_BYTES: u32 = 0x1000;
 
 const MICROS_PER_REGISTER_READ: u64 = 1;
 const MICROS_PER_CLOCK_READ: u64 = 5;
-const FRAME_MICROS: u64 = 1_000;
+const MICROS_PER_USB_FRAME: u64 = 1_000;
 /// How long the root hub drives a port reset (OHCI: about 10 ms).
-const PORT_RESET_MICROS: u64 = 10_000;
+const RESET_PULSE_MICROS: u64 = 10_000;
 /// How long HostControllerReset takes.
 const SOFTWARE_RESET_MICROS: u64 = 10;
 /// After a software reset the controller must be operational within 2 ms.
@@ -296,7 +296,7 @@ impl OhciModel {
         self.smm_releases_after = releases_after;
         self.control = CONTROL_IR | HCFS_OPERATIONAL | CONTROL_CLE | CONTROL_PLE;
         self.fm_interval = self.firmware_frame_interval | 0x2778 << 16;
-        self.next_frame = self.now + FRAME_MICROS;
+        self.next_frame = self.now + MICROS_PER_USB_FRAME;
     }
 
     /// The firmware left the controller running (UsbOperational) without
@@ -305,7 +305,7 @@ impl OhciModel {
         self.firmware_schedule = true;
         self.control = HCFS_OPERATIONAL;
         self.fm_interval = self.firmware_frame_interval | 0x2778 << 16;
-        self.next_frame = self.now + FRAME_MICROS;
+        self.next_frame = self.now + MICROS_PER_USB_FRAME;
     }
 
     /// The firmware left the controller suspended (UsbSuspend), its
@@ -427,7 +427,7 @@ impl OhciModel {
         }
         self.sync_ports();
         while self.operational() && self.now >= self.next_frame {
-            self.next_frame += FRAME_MICROS;
+            self.next_frame += MICROS_PER_USB_FRAME;
             self.run_frame();
         }
     }
@@ -1085,7 +1085,7 @@ impl OhciModel {
             self.ports[index].suspended = false;
         }
         if value & SET_PORT_RESET != 0 && attempt(self) {
-            self.ports[index].reset_until = Some(self.now + PORT_RESET_MICROS);
+            self.ports[index].reset_until = Some(self.now + RESET_PULSE_MICROS);
             self.ports[index].enabled = false;
         }
         if value & SET_PORT_POWER != 0 && self.power_switching == PowerSwitching::PerPort {
@@ -1119,7 +1119,7 @@ impl OhciModel {
             if self.hcca == 0 {
                 self.error("operational with no HCCA".into());
             }
-            self.next_frame = self.now + FRAME_MICROS;
+            self.next_frame = self.now + MICROS_PER_USB_FRAME;
             self.suspended_at = None;
         }
         if new & HCFS == HCFS_RESET && old & HCFS != HCFS_RESET {
@@ -1173,7 +1173,8 @@ impl OhciModel {
             0x30 => self.done_head,
             0x34 => self.fm_interval,
             0x38 => {
-                let left = (self.next_frame.saturating_sub(self.now)).min(FRAME_MICROS) as u32;
+                let left =
+                    (self.next_frame.saturating_sub(self.now)).min(MICROS_PER_USB_FRAME) as u32;
                 left * 12
             }
             0x3C => u32::from(self.frame_number),

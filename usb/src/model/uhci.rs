@@ -30,7 +30,7 @@ pub const DMA_BYTES: u64 = 256 * 1024;
 /// What a register read or a clock read costs.
 pub const MICROS_PER_READ: u64 = 2;
 /// A frame.
-pub const FRAME_MICROS: u64 = 1_000;
+pub const MICROS_PER_USB_FRAME: u64 = 1_000;
 /// HCRESET takes this long to clear itself.
 const HOST_RESET_TAKES: u64 = 20;
 /// Where the BIOS's own frame list is (outside the driver's memory).
@@ -113,6 +113,9 @@ pub struct UhciModel {
     pub never_halts: bool,
     /// HCRESET never clears.
     pub host_reset_stuck: bool,
+    /// Frames run this many microseconds late (an emulator whose timer
+    /// thread a busy host has not scheduled), until the clock passes it.
+    pub frames_late_until: u64,
     /// Every port register reads this.
     pub port_nonsense: Option<u16>,
     /// The first this many Port Enabled writes after a port reset are
@@ -177,6 +180,7 @@ impl UhciModel {
             bios_keeps_legsup: false,
             never_halts: false,
             host_reset_stuck: false,
+            frames_late_until: 0,
             port_nonsense: None,
             port_enable_refusals: 0,
             usbcmd: 0,
@@ -192,7 +196,7 @@ impl UhciModel {
             host_reset_until: None,
             port_reset_since: vec![None; ports_usize],
             refusals_left: vec![0; ports_usize],
-            next_frame_at: FRAME_MICROS,
+            next_frame_at: MICROS_PER_USB_FRAME,
             bios_schedule: false,
             control: BTreeMap::new(),
             errors: Vec::new(),
@@ -356,8 +360,8 @@ impl UhciModel {
                 self.usbcmd &= !CMD_HOST_RESET;
             }
         }
-        while self.now >= self.next_frame_at {
-            self.next_frame_at += FRAME_MICROS;
+        while self.now >= self.next_frame_at.max(self.frames_late_until) {
+            self.next_frame_at += MICROS_PER_USB_FRAME;
             self.frame();
         }
     }

@@ -17,6 +17,7 @@ use std::vec::Vec;
 const DISABLE_SLOT: u32 = 10;
 const RESET_ENDPOINT: u32 = 14;
 const SET_TR_DEQUEUE: u32 = 16;
+const STOP_ENDPOINT: u32 = 15;
 
 pub const DMA_BASE: u64 = 0x10_0000;
 pub const DMA_BYTES: u64 = 1 << 20;
@@ -83,6 +84,12 @@ struct Slot {
     descriptor_read: bool,
     /// A transfer on endpoint 0 babbled (a packet larger than its size).
     babble: bool,
+    /// Endpoint 0 halted after a stall or babble (with `ep0_halts`), until
+    /// Reset Endpoint.
+    ep0_halted: bool,
+    /// Endpoint 0 stopped (Reset Endpoint or Stop Endpoint), until Set TR
+    /// Dequeue Pointer or its doorbell.
+    ep0_stopped: bool,
 }
 
 /// What the keyboard was told.
@@ -140,6 +147,15 @@ pub struct Model {
     /// The keyboard answers SET_ADDRESS only once its device descriptor
     /// has been read (the two-step address).
     pub needs_two_step: bool,
+    /// Endpoint 0 halts in the controller after a stall or babble, as on
+    /// real hardware, and takes no transfer until Reset Endpoint and Set TR
+    /// Dequeue Pointer (the driver's own enumeration never resets it: off
+    /// by default).
+    pub ep0_halts: bool,
+    /// With `hub`: the hubs are high speed with one transaction translator
+    /// each, and the full-speed keyboard is reached through the last one's
+    /// (its slot and port 2 in the keyboard's slot context).
+    pub high_speed_hub: bool,
     /// A full-speed hub on root port 1, the keyboard on its port 2.
     pub hub: bool,
     /// With `hub`: this many hubs chained, each on port 2 of the one
@@ -204,6 +220,8 @@ impl Model {
             report_descriptor: Some(KEYBOARD_REPORT_DESCRIPTOR.to_vec()),
             ignores_set_protocol: false,
             needs_two_step: false,
+            ep0_halts: false,
+            high_speed_hub: false,
             hub: false,
             hub_tiers: 1,
             empty_at_start: false,
@@ -401,12 +419,23 @@ impl Model {
                     };
                     // SuperSpeed: speed 4, 512-byte packets on endpoint 0,
                     // and no transaction translator anywhere.
+                    let high_speed = self.high_speed_hub && kind == Some(Kind::Hub);
                     let (speed, ep0_packet) = if self.usb3 {
                         (4, 512)
+                    } else if high_speed {
+                        (3, 64)
                     } else {
                         (1, self.slots[usize::from(slot)].ep0_max_packet.max(8))
                     };
                     let translator = self.mem_read(input + ctx + 8) & 0xFFFF;
+                    // Behind high-speed hubs the keyboard names the last
+                    // one's translator: its slot, port 2.
+                    let expected_translator = match kind {
+                        Some(Kind::Keyboard) if self.high_speed_hub && tiers > 0 => {
+                            u32::from(self.hub_states[tiers - 1].slot) | 2 << 8
+                        }
+                        _ => 0,
+                    };
                     let valid = add == 0b11
                         && kind.is_some()
                         && (slot_dw0 >> 20) & 0xF == speed
@@ -415,6 +444,7 @@ impl Model {
                         && (ep0_dw1 >> 3) & 7 == 4
                         && ep0_dw1 >> 16 == u32::from(ep0_packet)
                         && !(self.usb3 && translator != 0)
+                        && (!self.high_speed_hub || translator == expected_translator)
                         && ep0_dequeue != 0
                         && self.slots[usize::from(slot)].enabled;
                     let block_set_address = trb.0[3] & (1 << 9) != 0;
@@ -474,6 +504,38 @@ impl Model {
                         self.slots[usize::from(slot)].ep0_max_packet = (ep0_dw1 >> 16) as u16;
                     }
                     self.complete_command(address, 1, slot)
+                }
+                RESET_ENDPOINT | SET_TR_DEQUEUE | STOP_ENDPOINT if (trb.0[3] >> 16) & 0x1F == 1 => {
+                    // Endpoint 0: Reset Endpoint takes Halted to Stopped,
+                    // Stop Endpoint a running one to Stopped, Set TR
+                    // Dequeue Pointer moves a stopped one's ring.
+                    let state = &mut self.slots[usize::from(slot)];
+                    let code = match trb.kind() {
+                        RESET_ENDPOINT if state.ep0_halted => {
+                            state.ep0_halted = false;
+                            state.ep0_stopped = true;
+                            1
+                        }
+                        STOP_ENDPOINT if !state.ep0_halted && state.enabled => {
+                            state.ep0_stopped = true;
+                            1
+                        }
+                        SET_TR_DEQUEUE if state.ep0_stopped => {
+                            state.ep0 = Cursor {
+                                dequeue: trb.parameter() & !0xF,
+                                cycle: trb.parameter() & 1 != 0,
+                            };
+                            state.ep0_stopped = false;
+                            1
+                        }
+                        SET_TR_DEQUEUE => {
+                            self.errors
+                                .push("Set TR Dequeue Pointer on endpoint 0 not stopped".into());
+                            19
+                        }
+                        _ => 19,
+                    };
+                    self.complete_command(address, code, slot);
                 }
                 RESET_ENDPOINT | SET_TR_DEQUEUE => {
                     let dci = ((trb.0[3] >> 16) & 0x1F) as u8;
@@ -577,6 +639,12 @@ impl Model {
             std::mem::swap(&mut self.keyboard, &mut self.keyboard2);
             return;
         }
+        if self.slots[usize::from(slot)].ep0_halted {
+            // A halted endpoint takes nothing until it is reset.
+            return;
+        }
+        // A stopped endpoint runs again when its doorbell rings.
+        self.slots[usize::from(slot)].ep0_stopped = false;
         let mut cursor = self.slots[usize::from(slot)].ep0;
         let mut setup = 0u64;
         while let Some((address, trb)) = self.next_trb(&mut cursor) {
@@ -614,6 +682,9 @@ impl Model {
                         (false, 0x81, 6, 0x22) => {
                             self.report_descriptor.clone().unwrap_or_default()
                         }
+                        (true, 0x80, 6, 1) if self.high_speed_hub => {
+                            super::devices::HIGH_SPEED_HUB_DEVICE.to_vec()
+                        }
                         (true, 0x80, 6, 1) => {
                             let mut device = HUB_DEVICE;
                             if self.usb3 {
@@ -640,6 +711,15 @@ impl Model {
                     let buffer = trb.parameter();
                     let mut bytes = reply;
                     bytes.truncate(length.min(trb.0[2] as usize));
+                    // An event for the data stage when asked for (IOC), or
+                    // when short and asked for that (ISP).
+                    let asked = trb.0[2] & 0x1_FFFF;
+                    let residual = asked.saturating_sub(bytes.len() as u32);
+                    let (ioc, isp) = (trb.0[3] & 1 << 5 != 0, trb.0[3] & 1 << 2 != 0);
+                    if ioc || (isp && residual > 0) {
+                        let code = if residual > 0 { 13 } else { 1 };
+                        self.transfer_event(address, code, residual, slot, 1);
+                    }
                     bytes.resize(bytes.len().div_ceil(4) * 4, 0);
                     for (i, chunk) in bytes.chunks(4).enumerate() {
                         let word = u32::from_le_bytes([chunk[0], chunk[1], chunk[2], chunk[3]]);
@@ -653,10 +733,16 @@ impl Model {
                         let tier = self.slots[usize::from(slot)].tier;
                         let known = self.hub_request(tier, setup);
                         self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
+                        if !known && self.halt_ep0(slot, cursor) {
+                            return;
+                        }
                         continue;
                     }
                     if std::mem::take(&mut self.slots[usize::from(slot)].babble) {
                         self.transfer_event(address, 3, 0, slot, 1);
+                        if self.halt_ep0(slot, cursor) {
+                            return;
+                        }
                         continue;
                     }
                     let known = match (request_type, request) {
@@ -685,12 +771,45 @@ impl Model {
                         _ => false,
                     };
                     self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
+                    if !known && self.halt_ep0(slot, cursor) {
+                        return;
+                    }
                 }
                 trb_type::NO_OP_TRANSFER => {}
                 other => self.errors.push(std::format!("TRB type {other} on EP0")),
             }
         }
         self.slots[usize::from(slot)].ep0 = cursor;
+    }
+
+    /// With `ep0_halts`, endpoint 0 halts after a failed transfer, its ring
+    /// left at `cursor`; gives whether it did.
+    fn halt_ep0(&mut self, slot: u8, cursor: Cursor) -> bool {
+        if !self.ep0_halts {
+            return false;
+        }
+        let state = &mut self.slots[usize::from(slot)];
+        state.ep0_halted = true;
+        state.ep0 = cursor;
+        true
+    }
+
+    /// Root port 1's speed ID: full speed, or high with `high_speed_hub`.
+    fn port_1_speed(&self) -> u32 {
+        if self.hub && self.high_speed_hub {
+            3 << 10
+        } else {
+            1 << 10
+        }
+    }
+
+    /// PORT_HIGH_SPEED for port 2 of hub `tier` when a high-speed hub hangs there.
+    fn high_speed_below(&self, tier: usize) -> u32 {
+        if self.high_speed_hub && tier + 1 < self.hub_tiers {
+            1 << 10
+        } else {
+            0
+        }
     }
 
     /// A hub class (or standard) request's effect; whether the hub knows it.
@@ -721,7 +840,7 @@ impl Model {
                 if port == 2 && !self.hub_states[tier].port_2_empty {
                     // A device found at power-on is a connection change.
                     self.hub_states[tier].keyboard_port_status =
-                        CONNECTED | powered | CONNECTION_CHANGE;
+                        CONNECTED | powered | CONNECTION_CHANGE | self.high_speed_below(tier);
                 }
                 true
             }
@@ -811,7 +930,7 @@ impl Model {
         };
         self.hub_states = vec![HubState::default(); 6];
         self.endpoint_stopped = false;
-        self.portsc[0] = 1 | 1 << 9 | 1 << 10 | CONNECT_CHANGE;
+        self.portsc[0] = 1 | 1 << 9 | self.port_1_speed() | CONNECT_CHANGE;
         self.post_event(Trb([
             1 << 24,
             0,
@@ -843,8 +962,9 @@ impl Model {
         self.endpoint_stopped = false;
         self.hub_states[tier].port_2_empty = false;
         let powered = if self.usb3 { 1 << 9 } else { 1 << 8 };
+        let high_speed = self.high_speed_below(tier);
         let hub = &mut self.hub_states[tier];
-        hub.keyboard_port_status = 1 | powered | 1 << 16;
+        hub.keyboard_port_status = 1 | powered | 1 << 16 | high_speed;
         self.notify_hub_change(tier);
     }
 
@@ -1025,7 +1145,7 @@ impl Hardware for Model {
                         // A USB 3 port trains and enables by itself.
                         1 | 1 << 1 | 1 << 9 | 4 << 10
                     } else {
-                        1 | 1 << 9 | 1 << 10 // connected, powered, full speed
+                        1 | 1 << 9 | self.port_1_speed() // connected, powered
                     };
                     self.portsc[1] = if self.port_2.is_some() {
                         1 | 1 << 9 | 1 << 10

@@ -859,6 +859,39 @@ fn memory_is_reused_only_after_the_frame_has_moved_on() {
     assert_clean(uhci.hardware());
 }
 
+/// A frame timer that runs late (QEMU's on a busy host) makes the wait
+/// for reuse end at its bound, logged, and the controller goes on: a
+/// pipe restarted in the frame its transfer stalled reads reports after.
+#[test]
+fn a_late_frame_timer_costs_a_bounded_wait_and_never_the_controller() {
+    let mut model = UhciModel::new(2);
+    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let mut uhci = started(model);
+    let (_, pipe) = keyboard_by_hand(&mut uhci, 1, 4);
+    uhci.hardware().tree.stall_interrupt(keyboard);
+    assert!(uhci.hardware().tree.send_report(keyboard, KEY_A));
+    assert_eq!(next_report(&mut uhci, pipe, 40), Some(Transfer::Stalled));
+    // Restarted in the same frame, while the frame number stands still
+    // for longer than the driver waits.
+    let now = uhci.hardware().now;
+    uhci.hardware().frames_late_until = now + 2 * FRAME_WAIT_MICROS;
+    let start = uhci.hardware().now;
+    uhci.interrupt_restart(pipe, false).unwrap();
+    let took = uhci.hardware().now - start;
+    assert!(took <= FRAME_WAIT_MICROS + 100, "{took} us");
+    assert!(
+        uhci.hardware()
+            .log
+            .iter()
+            .any(|line| line.contains("frame number stuck")),
+        "{:?}",
+        uhci.hardware().log
+    );
+    // The device still stalls (its halt was never cleared): the
+    // controller ran the restarted transfer, so it is still in service.
+    assert_eq!(next_report(&mut uhci, pipe, 40), Some(Transfer::Stalled));
+}
+
 #[test]
 fn requests_the_driver_cannot_do_are_refused() {
     let mut model = UhciModel::new(2);

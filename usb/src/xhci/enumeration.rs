@@ -11,39 +11,21 @@ use super::*;
 
 /// How long an xHCI command may take: Linux's `XHCI_CMD_DEFAULT_TIMEOUT`
 /// (drivers/usb/host/xhci.h, 5 * HZ).
-const COMMAND_MICROS: u64 = 5_000_000;
-/// How long a control transfer may take: Linux's `USB_CTRL_GET_TIMEOUT` and
-/// `USB_CTRL_SET_TIMEOUT` (include/linux/usb.h, 5000 ms).
-const TRANSFER_MICROS: u64 = 5_000_000;
+pub(super) const COMMAND_MICROS: u64 = 5_000_000;
 /// How long a port reset may take, however many status checks: Linux's
 /// `HUB_RESET_TIMEOUT` (drivers/usb/core/hub.c, 800 ms). A root port's
 /// PORTSC is checked on every poll (a register read; Linux sleeps
 /// `HUB_ROOT_RESET_TIME`, 60 ms, between checks because it can).
 const PORT_RESET_MICROS: u64 = 800_000;
-/// Between a hub port's status checks during its reset: Linux's
-/// `HUB_SHORT_RESET_TIME` (hub.c, 10 ms); each check is a control transfer.
-const HUB_RESET_CHECK_MICROS: u64 = 10_000;
-/// A new connection must stay this long before it is enumerated: Linux's
-/// `HUB_DEBOUNCE_STABLE` (hub.c, 100 ms)...
-const DEBOUNCE_MICROS: u64 = 100_000;
-/// ...within Linux's `HUB_DEBOUNCE_TIMEOUT` (hub.c, 2000 ms): a port that
-/// keeps bouncing longer is dropped until its next change.
-const DEBOUNCE_TIMEOUT_MICROS: u64 = 2_000_000;
-/// After a port reset, the device gets this long before it must answer:
-/// TRSTRCY (USB 2.0 7.1.7.3).
-const RESET_RECOVERY_MICROS: u64 = 10_000;
-/// The SET_ADDRESS recovery interval (USB 2.0 9.2.6.3).
-const SET_ADDRESS_RECOVERY_MICROS: u64 = 2_000;
-/// Devices need up to 100 ms to connect after a hub powers its ports
-/// (USB 2.0 7.1.7.3), after the hub's own power-on-to-good time.
-const HUB_CONNECT_MICROS: u64 = 100_000;
-/// Root ports are first looked at this long after the controller starts
-/// (devices need time to connect after the reset).
-const CONNECT_MICROS: u64 = 200_000;
-/// How long boot enumeration may hold the boot up; what is left carries on
-/// from the frame loop. Five tiers of hubs take 200 ms each (power-on and
-/// connect times) after the root ports' 200 ms: 2 s holds them.
-pub const BOOT_ENUMERATION_MICROS: u64 = 2_000_000;
+// Linux's other hub timeouts are the device layer's, one set for every
+// controller: the debounce, reset recovery, SET_ADDRESS recovery, a hub's
+// connect time and its reset checks, the root ports' first look, a control
+// transfer's bound and boot enumeration's.
+pub use crate::bus::BOOT_ENUMERATION_MICROS;
+use crate::bus::{
+    CONNECT_MICROS, DEBOUNCE_MICROS, DEBOUNCE_TIMEOUT_MICROS, HUB_CONNECT_MICROS,
+    HUB_RESET_CHECK_MICROS, RESET_RECOVERY_MICROS, SET_ADDRESS_RECOVERY_MICROS, TRANSFER_MICROS,
+};
 /// Ports and hubs waiting for their turn.
 const QUEUE_LENGTH: usize = 16;
 

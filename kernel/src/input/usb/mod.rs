@@ -721,7 +721,7 @@ pub fn shut_down() {
                     function,
                     halted: true,
                 };
-                match driven.halt() {
+                match Driven::halt(driven) {
                     Ok(beyond) => serial_println!("{}{}", halted, beyond),
                     Err(problem) => serial_println!(
                         "{}{}",

@@ -1,0 +1,797 @@
+//! The web page (issue 42) in a real browser: built once with
+//! `web::build_page`, served by `web::serve` on 127.0.0.1, and driven in
+//! Debian's headless Chromium over the DevTools pipe (the `browser` crate)
+//! with real key and mouse events. What the page shows is checked against
+//! the host: `sim::machine::Machine` fed the same scan codes, the
+//! inspector's `draw_panel`, the software VGA's memory, `run_script` and
+//! the desktop GIF recorder.
+//!
+//! The page is driven through its test hook, `window.modexPage`. Pages open
+//! with `?paused=1`, so that frames run only when a test steps them; a test
+//! that needs the page to run on waits for its frame count with a deadline
+//! (the page polls itself: no sleeps).
+
+use std::path::PathBuf;
+use std::sync::mpsc;
+use std::sync::OnceLock;
+use std::time::Duration;
+
+use browser::{Browser, Options, Page};
+use keyboard::keys::scancode_for_name;
+use modex::regs::{Port, Sequencer};
+use modex::soft::{dac_6_to_8, SoftVga};
+use modex::PAGE_BYTES;
+use sim::inspector::{draw_panel, History, PANEL_MIN_HEIGHT, PANEL_WIDTH};
+use sim::machine::{Machine, PICTURE_PIXELS};
+use sim::oplog::BusOp;
+use sim::record::{record_gif, recorded, run_script, Script};
+
+const WIDTH: usize = 320;
+const HEIGHT: usize = 240;
+/// How long the page may take to load its module and draw its first frame,
+/// or to reach a frame count it runs to on its own: generous, for a machine
+/// with busy loops beside the tests.
+const PAGE_TIMEOUT: Duration = Duration::from_secs(120);
+/// How long the page's build may take: the first builds the WebAssembly
+/// from scratch.
+const BUILD_TIMEOUT: Duration = Duration::from_secs(1200);
+/// The stack a test's host machines run on: a frame of the demo needs about
+/// 2 MiB in a test build, as much as a test thread has.
+const STACK_BYTES: usize = 32 << 20;
+
+/// Runs `test` on a thread with a big stack and passes its panic on.
+fn with_big_stack(test: impl FnOnce() + Send + 'static) {
+    let thread = std::thread::Builder::new()
+        .stack_size(STACK_BYTES)
+        .spawn(test)
+        .expect("a test thread starts");
+    if let Err(panic) = thread.join() {
+        std::panic::resume_unwind(panic);
+    }
+}
+
+/// The page's URL, served once for the whole test binary: built into the
+/// test's target scratch directory (no temporary directory left behind),
+/// served from a thread until the binary ends.
+fn page_url() -> &'static str {
+    static SERVED: OnceLock<(web::Server, String)> = OnceLock::new();
+    let (_, url) = SERVED.get_or_init(|| {
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("web_page");
+        let (done, built) = mpsc::channel();
+        let out = dir.clone();
+        std::thread::spawn(move || {
+            let _ = done.send(web::build_page(&out).map_err(|e| e.to_string()));
+        });
+        let built = built
+            .recv_timeout(BUILD_TIMEOUT)
+            .expect("the page is built within the bound")
+            .expect("the page builds");
+        assert!(built.weight() > 0);
+        let server = web::serve(&dir, 0).expect("the page is served");
+        let url = server.url();
+        (server, url)
+    });
+    url
+}
+
+/// The page opened with `query`, once its hook says the first frame is up.
+fn open<'b>(browser: &'b Browser, query: &str) -> Page<'b> {
+    let page = browser
+        .open(&format!("{}{query}", page_url()))
+        .expect("the page loads");
+    page.wait_for("window.modexPage && modexPage.ready", PAGE_TIMEOUT)
+        .expect("the page draws its first frame");
+    page
+}
+
+fn evaluate_u64(page: &Page, expression: &str) -> u64 {
+    let value = page.evaluate(expression).unwrap();
+    value
+        .as_u64()
+        .unwrap_or_else(|| panic!("{expression} gave {value}"))
+}
+
+fn evaluate_string(page: &Page, expression: &str) -> String {
+    let value = page.evaluate(expression).unwrap();
+    value
+        .as_str()
+        .unwrap_or_else(|| panic!("{expression} gave {value}"))
+        .to_owned()
+}
+
+/// RGBA bytes as RGB pixels; every alpha must be opaque.
+fn rgb_of(rgba: &[u8], what: &str) -> Vec<[u8; 3]> {
+    assert_eq!(rgba.len() % 4, 0, "{what}: {} bytes", rgba.len());
+    rgba.as_chunks::<4>()
+        .0
+        .iter()
+        .enumerate()
+        .map(|(i, &[r, g, b, a])| {
+            assert_eq!(a, 255, "{what}: pixel {i} is not opaque");
+            [r, g, b]
+        })
+        .collect()
+}
+
+/// The picture as the page holds it (the hook reads the module's memory).
+fn page_screen(page: &Page) -> Vec<[u8; 3]> {
+    let rgba = page.evaluate_base64("modexPage.screenRgba()").unwrap();
+    assert_eq!(rgba.len(), PICTURE_PIXELS * 4, "screenRgba's length");
+    rgb_of(&rgba, "screenRgba")
+}
+
+/// A canvas's pixels as the browser painted them (`getImageData`, at the
+/// canvas's own resolution).
+fn canvas_pixels(page: &Page, id: &str) -> (usize, usize, Vec<[u8; 3]>) {
+    let size = page
+        .evaluate(&format!(
+            "(() => {{ const c = document.getElementById('{id}'); return [c.width, c.height]; }})()"
+        ))
+        .unwrap();
+    let (width, height) = (
+        size[0].as_u64().unwrap() as usize,
+        size[1].as_u64().unwrap() as usize,
+    );
+    let rgba = page
+        .evaluate_base64(&format!(
+            "(() => {{
+                const data = document.getElementById('{id}').getContext('2d').getImageData(0, 0, {width}, {height}).data;
+                let binary = '';
+                for (let i = 0; i < data.length; i += 0x8000)
+                    binary += String.fromCharCode.apply(null, data.subarray(i, i + 0x8000));
+                return btoa(binary);
+            }})()"
+        ))
+        .unwrap();
+    (width, height, rgb_of(&rgba, id))
+}
+
+/// The inspector panel as the page holds it: width, height, pixels.
+fn page_panel(page: &Page) -> (usize, usize, Vec<[u8; 3]>) {
+    let size = page
+        .evaluate(
+            "(() => { const p = modexPage.inspectorRgba(); return p && [p.width, p.height]; })()",
+        )
+        .unwrap();
+    let width = size[0].as_u64().expect("the inspector is shown") as usize;
+    let height = size[1].as_u64().unwrap() as usize;
+    let rgba = page
+        .evaluate_base64("modexPage.inspectorRgba().rgba")
+        .unwrap();
+    assert_eq!(rgba.len(), width * height * 4, "inspectorRgba's length");
+    (width, height, rgb_of(&rgba, "inspectorRgba"))
+}
+
+/// Where two pictures differ, for a failure message: the count and the first.
+fn assert_same_pixels(what: &str, width: usize, page: &[[u8; 3]], host: &[[u8; 3]]) {
+    assert_eq!(page.len(), host.len(), "{what}: sizes differ");
+    let differing: Vec<usize> = (0..page.len()).filter(|&i| page[i] != host[i]).collect();
+    if let Some(&first) = differing.first() {
+        panic!(
+            "{what}: {} of {} pixels differ; the first at ({}, {}): page {:?}, host {:?}",
+            differing.len(),
+            page.len(),
+            first % width,
+            first / width,
+            page[first],
+            host[first]
+        );
+    }
+}
+
+/// The host's side: the demo on the software VGA as `sim` runs it, with the
+/// inspector's history of frame costs, as the page keeps its own.
+struct Host {
+    machine: Machine,
+    history: History,
+}
+
+impl Host {
+    fn new() -> Self {
+        Host {
+            machine: Machine::new(),
+            history: History::default(),
+        }
+    }
+
+    fn tap(&mut self, name: &str) {
+        let key = scancode_for_name(name).unwrap_or_else(|| panic!("no key named {name}"));
+        self.machine.tap(key);
+    }
+
+    fn frames(&mut self, count: u32) {
+        for _ in 0..count {
+            let cost = self.machine.frame();
+            self.history.push(cost);
+        }
+    }
+
+    fn panel(&self, height: usize) -> Vec<[u8; 3]> {
+        panel_rgb(self.machine.vga(), &self.history, height)
+    }
+}
+
+fn panel_rgb(vga: &SoftVga, history: &History, height: usize) -> Vec<[u8; 3]> {
+    draw_panel(vga, history, height)
+        .pixels
+        .iter()
+        .map(|&pixel| {
+            let [_, r, g, b] = pixel.to_be_bytes();
+            [r, g, b]
+        })
+        .collect()
+}
+
+/// The page's picture and inspector equal the host's.
+fn assert_page_is_host(page: &Page, host: &Host, when: &str) {
+    assert_same_pixels(
+        &format!("the picture {when}"),
+        WIDTH,
+        &page_screen(page),
+        &host.machine.scanout_rgb(),
+    );
+    let (width, height, panel) = page_panel(page);
+    assert_eq!(width, PANEL_WIDTH, "the inspector's width");
+    assert!(
+        height >= PANEL_MIN_HEIGHT,
+        "the inspector's height {height}"
+    );
+    assert_same_pixels(
+        &format!("the inspector {when}"),
+        width,
+        &panel,
+        &host.panel(height),
+    );
+}
+
+fn step_frames(page: &Page, count: u32) {
+    let ran = evaluate_u64(page, &format!("modexPage.stepFrames({count})"));
+    assert_eq!(ran, u64::from(count), "frames stepped");
+}
+
+/// Keys of the README as the browser names them (`KeyboardEvent.code` and
+/// `.key`) with the runner's names the host is fed.
+const README_KEYS: [(&str, &str, &str); 14] = [
+    ("KeyL", "l", "l"),
+    ("ArrowLeft", "ArrowLeft", "left"),
+    ("ArrowUp", "ArrowUp", "up"),
+    ("KeyA", "a", "a"),
+    ("KeyT", "t", "t"),
+    ("F1", "F1", "f1"),
+    ("Digit6", "6", "6"),
+    ("Numpad8", "8", "kp_8"),
+    ("Home", "Home", "home"),
+    ("PageDown", "PageDown", "pgdn"),
+    ("Space", " ", "spc"),
+    ("KeyM", "m", "m"),
+    ("KeyX", "x", "x"),
+    ("KeyH", "h", "h"),
+];
+
+#[test]
+fn the_starting_cube_is_the_hosts_on_the_page_and_its_canvases() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?paused=1");
+        assert_eq!(evaluate_u64(&page, "modexPage.frames()"), 0);
+        let host = Host::new();
+        assert_page_is_host(&page, &host, "at the start");
+        // What the browser painted: the canvases hold the same pixels.
+        let (width, height, screen) = canvas_pixels(&page, "screen");
+        assert_eq!((width, height), (WIDTH, HEIGHT));
+        assert_same_pixels(
+            "the #screen canvas",
+            WIDTH,
+            &screen,
+            &host.machine.scanout_rgb(),
+        );
+        let (width, height, inspector) = canvas_pixels(&page, "inspector");
+        assert_eq!(width, PANEL_WIDTH);
+        assert_same_pixels(
+            "the #inspector canvas",
+            width,
+            &inspector,
+            &host.panel(height),
+        );
+        // On screen: scaled by a whole number, without smoothing. The
+        // browser's own composited picture of the canvas is the host's
+        // picture with each pixel a square of scale x scale.
+        let box_ = page
+            .evaluate(
+                "(() => { const b = document.getElementById('screen').getBoundingClientRect(); \
+                 return [b.left, b.top, b.width, b.height]; })()",
+            )
+            .unwrap();
+        let [left, top, shown_width, shown_height] =
+            [0, 1, 2, 3].map(|i| box_[i].as_f64().unwrap());
+        let scale = shown_width / WIDTH as f64;
+        assert!(scale >= 1.0 && scale.fract() == 0.0, "scaled by {scale}");
+        assert_eq!(shown_height, scale * HEIGHT as f64);
+        let png = page
+            .screenshot_png(Some([left, top, shown_width, shown_height]))
+            .unwrap();
+        let (shot_width, shot) = decode_png(&png);
+        assert_eq!(shot_width, shown_width as usize);
+        let scale = scale as usize;
+        let picture = host.machine.scanout_rgb();
+        let scaled: Vec<[u8; 3]> = (0..HEIGHT * scale)
+            .flat_map(|y| (0..WIDTH * scale).map(move |x| (x, y)))
+            .map(|(x, y)| picture[(y / scale) * WIDTH + x / scale])
+            .collect();
+        assert_same_pixels(
+            "the picture as the browser shows it",
+            shot_width,
+            &shot,
+            &scaled,
+        );
+    });
+}
+
+/// A PNG's width and RGB pixels.
+fn decode_png(png: &[u8]) -> (usize, Vec<[u8; 3]>) {
+    let mut decoder = png::Decoder::new(std::io::Cursor::new(png));
+    decoder.set_transformations(png::Transformations::normalize_to_color8());
+    let mut reader = decoder.read_info().expect("a PNG");
+    let mut buffer = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buffer).expect("a PNG image");
+    let channels = info.color_type.samples();
+    let pixels = buffer[..info.buffer_size()]
+        .chunks_exact(channels)
+        .map(|p| [p[0], p[1], p[2]])
+        .collect();
+    (info.width as usize, pixels)
+}
+
+#[test]
+fn readme_keys_typed_in_the_browser_give_the_hosts_pictures() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?paused=1");
+        let mut host = Host::new();
+        for (code, key, name) in README_KEYS {
+            page.key(code, key).unwrap();
+            step_frames(&page, 2);
+            host.tap(name);
+            host.frames(2);
+            assert_page_is_host(&page, &host, &format!("after {code}"));
+        }
+        assert_eq!(
+            evaluate_u64(&page, "modexPage.frames()"),
+            2 * README_KEYS.len() as u64
+        );
+        assert_eq!(host.machine.app().commands(), README_KEYS.len() as u64);
+    });
+}
+
+#[test]
+fn keys_the_page_does_not_use_do_nothing() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?paused=1");
+        let mut host = Host::new();
+        // The cube spins from the start: a key that reached the demo would
+        // pause it ("any other key" on the machine), and the picture stop.
+        assert!(host.machine.app().scene().spinning());
+        step_frames(&page, 3);
+        host.frames(3);
+        for (code, key) in [
+            ("F13", "F13"),
+            ("IntlBackslash", "\\"),
+            ("PrintScreen", "PrintScreen"),
+            ("Pause", "Pause"),
+        ] {
+            page.key(code, key).unwrap();
+            let taken = page
+                .evaluate("document.activeElement && document.activeElement.id")
+                .unwrap();
+            assert_eq!(taken, "screen", "the picture keeps the focus after {code}");
+        }
+        step_frames(&page, 3);
+        host.frames(3);
+        assert_page_is_host(&page, &host, "after keys the page does not use");
+        assert!(!host.machine.app().paused());
+        assert_eq!(evaluate_string(&page, "modexPage.message()"), "");
+    });
+}
+
+/// The planes a Map Mask value opens, as the page names them.
+fn planes_named(mask: u8) -> String {
+    let planes: Vec<String> = (0..4u8)
+        .filter(|plane| mask & (1 << plane) != 0)
+        .map(|plane| plane.to_string())
+        .collect();
+    match planes.len() {
+        0 => "no plane".into(),
+        1 => format!("plane {}", planes[0]),
+        _ => format!("planes {}", planes.join(" ")),
+    }
+}
+
+#[test]
+fn slow_motion_steps_name_each_map_mask_write_and_its_function() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?paused=1");
+        // The host's next frame, every bus operation logged.
+        let mut host = Machine::new();
+        let (_, log) = host.frame_logged();
+        let map_mask = |op: BusOp| match op {
+            BusOp::WritePort16 { port, value }
+                if port == Port::SEQUENCER_INDEX
+                    && value.to_le_bytes()[0] == Sequencer::MapMask.index() =>
+            {
+                Some(value.to_le_bytes()[1])
+            }
+            _ => None,
+        };
+        let first = log
+            .iter()
+            .position(|entry| map_mask(entry.op).is_some())
+            .expect("a frame writes the Map Mask");
+        // Step until the page names a Map Mask write: the host's first.
+        let found = page
+            .evaluate(
+                "(() => {
+                    for (let step = 1; step <= 100000; step++) {
+                        if (modexPage.stepOps(1) !== 1) return null;
+                        const text = modexPage.lastOp();
+                        if (text.includes('Map Mask')) return [step, text];
+                    }
+                    return null;
+                })()",
+            )
+            .unwrap();
+        let steps = found[0]
+            .as_u64()
+            .expect("the page stepped to a Map Mask write");
+        assert_eq!(steps, first as u64 + 1, "steps to the first Map Mask write");
+        assert_eq!(
+            evaluate_string(&page, "document.getElementById('last-op').textContent"),
+            found[1].as_str().unwrap(),
+            "#last-op shows the step"
+        );
+        assert!(!page.evaluate("modexPage.opsRgba()").unwrap().is_null());
+        // The rest of the frame, one step at a time: each Map Mask write
+        // names the planes it opens and the functions that issued it.
+        let rest = page
+            .evaluate(&format!(
+                "(() => {{
+                    const texts = [];
+                    for (let i = 0; i < {}; i++) {{
+                        if (modexPage.stepOps(1) !== 1) break;
+                        texts.push(modexPage.lastOp());
+                    }}
+                    return texts;
+                }})()",
+                log.len() - steps as usize
+            ))
+            .unwrap();
+        let texts: Vec<&str> = std::iter::once(found[1].as_str().unwrap())
+            .chain(rest.as_array().unwrap().iter().map(|t| t.as_str().unwrap()))
+            .collect();
+        assert_eq!(texts.len(), log.len() - first, "one step per operation");
+        let mut masks = std::collections::BTreeSet::new();
+        for (index, (entry, text)) in log[first..].iter().zip(&texts).enumerate() {
+            let number = first + index + 1;
+            let head = format!("frame 1, operation {number} of {}: ", log.len());
+            assert!(text.starts_with(&head), "{text:?} is not {head:?}");
+            let Some(mask) = map_mask(entry.op) else {
+                assert!(!text.contains("Map Mask ="), "{text}");
+                continue;
+            };
+            let named = planes_named(mask);
+            assert!(
+                text.contains(&format!("Map Mask = 0x{mask:02X}: {named} open")),
+                "{text} does not name {named}"
+            );
+            let callers = entry.callers.names().join(" > ");
+            assert!(callers.starts_with("ModeX::"), "issued by {callers}");
+            assert!(text.ends_with(&format!("; from {callers}")), "{text}");
+            masks.insert(mask);
+        }
+        assert!(
+            masks.len() > 2,
+            "the frame opens several plane sets: {masks:?}"
+        );
+        // The frame is done: the next step starts the next.
+        assert_eq!(evaluate_u64(&page, "modexPage.stepOps(1)"), 1);
+        assert!(evaluate_string(&page, "modexPage.lastOp()").starts_with("frame 2, operation 1 of"));
+    });
+}
+
+/// The page's hover readout, split into its numbers: "x 13, y 7: plane 1,
+/// offset 0x0233 (563) on page 0, colour 15, DAC 63 63 63 = #FFFFFF".
+#[derive(Debug, PartialEq, Eq)]
+struct Readout {
+    x: u16,
+    y: u16,
+    plane: u8,
+    offset: u16,
+    page: Option<u16>,
+    colour: u8,
+    dac: [u8; 3],
+    rgb: [u8; 3],
+}
+
+fn parse_readout(text: &str) -> Readout {
+    let fail = || -> ! { panic!("not a readout: {text:?}") };
+    let words: Vec<&str> = text
+        .split([' ', ',', ':', '(', ')', '='])
+        .filter(|w| !w.is_empty())
+        .collect();
+    let after = |label: &str| -> &str {
+        let at = words
+            .iter()
+            .position(|w| *w == label)
+            .unwrap_or_else(|| fail());
+        words.get(at + 1).unwrap_or_else(|| fail())
+    };
+    let number = |text: &str| -> u16 { text.parse().unwrap_or_else(|_| fail()) };
+    let hex = after("offset").strip_prefix("0x").unwrap_or_else(|| fail());
+    let offset = u16::from_str_radix(hex, 16).unwrap_or_else(|_| fail());
+    let decimal = words[words.iter().position(|w| *w == "offset").unwrap() + 2];
+    assert_eq!(number(decimal), offset, "hex and decimal offsets: {text}");
+    let page = match after("on") {
+        "page" => Some(number(after("page"))),
+        "no" => None,
+        _ => fail(),
+    };
+    let dac_at = words
+        .iter()
+        .position(|w| *w == "DAC")
+        .unwrap_or_else(|| fail());
+    let dac = [1, 2, 3].map(|i| number(words[dac_at + i]) as u8);
+    let colour_hex = words[dac_at + 4]
+        .strip_prefix('#')
+        .unwrap_or_else(|| fail());
+    let rgb =
+        [0, 2, 4].map(|i| u8::from_str_radix(&colour_hex[i..i + 2], 16).unwrap_or_else(|_| fail()));
+    Readout {
+        x: number(after("x")),
+        y: number(after("y")),
+        plane: number(after("plane")) as u8,
+        offset,
+        page,
+        colour: number(after("colour")) as u8,
+        dac,
+        rgb,
+    }
+}
+
+/// What the host reads for pixel (x, y) from the software VGA's memory.
+fn host_readout(vga: &SoftVga, x: u16, y: u16) -> Readout {
+    let start = vga.displayed_start();
+    let offset = start.wrapping_add(y * 80).wrapping_add(x / 4);
+    let plane = (x % 4) as u8;
+    let colour = vga.plane(usize::from(plane))[usize::from(offset)];
+    let dac = vga.dac_entry(colour);
+    let page = (offset / PAGE_BYTES < 3).then_some(offset / PAGE_BYTES);
+    Readout {
+        x,
+        y,
+        plane,
+        offset,
+        page,
+        colour,
+        dac,
+        rgb: dac.map(dac_6_to_8),
+    }
+}
+
+#[test]
+fn hovering_twenty_random_pixels_reads_the_vgas_memory() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?paused=1");
+        // Three objects, lit, a few frames on: many colours, page 1 shown.
+        let mut host = Host::new();
+        for (code, key, name) in [("KeyM", "m", "m"), ("KeyL", "l", "l")] {
+            page.key(code, key).unwrap();
+            host.tap(name);
+        }
+        step_frames(&page, 5);
+        host.frames(5);
+        let picture = host.machine.scanout_rgb();
+        let canvas = page
+            .evaluate(
+                "(() => { const b = document.getElementById('screen').getBoundingClientRect(); \
+                 return [b.left, b.top, b.width / 320, b.height / 240]; })()",
+            )
+            .unwrap();
+        let [left, top, scale_x, scale_y] = [0, 1, 2, 3].map(|i| canvas[i].as_f64().unwrap());
+        // A fixed xorshift sequence: the same pixels every run.
+        let mut state: u32 = 0x9E37_79B9;
+        let mut colours = std::collections::BTreeSet::new();
+        for _ in 0..20 {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            let (x, y) = ((state % 320) as u16, ((state >> 16) % 240) as u16);
+            // The mouse on the middle of the picture's pixel.
+            page.mouse_move(
+                left + (f64::from(x) + 0.5) * scale_x,
+                top + (f64::from(y) + 0.5) * scale_y,
+            )
+            .unwrap();
+            let shown = evaluate_string(&page, "document.getElementById('hover').textContent");
+            let expected = host_readout(host.machine.vga(), x, y);
+            assert_eq!(parse_readout(&shown), expected, "{shown}");
+            assert_eq!(
+                evaluate_string(&page, &format!("modexPage.hover({x}, {y})")),
+                shown
+            );
+            // And the readout's colour is the one on screen there.
+            assert_eq!(
+                expected.rgb,
+                picture[usize::from(y) * WIDTH + usize::from(x)]
+            );
+            colours.insert(expected.colour);
+        }
+        assert!(
+            colours.len() > 2,
+            "the pixels cross the solids: {colours:?}"
+        );
+    });
+}
+
+/// A GIF's images composed onto its canvas, one RGB picture per image.
+fn gif_pictures(bytes: &[u8]) -> (Vec<Vec<[u8; 3]>>, Vec<u16>) {
+    let mut options = gif::DecodeOptions::new();
+    options.set_color_output(gif::ColorOutput::RGBA);
+    let mut decoder = options.read_info(bytes).expect("a GIF");
+    assert_eq!(
+        (decoder.width() as usize, decoder.height() as usize),
+        (WIDTH, HEIGHT)
+    );
+    let mut canvas = vec![[0u8; 3]; PICTURE_PIXELS];
+    let (mut pictures, mut delays) = (Vec::new(), Vec::new());
+    while let Some(frame) = decoder.read_next_frame().expect("a GIF image") {
+        let (left, top) = (usize::from(frame.left), usize::from(frame.top));
+        let width = usize::from(frame.width);
+        for (i, &[r, g, b, a]) in frame.buffer.as_chunks::<4>().0.iter().enumerate() {
+            if a == 0 {
+                continue; // transparent: the image below shows through
+            }
+            let (x, y) = (left + i % width, top + i / width);
+            assert!(x < WIDTH && y < HEIGHT, "an image past the canvas");
+            canvas[y * WIDTH + x] = [r, g, b];
+        }
+        pictures.push(canvas.clone());
+        delays.push(frame.delay);
+    }
+    (pictures, delays)
+}
+
+#[test]
+fn a_replay_url_and_its_gif_are_the_hosts() {
+    with_big_stack(|| {
+        let names = ["m", "left", "left", "up", "spc", "l", "x", "f2"];
+        let frames = 40;
+        let browser = Browser::start().unwrap();
+        let page = open(
+            &browser,
+            &format!("?keys={}&frames={frames}", names.join(",")),
+        );
+        page.wait_for(
+            &format!("modexPage.paused() && modexPage.frames() === {frames}"),
+            PAGE_TIMEOUT,
+        )
+        .expect("the replay runs its frames and pauses");
+        let script = Script {
+            keys: names
+                .iter()
+                .map(|n| scancode_for_name(n).unwrap())
+                .collect(),
+            key_every: 1,
+        };
+        let mut history = History::default();
+        let mut pictures = Vec::new();
+        let mut last = None;
+        let ran = run_script(&script, frames, |machine, frame| {
+            history.push(machine.last_cost());
+            if recorded(frame, web::page::GIF_EVERY) {
+                pictures.push(machine.scanout_rgb());
+            }
+            if frame + 1 == frames {
+                last = Some((machine.scanout_rgb(), machine.vga().clone()));
+            }
+        });
+        assert_eq!(ran, frames);
+        let (picture, vga) = last.unwrap();
+        assert_same_pixels("the replayed picture", WIDTH, &page_screen(&page), &picture);
+        let (width, height, panel) = page_panel(&page);
+        assert_same_pixels(
+            "the replayed inspector",
+            width,
+            &panel,
+            &panel_rgb(&vga, &history, height),
+        );
+        // The GIF button's file against the desktop recorder's.
+        let from_page = page.evaluate_base64("modexPage.gif()").unwrap();
+        let mut from_desktop = Vec::new();
+        record_gif(&script, frames, web::page::GIF_EVERY, &mut from_desktop).unwrap();
+        let (page_images, page_delays) = gif_pictures(&from_page);
+        let (desktop_images, desktop_delays) = gif_pictures(&from_desktop);
+        assert_eq!(page_images.len(), (frames / web::page::GIF_EVERY) as usize);
+        assert_eq!(page_images.len(), desktop_images.len());
+        assert_eq!(page_delays, desktop_delays);
+        for (index, ((page, desktop), host)) in page_images
+            .iter()
+            .zip(&desktop_images)
+            .zip(&pictures)
+            .enumerate()
+        {
+            assert_same_pixels(&format!("GIF image {index}"), WIDTH, page, desktop);
+            assert_same_pixels(
+                &format!("GIF image {index} and the scan-out"),
+                WIDTH,
+                page,
+                host,
+            );
+        }
+    });
+}
+
+#[test]
+fn bad_url_scripts_are_named_and_the_page_runs_on() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        // An unknown key name is left out: the script is the other keys.
+        let page = open(&browser, "?keys=left,xyz,up&frames=30");
+        page.wait_for(
+            "modexPage.paused() && modexPage.frames() === 30",
+            PAGE_TIMEOUT,
+        )
+        .expect("the page runs its frames");
+        let message = evaluate_string(&page, "document.getElementById('message').textContent");
+        assert_eq!(message, "unknown key name \"xyz\" in the URL's keys");
+        let script = Script {
+            keys: ["left", "up"]
+                .map(|n| scancode_for_name(n).unwrap())
+                .to_vec(),
+            key_every: 1,
+        };
+        let mut picture = Vec::new();
+        run_script(&script, 30, |machine, _| picture = machine.scanout_rgb());
+        assert_same_pixels(
+            "the picture without the bad key",
+            WIDTH,
+            &page_screen(&page),
+            &picture,
+        );
+        drop(page);
+        // Malformed counts and escapes: named, and the frames keep coming.
+        for (query, token) in [
+            ("?keys=left&frames=2x0", "\"2x0\""),
+            ("?keys=left,%ZZ", "\"left,%ZZ\""),
+            ("?keys=spc&every=0", "\"0\""),
+        ] {
+            let page = open(&browser, query);
+            let message = evaluate_string(&page, "document.getElementById('message').textContent");
+            assert!(message.contains(token), "{query}: {message:?}");
+            assert_eq!(message.lines().count(), 1, "{query}: one line");
+            page.wait_for("modexPage.frames() >= 20", PAGE_TIMEOUT)
+                .unwrap_or_else(|e| panic!("{query}: the page stopped: {e}"));
+        }
+    });
+}
+
+#[test]
+fn a_browser_without_webassembly_gets_a_message() {
+    with_big_stack(|| {
+        // V8 without its compilers (as in browsers that turn the JIT off
+        // for security) has no WebAssembly object.
+        let browser = Browser::start_with(Options {
+            extra_args: vec!["--js-flags=--jitless".into()],
+            ..Options::default()
+        })
+        .unwrap();
+        let page = browser.open(page_url()).unwrap();
+        assert_eq!(page.evaluate("typeof WebAssembly").unwrap(), "undefined");
+        // The loader checks first thing, as it runs: by the load event the
+        // message is up.
+        let message = evaluate_string(&page, "document.getElementById('message').textContent");
+        assert!(message.contains("WebAssembly"), "{message:?}");
+        assert_eq!(page.evaluate("window.modexPage.ready").unwrap(), false);
+    });
+}

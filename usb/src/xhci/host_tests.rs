@@ -1,0 +1,536 @@
+//! xHCI under the device layer (`Bus<Xhci<Model>>`) against the register
+//! model: the keyboard on a root port typing the same bytes as the driver's
+//! own enumeration does, behind hubs (route strings), plugged and pulled a
+//! thousand times (slots and pages reused), stalls on its report endpoint
+//! and on endpoint 0 recovered, a device that never answers, and what an
+//! idle poll costs.
+
+use crate::bus::Bus;
+use crate::host::HostController;
+use crate::model::{Model, Port2, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use crate::xhci::Xhci;
+use crate::{Hardware, Memory};
+use std::format;
+use std::string::String;
+use std::vec::Vec;
+
+/// Model time one poll may take: its own work, never a wait.
+const POLL_MICROS_BOUND: u64 = 1_000;
+
+/// A controller taken, reset and started; endpoint 0 halts on a stall,
+/// as on real hardware.
+fn started(mut model: Model) -> Xhci<Model> {
+    model.ep0_halts = true;
+    let mut xhci = Xhci::new(model, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    xhci
+}
+
+fn bus(model: Model) -> Bus<Xhci<Model>> {
+    Bus::new(started(model))
+}
+
+/// A bus whose boot enumeration found `keyboards`.
+fn with_keyboards(model: Model, keyboards: usize) -> Bus<Xhci<Model>> {
+    let mut bus = bus(model);
+    assert_eq!(bus.enumerate(), keyboards, "{:#?}", log(&mut bus));
+    // The pipes' Configure Endpoint completes after the enumeration's last
+    // step; the next poll queues their transfers.
+    assert_eq!(poll(&mut bus), []);
+    bus
+}
+
+fn hw(bus: &mut Bus<Xhci<Model>>) -> &mut Model {
+    bus.controller().hardware()
+}
+
+fn log(bus: &mut Bus<Xhci<Model>>) -> Vec<String> {
+    hw(bus).log.clone()
+}
+
+fn logged(bus: &mut Bus<Xhci<Model>>, text: &str) -> bool {
+    hw(bus).log.iter().any(|line| line.contains(text))
+}
+
+fn poll(bus: &mut Bus<Xhci<Model>>) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    bus.poll(&mut |b| bytes.push(b));
+    bytes
+}
+
+/// Polls a frame (1 ms of model time) apart, at least once and then until
+/// nothing is left to enumerate, each poll within [`POLL_MICROS_BOUND`];
+/// gives the bytes typed meanwhile.
+fn settle(bus: &mut Bus<Xhci<Model>>) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    let mut polls = 0;
+    while polls == 0 || !bus.enumeration_idle() {
+        polls += 1;
+        assert!(polls < 20_000, "enumeration never ends: {:#?}", log(bus));
+        let before = hw(bus).now;
+        bus.poll(&mut |b| bytes.push(b));
+        let took = hw(bus).now - before;
+        assert!(took <= POLL_MICROS_BOUND, "a poll took {took} us");
+        hw(bus).now += 1_000;
+    }
+    bytes
+}
+
+/// Nothing the model checks went wrong.
+fn assert_clean(bus: &mut Bus<Xhci<Model>>) {
+    let errors = hw(bus).errors.clone();
+    assert!(errors.is_empty(), "{errors:?}\n{:#?}", log(bus));
+}
+
+fn locations(bus: &Bus<Xhci<Model>>) -> Vec<String> {
+    bus.keyboards().map(|l| format!("{l}")).collect()
+}
+
+/// Reports a keyboard sends, and time passing between them (a held key's
+/// repeat), with each step's bytes compared.
+const SESSION: [([u8; 8], u64); 8] = [
+    ([0x02, 0, 0x04, 0, 0, 0, 0, 0], 0),      // Shift+A
+    ([0x02, 0, 0x04, 0x05, 0, 0, 0, 0], 0),   // and B
+    ([0, 0, 0, 0, 0, 0, 0, 0], 0),            // all up
+    ([0, 0, 0x50, 0, 0, 0, 0, 0], 550_000),   // Left, held to repeat
+    ([0, 0, 0x50, 0x4F, 0, 0, 0, 0], 40_000), // and Right
+    ([0x08, 0, 0, 0, 0, 0, 0, 0], 0),         // left GUI alone
+    ([0, 0, 0x29, 0, 0, 0, 0, 0], 0),         // Esc
+    ([0; 8], 600_000),                        // up; nothing repeats
+];
+
+#[test]
+fn a_keyboard_on_a_root_port_types_what_the_drivers_own_enumeration_types() {
+    for csz in [false, true] {
+        let mut model = Model::new();
+        model.csz = csz;
+        let mut bus = with_keyboards(model, 1);
+        assert_eq!(locations(&bus), ["1"]);
+        let mut own = Xhci::new(
+            {
+                let mut model = Model::new();
+                model.csz = csz;
+                model
+            },
+            BAR_BYTES,
+            DMA_BASE,
+            DMA_BYTES,
+        )
+        .unwrap();
+        own.take_ownership();
+        own.reset_and_start().unwrap();
+        assert_eq!(own.enumerate(), 1);
+        {
+            let model = hw(&mut bus);
+            assert_eq!(model.keyboard.configuration, Some(1));
+            assert_eq!(model.keyboard.protocol, 1, "read by its report descriptor");
+            assert!(model.keyboard.idle_set);
+            assert_eq!(model.keyboard_slot_state(), 3, "configured");
+        }
+        assert!(logged(
+            &mut bus,
+            "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on xhci port 1"
+        ));
+        for (step, (report, later)) in SESSION.into_iter().enumerate() {
+            assert!(hw(&mut bus).send_report(report), "step {step}");
+            assert!(own.hardware().send_report(report), "step {step}");
+            let mut expected = Vec::new();
+            own.poll(&mut |b| expected.push(b));
+            assert!(!expected.is_empty() || step == 5, "step {step}");
+            assert_eq!(poll(&mut bus), expected, "csz {csz} step {step}");
+            own.hardware().now += later;
+            hw(&mut bus).now += later;
+            let mut expected = Vec::new();
+            own.poll(&mut |b| expected.push(b));
+            assert_eq!(poll(&mut bus), expected, "csz {csz} step {step}, later");
+        }
+        assert_clean(&mut bus);
+    }
+}
+
+#[test]
+fn a_keyboard_behind_one_and_three_hubs_is_reached_through_its_route_string() {
+    for (tiers, at) in [(1, "1.2"), (3, "1.2.2.2")] {
+        let mut model = Model::new();
+        model.hub = true;
+        model.hub_tiers = tiers;
+        let mut bus = with_keyboards(model, 1);
+        assert_eq!(locations(&bus), [at]);
+        // The model accepts an Address Device only with the route string
+        // of the device it names: clean means every route was right.
+        assert_clean(&mut bus);
+        for tier in 0..tiers {
+            let hub = &hw(&mut bus).hub_states[tier];
+            assert!(hub.configured && hub.marked, "tier {tier}: {hub:?}");
+            assert_eq!(hub.powered, [true; 4]);
+        }
+        assert!(hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+        assert_eq!(poll(&mut bus), [0x01]);
+        assert!(hw(&mut bus).send_report([0; 8]));
+        assert_eq!(poll(&mut bus), [0x81]);
+    }
+}
+
+#[test]
+fn a_keyboard_pulled_out_and_plugged_in_a_thousand_times_still_types() {
+    for hub in [false, true] {
+        let mut model = Model::new();
+        model.hub = hub;
+        let mut bus = with_keyboards(model, 1);
+        let rounds = if hub { 200 } else { 1_000 };
+        for round in 0..rounds {
+            assert!(hw(&mut bus).send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0]));
+            assert_eq!(poll(&mut bus), [0x2A, 0x1E], "hub {hub} round {round}");
+            hw(&mut bus).unplug();
+            // Held keys are let go at once.
+            assert_eq!(poll(&mut bus), [0xAA, 0x9E], "hub {hub} round {round}");
+            assert_eq!(bus.keyboards().count(), 0);
+            hw(&mut bus).now += 200_000;
+            assert_eq!(settle(&mut bus), []);
+            hw(&mut bus).plug();
+            hw(&mut bus).now += 1_000;
+            assert_eq!(settle(&mut bus), []);
+            assert_eq!(poll(&mut bus), []);
+            assert_eq!(
+                bus.keyboards().count(),
+                1,
+                "hub {hub} round {round}: {:#?}",
+                log(&mut bus)
+            );
+        }
+        assert!(hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+        assert_eq!(poll(&mut bus), [0x01]);
+        assert_clean(&mut bus);
+        let devices = if hub { 2 } else { 1 };
+        assert_eq!(hw(&mut bus).slots_disabled.len(), rounds * devices);
+        assert_eq!(hw(&mut bus).root_port_changes(), 0, "changes acknowledged");
+    }
+}
+
+#[test]
+fn a_keyboard_behind_a_hub_pulled_and_plugged_again_is_found_by_the_hubs_report() {
+    let mut model = Model::new();
+    model.hub = true;
+    let mut bus = with_keyboards(model, 1);
+    for round in 0..20 {
+        assert!(hw(&mut bus).send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+        assert_eq!(poll(&mut bus), [0x1E], "round {round}");
+        hw(&mut bus).unplug_behind_hub(0);
+        hw(&mut bus).now += 1_000;
+        let bytes = settle(&mut bus);
+        assert_eq!(bytes, [0x9E], "round {round}: {:#?}", log(&mut bus));
+        assert_eq!(bus.keyboards().count(), 0, "round {round}");
+        hw(&mut bus).plug_behind_hub(0);
+        hw(&mut bus).now += 1_000;
+        assert_eq!(settle(&mut bus), []);
+        assert_eq!(poll(&mut bus), []);
+        assert_eq!(
+            locations(&bus),
+            ["1.2"],
+            "round {round}: {:#?}",
+            log(&mut bus)
+        );
+    }
+    assert_clean(&mut bus);
+    assert_eq!(
+        hw(&mut bus).slots_disabled.len(),
+        20,
+        "the keyboard's slot each time"
+    );
+}
+
+#[test]
+fn a_stall_and_transaction_errors_on_the_report_endpoint_are_recovered() {
+    let mut bus = with_keyboards(Model::new(), 1);
+    assert!(hw(&mut bus).send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
+    assert_eq!(poll(&mut bus), [0x2A, 0x1E]);
+    // A stall: the keys are let go, the halt cleared on the device, the
+    // endpoint reset in the controller (its toggle too), the reports queued.
+    assert!(hw(&mut bus).fail_transfer(6));
+    assert_eq!(poll(&mut bus), [0xAA, 0x9E]);
+    for _ in 0..10 {
+        poll(&mut bus);
+        hw(&mut bus).now += 1_000;
+    }
+    assert_eq!(hw(&mut bus).keyboard.halts_cleared, 1);
+    assert!(
+        logged(&mut bus, "halt cleared; recovered"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert!(hw(&mut bus).send_report([0, 0, 0x04, 0x05, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut bus), [0x1E, 0x30]);
+    assert!(hw(&mut bus).send_report([0; 8]));
+    assert_eq!(poll(&mut bus), [0x9E, 0xB0]);
+    // Transaction errors: restarted without CLEAR_FEATURE, many times.
+    for round in 0..20 {
+        assert!(hw(&mut bus).fail_transfer(4), "round {round}");
+        poll(&mut bus);
+        poll(&mut bus);
+        assert!(
+            hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0]),
+            "round {round}: {:#?}",
+            log(&mut bus)
+        );
+        assert!(hw(&mut bus).send_report([0; 8]));
+        assert_eq!(poll(&mut bus), [0x01, 0x81], "round {round}");
+    }
+    assert_eq!(hw(&mut bus).keyboard.halts_cleared, 1);
+    assert_eq!(bus.keyboards().count(), 1);
+    assert_clean(&mut bus);
+}
+
+#[test]
+fn a_keyboard_that_fails_every_transfer_is_given_up() {
+    let mut bus = with_keyboards(Model::new(), 1);
+    let mut rounds = 0;
+    while bus.keyboards().count() == 1 {
+        rounds += 1;
+        assert!(rounds < 20, "{:#?}", log(&mut bus));
+        assert!(hw(&mut bus).fail_transfer(4));
+        poll(&mut bus);
+        poll(&mut bus);
+    }
+    assert_eq!(rounds, 9, "eight recoveries, then given up");
+    assert!(logged(&mut bus, "keyboard given up"));
+    assert_clean(&mut bus);
+}
+
+#[test]
+fn a_stall_on_endpoint_0_is_cleared_in_the_controller_before_the_next_request() {
+    // No report descriptor: its request stalls, and a real controller
+    // halts endpoint 0 until Reset Endpoint. The boot protocol follows.
+    let mut model = Model::new();
+    model.report_descriptor = None;
+    let mut bus = with_keyboards(model, 1);
+    assert_eq!(hw(&mut bus).keyboard.protocol, 0, "boot protocol");
+    assert!(hw(&mut bus).keyboard.idle_set);
+    assert!(
+        logged(
+            &mut bus,
+            "keyboard: no report descriptor (request stalled); boot protocol"
+        ),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert!(hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut bus), [0x01]);
+    assert_clean(&mut bus);
+}
+
+#[test]
+fn endpoint_0_of_64_bytes_is_evaluated_and_the_two_step_device_addressed() {
+    let mut model = Model::new();
+    model.needs_two_step = true;
+    model.device_descriptor[7] = 64;
+    let mut bus = with_keyboards(model, 1);
+    assert_eq!(hw(&mut bus).keyboard_slot_state(), 3, "configured");
+    assert!(hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut bus), [0x01]);
+    assert_clean(&mut bus);
+}
+
+#[test]
+fn two_keyboards_both_type() {
+    let mut model = Model::new();
+    model.port_2 = Some(Port2::Keyboard);
+    let mut bus = with_keyboards(model, 2);
+    let mut at = locations(&bus);
+    at.sort();
+    assert_eq!(at, ["1", "2"]);
+    assert!(hw(&mut bus).send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+    assert!(hw(&mut bus).send_report_2([0, 0, 0x05, 0, 0, 0, 0, 0]));
+    let mut bytes = poll(&mut bus);
+    bytes.sort();
+    assert_eq!(bytes, [0x1E, 0x30]);
+    assert_clean(&mut bus);
+}
+
+#[test]
+fn a_device_that_never_answers_is_given_up_after_its_timeout_and_the_keyboard_types() {
+    let mut model = Model::new();
+    model.port_2 = Some(Port2::Dead);
+    let mut bus = bus(model);
+    bus.enumerate();
+    let start = hw(&mut bus).now;
+    let mut typed = 0;
+    let mut polls = 0u32;
+    while !bus.enumeration_idle() {
+        polls += 1;
+        assert!(polls < 20_000, "{:#?}", log(&mut bus));
+        if bus.keyboards().count() == 1 && polls.is_multiple_of(100) {
+            assert!(hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+            assert!(hw(&mut bus).send_report([0; 8]));
+        }
+        let before = hw(&mut bus).now;
+        let bytes = poll(&mut bus);
+        assert!(hw(&mut bus).now - before <= POLL_MICROS_BOUND);
+        if !bytes.is_empty() {
+            assert_eq!(bytes, [0x01, 0x81]);
+            typed += 1;
+        }
+        hw(&mut bus).now += 1_000;
+    }
+    let waited = hw(&mut bus).now - start;
+    assert!(waited < 6_000_000, "{waited} us");
+    assert!(typed >= 20, "{typed} keys typed meanwhile");
+    assert!(
+        logged(
+            &mut bus,
+            "port 2: control transfer not completed in 5000 ms"
+        ),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert_eq!(bus.keyboards().count(), 1);
+    assert_eq!(
+        hw(&mut bus).slots_disabled.len(),
+        1,
+        "the dead device's slot"
+    );
+    // The port given up is disabled (the model counts a PED write as an
+    // error, as the driver's own enumeration never writes one).
+    let errors = hw(&mut bus).errors.clone();
+    assert!(
+        errors
+            .iter()
+            .all(|e| e == "PED written: the port was disabled")
+            && errors.len() == 1,
+        "{errors:?}"
+    );
+}
+
+#[test]
+fn a_superspeed_device_is_refused_at_its_port() {
+    let mut model = Model::new();
+    model.usb3 = true;
+    let mut bus = bus(model);
+    assert_eq!(bus.enumerate(), 0);
+    assert!(
+        logged(&mut bus, "port 1: a SuperSpeed device"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert!(
+        hw(&mut bus).slots_disabled.is_empty(),
+        "no slot was enabled"
+    );
+}
+
+#[test]
+fn halt_switches_the_ports_off_then_halts_and_resets() {
+    let mut bus = with_keyboards(Model::new(), 1);
+    assert!(bus.shut_down());
+    let (halted, reset_done, powered) = hw(&mut bus).shut_down_state();
+    assert!(halted && reset_done);
+    assert_eq!(powered, [false, false]);
+}
+
+/// The model, with the driver's register and DMA accesses counted.
+struct Counting {
+    model: Model,
+    mmio: u64,
+    dma: u64,
+}
+
+impl Memory for Counting {
+    fn mem_read(&mut self, address: u64) -> u32 {
+        self.dma += 1;
+        self.model.mem_read(address)
+    }
+    fn mem_write(&mut self, address: u64, value: u32) {
+        self.dma += 1;
+        self.model.mem_write(address, value)
+    }
+}
+
+impl Hardware for Counting {
+    fn mmio_read(&mut self, offset: u32) -> u32 {
+        self.mmio += 1;
+        self.model.mmio_read(offset)
+    }
+    fn mmio_write(&mut self, offset: u32, value: u32) {
+        self.mmio += 1;
+        self.model.mmio_write(offset, value)
+    }
+    fn now_micros(&mut self) -> u64 {
+        self.model.now_micros()
+    }
+    fn log(&mut self, message: core::fmt::Arguments<'_>) {
+        self.model.log(message)
+    }
+}
+
+#[test]
+fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
+    let mut model = Model::new();
+    model.ep0_halts = true;
+    let counting = Counting {
+        model,
+        mmio: 0,
+        dma: 0,
+    };
+    let mut xhci = Xhci::new(counting, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
+    xhci.take_ownership();
+    xhci.reset_and_start().unwrap();
+    let mut bus = Bus::new(xhci);
+    assert_eq!(bus.enumerate(), 1);
+    let mut bytes = Vec::new();
+    bus.poll(&mut |b| bytes.push(b));
+    let (mmio, dma) = {
+        let hw = bus.controller().hardware();
+        (hw.mmio, hw.dma)
+    };
+    const IDLE_POLLS: u64 = 10_000;
+    for _ in 0..IDLE_POLLS {
+        bus.poll(&mut |b| bytes.push(b));
+    }
+    let hw = bus.controller().hardware();
+    assert_eq!(hw.mmio - mmio, 0, "register accesses");
+    assert_eq!(hw.dma - dma, IDLE_POLLS, "one event ring word a poll");
+    assert!(bytes.is_empty());
+    // And a report is still seen by the next poll.
+    assert!(bus
+        .controller()
+        .hardware()
+        .model
+        .send_report([0, 0, 0x29, 0, 0, 0, 0, 0]));
+    bus.poll(&mut |b| bytes.push(b));
+    assert_eq!(bytes, [0x01]);
+    assert_eq!(bus.controller().kind(), crate::host::ControllerKind::Xhci);
+}
+
+#[test]
+fn a_data_stage_shorter_than_asked_says_how_many_bytes_came() {
+    // The configuration says it is 40 bytes long and sends its 34: the
+    // data stage's event says 6 did not come, and the device layer
+    // refuses a device that sends less than it announces.
+    let mut model = Model::new();
+    let announced = model.configuration.len() as u16 + 6;
+    model.configuration[2..4].copy_from_slice(&announced.to_le_bytes());
+    let mut bus = with_keyboards(model, 0);
+    assert!(
+        logged(&mut bus, "34 bytes came of the 40 asked for"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert_eq!(hw(&mut bus).slots_disabled.len(), 1);
+}
+
+#[test]
+fn a_full_speed_keyboard_behind_high_speed_hubs_names_the_last_ones_translator() {
+    for tiers in [1, 2] {
+        let mut model = Model::new();
+        model.hub = true;
+        model.hub_tiers = tiers;
+        model.high_speed_hub = true;
+        let mut bus = with_keyboards(model, 1);
+        // The model refuses an Address Device without the translator's
+        // slot and port: clean means they were right.
+        assert_clean(&mut bus);
+        assert!(hw(&mut bus).hub_states[tiers - 1].marked);
+        assert!(hw(&mut bus).send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
+        assert_eq!(poll(&mut bus), [0x01], "tiers {tiers}");
+    }
+}

@@ -1,0 +1,184 @@
+// The web page's loader: fetches the demo's WebAssembly (web/src, built by
+// `cargo run --release -p web`), passes key events and the URL in, and puts
+// the pixels it draws on the canvases. All logic is in the module; this
+// file only moves bytes. No bindings generator: the module exports plain
+// functions and buffers in its memory (docs/web.md lists them).
+(function () {
+  "use strict";
+  const $ = (id) => document.getElementById(id);
+  const hook = { ready: false };
+  window.modexPage = hook;
+  let shownMessage = "";
+  function say(text) {
+    if (text !== shownMessage) {
+      shownMessage = text;
+      $("message").textContent = text;
+    }
+  }
+
+  if (typeof WebAssembly !== "object" || typeof WebAssembly.instantiate !== "function") {
+    say("This page needs WebAssembly, which this browser lacks or has switched off.");
+    return;
+  }
+
+  // The single-file page carries the module in base64 (see web/src/build.rs).
+  async function loadModule() {
+    const inline = $("modex-wasm");
+    if (inline) {
+      const text = atob(inline.textContent.trim());
+      const bytes = new Uint8Array(text.length);
+      for (let i = 0; i < text.length; i++) bytes[i] = text.charCodeAt(i);
+      return WebAssembly.instantiate(bytes, {});
+    }
+    const response = await fetch("modex.wasm");
+    if (!response.ok) throw new Error("modex.wasm: HTTP " + response.status);
+    return WebAssembly.instantiate(await response.arrayBuffer(), {});
+  }
+
+  loadModule().then(
+    (result) => start(result.instance.exports),
+    (error) => say("The page could not load its WebAssembly: " + error)
+  );
+
+  function start(w) {
+    const encoder = new TextEncoder();
+    const decoder = new TextDecoder();
+    // Views are made afresh each time: memory may have grown since.
+    const bytes = (pointer, length) => new Uint8Array(w.memory.buffer, pointer >>> 0, length);
+    function put(text) {
+      const encoded = encoder.encode(text);
+      bytes(w.input_buffer(encoded.length), encoded.length).set(encoded);
+      return encoded.length;
+    }
+    const text = (length) => decoder.decode(bytes(w.output_ptr(), length));
+    function base64(view) {
+      let binary = "";
+      for (let i = 0; i < view.length; i += 0x8000) {
+        binary += String.fromCharCode.apply(null, view.subarray(i, i + 0x8000));
+      }
+      return btoa(binary);
+    }
+
+    const screen = $("screen");
+    const inspector = $("inspector");
+    const ops = $("ops");
+    const contexts = new Map();
+    function paint(canvas, pointer, width, height) {
+      if (!contexts.has(canvas)) contexts.set(canvas, canvas.getContext("2d"));
+      const pixels = new Uint8ClampedArray(w.memory.buffer, pointer >>> 0, width * height * 4);
+      contexts.get(canvas).putImageData(new ImageData(pixels, width, height), 0, 0);
+    }
+
+    function draw() {
+      paint(screen, w.screen_ptr(), 320, 240);
+      const panel = w.panel_ptr();
+      inspector.hidden = !panel;
+      if (panel) paint(inspector, panel, w.panel_width(), w.panel_height());
+      const slow = w.ops_ptr();
+      ops.hidden = !slow;
+      if (slow) paint(ops, slow, w.ops_width(), w.ops_height());
+      $("last-op").textContent = text(w.last_op());
+      $("play").textContent = w.paused() ? "Play" : "Pause";
+      $("frame-count").textContent = "frame " + w.frames();
+      say(text(w.message()));
+    }
+
+    let stopped = false;
+    // A trap in the module (a bug) stops the page with a message, not silently.
+    function guarded(action) {
+      return function () {
+        if (stopped) return undefined;
+        try {
+          return action.apply(this, arguments);
+        } catch (error) {
+          stopped = true;
+          say("The page stopped: " + error);
+          throw error;
+        }
+      };
+    }
+
+    // Keys: only while the picture has the focus, so the rest of the page
+    // scrolls and tabs as usual. The module says which keys it takes.
+    screen.addEventListener("keydown", guarded((event) => {
+      const taken = w.key_down(put(event.code));
+      if (taken && !event.ctrlKey && !event.metaKey) event.preventDefault();
+    }));
+    screen.addEventListener("keyup", guarded((event) => {
+      if (w.key_up(put(event.code))) event.preventDefault();
+    }));
+    // A key held when the focus leaves gets no key-up: release it now.
+    screen.addEventListener("blur", guarded(() => w.release_keys()));
+    window.addEventListener("blur", guarded(() => w.release_keys()));
+    screen.addEventListener("mousedown", () => screen.focus());
+
+    screen.addEventListener("mousemove", guarded((event) => {
+      const box = screen.getBoundingClientRect();
+      const x = Math.floor(((event.clientX - box.left) * 320) / box.width);
+      const y = Math.floor(((event.clientY - box.top) * 240) / box.height);
+      if (x >= 0 && y >= 0) $("hover").textContent = text(w.hover(x, y));
+    }));
+
+    $("play").addEventListener("click", guarded(() => {
+      if (w.paused()) w.play();
+      else w.pause();
+      draw();
+    }));
+    $("step-frame").addEventListener("click", guarded(() => {
+      w.step_frames(1);
+      draw();
+    }));
+    $("step-op").addEventListener("click", guarded(() => {
+      w.step_ops(1);
+      draw();
+    }));
+    $("record-gif").addEventListener("click", guarded(() => {
+      const length = w.gif();
+      draw();
+      if (!length) return;
+      const blob = new Blob([bytes(w.output_ptr(), length).slice()], { type: "image/gif" });
+      const link = document.createElement("a");
+      link.href = URL.createObjectURL(blob);
+      link.download = "modex-cube-" + w.frames() + "-frames.gif";
+      link.click();
+      setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+      say("Recorded " + length + " bytes of GIF.");
+    }));
+
+    // Frames on the display's refresh; the module runs as many frames of
+    // the software VGA's 59.7 Hz as are due, three at most.
+    function tick(now) {
+      if (stopped) return;
+      if (guarded(w.frame)(now) > 0) draw();
+      requestAnimationFrame(tick);
+    }
+
+    // The test hook (tests/web_page.rs drives the page through it).
+    function picture(pointer, width, height) {
+      return pointer ? { width: width, height: height, rgba: base64(bytes(pointer, width * height * 4)) } : null;
+    }
+    Object.assign(hook, {
+      pause: guarded(() => { w.pause(); draw(); }),
+      play: guarded(() => { w.play(); draw(); }),
+      stepFrames: guarded((n) => { const ran = w.step_frames(n); draw(); return ran; }),
+      stepOps: guarded((n) => { const done = w.step_ops(n); draw(); return done; }),
+      frames: () => w.frames(),
+      paused: () => w.paused() === 1,
+      screenRgba: () => base64(bytes(w.screen_ptr(), 320 * 240 * 4)),
+      inspectorRgba: () => picture(w.panel_ptr(), w.panel_width(), w.panel_height()),
+      opsRgba: () => picture(w.ops_ptr(), w.ops_width(), w.ops_height()),
+      setInspector: guarded((shown) => { w.set_inspector(shown ? 1 : 0); draw(); }),
+      hover: (x, y) => text(w.hover(x, y)),
+      lastOp: () => text(w.last_op()),
+      message: () => text(w.message()),
+      gif: guarded(() => { const length = w.gif(); return base64(bytes(w.output_ptr(), length)); }),
+    });
+
+    guarded(() => w.init(put(location.search)))();
+    if (stopped) return;
+    draw();
+    hook.ready = true;
+    screen.focus();
+    requestAnimationFrame(tick);
+  }
+})();

@@ -1,0 +1,252 @@
+//! The page's files: the crate built for `wasm32-unknown-unknown` (by the
+//! toolchain's own target, from `rust-toolchain.toml`: nothing is
+//! downloaded), the HTML and the JavaScript loader; or all three in one
+//! self-contained HTML file.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The page's HTML: the canvases, buttons and captions.
+const INDEX_HTML: &str = include_str!("../page/index.html");
+/// The loader: WebAssembly in, key events in, pixels out.
+const MODEX_JS: &str = include_str!("../page/modex.js");
+/// Where the single-file page's loader finds the module (see `modex.js`).
+const INLINE_WASM_ID: &str = "modex-wasm";
+/// The cargo profile the module is built with (the workspace's Cargo.toml).
+const WASM_PROFILE: &str = "web-wasm";
+const WASM_TARGET: &str = "wasm32-unknown-unknown";
+/// The book's chapters the captions link to, copied beside the page.
+const CHAPTERS: &[&str] = &["vga.md", "simulator.md", "rendering.md", "web.md"];
+
+/// How the page is written.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PageFiles {
+    /// One `index.html` with the loader and the module (base64) inside.
+    pub single_file: bool,
+}
+
+/// What [`build_page`] wrote.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Built {
+    /// Each file the page loads, with its size in bytes.
+    pub files: Vec<(PathBuf, u64)>,
+}
+
+impl Built {
+    /// The bytes a browser loads to show the page.
+    pub fn weight(&self) -> u64 {
+        self.files.iter().map(|(_, bytes)| bytes).sum()
+    }
+}
+
+/// Why the page was not built.
+#[derive(Debug)]
+pub enum BuildError {
+    /// Cargo did not start.
+    Cargo(std::io::Error),
+    /// Cargo failed to build the module (its messages went to stderr).
+    Compile(std::process::ExitStatus),
+    /// A file could not be read or written.
+    Io(PathBuf, std::io::Error),
+}
+
+impl fmt::Display for BuildError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BuildError::Cargo(e) => write!(f, "cargo did not start: {e}"),
+            BuildError::Compile(status) => write!(
+                f,
+                "cargo could not build the page's WebAssembly ({status}); is the \
+                 {WASM_TARGET} target installed (boot/setup.sh, or rustup target add {WASM_TARGET})?"
+            ),
+            BuildError::Io(path, e) => write!(f, "{}: {e}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for BuildError {}
+
+fn workspace() -> PathBuf {
+    // web/ is a member of the workspace at the repository's root.
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("web/ sits in the workspace")
+        .to_path_buf()
+}
+
+/// Builds the module: `cargo build --lib -p web --target
+/// wasm32-unknown-unknown --profile web-wasm`, in a target directory of its
+/// own (the cargo that runs this binary may hold the main one's lock).
+/// Returns the module's path.
+pub fn build_wasm() -> Result<PathBuf, BuildError> {
+    let root = workspace();
+    let target_dir = root.join("target").join("web-wasm");
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    let status = Command::new(cargo)
+        .current_dir(&root)
+        .args([
+            "build",
+            "--quiet",
+            "--lib",
+            "-p",
+            "web",
+            "--target",
+            WASM_TARGET,
+        ])
+        .args(["--profile", WASM_PROFILE])
+        .arg("--target-dir")
+        .arg(&target_dir)
+        // Flags meant for the host build are not the module's.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .status()
+        .map_err(BuildError::Cargo)?;
+    if !status.success() {
+        return Err(BuildError::Compile(status));
+    }
+    Ok(target_dir
+        .join(WASM_TARGET)
+        .join(WASM_PROFILE)
+        .join("web.wasm"))
+}
+
+/// Writes the page into `out` (made if missing): `index.html`, `modex.js`
+/// and `modex.wasm`, with the book's chapters the captions link to in
+/// `out/docs/`.
+pub fn build_page(out: &Path) -> Result<Built, BuildError> {
+    build_page_with(out, PageFiles::default())
+}
+
+/// As [`build_page`]; with `single_file`, one `index.html` holding all three.
+pub fn build_page_with(out: &Path, files: PageFiles) -> Result<Built, BuildError> {
+    let wasm_path = build_wasm()?;
+    let wasm = std::fs::read(&wasm_path).map_err(|e| BuildError::Io(wasm_path.clone(), e))?;
+    write_page(out, files, &wasm)
+}
+
+/// Writes the page's files around an already built module.
+pub fn write_page(out: &Path, files: PageFiles, wasm: &[u8]) -> Result<Built, BuildError> {
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |e| BuildError::Io(path, e)
+    };
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    let mut written = Vec::new();
+    let mut write = |name: &str, bytes: &[u8]| -> Result<(), BuildError> {
+        let path = out.join(name);
+        std::fs::write(&path, bytes).map_err(io(&path))?;
+        written.push((path, bytes.len() as u64));
+        Ok(())
+    };
+    if files.single_file {
+        write("index.html", single_file_html(wasm).as_bytes())?;
+    } else {
+        write("index.html", INDEX_HTML.as_bytes())?;
+        write("modex.js", MODEX_JS.as_bytes())?;
+        write("modex.wasm", wasm)?;
+        // The captions' links, for a reader of the page served from here
+        // (not part of the page's weight: nothing loads them unasked).
+        let docs = out.join("docs");
+        std::fs::create_dir_all(&docs).map_err(io(&docs))?;
+        for chapter in CHAPTERS {
+            let from = workspace().join("docs").join(chapter);
+            std::fs::copy(&from, docs.join(chapter)).map_err(io(&from))?;
+        }
+    }
+    Ok(Built { files: written })
+}
+
+/// The page with the loader inline and the module in base64.
+fn single_file_html(wasm: &[u8]) -> String {
+    let inline = format!(
+        "<script type=\"application/octet-stream\" id=\"{INLINE_WASM_ID}\">{}</script>\n<script>\n{MODEX_JS}</script>",
+        base64(wasm)
+    );
+    INDEX_HTML.replace("<script src=\"modex.js\"></script>", &inline)
+}
+
+/// Standard base64 with padding (RFC 4648), as the browser's `atob` reads it.
+pub fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut text = String::with_capacity(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let word = u32::from(chunk[0]) << 16
+            | u32::from(chunk.get(1).copied().unwrap_or(0)) << 8
+            | u32::from(chunk.get(2).copied().unwrap_or(0));
+        for (index, shift) in [18, 12, 6, 0].into_iter().enumerate() {
+            if index <= chunk.len() {
+                text.push(char::from(ALPHABET[(word >> shift) as usize & 63]));
+            } else {
+                text.push('=');
+            }
+        }
+    }
+    text
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn base64_is_rfc_4648s() {
+        // RFC 4648's test vectors.
+        let vectors = [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ];
+        for (plain, encoded) in vectors {
+            assert_eq!(base64(plain.as_bytes()), encoded);
+        }
+        assert_eq!(base64(&[0xFF, 0xEF]), "/+8=");
+    }
+
+    #[test]
+    fn the_page_files_carry_the_ids_the_tests_drive() {
+        for id in [
+            "screen",
+            "inspector",
+            "hover",
+            "message",
+            "step-frame",
+            "step-op",
+            "play",
+            "record-gif",
+        ] {
+            assert!(INDEX_HTML.contains(&format!("id=\"{id}\"")), "#{id}");
+        }
+        assert!(MODEX_JS.contains("window.modexPage"));
+        assert!(MODEX_JS.lines().count() < 300, "the loader stays small");
+        assert!(INDEX_HTML.contains("<script src=\"modex.js\"></script>"));
+    }
+
+    #[test]
+    fn the_single_file_holds_the_module_and_the_loader() {
+        let out = std::env::temp_dir().join(format!("web-single-{}", std::process::id()));
+        let wasm = b"\0asm\x01\0\0\0 not a real module";
+        let built = write_page(&out, PageFiles { single_file: true }, wasm).unwrap();
+        assert_eq!(built.files.len(), 1);
+        let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+        assert!(html.contains(&base64(wasm)));
+        assert!(html.contains(INLINE_WASM_ID) && MODEX_JS.contains(INLINE_WASM_ID));
+        assert!(!html.contains("src=\"modex.js\""));
+        assert_eq!(built.weight(), html.len() as u64);
+
+        let built = write_page(&out, PageFiles::default(), wasm).unwrap();
+        let names: Vec<_> = built
+            .files
+            .iter()
+            .map(|(p, _)| p.file_name().unwrap())
+            .collect();
+        assert_eq!(names, ["index.html", "modex.js", "modex.wasm"]);
+        assert!(out.join("docs/vga.md").exists());
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}

@@ -1,0 +1,456 @@
+//! The page's whole state, as the browser drives it: the demo on the
+//! software VGA (`sim::machine::Machine`), the keys from the browser and the
+//! URL's script, pacing, slow motion, and the RGBA pictures the JavaScript
+//! puts on the canvases. The WebAssembly exports are thin calls into this.
+
+use std::collections::VecDeque;
+
+use keyboard::keys::{scancode_for_name, Scancode};
+use modex::soft::{dac_6_to_8, SoftVga};
+use modex::{SCREEN_HEIGHT, SCREEN_WIDTH};
+use sim::inspector::{draw_panel, History, PANEL_WIDTH};
+use sim::machine::Machine;
+use sim::record::{record_gif_with, RecordError};
+
+use crate::hover::hover_text;
+use crate::keys::action_for_code;
+use crate::pacing::Pacer;
+use crate::slow::{self, SlowMotion};
+use crate::url::{parse_query, Replay};
+
+/// The picture's size in pixels.
+pub const PICTURE_WIDTH: usize = SCREEN_WIDTH as usize;
+/// The picture's height in pixels.
+pub const PICTURE_HEIGHT: usize = SCREEN_HEIGHT as usize;
+/// The inspector panel's height: the picture's at twice its size, as the
+/// desktop simulator's window shows it.
+pub const INSPECTOR_HEIGHT: usize = 2 * PICTURE_HEIGHT;
+/// One GIF image in this many frames (as `sim --record` keeps by default).
+pub const GIF_EVERY: u32 = 2;
+/// The most frames a GIF holds (a minute of the demo).
+pub const GIF_MAX_FRAMES: u32 = 3600;
+/// The byte before the make code of an extended key.
+const EXTENDED_PREFIX: u8 = 0xE0;
+
+/// The page.
+pub struct Page {
+    machine: Machine,
+    history: History,
+    replay: Replay,
+    /// Scan-code bytes from the browser's key events, fed before the next frame.
+    queue: VecDeque<u8>,
+    /// Keys down now, to release when the page loses the focus.
+    held: Vec<Scancode>,
+    /// Bytes fed before each frame (by its number), to record the run again.
+    fed: Vec<(u32, Vec<u8>)>,
+    /// Frames run since the page loaded (the mode set's first frame not counted).
+    frames: u32,
+    paused: bool,
+    ended: bool,
+    inspector: bool,
+    previous_byte: Option<u8>,
+    pacer: Pacer,
+    slow: Option<SlowMotion>,
+    last_op: String,
+    message: String,
+    screen: Vec<u8>,
+    /// The picture's DAC indices, the step before `screen`.
+    indices: Vec<u8>,
+    panel: Vec<u8>,
+    ops_panel: Vec<u8>,
+}
+
+impl Page {
+    /// The page for URL query `query`: Mode X set and the first frame drawn
+    /// (as the kernel does at boot), the script read; a bad token in it is
+    /// named in [`Page::message`] and left out.
+    pub fn new(query: &str) -> Self {
+        let (replay, problem) = parse_query(query);
+        let (machine, slow) = if replay.mode_set {
+            // The mode set in slow motion, from text mode as the BIOS left it.
+            let (machine, log) = Machine::new_logged();
+            let slow = SlowMotion::new(Box::new(SoftVga::new()), log, 0);
+            (machine, Some(slow))
+        } else {
+            (Machine::new(), None)
+        };
+        let pacer = Pacer::new(machine.vga().timing().frame_ns());
+        let mut page = Page {
+            machine,
+            history: History::default(),
+            paused: replay.paused || replay.mode_set || replay.ops > 0 || replay.frames == Some(0),
+            replay,
+            queue: VecDeque::new(),
+            held: Vec::new(),
+            fed: Vec::new(),
+            frames: 0,
+            ended: false,
+            inspector: true,
+            previous_byte: None,
+            pacer,
+            slow,
+            last_op: String::new(),
+            message: problem.unwrap_or_default(),
+            // Black until the first Mode X picture.
+            screen: [0, 0, 0, 255].repeat(PICTURE_WIDTH * PICTURE_HEIGHT),
+            indices: vec![0; PICTURE_WIDTH * PICTURE_HEIGHT],
+            panel: Vec::new(),
+            ops_panel: Vec::new(),
+        };
+        let ops = page.replay.ops;
+        if ops > 0 {
+            page.step_ops(ops);
+        } else {
+            page.render();
+        }
+        page
+    }
+
+    /// A key went down (`KeyboardEvent.code`); held, it repeats its make
+    /// code as a PC keyboard does. Returns whether the page took it (then
+    /// the browser must not act on it too).
+    pub fn key_down(&mut self, code: &str) -> bool {
+        let Some(action) = action_for_code(code) else {
+            return false;
+        };
+        if !self.held.contains(&action.scancode) {
+            self.held.push(action.scancode);
+        }
+        self.queue.extend(action.scancode.make().iter());
+        action.prevent_default
+    }
+
+    /// A key came up. Returns whether the page took it.
+    pub fn key_up(&mut self, code: &str) -> bool {
+        let Some(action) = action_for_code(code) else {
+            return false;
+        };
+        self.held.retain(|&key| key != action.scancode);
+        self.queue.extend(action.scancode.release().iter());
+        action.prevent_default
+    }
+
+    /// The page lost the focus: every key still down comes up, so none is
+    /// left held (the browser sends no key-up to a page without focus).
+    pub fn release_all(&mut self) {
+        for key in std::mem::take(&mut self.held) {
+            self.queue.extend(key.release().iter());
+        }
+    }
+
+    /// A `requestAnimationFrame` callback at `now_ms`: runs the frames the
+    /// model's retrace says are due (none while paused), and returns how
+    /// many ran.
+    pub fn animation_frame(&mut self, now_ms: f64) -> u32 {
+        if self.paused || self.ended {
+            return 0;
+        }
+        let mut due = self.pacer.frames_due(now_ms);
+        if let Some(last) = self.replay.frames {
+            // The URL's run stops at its last frame, even mid catch-up.
+            due = due.min(last.saturating_sub(self.frames));
+        }
+        let ran = self.run_frames(due);
+        if ran > 0 {
+            self.render();
+        }
+        ran
+    }
+
+    /// Runs `count` frames now, paused or not, past the URL's last frame too
+    /// (a frame being stepped in slow motion is finished first, and counts
+    /// as one). Returns frames run.
+    pub fn step_frames(&mut self, count: u32) -> u32 {
+        let mut ran = 0;
+        if count > 0 && self.slow.take().is_some() {
+            ran = 1;
+        }
+        ran += self.run_frames(count - ran);
+        self.render();
+        ran
+    }
+
+    /// Does `count` bus operations in slow motion (the page pauses): each
+    /// starts a new frame when the last is done. Returns operations done.
+    pub fn step_ops(&mut self, count: u32) -> u32 {
+        self.pause();
+        let mut done = 0;
+        while done < count && !self.ended {
+            if self.slow.is_none() && !self.start_slow_frame() {
+                break;
+            }
+            let Some(slow) = &mut self.slow else {
+                break;
+            };
+            if let Some(text) = slow.step() {
+                self.last_op = text.to_string();
+                done += 1;
+            }
+            if slow.finished() {
+                self.ops_panel = slow.draw_panel();
+                self.slow = None;
+            }
+        }
+        self.render();
+        done
+    }
+
+    /// Runs the next frame with its bus operations logged and starts
+    /// stepping through them; false if no frame could run (Esc ended the
+    /// demo).
+    fn start_slow_frame(&mut self) -> bool {
+        let before = Box::new(self.machine.vga().clone());
+        let Some(log) = self.run_frame(true) else {
+            return false;
+        };
+        self.slow = Some(SlowMotion::new(before, log, u64::from(self.frames)));
+        true
+    }
+
+    /// Runs up to `count` frames; returns how many ran.
+    fn run_frames(&mut self, count: u32) -> u32 {
+        let mut ran = 0;
+        while ran < count && self.run_frame(false).is_some() {
+            ran += 1;
+        }
+        ran
+    }
+
+    /// One frame: the script's key due and the browser's keys fed, then the
+    /// frame run (logged if `logged`). `None` if it did not run.
+    fn run_frame(&mut self, logged: bool) -> Option<Vec<sim::oplog::LoggedOp>> {
+        if self.ended {
+            return None;
+        }
+        let mut bytes = Vec::new();
+        if let Some(key) = self.replay.script.key_before(self.frames) {
+            bytes.extend(sim::keys::tap(key));
+        }
+        bytes.extend(self.queue.drain(..));
+        if !bytes.is_empty() {
+            self.feed(&bytes);
+            self.fed.push((self.frames, bytes));
+        }
+        if self.machine.app().quit_requested() {
+            self.ended = true;
+            self.paused = true;
+            self.message =
+                "Esc: the demo has ended, as on the machine; reload the page to start again".into();
+            return None;
+        }
+        let (cost, log) = if logged {
+            self.machine.frame_logged()
+        } else {
+            (self.machine.frame(), Vec::new())
+        };
+        self.history.push(cost);
+        self.frames += 1;
+        if self.replay.frames == Some(self.frames) {
+            self.paused = true;
+        }
+        Some(log)
+    }
+
+    /// Feeds scan-code bytes to the demo; V's make code (not a byte of an
+    /// E0 sequence) toggles the inspector, as in the desktop simulator.
+    fn feed(&mut self, bytes: &[u8]) {
+        let inspector_code = scancode_for_name("v").map(|key| key.code);
+        for &byte in bytes {
+            if Some(byte) == inspector_code && self.previous_byte != Some(EXTENDED_PREFIX) {
+                self.inspector = !self.inspector;
+            }
+            self.previous_byte = Some(byte);
+        }
+        self.machine.feed(bytes);
+    }
+
+    /// Stops the frames (slow motion and stepping still work).
+    pub fn pause(&mut self) {
+        self.paused = true;
+    }
+
+    /// Runs the frames again, on the browser's clock from now; a frame being
+    /// stepped through is finished first.
+    pub fn play(&mut self) {
+        if self.ended {
+            return;
+        }
+        if self.slow.take().is_some() {
+            self.render();
+        }
+        if self.replay.frames.is_some_and(|last| self.frames >= last) {
+            // The URL's run is done: play on past it.
+            self.replay.frames = None;
+        }
+        self.paused = false;
+        self.pacer.restart();
+    }
+
+    /// Whether frames run on the browser's clock.
+    pub fn paused(&self) -> bool {
+        self.paused
+    }
+
+    /// Frames run since the page loaded.
+    pub fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    /// Shows or hides the inspector panel (V toggles it too).
+    pub fn set_inspector(&mut self, shown: bool) {
+        self.inspector = shown;
+        self.render();
+    }
+
+    /// Whether the inspector panel is shown.
+    pub fn inspector_shown(&self) -> bool {
+        self.inspector
+    }
+
+    /// The VGA the page shows: in slow motion, the copy the stepped
+    /// operations have reached; otherwise the demo's.
+    pub fn vga(&self) -> &SoftVga {
+        match &self.slow {
+            Some(slow) => slow.vga(),
+            None => self.machine.vga(),
+        }
+    }
+
+    /// The demo.
+    pub fn machine(&self) -> &Machine {
+        &self.machine
+    }
+
+    /// The frame costs the inspector plots.
+    pub fn history(&self) -> &History {
+        &self.history
+    }
+
+    /// Whether a frame is being stepped through.
+    pub fn in_slow_motion(&self) -> bool {
+        self.slow.is_some()
+    }
+
+    /// The readout for pixel (x, y) of the picture.
+    pub fn hover(&self, x: u16, y: u16) -> String {
+        hover_text(self.vga(), x, y)
+    }
+
+    /// The last operation stepped in slow motion, described, with the
+    /// `modex` function that issued it (empty before the first).
+    pub fn last_op(&self) -> &str {
+        &self.last_op
+    }
+
+    /// The one-line message for the page (empty: none).
+    pub fn message(&self) -> &str {
+        &self.message
+    }
+
+    /// Replaces the one-line message.
+    pub fn set_message(&mut self, line: String) {
+        self.message = line;
+    }
+
+    /// The picture, 320x240 RGBA.
+    pub fn screen_rgba(&self) -> &[u8] {
+        &self.screen
+    }
+
+    /// The inspector panel, RGBA, [`PANEL_WIDTH`] x [`INSPECTOR_HEIGHT`];
+    /// empty while it is hidden.
+    pub fn panel_rgba(&self) -> &[u8] {
+        &self.panel
+    }
+
+    /// The slow-motion panel, RGBA, `slow::PANEL_WIDTH` x
+    /// `slow::PANEL_HEIGHT`; empty before the first step.
+    pub fn ops_rgba(&self) -> &[u8] {
+        &self.ops_panel
+    }
+
+    /// The run so far as an animated GIF, made as `sim --record` makes one:
+    /// the same keys at the same frames fed to a new machine, one image in
+    /// [`GIF_EVERY`] frames, the first [`GIF_MAX_FRAMES`] frames at most.
+    pub fn gif(&self) -> Result<Vec<u8>, RecordError> {
+        let frames = self.frames.min(GIF_MAX_FRAMES);
+        let mut fed = self.fed.iter().peekable();
+        let mut out = Vec::new();
+        record_gif_with(
+            frames,
+            GIF_EVERY,
+            |machine, frame| {
+                while let Some((_, bytes)) = fed.next_if(|(at, _)| *at == frame) {
+                    machine.feed(bytes);
+                }
+            },
+            &mut out,
+        )?;
+        Ok(out)
+    }
+
+    /// Draws the picture and the panels from the VGA shown.
+    fn render(&mut self) {
+        let vga = match &self.slow {
+            Some(slow) => slow.vga(),
+            None => self.machine.vga(),
+        };
+        if vga.picture_size() == (PICTURE_WIDTH, PICTURE_HEIGHT) {
+            scanout_rgba(vga, &mut self.indices, &mut self.screen);
+        }
+        // Any other picture (the goodbye screen's text mode) is not shown:
+        // the last Mode X picture stays.
+        self.panel = if self.inspector {
+            let panel = draw_panel(vga, &self.history, INSPECTOR_HEIGHT);
+            rgba_of(&panel.pixels)
+        } else {
+            Vec::new()
+        };
+        if let Some(slow) = &self.slow {
+            self.ops_panel = slow.draw_panel();
+        }
+    }
+}
+
+/// The picture as RGBA, exactly as `SoftVga::scanout_rgb` gives it (the
+/// DAC's colours widened to 8 bits through the pixel mask, black while video
+/// is off), through `indices` (the picture's DAC indices, kept between
+/// frames) and one table of 256 colours rather than a pass per pixel
+/// through the DAC.
+fn scanout_rgba(vga: &SoftVga, indices: &mut [u8], rgba: &mut [u8]) {
+    vga.scanout_indices(indices);
+    let enabled = vga.video_enabled();
+    let mask = vga.dac_pixel_mask();
+    let table: Vec<[u8; 4]> = (0..=255u8)
+        .map(|index| {
+            let [r, g, b] = vga.dac_entry(index & mask).map(dac_6_to_8);
+            if enabled {
+                [r, g, b, 255]
+            } else {
+                [0, 0, 0, 255]
+            }
+        })
+        .collect();
+    for (pixel, &index) in rgba.as_chunks_mut::<4>().0.iter_mut().zip(indices.iter()) {
+        *pixel = table[usize::from(index)];
+    }
+}
+
+/// `0RGB` pixels as RGBA bytes.
+pub fn rgba_of(pixels: &[u32]) -> Vec<u8> {
+    pixels
+        .iter()
+        .flat_map(|&pixel| {
+            let [_, r, g, b] = pixel.to_be_bytes();
+            [r, g, b, 255]
+        })
+        .collect()
+}
+
+/// The panel's width, for the exports.
+pub const INSPECTOR_WIDTH: usize = PANEL_WIDTH;
+/// The slow-motion panel's size, for the exports.
+pub const OPS_SIZE: (usize, usize) = (slow::PANEL_WIDTH, slow::PANEL_HEIGHT);
+
+#[cfg(test)]
+mod tests;
