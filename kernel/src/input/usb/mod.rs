@@ -12,6 +12,7 @@
 //! first, the EHCIs last (their CONFIGFLAG cleared hands every port back).
 
 mod hardware;
+mod legacy;
 mod xhci;
 
 use crate::{dma, facts, input::ps2, pci, serial_println, time};
@@ -19,6 +20,7 @@ use bootloader_api::info::MemoryRegions;
 use core::fmt::{self, Write};
 use core::sync::atomic::{AtomicU64, Ordering};
 use hardware::{Reads, Registers, Window};
+use legacy::Legacy;
 use protocol::line::{self, UsbKeyboards};
 use spin::Mutex;
 use usb::bus::Bus;
@@ -58,19 +60,11 @@ const LOCATION_BYTES: usize = 24;
 enum Controller {
     Absent,
     Xhci(Xhci<Registers>),
-    Ehci(Bus<Ehci<Registers>>),
-    Ohci(Bus<Ohci<Registers>>),
-    Uhci(Bus<Uhci<Registers>>),
+    /// An EHCI, OHCI or UHCI under the device layer.
+    Legacy(Bus<Legacy>),
     /// Taken from the firmware, not started yet (the device layer is
     /// made once the driver knows its ports).
     Taken(Legacy),
-}
-
-/// An EHCI, OHCI or UHCI driver before its start.
-enum Legacy {
-    Ehci(Ehci<Registers>),
-    Ohci(Ohci<Registers>),
-    Uhci(Uhci<Registers>),
 }
 
 /// What the kernel needs of a driven controller, whichever its kind.
@@ -123,37 +117,29 @@ impl Driven for Xhci<Registers> {
 }
 
 /// The device layer over an EHCI, OHCI or UHCI driver.
-macro_rules! driven_bus {
-    ($driver:ident) => {
-        impl Driven for Bus<$driver<Registers>> {
-            #[inline]
-            fn poll(&mut self, out: &mut impl FnMut(u8)) {
-                Bus::poll(self, out)
-            }
-            #[inline]
-            fn enumeration_idle(&self) -> bool {
-                Bus::enumeration_idle(self)
-            }
-            fn keyboards(&self, mut each: impl FnMut(Text)) {
-                Bus::keyboards(self).for_each(|location| each(Text::of(location)))
-            }
-            fn registers(&mut self) -> &mut Registers {
-                self.controller().hardware()
-            }
-            fn halt(&mut self) -> Result<&'static str, HaltProblem> {
-                if self.shut_down() {
-                    Ok("")
-                } else {
-                    Err(HaltProblem::Legacy)
-                }
-            }
+impl Driven for Bus<Legacy> {
+    #[inline]
+    fn poll(&mut self, out: &mut impl FnMut(u8)) {
+        Bus::poll(self, out)
+    }
+    #[inline]
+    fn enumeration_idle(&self) -> bool {
+        Bus::enumeration_idle(self)
+    }
+    fn keyboards(&self, mut each: impl FnMut(Text)) {
+        Bus::keyboards(self).for_each(|location| each(Text::of(location)))
+    }
+    fn registers(&mut self) -> &mut Registers {
+        self.controller().hardware()
+    }
+    fn halt(&mut self) -> Result<&'static str, HaltProblem> {
+        if self.shut_down() {
+            Ok("")
+        } else {
+            Err(HaltProblem::Legacy)
         }
-    };
+    }
 }
-
-driven_bus!(Ehci);
-driven_bus!(Ohci);
-driven_bus!(Uhci);
 
 /// Runs `$body` with `$driver` bound to the controller in `$place`, of
 /// whichever kind; `None` for an empty place.
@@ -162,9 +148,7 @@ macro_rules! with_driven {
         match $place {
             Controller::Absent | Controller::Taken(_) => None,
             Controller::Xhci($driver) => Some($body),
-            Controller::Ehci($driver) => Some($body),
-            Controller::Ohci($driver) => Some($body),
-            Controller::Uhci($driver) => Some($body),
+            Controller::Legacy($driver) => Some($body),
         }
     };
 }
@@ -174,12 +158,8 @@ impl Controller {
         match self {
             Controller::Absent => None,
             Controller::Xhci(_) => Some(ControllerKind::Xhci),
-            Controller::Ehci(_) => Some(ControllerKind::Ehci),
-            Controller::Ohci(_) => Some(ControllerKind::Ohci),
-            Controller::Uhci(_) => Some(ControllerKind::Uhci),
-            Controller::Taken(Legacy::Ehci(_)) => Some(ControllerKind::Ehci),
-            Controller::Taken(Legacy::Ohci(_)) => Some(ControllerKind::Ohci),
-            Controller::Taken(Legacy::Uhci(_)) => Some(ControllerKind::Uhci),
+            Controller::Legacy(bus) => Some(bus.kind()),
+            Controller::Taken(legacy) => Some(legacy.kind()),
         }
     }
 }
@@ -470,9 +450,7 @@ fn take_from_firmware(
 ) -> Option<Controller> {
     let name = label(kind);
     let handoff = match &mut controller {
-        Controller::Absent | Controller::Ehci(_) | Controller::Ohci(_) | Controller::Uhci(_) => {
-            return None
-        }
+        Controller::Absent | Controller::Legacy(_) => return None,
         Controller::Xhci(xhci) => {
             let capabilities = xhci.capabilities();
             serial_println!(
@@ -498,9 +476,7 @@ fn take_from_firmware(
                 }
             };
         }
-        Controller::Taken(Legacy::Ehci(ehci)) => ehci.take_ownership(),
-        Controller::Taken(Legacy::Ohci(ohci)) => ohci.take_ownership(),
-        Controller::Taken(Legacy::Uhci(uhci)) => uhci.take_ownership(),
+        Controller::Taken(legacy) => legacy.take_ownership(),
     };
     match handoff {
         Handoff::NotOwned => {
@@ -608,59 +584,40 @@ trait Start {
 /// Resets and starts an EHCI, OHCI or UHCI taken from the firmware, and
 /// puts the device layer over it; `Absent` (logged, and halted again) if
 /// it would not start.
-fn start_legacy(legacy: Legacy) -> Controller {
-    /// The start of one kind of driver.
-    macro_rules! start {
-        ($driver:ident, $variant:ident) => {{
-            let mut driver = $driver;
-            match driver.reset_and_start() {
-                Ok(()) => Controller::$variant(Bus::new(driver)),
-                Err(problem) => {
-                    let function = driver.hardware().function;
-                    serial_println!(
-                        "usb: {} {}: {}; USB keyboards on it not used",
-                        label(driver.kind()),
-                        function,
-                        problem
-                    );
-                    // Whatever the reset left running is stopped.
-                    driver.halt();
-                    Controller::Absent
-                }
-            }
-        }};
-    }
-    match legacy {
-        Legacy::Ehci(ehci) => start!(ehci, Ehci),
-        Legacy::Ohci(ohci) => start!(ohci, Ohci),
-        Legacy::Uhci(uhci) => start!(uhci, Uhci),
-    }
-}
-
-macro_rules! start_bus {
-    ($driver:ident) => {
-        impl Start for Bus<$driver<Registers>> {
-            fn start(&mut self) -> bool {
-                // Boot enumeration: bounded by the device layer, then it
-                // carries on from the frame loop's polls.
-                if self.enumerate() == 0 {
-                    let function = self.controller().hardware().function;
-                    let kind = self.controller().kind();
-                    serial_println!(
-                        "usb: no USB keyboard on the {} {} at boot; its ports stay watched",
-                        label(kind),
-                        function
-                    );
-                }
-                true
-            }
+fn start_legacy(mut legacy: Legacy) -> Controller {
+    match legacy.reset_and_start() {
+        Ok(()) => Controller::Legacy(Bus::new(legacy)),
+        Err(problem) => {
+            let function = legacy.hardware().function;
+            serial_println!(
+                "usb: {} {}: {}; USB keyboards on it not used",
+                label(legacy.kind()),
+                function,
+                problem
+            );
+            // Whatever the reset left running is stopped.
+            legacy.halt();
+            Controller::Absent
         }
-    };
+    }
 }
 
-start_bus!(Ehci);
-start_bus!(Ohci);
-start_bus!(Uhci);
+impl Start for Bus<Legacy> {
+    fn start(&mut self) -> bool {
+        // Boot enumeration: bounded by the device layer, then it carries on
+        // from the frame loop's polls.
+        if self.enumerate() == 0 {
+            let function = self.controller().hardware().function;
+            let kind = self.kind();
+            serial_println!(
+                "usb: no USB keyboard on the {} {} at boot; its ports stay watched",
+                label(kind),
+                function
+            );
+        }
+        true
+    }
+}
 
 /// Says a keyboard's controller and location (`usb: keyboard on ...`).
 fn say_keyboard(kind: ControllerKind, function: pci::Function, location: &Text) {

@@ -1,0 +1,196 @@
+//! The EHCI, OHCI and UHCI drivers as one type, [`Legacy`], under one
+//! device layer (`Bus<Legacy>`): the device layer is generic over its
+//! controller, and one copy of its code for the three kinds instead of
+//! three keeps the kernel file inside its budget (`tests/size.rs`). Each
+//! call is passed to the driver inside; the match costs a compare.
+
+use super::hardware::Registers;
+use core::fmt;
+use usb::ehci::Ehci;
+use usb::host::{
+    ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
+    ResetOutcome, Setup, Transfer,
+};
+use usb::ohci::Ohci;
+use usb::uhci::Uhci;
+
+/// An EHCI, OHCI or UHCI driver.
+pub enum Legacy {
+    Ehci(Ehci<Registers>),
+    Ohci(Ohci<Registers>),
+    Uhci(Uhci<Registers>),
+}
+
+/// Runs `$body` with `$driver` bound to the driver inside `$legacy`.
+macro_rules! each {
+    ($legacy:expr, |$driver:ident| $body:expr) => {
+        match $legacy {
+            Legacy::Ehci($driver) => $body,
+            Legacy::Ohci($driver) => $body,
+            Legacy::Uhci($driver) => $body,
+        }
+    };
+}
+
+/// Why a driver would not start, whichever it is.
+pub struct StartProblem(StartError);
+
+enum StartError {
+    Ehci(usb::ehci::EhciError),
+    Ohci(usb::ohci::OhciError),
+    Uhci(usb::uhci::UhciError),
+}
+
+impl fmt::Display for StartProblem {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.0 {
+            StartError::Ehci(problem) => write!(f, "{problem}"),
+            StartError::Ohci(problem) => write!(f, "{problem}"),
+            StartError::Uhci(problem) => write!(f, "{problem}"),
+        }
+    }
+}
+
+impl Legacy {
+    /// Takes the controller from the firmware (bounded).
+    pub fn take_ownership(&mut self) -> Handoff {
+        each!(self, |driver| driver.take_ownership())
+    }
+
+    /// Resets and starts the controller (bounded waits).
+    pub fn reset_and_start(&mut self) -> Result<(), StartProblem> {
+        match self {
+            Legacy::Ehci(ehci) => ehci
+                .reset_and_start()
+                .map_err(|e| StartProblem(StartError::Ehci(e))),
+            Legacy::Ohci(ohci) => ohci
+                .reset_and_start()
+                .map_err(|e| StartProblem(StartError::Ohci(e))),
+            Legacy::Uhci(uhci) => uhci
+                .reset_and_start()
+                .map_err(|e| StartProblem(StartError::Uhci(e))),
+        }
+    }
+
+    /// The registers the driver runs on.
+    pub fn hardware(&mut self) -> &mut Registers {
+        each!(self, |driver| driver.hardware())
+    }
+}
+
+impl HostController for Legacy {
+    fn kind(&self) -> ControllerKind {
+        each!(self, |driver| driver.kind())
+    }
+
+    fn now_micros(&mut self) -> u64 {
+        each!(self, |driver| driver.now_micros())
+    }
+
+    fn log(&mut self, message: fmt::Arguments<'_>) {
+        each!(self, |driver| driver.log(message))
+    }
+
+    fn root_ports(&self) -> u8 {
+        each!(self, |driver| driver.root_ports())
+    }
+
+    fn port_status(&mut self, port: u8) -> PortStatus {
+        each!(self, |driver| driver.port_status(port))
+    }
+
+    fn clear_port_change(&mut self, port: u8) {
+        each!(self, |driver| driver.clear_port_change(port))
+    }
+
+    fn port_reset_begin(&mut self, port: u8) {
+        each!(self, |driver| driver.port_reset_begin(port))
+    }
+
+    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
+        each!(self, |driver| driver.port_reset_end(port))
+    }
+
+    fn port_disable(&mut self, port: u8) {
+        each!(self, |driver| driver.port_disable(port))
+    }
+
+    fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError> {
+        each!(self, |driver| driver.device_new(info))
+    }
+
+    fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
+        each!(self, |driver| driver.device_set_address(device, address))
+    }
+
+    fn device_set_max_packet(
+        &mut self,
+        device: DeviceId,
+        max_packet: u16,
+    ) -> Result<(), HostError> {
+        each!(self, |driver| driver
+            .device_set_max_packet(device, max_packet))
+    }
+
+    fn device_is_hub(
+        &mut self,
+        device: DeviceId,
+        ports: u8,
+        multi_tt: bool,
+    ) -> Result<(), HostError> {
+        each!(self, |driver| driver.device_is_hub(device, ports, multi_tt))
+    }
+
+    fn device_remove(&mut self, device: DeviceId) {
+        each!(self, |driver| driver.device_remove(device))
+    }
+
+    fn control_begin(
+        &mut self,
+        device: DeviceId,
+        setup: Setup,
+        out: &[u8],
+    ) -> Result<(), HostError> {
+        each!(self, |driver| driver.control_begin(device, setup, out))
+    }
+
+    fn control_poll(&mut self, device: DeviceId, into: &mut [u8]) -> Transfer {
+        each!(self, |driver| driver.control_poll(device, into))
+    }
+
+    fn control_cancel(&mut self, device: DeviceId) {
+        each!(self, |driver| driver.control_cancel(device))
+    }
+
+    fn interrupt_open(
+        &mut self,
+        device: DeviceId,
+        endpoint: u8,
+        max_packet: u16,
+        interval: u8,
+    ) -> Result<PipeId, HostError> {
+        each!(self, |driver| driver
+            .interrupt_open(device, endpoint, max_packet, interval))
+    }
+
+    fn interrupt_poll(&mut self, pipe: PipeId, into: &mut [u8]) -> Transfer {
+        each!(self, |driver| driver.interrupt_poll(pipe, into))
+    }
+
+    fn interrupt_restart(&mut self, pipe: PipeId, reset_toggle: bool) -> Result<(), HostError> {
+        each!(self, |driver| driver.interrupt_restart(pipe, reset_toggle))
+    }
+
+    fn interrupt_close(&mut self, pipe: PipeId) {
+        each!(self, |driver| driver.interrupt_close(pipe))
+    }
+
+    #[inline]
+    fn anything_happened(&mut self) -> bool {
+        each!(self, |driver| driver.anything_happened())
+    }
+
+    fn halt(&mut self) -> bool {
+        each!(self, |driver| driver.halt())
+    }
+}
