@@ -16,11 +16,18 @@
 //! | `modex-cube.img`        | 3,150,336          | 3,109,376 |
 //!
 //! (before: kernel file 5,397,624 bytes with 1,501,464 of `.data`, image 9.4 MB.)
+//!
+//! The kernel file's budget went from 600 to 800 KiB when the kernel took
+//! on EHCI, OHCI and UHCI beside xHCI: the test profile's kernel file was
+//! 851,984 bytes with the device layer built once per driver, and is
+//! 767,632 with one device layer over all three (`kernel/src/input/usb/legacy.rs`).
+//! A BIOS boot reads it in 64-sector transfers, so 150 KB more is a few
+//! more reads.
 
 use std::path::Path;
 
-/// The kernel file's budget, in bytes: 600 KiB.
-const KERNEL_FILE_BUDGET: u64 = 600 * 1024;
+/// The kernel file's budget, in bytes: 800 KiB.
+const KERNEL_FILE_BUDGET: u64 = 800 * 1024;
 /// Initialised data in the kernel file: a large static that is zero at boot
 /// belongs in `.bss`, one built at boot is built in place.
 const KERNEL_DATA_BUDGET: u64 = 32 * 1024;

@@ -35,13 +35,17 @@ pub use layout::{DMA_BYTES_USED, MAX_DEVICES, MAX_PIPES};
 
 /// How long the firmware gets to let go (Linux's ehci_bios_handoff: 1 s).
 pub const HANDOFF_MICROS: u64 = 1_000_000;
-/// How long halting may take: the spec says 16 micro-frames (2 ms).
-const HALT_MICROS: u64 = 20_000;
+/// How long halting may take: the spec says 16 micro-frames (2 ms), but an
+/// emulated controller runs its micro-frames on a host timer that a busy
+/// host runs late (QEMU under load took over 20 ms). The wait ends as soon
+/// as HCHalted reads 1; only a controller that never halts costs it all.
+const HALT_MICROS: u64 = 250_000;
 /// How long HCRESET may take (Linux's ehci_reset: 250 ms).
 const RESET_MICROS: u64 = 250_000;
 /// How long the controller may take to start running and to start both
 /// schedules after it is told to.
-const START_MICROS: u64 = 20_000;
+/// (Bounded as generously as a halt, for the same reason.)
+const START_MICROS: u64 = 250_000;
 /// How long a port may take to end its reset after PR is written 0: the
 /// spec says 2 ms.
 const PORT_RESET_END_MICROS: u64 = 5_000;
