@@ -1064,6 +1064,175 @@ fn the_runner_chapter_lists_every_key_name() {
     assert_eq!(listed, table);
 }
 
+// The book as a whole: its lists and tables against what they describe.
+
+/// The book's documents, as `(path, text)`: README.md and docs/*.md
+/// (CHANGELOG.md is history: its figures and lines are of their day).
+fn book() -> Vec<(String, String)> {
+    documents()
+        .into_iter()
+        .filter(|path| path != Path::new("CHANGELOG.md"))
+        .map(|path| {
+            let text = std::fs::read_to_string(repository().join(&path)).unwrap();
+            (path.display().to_string(), text)
+        })
+        .collect()
+}
+
+fn read(file: &str) -> String {
+    std::fs::read_to_string(repository().join(file)).unwrap_or_else(|e| panic!("{file}: {e}"))
+}
+
+/// The part of a Markdown text under the heading `heading` (the whole line,
+/// as `## Options`), up to the next heading of the same level or higher.
+fn section<'a>(text: &'a str, heading: &str) -> Option<&'a str> {
+    let level = heading.chars().take_while(|&c| c == '#').count();
+    let start = text.find(&format!("{heading}\n"))? + heading.len() + 1;
+    let rest = &text[start..];
+    let end = rest
+        .match_indices('\n')
+        .map(|(at, _)| at + 1)
+        .find(|&at| {
+            let hashes = rest[at..].chars().take_while(|&c| c == '#').count();
+            (1..=level).contains(&hashes) && rest[at + hashes..].starts_with(' ')
+        })
+        .unwrap_or(rest.len());
+    Some(&rest[..end])
+}
+
+/// The backticked spans of a table's rows (`|` lines), by row and column.
+fn table_cells(text: &str) -> Vec<Vec<Vec<String>>> {
+    text.lines()
+        .filter(|line| line.trim_start().starts_with('|') && !line.contains("|---"))
+        .map(|line| {
+            // `\|` inside a cell is a literal bar.
+            let line = line.replace("\\|", "\u{1}");
+            line.trim()
+                .trim_matches('|')
+                .split('|')
+                .map(|cell| {
+                    code_spans(&[cell.replace('\u{1}', "|")])
+                        .into_iter()
+                        .map(|(_, span)| span)
+                        .collect()
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The values a runner option takes, as its own error for a bad value
+/// lists them ("one of: a, b" or clap's "[possible values: a, b]").
+fn runner_values(option: &str) -> Option<BTreeSet<String>> {
+    let output = Command::new(env!("CARGO_BIN_EXE_modex-cube"))
+        .args([option, "not-a-value"])
+        .output()
+        .expect("the runner starts");
+    assert!(!output.status.success(), "{option} not-a-value was taken");
+    values_in_usage_error(&String::from_utf8_lossy(&output.stderr))
+}
+
+fn values_in_usage_error(error: &str) -> Option<BTreeSet<String>> {
+    let list = ["one of: ", "[possible values: "]
+        .iter()
+        .find_map(|marker| error.split(marker).nth(1))?;
+    let list = list.split(['\n', ']']).next().unwrap();
+    Some(
+        list.split(',')
+            .map(|value| value.trim().trim_start_matches("or ").trim().to_string())
+            .filter(|value| !value.is_empty())
+            .collect(),
+    )
+}
+
+/// Problems with `docs/runner.md`'s table of options: a row for every
+/// option of the runner's `--help` (but `--help` and `--version`), none for
+/// an option it lacks, and every `--option a|b|c` giving exactly the values
+/// the runner takes.
+fn check_runner_table(
+    chapter: &str,
+    options: &BTreeSet<String>,
+    values_of: &dyn Fn(&str) -> Option<BTreeSet<String>>,
+) -> Vec<String> {
+    let Some(table) = section(chapter, "## Options") else {
+        return vec!["docs/runner.md has no \"## Options\" section".into()];
+    };
+    let mut problems = Vec::new();
+    let mut listed = BTreeSet::new();
+    for row in table_cells(table) {
+        for span in row.first().into_iter().flatten() {
+            let words: Vec<&str> = span.split_whitespace().collect();
+            for (index, word) in words.iter().enumerate() {
+                if !word.starts_with("--") {
+                    continue;
+                }
+                listed.insert(word.to_string());
+                let Some(values) = words.get(index + 1).filter(|w| w.contains('|')) else {
+                    continue;
+                };
+                let documented: BTreeSet<String> = values.split('|').map(String::from).collect();
+                match values_of(word) {
+                    Some(taken) if taken == documented => {}
+                    Some(taken) => problems.push(format!(
+                        "docs/runner.md: `{word} {values}`, but the runner takes {}",
+                        taken.into_iter().collect::<Vec<_>>().join("|")
+                    )),
+                    None => problems.push(format!(
+                        "docs/runner.md: `{word} {values}`: the runner's error for a bad value lists none"
+                    )),
+                }
+            }
+        }
+    }
+    for option in options {
+        if !listed.contains(option) && option != "--help" && option != "--version" {
+            problems.push(format!(
+                "docs/runner.md's options table has no row for {option}"
+            ));
+        }
+    }
+    for option in &listed {
+        if !options.contains(option) {
+            problems.push(format!(
+                "docs/runner.md's options table lists {option}, which the runner lacks"
+            ));
+        }
+    }
+    problems
+}
+
+#[test]
+fn the_runner_chapter_lists_every_option_and_its_values() {
+    let problems = check_runner_table(&read("docs/runner.md"), &runner_options(), &runner_values);
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn a_runner_option_left_out_or_a_value_list_cut_short_is_caught() {
+    let options = runner_options();
+    let mut made_up = String::from("## Options\n\n| option | what |\n|---|---|\n");
+    for option in &options {
+        let row = match option.as_str() {
+            "--usb-keyboard" | "--help" | "--version" => continue,
+            "--usb-stick" => "`--usb-stick xhci\\|ehci`".to_string(),
+            other => format!("`{other}`"),
+        };
+        made_up.push_str(&format!("| {row} | it |\n"));
+    }
+    made_up.push_str("| `--no-such-option` | none |\n");
+    let problems = check_runner_table(&made_up, &options, &runner_values);
+    assert_eq!(problems.len(), 3, "{problems:?}");
+    assert!(
+        problems[0].contains("ehci|ich9|ohci|uhci|xhci"),
+        "{problems:?}"
+    );
+    assert!(
+        problems[1].contains("no row for --usb-keyboard"),
+        "{problems:?}"
+    );
+    assert!(problems[2].contains("--no-such-option"), "{problems:?}");
+}
+
 // The checks can fail: each broken document below is caught.
 
 fn problems_in(text: &str) -> Vec<String> {
