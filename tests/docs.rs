@@ -1233,6 +1233,52 @@ fn a_runner_option_left_out_or_a_value_list_cut_short_is_caught() {
     assert!(problems[2].contains("--no-such-option"), "{problems:?}");
 }
 
+/// The workspace's members, from the root `Cargo.toml`.
+fn workspace_members(manifest: &str) -> Vec<String> {
+    let list = manifest
+        .split("\nmembers = [")
+        .nth(1)
+        .and_then(|rest| rest.split(']').next())
+        .expect("Cargo.toml lists the workspace's members");
+    list.split(',')
+        .map(|member| member.trim().trim_matches('"').to_string())
+        .filter(|member| !member.is_empty())
+        .collect()
+}
+
+/// Problems with `docs/architecture.md`'s crate table: every workspace
+/// member must be in it, as `member/`.
+fn check_crate_table(chapter: &str, members: &[String]) -> Vec<String> {
+    let Some(table) = section(chapter, "## The crates") else {
+        return vec!["docs/architecture.md has no \"## The crates\" section".into()];
+    };
+    let named: BTreeSet<String> = table_cells(table).into_iter().flatten().flatten().collect();
+    members
+        .iter()
+        .filter(|member| !named.contains(&format!("{member}/")))
+        .map(|member| format!("docs/architecture.md's crate table leaves out `{member}/`"))
+        .collect()
+}
+
+#[test]
+fn the_architecture_chapter_lists_every_crate() {
+    let members = workspace_members(&read("Cargo.toml"));
+    assert!(members.len() > 10, "{members:?}");
+    let problems = check_crate_table(&read("docs/architecture.md"), &members);
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn a_crate_left_out_of_the_architecture_chapter_is_caught() {
+    let members = workspace_members("[workspace]\nmembers = [\n    \"modex\",\n    \"web\",\n]\n");
+    assert_eq!(members, ["modex", "web"]);
+    let made_up = "## The crates\n\n| crate | holds |\n|---|---|\n| `modex/` | the driver |\n\n## Next\n\n`web/`\n";
+    assert_eq!(
+        check_crate_table(made_up, &members),
+        ["docs/architecture.md's crate table leaves out `web/`"]
+    );
+}
+
 // The checks can fail: each broken document below is caught.
 
 fn problems_in(text: &str) -> Vec<String> {
