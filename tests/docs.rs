@@ -1279,6 +1279,211 @@ fn a_crate_left_out_of_the_architecture_chapter_is_caught() {
     );
 }
 
+/// Problems with `docs/testing.md`'s table of what each test proves: a row
+/// for every `tests/*.rs`.
+fn check_test_table(chapter: &str, files: &[String]) -> Vec<String> {
+    let Some(table) = section(chapter, "## What each test proves") else {
+        return vec!["docs/testing.md has no \"## What each test proves\" section".into()];
+    };
+    let rows: BTreeSet<String> = table_cells(table)
+        .into_iter()
+        .filter_map(|row| row.into_iter().next())
+        .flatten()
+        .collect();
+    files
+        .iter()
+        .filter(|file| !rows.contains(*file))
+        .map(|file| format!("docs/testing.md's table has no row for tests/{file}"))
+        .collect()
+}
+
+/// The test files of the root package: `tests/*.rs`.
+fn test_files() -> Vec<String> {
+    let mut files: Vec<String> = std::fs::read_dir(repository().join("tests"))
+        .unwrap()
+        .map(|entry| entry.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|name| name.ends_with(".rs"))
+        .collect();
+    files.sort();
+    files
+}
+
+#[test]
+fn the_testing_chapter_has_a_row_for_every_test_file() {
+    let files = test_files();
+    assert!(files.contains(&"docs.rs".to_string()), "{files:?}");
+    let problems = check_test_table(&read("docs/testing.md"), &files);
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn a_test_file_without_a_row_is_caught() {
+    let made_up =
+        "## What each test proves\n\n| file | proves |\n|---|---|\n| `boot.rs` | boots |\n";
+    let files = ["boot.rs".to_string(), "usb_hosts.rs".to_string()];
+    assert_eq!(
+        check_test_table(made_up, &files),
+        ["docs/testing.md's table has no row for tests/usb_hosts.rs"]
+    );
+}
+
+/// A paragraph of prose with the line it starts on; a table is one
+/// paragraph with the paragraph that introduces it.
+fn paragraphs(prose: &[String]) -> Vec<(usize, String)> {
+    let mut paragraphs: Vec<(usize, String)> = Vec::new();
+    let mut current: Option<(usize, String)> = None;
+    let mut previous_was_table = false;
+    for (number, line) in prose.iter().enumerate() {
+        if line.trim().is_empty() {
+            if let Some(paragraph) = current.take() {
+                paragraphs.push(paragraph);
+            }
+            continue;
+        }
+        let is_table = line.trim_start().starts_with('|');
+        match current.as_mut() {
+            Some((_, text)) => {
+                text.push('\n');
+                text.push_str(line);
+            }
+            None if is_table && !previous_was_table && !paragraphs.is_empty() => {
+                // The table joins the paragraph before it.
+                let (start, mut text) = paragraphs.pop().unwrap();
+                text.push('\n');
+                text.push_str(line);
+                current = Some((start, text));
+            }
+            None => current = Some((number + 1, line.clone())),
+        }
+        previous_was_table = is_table;
+    }
+    paragraphs.extend(current);
+    paragraphs
+}
+
+/// The figures of a paragraph that count tests or time them: "33 tests",
+/// or a duration ("351 s", "2.5 min") in a sentence (or a table's row)
+/// about tests. A duration that quotes a constant ("5 s
+/// (`TRANSFER_MICROS`)") is the constant check's.
+fn test_figures(paragraph: &str) -> Vec<String> {
+    let mut sentences = Vec::new();
+    let mut header: Option<&str> = None;
+    for line in paragraph.lines() {
+        if line.trim_start().starts_with('|') {
+            // A row is read with its table's header ("| test | time |").
+            let header = *header.get_or_insert(line);
+            sentences.push(format!("{header}\n{line}"));
+        } else {
+            header = None;
+            match sentences.last_mut() {
+                Some(last) if !last.trim_start().starts_with('|') => {
+                    last.push('\n');
+                    last.push_str(line);
+                }
+                _ => sentences.push(line.to_string()),
+            }
+        }
+    }
+    sentences
+        .iter()
+        .flat_map(|text| {
+            text.split(". ")
+                .flat_map(|s| s.split(".\n"))
+                .map(test_figures_of_sentence)
+                .collect::<Vec<_>>()
+        })
+        .flatten()
+        .collect()
+}
+
+fn test_figures_of_sentence(sentence: &str) -> Vec<String> {
+    let words: Vec<&str> = sentence.split_whitespace().collect();
+    let about_tests = words.iter().any(|word| {
+        let word = word
+            .trim_matches(|c: char| !c.is_alphanumeric())
+            .to_lowercase();
+        word == "test" || word == "tests" || word == "suite"
+    });
+    let mut figures = Vec::new();
+    for (index, pair) in words.windows(2).enumerate() {
+        let number = pair[0].trim_start_matches(['(', '~', '|']);
+        if !number.starts_with(|c: char| c.is_ascii_digit())
+            || !number
+                .trim_end_matches(['%'])
+                .chars()
+                .all(|c| c.is_ascii_digit() || c == ',' || c == '.' || c == '-')
+        {
+            continue;
+        }
+        let unit = pair[1].trim_end_matches([',', '.', ';', ':', ')']);
+        let quotes_constant = words
+            .get(index + 2)
+            .is_some_and(|next| next.starts_with("(`"));
+        let is_count = unit == "tests" || unit == "test";
+        let is_time = ["s", "ms", "min", "minutes", "seconds", "hours"].contains(&unit);
+        if is_count || (is_time && about_tests && !quotes_constant) {
+            figures.push(format!("{number} {unit}"));
+        }
+    }
+    figures
+}
+
+/// Does the paragraph give a command to run: a backticked `cargo ...`,
+/// `bash ...`, `target/release/modex-cube ...` or `node ...`?
+fn has_command(paragraph: &str) -> bool {
+    let lines: Vec<String> = paragraph.lines().map(String::from).collect();
+    code_spans(&lines).iter().any(|(_, span)| {
+        ["cargo ", "bash ", "target/release/modex-cube ", "node "]
+            .iter()
+            .any(|program| span.trim_start().starts_with(program))
+    })
+}
+
+/// Problems with the test counts and times of a document: each must have,
+/// in its paragraph (or its table's), the command that measures it.
+fn check_test_figures(name: &str, text: &str) -> Vec<String> {
+    let (_, prose) = split_fences(text);
+    paragraphs(&prose)
+        .into_iter()
+        .filter(|(_, paragraph)| !has_command(paragraph))
+        .flat_map(|(line, paragraph)| {
+            test_figures(&paragraph).into_iter().map(move |figure| {
+                format!(
+                    "{name}:{line}: \"{figure}\" of tests, but no command beside it measures it"
+                )
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn every_test_count_and_time_has_its_command() {
+    let problems: Vec<String> = book()
+        .iter()
+        .flat_map(|(name, text)| check_test_figures(name, text))
+        .collect();
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn a_test_time_without_its_command_is_caught() {
+    let made_up = "The suite passed: 707 tests in 1,024 s.\n\n\
+                   The tests give up after 5 s (`TRANSFER_MICROS`); a test takes 3 ms.\n\
+                   A frame takes 2 ms.\n\n\
+                   Its 8 tests take 6 s (`cargo test --test web_page`).\n\n\
+                   Measured once:\n\n| test | time |\n|---|---|\n| `clock.rs` | 74 s |\n";
+    let problems = check_test_figures("docs/made-up.md", made_up);
+    assert_eq!(
+        problems,
+        [
+            "docs/made-up.md:1: \"707 tests\" of tests, but no command beside it measures it",
+            "docs/made-up.md:1: \"1,024 s\" of tests, but no command beside it measures it",
+            "docs/made-up.md:3: \"3 ms\" of tests, but no command beside it measures it",
+            "docs/made-up.md:8: \"74 s\" of tests, but no command beside it measures it",
+        ]
+    );
+}
+
 // The checks can fail: each broken document below is caught.
 
 fn problems_in(text: &str) -> Vec<String> {
