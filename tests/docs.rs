@@ -1327,6 +1327,90 @@ fn a_test_file_without_a_row_is_caught() {
     );
 }
 
+/// What `boot/setup.sh` installs: the Debian packages it adds to
+/// `missing`, the ones it downloads, what pip installs, and the components
+/// and targets `rust-toolchain.toml` names (which rustup installs).
+fn setup_installs(script: &str, toolchain: &str) -> BTreeSet<String> {
+    let mut installs = BTreeSet::new();
+    for line in script
+        .lines()
+        .filter(|line| !line.trim_start().starts_with('#'))
+    {
+        for part in line.split("missing+=(").skip(1) {
+            installs.insert(part.split(')').next().unwrap().to_string());
+        }
+        for marker in ["apt-get download -q ", "pip\" install -q "] {
+            if let Some(rest) = line.split(marker).nth(1) {
+                let names = rest.split([')', '>', '&', '|']).next().unwrap();
+                installs.extend(names.split_whitespace().map(String::from));
+            }
+        }
+    }
+    for key in ["components", "targets"] {
+        let list = toolchain
+            .lines()
+            .find_map(|line| line.strip_prefix(&format!("{key} = [")))
+            .unwrap_or_else(|| panic!("rust-toolchain.toml has no {key}"));
+        installs.extend(
+            list.trim_end_matches(']')
+                .split(',')
+                .map(|name| name.trim().trim_matches('"').to_string())
+                .filter(|name| !name.is_empty()),
+        );
+    }
+    installs
+}
+
+/// Problems with `docs/building.md`'s list of what `boot/setup.sh`
+/// installs: each thing must be named there, backticked.
+fn check_setup_list(chapter: &str, installs: &BTreeSet<String>) -> Vec<String> {
+    let Some(list) = section(chapter, "## What `boot/setup.sh` installs") else {
+        return vec!["docs/building.md has no \"## What `boot/setup.sh` installs\"".into()];
+    };
+    let lines: Vec<String> = list.lines().map(String::from).collect();
+    let named: BTreeSet<String> = code_spans(&lines).into_iter().map(|(_, s)| s).collect();
+    installs
+        .iter()
+        .filter(|thing| !named.contains(*thing))
+        .map(|thing| format!("docs/building.md does not say that boot/setup.sh installs `{thing}`"))
+        .collect()
+}
+
+#[test]
+fn the_building_chapter_lists_what_setup_installs() {
+    let installs = setup_installs(&read("boot/setup.sh"), &read("rust-toolchain.toml"));
+    for expected in [
+        "qemu-system-x86",
+        "shim-signed",
+        "virt-firmware",
+        "x86_64-unknown-none",
+    ] {
+        assert!(
+            installs.contains(expected),
+            "{expected} not read from {installs:?}"
+        );
+    }
+    let problems = check_setup_list(&read("docs/building.md"), &installs);
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn a_package_setup_installs_but_the_chapter_omits_is_caught() {
+    let script = "command -v nasm >/dev/null || missing+=(nasm)\n\
+                  command -v sign-efi-sig-list >/dev/null || missing+=(efitools)\n";
+    let toolchain = "components = [\"rust-src\"]\ntargets = [\"wasm32-unknown-unknown\"]\n";
+    let installs = setup_installs(script, toolchain);
+    let made_up =
+        "## What `boot/setup.sh` installs\n\n| what |\n|---|\n| `nasm` |\n| `rust-src` |\n";
+    assert_eq!(
+        check_setup_list(made_up, &installs),
+        [
+            "docs/building.md does not say that boot/setup.sh installs `efitools`",
+            "docs/building.md does not say that boot/setup.sh installs `wasm32-unknown-unknown`",
+        ]
+    );
+}
+
 /// A paragraph of prose with the line it starts on; a table is one
 /// paragraph with the paragraph that introduces it.
 fn paragraphs(prose: &[String]) -> Vec<(usize, String)> {
