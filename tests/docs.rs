@@ -1411,6 +1411,73 @@ fn a_package_setup_installs_but_the_chapter_omits_is_caught() {
     );
 }
 
+/// Problems with the book's contents: `contents` (docs/README.md) must
+/// link every chapter, and `read_more` (the README's "Read more") too, as
+/// `docs/NAME.md`.
+fn check_contents(contents: &str, read_more: &str, chapters: &[String]) -> Vec<String> {
+    let targets = |text: &str| -> BTreeSet<String> {
+        text.lines()
+            .flat_map(link_targets)
+            .map(|target| target.split('#').next().unwrap().to_string())
+            .collect()
+    };
+    let (in_contents, in_read_more) = (targets(contents), targets(read_more));
+    let mut problems = Vec::new();
+    for chapter in chapters {
+        if !in_contents.contains(chapter) {
+            problems.push(format!("docs/README.md does not list {chapter}"));
+        }
+        if !in_read_more.contains(&format!("docs/{chapter}")) {
+            problems.push(format!(
+                "README.md's \"Read more\" does not list docs/{chapter}"
+            ));
+        }
+    }
+    problems
+}
+
+/// The chapters: docs/*.md but the contents page.
+fn chapters() -> Vec<String> {
+    documents()
+        .into_iter()
+        .filter_map(|path| {
+            let name = path
+                .strip_prefix("docs")
+                .ok()?
+                .to_string_lossy()
+                .to_string();
+            (name != "README.md").then_some(name)
+        })
+        .collect()
+}
+
+#[test]
+fn the_contents_and_the_readme_list_every_chapter() {
+    let readme = read("README.md");
+    let read_more = section(&readme, "## Read more").expect("README.md has \"## Read more\"");
+    let problems = check_contents(&read("docs/README.md"), read_more, &chapters());
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn a_chapter_left_out_of_the_contents_is_caught() {
+    let chapters = ["vga.md".to_string(), "web.md".to_string()];
+    let contents = "1. [Mode X and the VGA](vga.md#the-hardware): the driver.\n";
+    let read_more = "- [Mode X](docs/vga.md), [the page](docs/web.md);\n";
+    assert_eq!(
+        check_contents(contents, read_more, &chapters),
+        ["docs/README.md does not list web.md"]
+    );
+    assert_eq!(
+        check_contents(
+            "[a](vga.md) [b](web.md)",
+            "[Mode X](docs/vga.md)",
+            &chapters
+        ),
+        ["README.md's \"Read more\" does not list docs/web.md"]
+    );
+}
+
 /// A paragraph of prose with the line it starts on; a table is one
 /// paragraph with the paragraph that introduces it.
 fn paragraphs(prose: &[String]) -> Vec<(usize, String)> {
