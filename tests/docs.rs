@@ -1635,6 +1635,170 @@ fn a_test_time_without_its_command_is_caught() {
     );
 }
 
+/// A format string's or a quotation's pieces: literal characters, and
+/// `None` for text that may be anything (a `{}` of a format string, a
+/// `...` of a quotation).
+fn pattern(text: &str, is_format: bool) -> Vec<Option<char>> {
+    let mut pieces = Vec::new();
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        if is_format && c == '{' && chars.peek() == Some(&'{') {
+            chars.next();
+            pieces.push(Some('{'));
+        } else if is_format && c == '}' && chars.peek() == Some(&'}') {
+            chars.next();
+            pieces.push(Some('}'));
+        } else if is_format && c == '{' {
+            for c in chars.by_ref() {
+                if c == '}' {
+                    break;
+                }
+            }
+            pieces.push(None);
+        } else if !is_format && c == '.' && text.contains("...") && chars.peek() == Some(&'.') {
+            chars.next();
+            chars.next();
+            pieces.push(None);
+        } else {
+            pieces.push(Some(c));
+        }
+    }
+    pieces
+}
+
+/// Can one line match both a format string's pattern `a` and a
+/// quotation's `b`? A `{}` stands for one value (letters, digits and
+/// `._-/%`, no spaces); a `...` for anything.
+fn patterns_meet(a: &[Option<char>], b: &[Option<char>]) -> bool {
+    let is_value = |c: Option<char>| c.is_none_or(|c| c.is_alphanumeric() || "._-/%".contains(c));
+    // reachable[i][j]: a[..i] and b[..j] can produce the same text.
+    let mut reachable = vec![vec![false; b.len() + 1]; a.len() + 1];
+    reachable[0][0] = true;
+    for i in 0..=a.len() {
+        for j in 0..=b.len() {
+            if !reachable[i][j] {
+                continue;
+            }
+            if i < a.len() && a[i].is_none() {
+                reachable[i + 1][j] = true;
+                if j < b.len() && is_value(b[j]) {
+                    reachable[i][j + 1] = true;
+                }
+            }
+            if j < b.len() && b[j].is_none() {
+                reachable[i][j + 1] = true;
+                if i < a.len() {
+                    reachable[i + 1][j] = true;
+                }
+            }
+            if i < a.len() && j < b.len() && a[i].is_some() && a[i] == b[j] {
+                reachable[i + 1][j + 1] = true;
+            }
+        }
+    }
+    reachable[a.len()][b.len()]
+}
+
+/// The kernel's `bench:` format strings (string literals that start with
+/// `bench: `, their `\` line continuations joined).
+fn bench_formats(source: &str) -> Vec<String> {
+    let mut formats = Vec::new();
+    for part in source.split("\"bench: ").skip(1) {
+        let mut format = String::from("bench: ");
+        let mut chars = part.chars();
+        while let Some(c) = chars.next() {
+            match c {
+                '"' => break,
+                '\\' => match chars.next() {
+                    Some('\n') => {
+                        let rest: String = chars.clone().collect();
+                        let skipped = rest.len() - rest.trim_start().len();
+                        for _ in 0..rest[..skipped].chars().count() {
+                            chars.next();
+                        }
+                    }
+                    Some(other) => format.push(other),
+                    None => break,
+                },
+                other => format.push(other),
+            }
+        }
+        formats.push(format);
+    }
+    formats
+}
+
+/// Problems with the `bench:` lines a document quotes (backticked, `...`
+/// for what is left out, the rest of the line too): each must be a line
+/// one of the kernel's format strings can print.
+fn check_bench_lines(name: &str, text: &str, formats: &[String]) -> Vec<String> {
+    let (_, prose) = split_fences(text);
+    let formats: Vec<Vec<Option<char>>> =
+        formats.iter().map(|format| pattern(format, true)).collect();
+    code_spans(&prose)
+        .into_iter()
+        .filter(|(_, span)| span.starts_with("bench:"))
+        .filter(|(_, span)| {
+            let mut quoted = pattern(span, false);
+            // A quotation may stop before the line's end.
+            quoted.push(None);
+            !formats.iter().any(|format| patterns_meet(format, &quoted))
+        })
+        .map(|(line, span)| format!("{name}:{line}: `{span}` is no line the kernel's bench prints"))
+        .collect()
+}
+
+/// The `bench:` format strings of the kernel's sources.
+fn kernel_bench_formats() -> Vec<String> {
+    let mut formats = Vec::new();
+    let mut folders = vec![repository().join("kernel/src")];
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                folders.push(path);
+            } else if path.extension().is_some_and(|ext| ext == "rs") {
+                formats.extend(bench_formats(&std::fs::read_to_string(path).unwrap()));
+            }
+        }
+    }
+    formats
+}
+
+#[test]
+fn every_bench_line_the_book_quotes_is_printed_by_the_kernel() {
+    let formats = kernel_bench_formats();
+    assert!(formats.len() > 5, "{formats:?}");
+    let problems: Vec<String> = book()
+        .iter()
+        .flat_map(|(name, text)| check_bench_lines(name, text, &formats))
+        .collect();
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn a_bench_line_the_kernel_no_longer_prints_is_caught() {
+    let source = "serial_println!(\n    \"bench: phases of the {} (us/frame): motion {}, \\\n     \
+                  bus writes {}\",\n);\nserial_println!(\"bench: USB poll: none\");\n";
+    let formats = bench_formats(source);
+    assert_eq!(
+        formats,
+        [
+            "bench: phases of the {} (us/frame): motion {}, bus writes {}",
+            "bench: USB poll: none"
+        ]
+    );
+    let made_up = "`bench: phases of the cube (us/frame): ...`, `bench: ... bus writes 3`,\n\
+                   `bench: USB ...`, and `bench: xHCI poll ...` and `bench: phases of the cube: 4`.\n";
+    assert_eq!(
+        check_bench_lines("docs/made-up.md", made_up, &formats),
+        [
+            "docs/made-up.md:2: `bench: xHCI poll ...` is no line the kernel's bench prints",
+            "docs/made-up.md:2: `bench: phases of the cube: 4` is no line the kernel's bench prints",
+        ]
+    );
+}
+
 // The checks can fail: each broken document below is caught.
 
 fn problems_in(text: &str) -> Vec<String> {
