@@ -1478,6 +1478,231 @@ fn a_chapter_left_out_of_the_contents_is_caught() {
     );
 }
 
+/// A document's prose for word checks: fences blanked, and inline code,
+/// URLs, link targets, HTML comments and headings blanked too (each
+/// character a space, so columns stay). Link texts stay.
+fn plain_prose(text: &str) -> Vec<String> {
+    let (_, prose) = split_fences(text);
+    let mut in_span = false;
+    let mut in_comment = false;
+    prose
+        .iter()
+        .map(|line| {
+            if line.trim().is_empty() {
+                in_span = false;
+            }
+            if line.starts_with('#') {
+                return " ".repeat(line.len());
+            }
+            let mut out = String::new();
+            // Blank up to this byte (a link's target, a URL).
+            let mut blank_until = 0;
+            for (at, c) in line.char_indices() {
+                let rest = &line[at..];
+                let blank = if at < blank_until {
+                    true
+                } else if in_comment {
+                    if rest.starts_with("-->") {
+                        in_comment = false;
+                        blank_until = at + 3;
+                    }
+                    true
+                } else if rest.starts_with("<!--") {
+                    in_comment = true;
+                    true
+                } else if c == '`' {
+                    in_span = !in_span;
+                    true
+                } else if in_span {
+                    true
+                } else if rest.starts_with("](") {
+                    blank_until = at + rest.find(')').map_or(rest.len(), |end| end + 1);
+                    true
+                } else if rest.starts_with("http://") || rest.starts_with("https://") {
+                    blank_until = at + rest.find(char::is_whitespace).unwrap_or(rest.len());
+                    true
+                } else {
+                    false
+                };
+                if blank {
+                    out.push_str(&" ".repeat(c.len_utf8()));
+                } else {
+                    out.push(c);
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// The words of a text that look like acronyms: 2 to 6 characters, capital
+/// letters and digits, at least two capitals, first a capital (`ACPI`,
+/// `PS2` no: `PS/2` gives `PS`; `E820` and `S5` are names, not acronyms).
+fn acronyms_in(line: &str) -> Vec<(usize, String)> {
+    let mut found = Vec::new();
+    let mut start = None;
+    let chars: Vec<char> = line.chars().collect();
+    for index in 0..=chars.len() {
+        let is_word = chars
+            .get(index)
+            .is_some_and(|c| c.is_alphanumeric() || *c == '_');
+        match (start, is_word) {
+            (None, true) => start = Some(index),
+            (Some(from), false) => {
+                let word: String = chars[from..index].iter().collect();
+                let capitals = word.chars().filter(|c| c.is_ascii_uppercase()).count();
+                if (2..=6).contains(&word.len())
+                    && capitals >= 2
+                    && word.starts_with(|c: char| c.is_ascii_uppercase())
+                    && word
+                        .chars()
+                        .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit())
+                {
+                    found.push((from, word));
+                }
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    found
+}
+
+/// Capitalised words that are not acronyms, each with why.
+const NOT_ACRONYMS: &[(&str, &str)] = &[
+    ("BOOT", "a folder's name in a firmware path, \\EFI\\BOOT"),
+    ("II", "a roman numeral: EDK II, the UEFI project's name"),
+    (
+        "NOT",
+        "emphasis in a quoted log line (`vga: Mode X NOT verified`)",
+    ),
+    ("OK", "a word, as said aloud"),
+    ("README", "a file's name"),
+];
+
+/// The glossary's entries: each `## ` heading's anchor and the terms it
+/// defines (`## SMI, SMM` defines both), and the abbreviations of its
+/// table (`| CPU | ... |` rows under `## Abbreviations`).
+struct Glossary {
+    entries: Vec<(String, Vec<String>)>,
+    abbreviations: BTreeSet<String>,
+}
+
+/// GitHub's anchor for a heading: lower case, spaces as `-`, punctuation
+/// but `-` and `_` dropped.
+fn anchor(heading: &str) -> String {
+    heading
+        .trim()
+        .to_lowercase()
+        .chars()
+        .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-' || *c == '_')
+        .map(|c| if c == ' ' { '-' } else { c })
+        .collect()
+}
+
+fn glossary_of(text: &str) -> Glossary {
+    let mut entries = Vec::new();
+    for heading in text.lines().filter_map(|line| line.strip_prefix("## ")) {
+        if heading == "Abbreviations" {
+            continue;
+        }
+        let terms = heading
+            .split(", ")
+            .map(|term| term.trim().to_string())
+            .collect();
+        entries.push((anchor(heading), terms));
+    }
+    let abbreviations = section(text, "## Abbreviations")
+        .map(|table| {
+            table
+                .lines()
+                .filter(|line| line.starts_with('|') && !line.starts_with("|---"))
+                .filter_map(|line| line.trim_matches('|').split('|').next())
+                .flat_map(|cell| cell.split(',').map(|name| name.trim().to_string()))
+                .collect()
+        })
+        .unwrap_or_default();
+    Glossary {
+        entries,
+        abbreviations,
+    }
+}
+
+impl Glossary {
+    /// Is `word` defined: an abbreviation, a term of an entry, or one of
+    /// those with a number after it (`BAR0`, `SSE2`) or a part of one
+    /// (`PS` of `PS/2`, `PM` of `PM timer`)?
+    fn defines(&self, word: &str) -> bool {
+        let bare = word.trim_end_matches(|c: char| c.is_ascii_digit());
+        [word, bare]
+            .into_iter()
+            .any(|word| self.defines_exactly(word))
+    }
+
+    fn defines_exactly(&self, word: &str) -> bool {
+        self.abbreviations
+            .iter()
+            .any(|name| name.split(['/', ' ']).any(|part| part == word))
+            || self.entries.iter().any(|(_, terms)| {
+                terms
+                    .iter()
+                    .any(|term| term.split(['/', ' ']).any(|w| w == word))
+            })
+    }
+}
+
+/// Problems with the acronyms of the book: each one used in `documents`
+/// must be defined in the glossary (an entry or a row of its
+/// abbreviations) or be one of [`NOT_ACRONYMS`].
+fn check_acronyms(documents: &[(String, String)], glossary: &Glossary) -> Vec<String> {
+    let mut problems = Vec::new();
+    let mut reported = BTreeSet::new();
+    for (name, text) in documents {
+        for (number, line) in plain_prose(text).iter().enumerate() {
+            for (_, word) in acronyms_in(line) {
+                if glossary.defines(&word)
+                    || NOT_ACRONYMS.iter().any(|(not, _)| *not == word)
+                    || !reported.insert(word.clone())
+                {
+                    continue;
+                }
+                problems.push(format!(
+                    "{name}:{}: {word} is not in docs/glossary.md",
+                    number + 1
+                ));
+            }
+        }
+    }
+    problems
+}
+
+#[test]
+fn every_acronym_of_the_book_is_in_the_glossary() {
+    let glossary = glossary_of(&read("docs/glossary.md"));
+    let problems = check_acronyms(&book(), &glossary);
+    assert!(
+        problems.is_empty(),
+        "{} acronyms:\n{}",
+        problems.len(),
+        problems.join("\n")
+    );
+}
+
+#[test]
+fn an_acronym_the_glossary_lacks_is_caught() {
+    let glossary = glossary_of(
+        "# Glossary\n\n## SMI, SMM\n\nSystem Management Interrupt.\n\n## Abbreviations\n\n\
+         | abbreviation | meaning |\n|---|---|\n| CPU | the processor |\n",
+    );
+    let made_up = "The CPU enters SMM on an SMI; the BAR says where (`MMIO` in code is\n\
+                   not prose) and [a link](https://example.com/PCH) neither.\n";
+    let problems = check_acronyms(&[("docs/made-up.md".into(), made_up.into())], &glossary);
+    assert_eq!(
+        problems,
+        ["docs/made-up.md:1: BAR is not in docs/glossary.md"]
+    );
+}
+
 /// A paragraph of prose with the line it starts on; a table is one
 /// paragraph with the paragraph that introduces it.
 fn paragraphs(prose: &[String]) -> Vec<(usize, String)> {
