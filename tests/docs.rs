@@ -1683,7 +1683,10 @@ fn frame_picture() -> String {
         middle + 36,
     );
     let lines = [
-        (4, "line 0: the scan-out starts at the latched address".to_string()),
+        (
+            4,
+            "line 0: the scan-out starts at the latched address".to_string(),
+        ),
         (
             timing.display_lines - 2,
             format!(
