@@ -20,7 +20,12 @@
 //!   `docs/architecture.md`) names a function defined in that file;
 //! - a fenced block whose info string names a source file after the language
 //!   (```` ```rust modex/src/draw.rs ````) is a quotation: its lines must
-//!   appear in that file, in order and together (indentation aside).
+//!   appear in that file, in order and together (indentation aside);
+//! - a table headed `| port | register | index | value |` (the mode set in
+//!   `docs/vga.md`) lists, row by row, the bus operations `ModeX::program`
+//!   makes on the software VGA, in the order it makes them;
+//! - the pictures drawn from the code (`docs/vga/*.svg`) are what the code
+//!   draws now; `MODEX_CUBE_UPDATE_DOCS_PICTURES=1` remakes them.
 //!
 //! And the book's lists against what they list:
 //!
@@ -49,6 +54,10 @@ use std::collections::BTreeSet;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+
+use modex::regs::{Crtc, Port};
+use modex::soft::{dac_6_to_8, SoftVga};
+use modex::{ModeX, Page, VgaBus};
 
 /// The longest line allowed outside tables, links and program output.
 const MAX_LINE: usize = 120;
@@ -85,6 +94,8 @@ struct Context {
     sim_options: BTreeSet<String>,
     web_options: BTreeSet<String>,
     constants: Vec<Constant>,
+    /// The bus operations of the driver's mode set, in order.
+    mode_set: Vec<BusOp>,
 }
 
 impl Context {
@@ -95,6 +106,7 @@ impl Context {
             sim_options: sim_options(),
             web_options: web_options(),
             constants: constants_in(&repository()),
+            mode_set: mode_set_operations(),
         }
     }
 }
@@ -678,10 +690,38 @@ fn check_quotation(root: &Path, where_: &str, file: &str, quoted: &str) -> Optio
         return Some(format!("{where_}: the quoted file {file} does not exist"));
     };
     let block: Vec<&str> = quoted.lines().collect();
-    let source: Vec<&str> = source.lines().collect();
-    let first = block.iter().find(|line| !line.trim().is_empty())?;
+    let code: Vec<&str> = source.lines().collect();
+    // A doc test's lines are quoted without their `/// ` or `//! `.
+    let doc_tests: Vec<&str> = code
+        .iter()
+        .map(|line| {
+            let line = line.trim_start();
+            ["/// ", "//! ", "///", "//!"]
+                .iter()
+                .find_map(|prefix| line.strip_prefix(prefix))
+                .unwrap_or(line)
+        })
+        .collect();
+    let found = [code, doc_tests]
+        .iter()
+        .any(|source| quotation_is_in(&block, source));
+    (!found).then(|| {
+        let first = block.iter().find(|line| !line.trim().is_empty());
+        format!(
+            "{where_}: the quoted code is not in {file} as it stands (its first line: {})",
+            first.map_or("", |line| line.trim())
+        )
+    })
+}
+
+/// Whether `block`'s lines are in `source`, together and in order
+/// (indentation aside).
+fn quotation_is_in(block: &[&str], source: &[&str]) -> bool {
+    let Some(first) = block.iter().find(|line| !line.trim().is_empty()) else {
+        return true;
+    };
     let block_indent = first.len() - first.trim_start().len();
-    let found = (0..source.len()).any(|start| {
+    (0..source.len()).any(|start| {
         let Some(line) = source.get(start + block.iter().position(|l| l == first).unwrap()) else {
             return false;
         };
@@ -708,12 +748,6 @@ fn check_quotation(root: &Path, where_: &str, file: &str, quoted: &str) -> Optio
                             && &quoted[(-indent) as usize..] == *original
                     }
                 })
-    });
-    (!found).then(|| {
-        format!(
-            "{where_}: the quoted code is not in {file} as it stands (its first line: {})",
-            first.trim()
-        )
     })
 }
 
@@ -1024,6 +1058,11 @@ fn check_document(context: &Context, path: &Path, text: &str) -> Vec<String> {
         &prose,
     ));
     problems.extend(check_functions(&context.root, &name.to_string(), &prose));
+    problems.extend(check_mode_set_tables(
+        &context.mode_set,
+        &name.to_string(),
+        &prose,
+    ));
     for (line, span) in code_spans(&prose) {
         let where_ = format!("{name}:{line}");
         if span.contains("cargo run") {
@@ -2353,6 +2392,506 @@ fn a_quotation_that_no_longer_matches_its_source_is_caught() {
     assert_eq!(problems.len(), 1, "{problems:?}");
     assert!(
         problems[0].contains("not in modex/src/page.rs"),
+        "{problems:?}"
+    );
+}
+
+// The mode-set table of docs/vga.md: the driver's own bus operations.
+
+/// One bus operation, as a row of the mode-set table lists it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum BusOp {
+    /// An 8-bit OUT.
+    Out8(u16, u8),
+    /// A 16-bit OUT to an index port: the index in the low byte, the value
+    /// (for the data port after it) in the high byte.
+    Out16(u16, u16),
+    /// An 8-bit IN.
+    In8(u16),
+}
+
+impl std::fmt::Display for BusOp {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            BusOp::Out8(port, value) => write!(f, "OUT {port:#05X}, {value:#04X}"),
+            BusOp::Out16(port, value) => {
+                let [index, data] = value.to_le_bytes();
+                write!(f, "OUT {port:#05X}, index {index:#04X} value {data:#04X}")
+            }
+            BusOp::In8(port) => write!(f, "IN {port:#05X}"),
+        }
+    }
+}
+
+/// The software VGA, logging the port operations made inside `ModeX::program`.
+struct ModeSetLog {
+    soft: Box<SoftVga>,
+    calls: Vec<&'static str>,
+    operations: Vec<BusOp>,
+}
+
+impl ModeSetLog {
+    fn log(&mut self, operation: BusOp) {
+        if self.calls.contains(&"ModeX::program") {
+            self.operations.push(operation);
+        }
+    }
+}
+
+impl VgaBus for ModeSetLog {
+    fn write_port8(&mut self, port: Port, value: u8) {
+        self.log(BusOp::Out8(port.number(), value));
+        self.soft.write_port8(port, value);
+    }
+    fn write_port16(&mut self, port: Port, value: u16) {
+        self.log(BusOp::Out16(port.number(), value));
+        self.soft.write_port16(port, value);
+    }
+    fn read_port8(&mut self, port: Port) -> u8 {
+        self.log(BusOp::In8(port.number()));
+        self.soft.read_port8(port)
+    }
+    fn write_vram8(&mut self, offset: u16, value: u8) {
+        self.soft.write_vram8(offset, value);
+    }
+    fn read_vram8(&mut self, offset: u16) -> u8 {
+        self.soft.read_vram8(offset)
+    }
+    fn enter(&mut self, function: &'static str) {
+        self.calls.push(function);
+    }
+    fn leave(&mut self) {
+        self.calls.pop();
+    }
+}
+
+/// The port operations of Mode X's register programming, from power-on.
+fn mode_set_operations() -> Vec<BusOp> {
+    let mut vga = ModeX::new(ModeSetLog {
+        soft: Box::new(SoftVga::new()),
+        calls: Vec::new(),
+        operations: Vec::new(),
+    });
+    vga.set_mode();
+    let operations = vga.into_bus().operations;
+    assert!(operations.len() > 40, "ModeX::program made {operations:?}");
+    operations
+}
+
+/// The header that marks a mode-set table.
+const MODE_SET_TABLE_HEADER: &str = "| port | register | index | value |";
+
+/// The numbers of a cell: `0x3C4`, `0x00-0x05` (each in turn) or `—` (none).
+fn cell_numbers(cell: &str) -> Result<Vec<u16>, String> {
+    let hex = |text: &str| {
+        text.strip_prefix("0x")
+            .and_then(|digits| u16::from_str_radix(digits, 16).ok())
+            .ok_or_else(|| format!("`{text}` is not a number like 0x3C4"))
+    };
+    let mut numbers = Vec::new();
+    for word in cell.split_whitespace() {
+        let word = word.trim_matches(['`', ',']);
+        if word.is_empty() || word == "—" {
+            continue;
+        }
+        match word.split_once('-') {
+            Some((first, last)) => {
+                let (first, last) = (hex(first)?, hex(last)?);
+                if last < first {
+                    return Err(format!("the range `{word}` runs backwards"));
+                }
+                numbers.extend(first..=last);
+            }
+            None => numbers.push(hex(word)?),
+        }
+    }
+    Ok(numbers)
+}
+
+/// The bus operations a row of the mode-set table stands for. An index
+/// port (0x3C4, 0x3CE, 0x3D4) takes index and value in one 16-bit OUT; the
+/// Attribute Controller (0x3C0) takes them in two OUTs; a value `read` is an
+/// IN. One value for several indices is written to each.
+fn row_operations(row: &str) -> Result<Vec<BusOp>, String> {
+    let cells: Vec<&str> = row
+        .trim()
+        .trim_matches('|')
+        .split('|')
+        .map(str::trim)
+        .collect();
+    let [port, _register, index, value, ..] = cells.as_slice() else {
+        return Err("a row needs a port, a register, an index and a value".into());
+    };
+    let port = match cell_numbers(port.split_whitespace().next().unwrap_or(""))?.as_slice() {
+        [port] => *port,
+        _ => return Err(format!("`{port}` is not one port")),
+    };
+    if value.trim_matches('`') == "read" {
+        return Ok(vec![BusOp::In8(port)]);
+    }
+    let indices = cell_numbers(index)?;
+    let values = cell_numbers(value)?;
+    let byte = |n: u16| u8::try_from(n).map_err(|_| format!("{n:#X} is not a byte"));
+    if indices.is_empty() {
+        return values
+            .into_iter()
+            .map(|v| Ok(BusOp::Out8(port, byte(v)?)))
+            .collect();
+    }
+    let values = match values.as_slice() {
+        [one] => vec![*one; indices.len()],
+        _ if values.len() == indices.len() => values,
+        _ => {
+            return Err(format!(
+                "{} indices but {} values",
+                indices.len(),
+                values.len()
+            ))
+        }
+    };
+    let mut operations = Vec::new();
+    for (index, value) in indices.into_iter().zip(values) {
+        let (index, value) = (byte(index)?, byte(value)?);
+        if port == Port::ATTRIBUTE_INDEX.number() {
+            operations.push(BusOp::Out8(port, index));
+            operations.push(BusOp::Out8(port, value));
+        } else {
+            operations.push(BusOp::Out16(port, u16::from_le_bytes([index, value])));
+        }
+    }
+    Ok(operations)
+}
+
+/// Problems with every mode-set table: it must list the driver's
+/// operations, all of them, in order.
+fn check_mode_set_tables(driver: &[BusOp], name: &str, prose: &[String]) -> Vec<String> {
+    let mut problems = Vec::new();
+    let mut tables: Vec<(usize, Vec<(usize, BusOp)>)> = Vec::new();
+    let mut in_table = false;
+    for (number, line) in prose.iter().enumerate() {
+        let line = line.trim();
+        if line.starts_with(MODE_SET_TABLE_HEADER) {
+            tables.push((number + 1, Vec::new()));
+            in_table = true;
+            continue;
+        }
+        if !in_table || !line.starts_with('|') {
+            in_table = false;
+            continue;
+        }
+        if line.starts_with("|---") || line.starts_with("| ---") {
+            continue;
+        }
+        let (_, rows) = tables.last_mut().unwrap();
+        match row_operations(line) {
+            Ok(operations) => rows.extend(operations.into_iter().map(|op| (number + 1, op))),
+            Err(error) => problems.push(format!("{name}:{}: mode-set table: {error}", number + 1)),
+        }
+    }
+    for (header, listed) in tables {
+        for (at, actual) in driver.iter().enumerate() {
+            match listed.get(at) {
+                Some((_, op)) if op == actual => continue,
+                Some((line, op)) => problems.push(format!(
+                    "{name}:{line}: the mode-set table lists {op}, but the driver's operation {} \
+                     is {actual}",
+                    at + 1
+                )),
+                None => problems.push(format!(
+                    "{name}:{header}: the mode-set table stops after {} operations; the \
+                     driver goes on with {actual} ({} in all)",
+                    listed.len(),
+                    driver.len()
+                )),
+            }
+            break;
+        }
+        if let Some((line, op)) = listed.get(driver.len()) {
+            problems.push(format!(
+                "{name}:{line}: the mode-set table lists {op} after the driver's last operation"
+            ));
+        }
+    }
+    problems
+}
+
+#[test]
+fn a_mode_set_table_that_differs_from_the_driver_is_caught() {
+    let chapter = std::fs::read_to_string(repository().join("docs/vga.md")).unwrap();
+    let table: Vec<&str> = chapter
+        .lines()
+        .skip_while(|line| !line.starts_with(MODE_SET_TABLE_HEADER))
+        .take_while(|line| line.starts_with('|'))
+        .collect();
+    assert!(table.len() > 10, "docs/vga.md has no mode-set table");
+    assert_eq!(problems_in(&table.join("\n")), Vec::<String>::new());
+    // Memory Mode with chain-4 still on: the driver writes 0x06.
+    let chained = table
+        .join("\n")
+        .replace("| 0x04 | 0x06 |", "| 0x04 | 0x0E |");
+    let problems = problems_in(&chained);
+    assert_eq!(problems.len(), 1, "{problems:?}");
+    assert!(
+        problems[0].contains("index 0x04 value 0x0E"),
+        "{problems:?}"
+    );
+    // A row left out.
+    let short = table[..table.len() - 1].join("\n");
+    let problems = problems_in(&short);
+    assert_eq!(problems.len(), 1, "{problems:?}");
+    assert!(problems[0].contains("stops after"), "{problems:?}");
+}
+
+// Pictures the book shows, drawn from the code by this test.
+
+/// Set to 1, the picture test writes the pictures instead of comparing.
+const UPDATE_PICTURES: &str = "MODEX_CUBE_UPDATE_DOCS_PICTURES";
+
+/// A problem if the committed picture is not the one drawn now.
+fn picture_problem(file: &str, committed: Option<&str>, drawn: &str) -> Option<String> {
+    let remake = format!(
+        "remake it with `{UPDATE_PICTURES}=1 cargo test --test docs pictures`, look at it, \
+         and commit it"
+    );
+    match committed {
+        Some(committed) if committed == drawn => None,
+        Some(_) => Some(format!("{file} is not what the code draws now: {remake}")),
+        None => Some(format!("{file} is missing: {remake}")),
+    }
+}
+
+/// The DAC's colour of an index, as `#rrggbb`, and a text colour legible on it.
+fn dac_colour(soft: &SoftVga, index: u8) -> (String, &'static str) {
+    let [r, g, b] = soft.dac_entry(index).map(dac_6_to_8);
+    let light = 299 * u32::from(r) + 587 * u32::from(g) + 114 * u32::from(b) > 128_000;
+    (
+        format!("#{r:02x}{g:02x}{b:02x}"),
+        if light { "black" } else { "white" },
+    )
+}
+
+/// Four planes, one byte address and the four pixels it holds: twelve
+/// pixels of line 0 drawn by the driver, then the planes' bytes as the
+/// software VGA holds them and which pixel its scan-out shows each as.
+fn planes_picture() -> String {
+    const PIXELS: u8 = 12;
+    const SHOWN: usize = 1;
+    let mut soft = Box::new(SoftVga::new());
+    let mut vga = ModeX::new(&mut *soft);
+    vga.set_mode();
+    for x in 0..PIXELS {
+        vga.put_pixel(Page::Zero, i32::from(x), 0, x + 1);
+    }
+    let mut screen = vec![0u8; 320 * 240];
+    soft.scanout_indices(&mut screen);
+    let line = &screen[..usize::from(PIXELS)];
+    let addresses = usize::from(PIXELS) / 4;
+    let (left, pixel, cell) = (70, 36, 144);
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"330\" \
+         font-family=\"sans-serif\" font-size=\"12\">\n\
+         <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
+         <text x=\"{left}\" y=\"18\">The screen, line 0: pixels x = 0 to {} (the colour index in each)</text>\n",
+        left + addresses * cell + 140,
+        PIXELS - 1
+    );
+    for (x, &index) in line.iter().enumerate() {
+        let (fill, ink) = dac_colour(&soft, index);
+        let at = left + x * pixel;
+        svg += &format!(
+            "<rect x=\"{at}\" y=\"28\" width=\"{}\" height=\"32\" fill=\"{fill}\" stroke=\"black\"/>\n\
+             <text x=\"{}\" y=\"49\" text-anchor=\"middle\" fill=\"{ink}\">{index}</text>\n\
+             <text x=\"{}\" y=\"76\" text-anchor=\"middle\">x={x}</text>\n",
+            pixel - 4,
+            at + pixel / 2 - 2,
+            at + pixel / 2 - 2
+        );
+    }
+    svg += &format!(
+        "<text x=\"{left}\" y=\"104\">Video memory: byte addresses 0 to {} of each plane, and the pixel the \
+         scan-out shows each byte as</text>\n",
+        addresses - 1
+    );
+    for plane in 0..4 {
+        let y = 116 + plane * 48;
+        svg += &format!("<text x=\"8\" y=\"{}\">plane {plane}</text>\n", y + 26);
+        for address in 0..addresses {
+            let value = soft.plane(plane)[address];
+            let (fill, ink) = dac_colour(&soft, value);
+            let shown_at = line.iter().position(|&index| index == value);
+            let shown_at = shown_at.map_or("not shown".into(), |x| format!("pixel x={x}"));
+            let at = left + address * cell;
+            svg += &format!(
+                "<rect x=\"{at}\" y=\"{y}\" width=\"{}\" height=\"40\" fill=\"{fill}\" stroke=\"black\"/>\n\
+                 <text x=\"{}\" y=\"{}\" fill=\"{ink}\">address {address}: {value}</text>\n\
+                 <text x=\"{}\" y=\"{}\" fill=\"{ink}\">{shown_at}</text>\n",
+                cell - 4,
+                at + 8,
+                y + 16,
+                at + 8,
+                y + 32
+            );
+        }
+    }
+    let at = left + SHOWN * cell - 3;
+    svg += &format!(
+        "<rect x=\"{at}\" y=\"24\" width=\"{cell}\" height=\"{}\" fill=\"none\" stroke=\"#d00000\" \
+         stroke-width=\"3\" stroke-dasharray=\"6 4\"/>\n\
+         <text x=\"{left}\" y=\"322\" fill=\"#d00000\">Byte address {SHOWN} holds pixels {} to {}, \
+         one in each plane: x mod 4 is the plane, x / 4 the address.</text>\n</svg>\n",
+        116 + 4 * 48 - 24 + 2,
+        SHOWN * 4,
+        SHOWN * 4 + 3
+    );
+    svg
+}
+
+/// One frame of Mode X as the CRTC's registers time it: the display, the
+/// blanking around it, vertical retrace, and the Input Status 1 bits.
+fn frame_picture() -> String {
+    let mut soft = Box::new(SoftVga::new());
+    ModeX::new(&mut *soft).set_mode();
+    let timing = soft.timing();
+    let scans_per_row =
+        u64::from(soft.crtc(Crtc::MaximumScanLine) & modex::regs::crtc::MAXIMUM_SCAN_LINE_MASK) + 1;
+    let dots_per_line = timing.characters_per_line * timing.dots_per_character;
+    let hertz = timing.dot_clock_hz as f64 / (dots_per_line * timing.lines_per_frame) as f64;
+    let (left, top, per_character) = (50, 40, 4);
+    let width = timing.characters_per_line * per_character;
+    let display_width = timing.display_characters * per_character;
+    let height = timing.lines_per_frame;
+    let retrace_end = timing.retrace_start_line + timing.retrace_lines;
+    let label = left + width + 12;
+    let mut svg = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" \
+         font-family=\"sans-serif\" font-size=\"12\">\n\
+         <rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n\
+         <text x=\"{left}\" y=\"18\">One Mode X frame: {} characters of {} dots by {} lines at {} MHz: \
+         {hertz:.2} Hz</text>\n",
+        label + 330,
+        top + height + 30,
+        timing.characters_per_line,
+        timing.dots_per_character,
+        timing.lines_per_frame,
+        timing.dot_clock_hz as f64 / 1e6
+    );
+    // The whole frame is blanking (grey) but for the display (white) and
+    // retrace (red).
+    svg += &format!(
+        "<rect x=\"{left}\" y=\"{top}\" width=\"{width}\" height=\"{height}\" fill=\"#b0b0b0\" stroke=\"black\"/>\n\
+         <rect x=\"{left}\" y=\"{top}\" width=\"{display_width}\" height=\"{}\" fill=\"#e8f0ff\" stroke=\"black\"/>\n\
+         <rect x=\"{left}\" y=\"{}\" width=\"{width}\" height=\"{}\" fill=\"#d00000\"/>\n",
+        timing.display_lines,
+        top + timing.retrace_start_line,
+        timing.retrace_lines
+    );
+    let middle = top + timing.display_lines / 2;
+    svg += &format!(
+        "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\">display: {} x {} dots</text>\n\
+         <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{} rows, each scanned {scans_per_row} times</text>\n\
+         <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">Input Status 1 bits 0 and 3 clear:</text>\n\
+         <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">write the start address here</text>\n",
+        left + display_width / 2,
+        middle - 30,
+        timing.display_characters * timing.dots_per_character,
+        timing.display_lines,
+        left + display_width / 2,
+        middle - 12,
+        timing.display_lines / scans_per_row,
+        left + display_width / 2,
+        middle + 20,
+        left + display_width / 2,
+        middle + 36,
+    );
+    let lines = [
+        (
+            4,
+            "line 0: the scan-out starts at the latched address".to_string(),
+        ),
+        (
+            timing.display_lines - 2,
+            format!(
+                "line {}: display ends; bit 0 set (display disabled) to the end",
+                timing.display_lines
+            ),
+        ),
+        (
+            timing.retrace_start_line + 10,
+            format!(
+                "lines {}-{}: vertical retrace, bit 3 set;",
+                timing.retrace_start_line,
+                retrace_end - 1
+            ),
+        ),
+        (
+            timing.retrace_start_line + 24,
+            "the new start address is latched as it begins".to_string(),
+        ),
+        (
+            timing.lines_per_frame + 10,
+            format!("line {}: the next frame starts", timing.lines_per_frame),
+        ),
+    ];
+    for (line, text) in lines {
+        svg += &format!("<text x=\"{label}\" y=\"{}\">{text}</text>\n", top + line);
+    }
+    svg += &format!(
+        "<text x=\"{}\" y=\"{}\" text-anchor=\"middle\" transform=\"rotate(-90 {} {})\">\
+         {} characters of blanking: bit 0 set</text>\n</svg>\n",
+        left + display_width + (width - display_width) / 2 + 4,
+        middle,
+        left + display_width + (width - display_width) / 2 + 4,
+        middle,
+        timing.characters_per_line - timing.display_characters
+    );
+    svg
+}
+
+#[test]
+fn pictures_are_what_the_code_draws() {
+    let update = std::env::var_os(UPDATE_PICTURES).is_some_and(|v| v == "1");
+    let mut problems = Vec::new();
+    for (file, drawn) in [
+        ("docs/vga/planes.svg", planes_picture()),
+        ("docs/vga/frame.svg", frame_picture()),
+    ] {
+        let path = repository().join(file);
+        if update {
+            std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+            std::fs::write(&path, &drawn).unwrap();
+        }
+        let committed = std::fs::read_to_string(&path).ok();
+        problems.extend(picture_problem(file, committed.as_deref(), &drawn));
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+#[test]
+fn pictures_a_stale_picture_is_caught() {
+    let drawn = planes_picture();
+    assert_eq!(picture_problem("p.svg", Some(&drawn), &drawn), None);
+    let stale = drawn.replace("address 1: 5", "address 1: 6");
+    assert_ne!(
+        stale, drawn,
+        "the picture shows address 1 of plane 0 holding 5"
+    );
+    let problem = picture_problem("p.svg", Some(&stale), &drawn).unwrap();
+    assert!(problem.contains(UPDATE_PICTURES), "{problem}");
+    assert!(picture_problem("p.svg", None, &drawn).is_some());
+}
+
+#[test]
+fn a_quoted_doc_test_is_checked_without_its_comment_marks() {
+    // modex/src/draw.rs: fill_rect's example, as `/// ` lines.
+    let right = "```rust modex/src/draw.rs\n\
+                 vga.set_mode();\n\
+                 let before = vga.bus().counts();\n```\n";
+    assert_eq!(problems_in(right), Vec::<String>::new());
+    let changed = right.replace("counts()", "count()");
+    let problems = problems_in(&changed);
+    assert_eq!(problems.len(), 1, "{problems:?}");
+    assert!(
+        problems[0].contains("not in modex/src/draw.rs"),
         "{problems:?}"
     );
 }
