@@ -844,6 +844,20 @@ impl UsbTree {
         )
     }
 
+    /// Whether the hub at USB address `address` runs a transaction
+    /// translator per port (a multi-TT hub at high speed, its alternate
+    /// setting 1 chosen); false for any other device or address.
+    pub fn translator_per_port(&self, address: u8) -> bool {
+        self.nodes.iter().enumerate().any(|(index, node)| {
+            node.attached
+                && node.reset
+                && node.address == address
+                && matches!(node.device, Device::Hub { multi_tt: true, .. })
+                && self.speed_of(index) == Speed::High
+                && node.alternate == 1
+        })
+    }
+
     /// The LED byte keyboard `device` was last given with SET_REPORT.
     pub fn leds(&self, device: usize) -> u8 {
         self.nodes[device].keyboard.leds
