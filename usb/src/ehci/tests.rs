@@ -1099,3 +1099,40 @@ fn pipes_polled_every_eight_frames_go_to_eight_different_frames() {
     assert_eq!(ehci.hardware().periodic_load, Default::default());
     assert_clean(ehci.hardware());
 }
+
+#[test]
+fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
+    use crate::model::devices::rollover_report;
+    // Split through a hub's translator: three packets, three polls.
+    let mut m = Model::new(2);
+    m.tree.plug(
+        &[1],
+        Device::Hub {
+            speed: Speed::High,
+            ports: 4,
+            multi_tt: false,
+        },
+    );
+    let keyboard = m.tree.plug(&[1, 2], Device::RolloverKeyboard(Speed::Full));
+    let (mut bus, found) = enumerated(m);
+    assert_eq!(found, 1, "{:#?}", model(&mut bus).log);
+    assert!(logged(model(&mut bus), "(2 key fields, 20-byte reports)"));
+    let a_and_b = rollover_report(&[0x04, 0x05]);
+    assert!(model(&mut bus).tree.send_packets(keyboard, &a_and_b, false));
+    assert_eq!(run(&mut bus, 20_000), [A_MAKE, B_MAKE]);
+    // Cut short after 10 bytes: dropped, and the next report is whole.
+    assert!(model(&mut bus)
+        .tree
+        .send_packets(keyboard, &a_and_b[..10], false));
+    let released = rollover_report(&[]);
+    assert!(model(&mut bus)
+        .tree
+        .send_packets(keyboard, &released, false));
+    assert_eq!(run(&mut bus, 20_000), [A_BREAK, B_BREAK]);
+    assert!(logged(
+        model(&mut bus),
+        "keyboard: 1 unreadable reports dropped (the last 10 bytes)"
+    ));
+    assert_eq!(bus.dropped_reports(), 1);
+    assert_clean(model(&mut bus));
+}
