@@ -919,23 +919,31 @@ fn type_on_each(bus: &mut Bus<Ehci<Model>>, keyboards: &[usize]) -> Vec<u8> {
         .collect()
 }
 
-#[test]
-fn eight_full_speed_keyboards_share_one_translator_spread_over_micro_frames() {
-    let (m, keyboards) = keyboards_behind_a_hub(8, Speed::Full, false);
+/// Eight full-speed keyboards behind a high-speed hub, each typing: two
+/// start-splits in each of micro-frames 0-3, none later (their
+/// complete-splits in N+2..N+4 end in micro-frame 7). Gives the bus and
+/// the hub's address.
+fn eight_keyboards_spread(multi_tt: bool) -> (Bus<Ehci<Model>>, u8) {
+    let (m, keyboards) = keyboards_behind_a_hub(8, Speed::Full, multi_tt);
     let (mut bus, found) = enumerated(m);
     assert_eq!(found, 8, "{:#?}", model(&mut bus).log);
     let addresses = type_on_each(&mut bus, &keyboards);
     let m = model(&mut bus);
-    // Two start-splits in each of micro-frames 0-3, none later (their
-    // complete-splits in N+2..N+4 end in micro-frame 7).
     assert_eq!(
         starts_by_micro_frame(m, &addresses),
         [2, 2, 2, 2, 0, 0, 0, 0]
     );
-    // One translator, 20 us a keyboard (USB 2.0 5.11.3 and think time).
+    assert_clean(m);
     let hub = m.tree.handle_at(&[1]).unwrap();
     let hub_address = m.tree.keyboard_state(hub).2;
-    let load = m.periodic_load.clone();
+    (bus, hub_address)
+}
+
+#[test]
+fn eight_full_speed_keyboards_share_one_translator_spread_over_micro_frames() {
+    let (mut bus, hub_address) = eight_keyboards_spread(false);
+    // One translator, 20 us a keyboard (USB 2.0 5.11.3 and think time).
+    let load = model(&mut bus).periodic_load.clone();
     assert_eq!(
         load.translators.into_iter().collect::<Vec<_>>(),
         [((hub_address, 0), 160)]
@@ -944,27 +952,19 @@ fn eight_full_speed_keyboards_share_one_translator_spread_over_micro_frames() {
     // keyboards' in each of N+2..N+4), the hub's own poll 1 us (in one
     // frame of 32).
     assert_eq!(load.micro_frames, [3, 2, 8, 14, 18, 18, 12, 6]);
-    assert_clean(m);
 }
 
 #[test]
 fn eight_keyboards_behind_a_multi_tt_hub_each_get_their_own_translator() {
-    let (m, keyboards) = keyboards_behind_a_hub(8, Speed::Full, true);
-    let (mut bus, found) = enumerated(m);
-    assert_eq!(found, 8, "{:#?}", model(&mut bus).log);
-    let addresses = type_on_each(&mut bus, &keyboards);
-    let m = model(&mut bus);
-    assert_eq!(
-        starts_by_micro_frame(m, &addresses),
-        [2, 2, 2, 2, 0, 0, 0, 0]
-    );
-    let hub = m.tree.handle_at(&[1]).unwrap();
-    let hub_address = m.tree.keyboard_state(hub).2;
-    let translators: Vec<((u8, u8), u32)> =
-        m.periodic_load.translators.clone().into_iter().collect();
+    let (mut bus, hub_address) = eight_keyboards_spread(true);
+    let translators: Vec<((u8, u8), u32)> = model(&mut bus)
+        .periodic_load
+        .translators
+        .clone()
+        .into_iter()
+        .collect();
     let each: Vec<((u8, u8), u32)> = (1..=8).map(|port| ((hub_address, port), 20)).collect();
     assert_eq!(translators, each);
-    assert_clean(m);
 }
 
 #[test]
@@ -1104,15 +1104,7 @@ fn pipes_polled_every_eight_frames_go_to_eight_different_frames() {
 fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
     use crate::model::devices::rollover_report;
     // Split through a hub's translator: three packets, three polls.
-    let mut m = Model::new(2);
-    m.tree.plug(
-        &[1],
-        Device::Hub {
-            speed: Speed::High,
-            ports: 4,
-            multi_tt: false,
-        },
-    );
+    let (mut m, _) = keyboards_behind_a_hub(0, Speed::Full, false);
     let keyboard = m.tree.plug(&[1, 2], Device::RolloverKeyboard(Speed::Full));
     let (mut bus, found) = enumerated(m);
     assert_eq!(found, 1, "{:#?}", model(&mut bus).log);
