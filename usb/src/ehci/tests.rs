@@ -1128,3 +1128,71 @@ fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
     assert_eq!(bus.dropped_reports(), 1);
     assert_clean(model(&mut bus));
 }
+
+#[test]
+fn the_model_refuses_a_schedule_over_budget_or_with_bad_split_masks() {
+    let mut ehci = started(Model::new(1));
+    let frame_list = Layout::new(DMA_BASE).frame_list();
+    let m = ehci.hardware();
+    // Queue heads the driver never wrote, past its memory: five
+    // high-speed polls of 1,024 bytes (21 us each) in micro-frame 0; two
+    // low-speed ones of 64 bytes (475 us each) and a full-speed one (20 us)
+    // through one translator, the full-speed one started in micro-frame 4
+    // with complete-splits that would run past the frame. Each split's
+    // start-split adds 1 us of high speed.
+    let high_speed = 2 << 12 | 1024 << 16 | 1 << 8;
+    let low_speed = 1 << 12 | 64 << 16 | 1 << 8;
+    let full_speed = 8 << 16 | 1 << 8 | 5;
+    let split = |s_mask: u32, c_mask: u32| 1 << 30 | 1 << 23 | 1 << 16 | c_mask << 8 | s_mask;
+    let heads = [
+        (high_speed | 1, 1 << 30 | 1),
+        (high_speed | 2, 1 << 30 | 1),
+        (high_speed | 3, 1 << 30 | 1),
+        (high_speed | 4, 1 << 30 | 1),
+        (high_speed | 5, 1 << 30 | 1),
+        (low_speed | 6, split(0x01, 0x1C)),
+        (low_speed | 7, split(0x01, 0x1C)),
+        (full_speed, split(0x10, 0xC0)),
+    ];
+    let base = DMA_BASE + 0x2_0000;
+    for (i, &(characteristics, capabilities)) in heads.iter().enumerate() {
+        let qh = base + 0x80 * i as u64;
+        let next = if i + 1 < heads.len() {
+            (qh + 0x80) as u32 | 2
+        } else {
+            1
+        };
+        let qtd = base + 0x1000 + 0x40 * i as u64;
+        for (offset, word) in [(0, next), (4, characteristics), (8, capabilities)] {
+            m.poke(qh + offset, word);
+        }
+        for offset in [0x10, 0x14] {
+            m.poke(qh + offset, 1);
+        }
+        // The split's qTD is active, so it runs (and its masks are seen).
+        let active = i + 1 == heads.len();
+        m.poke(qh + 0x18, 0);
+        m.poke(qtd, 1);
+        m.poke(qtd + 4, 1);
+        m.poke(qtd + 8, 1 << 7 | 1 << 8 | 3 << 10 | 8 << 16);
+        m.poke(qtd + 12, (base + 0x2000) as u32);
+        if active {
+            m.poke(qh + 0x10, qtd as u32);
+        }
+    }
+    m.poke(frame_list, base as u32 | 2);
+    m.advance(1_000);
+    let expected = [
+        "micro-frame 0 has 107 us of high-speed periodic time (at most 100)",
+        "translator (1, 0) has 970 us of full- and low-speed time (at most 900)",
+        "translator (1, 0) ends a split started in micro-frame 0 at 600 us",
+        "S-mask 0x10 with C-mask 0xc0",
+    ];
+    for text in expected {
+        assert!(
+            m.errors.iter().any(|e| e.contains(text)),
+            "{text}: {:#?}",
+            m.errors
+        );
+    }
+}

@@ -432,6 +432,14 @@ impl Model {
         }
     }
 
+    /// Writes word `address` behind the driver's back, unchecked, as a
+    /// test building a schedule the driver never would does; the
+    /// periodic schedule is looked at again.
+    pub fn poke(&mut self, address: u64, value: u32) {
+        self.hc_write(address, value);
+        self.periodic_dirty = true;
+    }
+
     /// Reads word `address` as the test sees it.
     pub fn peek(&self, address: u64) -> u32 {
         self.index(address).map_or(0, |i| self.memory[i])
