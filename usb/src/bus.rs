@@ -7,8 +7,9 @@
 //!   descriptors, then a keyboard set up or a hub configured and its ports
 //!   powered, to the five hub tiers USB allows, with the transaction
 //!   translator a full- or low-speed device behind a high-speed hub needs;
-//! - keyboards' reports read through their interrupt pipes and turned
-//!   into PS/2 set-1 bytes ([`crate::report`]: typematic repeat too), by the boot
+//! - keyboards' reports read through their interrupt pipes, put back
+//!   together from their packets where a report is longer than one, and
+//!   turned into PS/2 set-1 bytes ([`crate::report`]: typematic repeat too), by the boot
 //!   report or by the keyboard's own report descriptor ([`crate::hid`]);
 //! - stalls and errors on interrupt pipes recovered, a device that keeps
 //!   failing given up, every control transfer bounded by the clock.
@@ -18,7 +19,7 @@
 //! the clock only while a key is held (for its repeat) or work is queued.
 
 use crate::descriptor;
-use crate::hid::{Decoded, KeySet, KeyboardLayout};
+use crate::hid::{Decoded, KeySet, KeyboardLayout, MAX_REPORT_BYTES};
 use crate::host::{
     ControllerKind, DeviceId, HostController, PipeId, Setup, Speed, TransactionTranslator,
     Transfer, MAX_CONTROL_DATA, MAX_REPORT,
@@ -214,11 +215,79 @@ impl Pipe {
     }
 }
 
+/// A keyboard's report put back together from its interrupt packets: an
+/// N-key-rollover report of 16 to 32 bytes comes in 8-byte packets, one
+/// per poll on every controller. A report ends when its length (by the
+/// report descriptor) has come, or with a short packet (USB 2.0 5.7.3).
+#[derive(Clone, Copy, Debug)]
+struct Packets {
+    /// The endpoint's packet size: a packet shorter than it ends a report.
+    max_packet: u16,
+    bytes: [u8; MAX_REPORT_BYTES],
+    /// Bytes of the report under way so far (past `bytes` too: counted,
+    /// not kept).
+    received: usize,
+    /// The length the report under way has.
+    expected: usize,
+}
+
+/// What one packet made of the report under way.
+enum Assembled {
+    /// More packets to come.
+    Pending,
+    /// A whole report, its first bytes in [`Packets::bytes`].
+    Report(usize),
+    /// A report longer than [`MAX_REPORT_BYTES`], dropped.
+    TooLong(usize),
+}
+
+impl Packets {
+    fn new(max_packet: u16) -> Packets {
+        Packets {
+            max_packet,
+            bytes: [0; MAX_REPORT_BYTES],
+            received: 0,
+            expected: 0,
+        }
+    }
+
+    /// Takes one packet of a keyboard's reports in `format`.
+    fn take(&mut self, packet: &[u8], format: &ReportFormat) -> Assembled {
+        if self.received == 0 {
+            let Some(&first) = packet.first() else {
+                // A zero-length packet between reports ends one that
+                // filled whole packets: nothing in it.
+                return Assembled::Pending;
+            };
+            self.expected = match format {
+                ReportFormat::Boot => report::REPORT_BYTES,
+                ReportFormat::Described(layout) => layout.report_length(first),
+            };
+        }
+        let start = self.received;
+        self.received += packet.len();
+        if let Some(room) = self.bytes.get_mut(start..self.received) {
+            room.copy_from_slice(packet);
+        }
+        if self.received < self.expected && packet.len() >= usize::from(self.max_packet) {
+            return Assembled::Pending;
+        }
+        let length = core::mem::take(&mut self.received);
+        if length > MAX_REPORT_BYTES {
+            Assembled::TooLong(length)
+        } else {
+            Assembled::Report(length)
+        }
+    }
+}
+
 /// A configured keyboard.
 #[derive(Clone, Debug)]
 struct Keyboard {
     pipe: Pipe,
     format: ReportFormat,
+    /// The report under way.
+    packets: Packets,
     /// The keys each report ID last said are down (`u8::MAX`: unused).
     keys_by_report: [(u8, KeySet); KEY_REPORTS],
     state: BootKeyboard,
@@ -261,6 +330,8 @@ impl Keyboard {
     /// Lets go of every key (breaks for those held) and forgets them.
     fn release_all(&mut self, out: &mut impl FnMut(u8)) {
         self.state.release_all(out);
+        // A report cut short by a failure is not finished by the next one.
+        self.packets.received = 0;
         self.keys_by_report = [(u8::MAX, KeySet::default()); KEY_REPORTS];
     }
 }
@@ -592,6 +663,24 @@ impl<C: HostController> Bus<C> {
         match &mut device.role {
             Role::Keyboard(keyboard) => {
                 keyboard.pipe.failures_in_a_row = 0;
+                let mut whole = [0u8; MAX_REPORT_BYTES];
+                let report = match keyboard.packets.take(report, &keyboard.format) {
+                    Assembled::Pending => return,
+                    Assembled::Report(length) => {
+                        whole[..length].copy_from_slice(&keyboard.packets.bytes[..length]);
+                        &whole[..length]
+                    }
+                    Assembled::TooLong(length) => {
+                        keyboard.dropped = keyboard.dropped.saturating_add(1);
+                        self.say_at(
+                            location,
+                            format_args!(
+                                "keyboard: a report of {length} bytes dropped (at most {MAX_REPORT_BYTES} are kept)"
+                            ),
+                        );
+                        return;
+                    }
+                };
                 match keyboard.keys(report) {
                     Ok(keys) => {
                         let now = self.controller.now_micros();

@@ -5,13 +5,16 @@
 //! queue head per interrupt-in pipe, linked from the 1024-entry frame
 //! list), root ports with the hand-over of full- and low-speed devices to
 //! the companion controller, and split transactions for full- and
-//! low-speed devices behind a high-speed hub's transaction translator.
+//! low-speed devices behind a high-speed hub's transaction translator,
+//! each interrupt pipe placed where the bus has the time for it
+//! (`ehci/budget.rs`).
 //!
 //! Every register offset is checked against BAR0 once, in [`Ehci::new`];
 //! every wait is bounded by the clock; every count the controller writes
 //! back is checked before it is used. All DMA structures live in fixed
 //! pools inside the one region the kernel gives, reused as devices go.
 
+pub(crate) mod budget;
 mod layout;
 #[cfg(test)]
 mod tests;
@@ -21,15 +24,15 @@ use crate::host::{
     ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use crate::PciHardware;
+use budget::{Booking, Translator, BUDGET_FRAMES};
 use core::fmt;
 use layout::{
     buffer_pointers, capabilities, characteristics, qh_link, token, token_remaining, Layout, Stage,
-    FRAME_LIST_ENTRIES, HEAD_OF_RECLAMATION, INTERRUPT_C_MASK, INTERRUPT_S_MASK, LINK_TERMINATE,
-    PID_IN, PID_OUT, PID_SETUP, QH_CAPABILITIES, QH_CHARACTERISTICS, QH_HORIZONTAL,
-    QH_OVERLAY_ALTERNATE, QH_OVERLAY_NEXT, QH_OVERLAY_TOKEN, QTD_ALTERNATE, QTD_BUFFERS,
-    QTD_BUFFERS_HIGH, QTD_NEXT, QTD_TOKEN, TOKEN_ACTIVE, TOKEN_BABBLE, TOKEN_CERR,
-    TOKEN_DATA_BUFFER, TOKEN_ERRORS, TOKEN_HALTED, TOKEN_MISSED_MICRO_FRAME, TOKEN_TOGGLE,
-    TOKEN_TRANSACTION_ERROR,
+    FRAME_LIST_ENTRIES, HEAD_OF_RECLAMATION, LINK_TERMINATE, PID_IN, PID_OUT, PID_SETUP,
+    QH_CAPABILITIES, QH_CHARACTERISTICS, QH_HORIZONTAL, QH_OVERLAY_ALTERNATE, QH_OVERLAY_NEXT,
+    QH_OVERLAY_TOKEN, QTD_ALTERNATE, QTD_BUFFERS, QTD_BUFFERS_HIGH, QTD_NEXT, QTD_TOKEN,
+    TOKEN_ACTIVE, TOKEN_BABBLE, TOKEN_CERR, TOKEN_DATA_BUFFER, TOKEN_ERRORS, TOKEN_HALTED,
+    TOKEN_MISSED_MICRO_FRAME, TOKEN_TOGGLE, TOKEN_TRANSACTION_ERROR,
 };
 pub use layout::{DMA_BYTES_USED, MAX_DEVICES, MAX_PIPES};
 
@@ -54,9 +57,6 @@ const PORT_RESET_END_MICROS: u64 = 5_000;
 const ASYNC_ADVANCE_MICROS: u64 = 10_000;
 /// How long two frame boundaries may take to pass after a periodic unlink.
 const PERIODIC_RELEASE_MICROS: u64 = 5_000;
-/// The slowest interrupt polling the driver sets up, in frames: a slower
-/// bInterval is rounded down to this (a host may poll more often).
-const MAX_INTERRUPT_INTERVAL: u16 = 256;
 
 // Capability registers, from BAR0.
 /// CAPLENGTH (bits 7:0) and HCIVERSION (bits 31:16).
@@ -208,6 +208,8 @@ struct Device {
     address: u8,
     max_packet: u16,
     transfer: Option<Control>,
+    /// A hub with a transaction translator per port.
+    multi_tt: bool,
 }
 
 impl Device {
@@ -221,6 +223,7 @@ impl Device {
         address: 0,
         max_packet: 0,
         transfer: None,
+        multi_tt: false,
     };
 }
 
@@ -237,8 +240,8 @@ struct Pipe {
     slot: Slot,
     device: u8,
     max_packet: u16,
-    /// Frames between polls (a power of two).
-    interval: u16,
+    /// Where it is polled, and the bus time it takes there.
+    booking: Booking,
     state: PipeState,
 }
 
@@ -247,7 +250,7 @@ impl Pipe {
         slot: Slot::Free,
         device: 0,
         max_packet: 0,
-        interval: 1,
+        booking: Booking::new(Speed::High, 0, 1, None),
         state: PipeState::Stopped,
     };
 }
@@ -368,6 +371,14 @@ impl<H: PciHardware> Ehci<H> {
             self.devices.iter().filter(|d| d.slot == Slot::Free).count(),
             self.pipes.iter().filter(|p| p.slot == Slot::Free).count(),
         )
+    }
+
+    /// The open interrupt pipes' places in the periodic schedule.
+    pub fn bookings(&self) -> impl Iterator<Item = Booking> + '_ {
+        self.pipes
+            .iter()
+            .filter(|p| p.slot == Slot::Used)
+            .map(|p| p.booking)
     }
 
     // Registers.
@@ -699,10 +710,12 @@ impl<H: PciHardware> Ehci<H> {
 
     // The periodic schedule.
 
-    /// Relinks every open pipe's queue head: one chain, slowest interval
-    /// first, so that a frame's entry points at the first pipe due in it
-    /// and every faster pipe after it is due then too. Links are written
-    /// from the end, so nothing points at a queue head before its own
+    /// Relinks every open pipe's queue head as a tree, as Linux's
+    /// `qh_link_periodic` does: each frame's list holds the pipes due in
+    /// it, slowest period first. Periods are powers of two, so the pipes
+    /// after one in its frames are the same in every one of them, and its
+    /// one horizontal link serves them all. Links are written from the
+    /// fastest pipe up, so nothing points at a queue head before its own
     /// link is right.
     fn periodic_relink(&mut self) {
         let mut order = [0u8; MAX_PIPES];
@@ -714,24 +727,42 @@ impl<H: PciHardware> Ehci<H> {
             }
         }
         let pipes = self.pipes;
-        order[..count]
-            .sort_unstable_by_key(|&i| (core::cmp::Reverse(pipes[usize::from(i)].interval), i));
-        let mut next = LINK_TERMINATE;
-        for &i in order[..count].iter().rev() {
+        let booking = |i: u8| pipes[usize::from(i)].booking;
+        order[..count].sort_unstable_by_key(|&i| (core::cmp::Reverse(booking(i).period), i));
+        for (position, &i) in order[..count].iter().enumerate().rev() {
+            let own = booking(i);
+            // The next pipe due whenever this one is.
+            let next = order[position + 1..count]
+                .iter()
+                .find(|&&j| own.phase % booking(j).period == booking(j).phase);
+            let link = match next {
+                Some(&j) => qh_link(self.layout.pipe_qh(usize::from(j))),
+                None => LINK_TERMINATE,
+            };
             let qh = self.layout.pipe_qh(usize::from(i));
-            self.hw.mem_write(qh + QH_HORIZONTAL, next);
-            next = qh_link(qh);
+            self.hw.mem_write(qh + QH_HORIZONTAL, link);
         }
         let frame_list = self.layout.frame_list();
         for frame in 0..FRAME_LIST_ENTRIES {
-            let first = order[..count]
-                .iter()
-                .find(|&&i| frame % usize::from(pipes[usize::from(i)].interval) == 0);
+            let first = order[..count].iter().find(|&&i| booking(i).due(frame));
             let entry = match first {
                 Some(&i) => qh_link(self.layout.pipe_qh(usize::from(i))),
                 None => LINK_TERMINATE,
             };
             self.hw.mem_write(frame_list + 4 * frame as u64, entry);
+        }
+    }
+
+    /// The translator a split to a device behind `tt` goes through: the
+    /// hub's one, or its port's on a multi-TT hub.
+    fn translator(&self, tt: crate::host::TransactionTranslator) -> Translator {
+        let multi_tt = self
+            .devices
+            .iter()
+            .any(|d| d.slot == Slot::Used && d.address == tt.hub_address && d.multi_tt);
+        Translator {
+            hub_address: tt.hub_address,
+            port: if multi_tt { tt.hub_port } else { 0 },
         }
     }
 
@@ -961,6 +992,7 @@ impl<H: PciHardware> HostController for Ehci<H> {
             address: 0,
             max_packet,
             transfer: None,
+            multi_tt: false,
         };
         let qh = self.layout.device_qh(index);
         self.clear_qh(qh);
@@ -1013,11 +1045,13 @@ impl<H: PciHardware> HostController for Ehci<H> {
         &mut self,
         device: DeviceId,
         _ports: u8,
-        _multi_tt: bool,
+        multi_tt: bool,
     ) -> Result<(), HostError> {
         // Split transactions name the hub in each device's queue head; the
-        // hub itself needs nothing.
-        self.device(device).map(|_| ())
+        // budget needs to know how many translators it has.
+        let index = self.device(device)?;
+        self.devices[index].multi_tt = multi_tt;
+        Ok(())
     }
 
     fn device_remove(&mut self, device: DeviceId) {
@@ -1199,14 +1233,26 @@ impl<H: PciHardware> HostController for Ehci<H> {
             self.hw.log(format_args!("ehci: no room for another pipe"));
             return Err(HostError::NoRoom);
         };
-        // The largest power of two not above the interval.
-        let asked = u16::from(interval.max(1)).min(MAX_INTERRUPT_INTERVAL);
-        let interval = 1u16 << (15 - asked.leading_zeros());
+        // The largest power of two not above the interval, at most the
+        // budget's frames (a host may poll more often).
+        let asked = u16::from(interval.max(1)).min(BUDGET_FRAMES as u16);
+        let period = 1u16 << (15 - asked.leading_zeros());
+        let translator = d.info.translator.map(|tt| self.translator(tt));
+        let wanted = Booking::new(d.info.speed, max_packet, period, translator);
+        let Some(booking) = budget::place(self.bookings(), wanted) else {
+            self.hw.log(format_args!(
+                "ehci: no room in the periodic schedule for endpoint {endpoint} of device {} ({:?} speed, {max_packet} bytes every {period} frames{}): pipe refused",
+                d.address,
+                d.info.speed,
+                budget::Through(translator)
+            ));
+            return Err(HostError::NoRoom);
+        };
         self.pipes[index] = Pipe {
             slot: Slot::Used,
             device: device_index as u8,
             max_packet,
-            interval,
+            booking,
             state: PipeState::Armed,
         };
         let qh = self.layout.pipe_qh(index);
@@ -1216,14 +1262,9 @@ impl<H: PciHardware> HostController for Ehci<H> {
             qh + QH_CHARACTERISTICS,
             characteristics(d.address, endpoint, d.info.speed, max_packet, false),
         );
-        let c_mask = if d.info.speed == Speed::High {
-            0
-        } else {
-            INTERRUPT_C_MASK
-        };
         self.hw.mem_write(
             qh + QH_CAPABILITIES,
-            capabilities(d.info.translator, INTERRUPT_S_MASK, c_mask),
+            capabilities(d.info.translator, booking.s_mask, booking.c_mask),
         );
         self.arm_pipe(index);
         self.hw.mem_write(qh + QH_OVERLAY_NEXT, qtd as u32);

@@ -248,6 +248,20 @@ impl KeyboardLayout {
             .unwrap_or(0)
     }
 
+    /// How long the input report whose first byte is `first_byte` is, in
+    /// bytes with its ID byte: its report's length, or, for a report ID
+    /// the descriptor does not name, the longest input report's.
+    pub fn report_length(&self, first_byte: u8) -> usize {
+        let report_id = if self.numbered { first_byte } else { 0 };
+        self.report_bytes(report_id).unwrap_or_else(|| {
+            self.report_bits[..self.report_ids]
+                .iter()
+                .filter_map(|&(id, _)| self.report_bytes(id))
+                .max()
+                .unwrap_or(0)
+        })
+    }
+
     /// An input report's length in bytes, with its ID byte.
     fn report_bytes(&self, report_id: u8) -> Option<usize> {
         self.report_bits[..self.report_ids]

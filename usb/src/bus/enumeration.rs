@@ -1388,6 +1388,7 @@ impl<C: HostController> Bus<C> {
             device.role = Role::Keyboard(Keyboard {
                 pipe: Pipe::new(pipe, set_up.endpoint.number),
                 format,
+                packets: Packets::new(max_packet),
                 keys_by_report: [(u8::MAX, KeySet::default()); KEY_REPORTS],
                 state: BootKeyboard::new(),
                 dropped: 0,

@@ -759,3 +759,45 @@ fn locations_read_as_the_ports_down_from_the_root() {
     assert_eq!(format!("{deepest}"), "1.1.2.3.4.5");
     assert_eq!(deepest.below(1), None);
 }
+
+#[test]
+fn packets_make_reports_by_their_id_and_one_too_long_is_dropped_whole() {
+    use crate::model::devices::ROLLOVER_REPORT_DESCRIPTOR;
+    // The rollover keyboard's keys as report 1, and a 100-byte vendor
+    // report 2 beside them.
+    let mut descriptor = ROLLOVER_REPORT_DESCRIPTOR[..6].to_vec();
+    descriptor.extend([0x85, 0x01]);
+    descriptor.extend(&ROLLOVER_REPORT_DESCRIPTOR[6..44]);
+    descriptor.extend([0x85, 0x02, 0x06, 0x00, 0xFF, 0x09, 0x01]);
+    descriptor.extend([
+        0x15, 0x00, 0x25, 0x01, 0x75, 0x08, 0x95, 100, 0x81, 0x02, 0xC0,
+    ]);
+    let layout = crate::hid::parse(&descriptor).expect("parses");
+    assert_eq!(
+        (layout.report_length(1), layout.report_length(2)),
+        (21, 101)
+    );
+    assert_eq!(layout.report_length(9), 101, "an unknown ID: the longest");
+    let format = ReportFormat::Described(layout);
+    let mut packets = Packets::new(8);
+    let mut take = |packet: &[u8]| match packets.take(packet, &format) {
+        Assembled::Pending => None,
+        Assembled::Report(length) => Some(Ok(length)),
+        Assembled::TooLong(length) => Some(Err(length)),
+    };
+    // Report 2: thirteen packets, the last of 5 bytes, dropped whole.
+    let mut vendor = [0xAA; 101];
+    vendor[0] = 2;
+    let ends: Vec<_> = vendor.chunks(8).map(&mut take).collect();
+    assert_eq!(ends[..12], [None; 12]);
+    assert_eq!(ends[12], Some(Err(101)));
+    // Report 1 after it: 21 bytes in three packets.
+    let mut keys = [0u8; 21];
+    keys[0] = 1;
+    let ends: Vec<_> = keys.chunks(8).map(&mut take).collect();
+    assert_eq!(ends, [None, None, Some(Ok(21))]);
+    // A zero-length packet between reports is nothing; a short packet
+    // ends a report early (the decoder then finds it too short).
+    assert_eq!(take(&[]), None);
+    assert_eq!(take(&[1, 0, 0]), Some(Ok(3)));
+}

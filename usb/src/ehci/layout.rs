@@ -104,12 +104,6 @@ const PORT_NUMBER_SHIFT: u32 = 23;
 /// High-bandwidth pipe multiplier: one transaction per micro-frame.
 const MULT_ONE: u32 = 1 << 30;
 
-/// Interrupt start-split (or high-speed transaction) in micro-frame 0.
-pub const INTERRUPT_S_MASK: u8 = 0x01;
-/// Complete-splits in micro-frames 2, 3 and 4, as Linux commonly uses for
-/// a start-split in micro-frame 0 (EHCI 4.12.2.1).
-pub const INTERRUPT_C_MASK: u8 = 0x1C;
-
 /// Where everything lives in the DMA region (offsets from its page-aligned
 /// base). Device slots are 1.5 KiB, so some data buffers straddle a page
 /// boundary and are reached through two buffer pointers.

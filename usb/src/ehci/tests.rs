@@ -10,6 +10,7 @@ use crate::host::TransactionTranslator;
 use crate::model::devices::Device;
 use crate::model::ehci::{Model, SplitRecord, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use crate::{Hardware, Memory};
+use budget::Booking;
 use std::vec::Vec;
 
 /// The boot report of the A key, and of nothing held.
@@ -118,8 +119,9 @@ fn assert_splits(m: &Model, address: u8, hub_address: u8, hub_port: u8, eps: u8)
         assert_eq!(s.eps, eps, "EPS: {s:?}");
         if s.periodic {
             assert_eq!((s.endpoint, s.control), (1, false), "{s:?}");
-            assert_eq!(s.s_mask, 0x01, "S-mask: {s:?}");
-            assert_eq!(s.c_mask, 0x1C, "C-mask: {s:?}");
+            let start = s.s_mask.trailing_zeros();
+            assert!(s.s_mask.count_ones() == 1 && start <= 3, "S-mask: {s:?}");
+            assert_eq!(s.c_mask, 0b111 << (start + 2), "C-mask: {s:?}");
         } else {
             assert_eq!((s.endpoint, s.control), (0, true), "{s:?}");
             assert_eq!((s.s_mask, s.c_mask), (0, 0), "async masks: {s:?}");
@@ -866,4 +868,331 @@ fn a_pipe_closed_and_opened_again_at_once_waits_for_the_frames() {
     ehci.device_remove(second);
     assert_eq!(ehci.free_slots(), (MAX_DEVICES, MAX_PIPES));
     assert_clean(ehci.hardware());
+}
+
+// The periodic schedule's budget (`ehci/budget.rs`).
+
+/// Keyboards of `speed` on ports 1..=`count` of a high-speed hub on root
+/// port 1 (one translator, or one per port); the model and the handles.
+fn keyboards_behind_a_hub(count: u8, speed: Speed, multi_tt: bool) -> (Model, Vec<usize>) {
+    let mut m = Model::new(2);
+    m.tree.plug(
+        &[1],
+        Device::Hub {
+            speed: Speed::High,
+            ports: 8,
+            multi_tt,
+        },
+    );
+    let keyboards = (1..=count)
+        .map(|port| m.tree.plug(&[1, port], Device::Keyboard(speed)))
+        .collect();
+    (m, keyboards)
+}
+
+/// How many interrupt pipes start (transaction or start-split) in each
+/// micro-frame, as the queue heads the controller ran say.
+fn starts_by_micro_frame(m: &Model, addresses: &[u8]) -> [usize; 8] {
+    let mut starts = [0; 8];
+    for &address in addresses {
+        let masks: std::collections::BTreeSet<(u8, u8)> = m
+            .split_log
+            .iter()
+            .filter(|s| s.periodic && s.address == address)
+            .map(|s| (s.s_mask, s.c_mask))
+            .collect();
+        assert_eq!(masks.len(), 1, "address {address}: {masks:?}");
+        let (s_mask, _) = masks.into_iter().next().unwrap();
+        starts[s_mask.trailing_zeros() as usize] += 1;
+    }
+    starts
+}
+
+/// Every keyboard types, and gives its address.
+fn type_on_each(bus: &mut Bus<Ehci<Model>>, keyboards: &[usize]) -> Vec<u8> {
+    keyboards
+        .iter()
+        .map(|&keyboard| {
+            assert_eq!(type_key(bus, keyboard, KEY_A), [A_MAKE, A_BREAK]);
+            model(bus).tree.keyboard_state(keyboard).2
+        })
+        .collect()
+}
+
+/// Eight full-speed keyboards behind a high-speed hub, each typing: two
+/// start-splits in each of micro-frames 0-3, none later (their
+/// complete-splits in N+2..N+4 end in micro-frame 7). Gives the bus and
+/// the hub's address.
+fn eight_keyboards_spread(multi_tt: bool) -> (Bus<Ehci<Model>>, u8) {
+    let (m, keyboards) = keyboards_behind_a_hub(8, Speed::Full, multi_tt);
+    let (mut bus, found) = enumerated(m);
+    assert_eq!(found, 8, "{:#?}", model(&mut bus).log);
+    let addresses = type_on_each(&mut bus, &keyboards);
+    let m = model(&mut bus);
+    assert_eq!(
+        starts_by_micro_frame(m, &addresses),
+        [2, 2, 2, 2, 0, 0, 0, 0]
+    );
+    assert_clean(m);
+    let hub = m.tree.handle_at(&[1]).unwrap();
+    let hub_address = m.tree.keyboard_state(hub).2;
+    (bus, hub_address)
+}
+
+#[test]
+fn eight_full_speed_keyboards_share_one_translator_spread_over_micro_frames() {
+    let (mut bus, hub_address) = eight_keyboards_spread(false);
+    // One translator, 20 us a keyboard (USB 2.0 5.11.3 and think time).
+    let load = model(&mut bus).periodic_load.clone();
+    assert_eq!(
+        load.translators.into_iter().collect::<Vec<_>>(),
+        [((hub_address, 0), 160)]
+    );
+    // High speed: each start-split 1 us, each complete-split 3 us (two
+    // keyboards' in each of N+2..N+4), the hub's own poll 1 us (in one
+    // frame of 32).
+    assert_eq!(load.micro_frames, [3, 2, 8, 14, 18, 18, 12, 6]);
+}
+
+#[test]
+fn eight_keyboards_behind_a_multi_tt_hub_each_get_their_own_translator() {
+    let (mut bus, hub_address) = eight_keyboards_spread(true);
+    let translators: Vec<((u8, u8), u32)> = model(&mut bus)
+        .periodic_load
+        .translators
+        .clone()
+        .into_iter()
+        .collect();
+    let each: Vec<((u8, u8), u32)> = (1..=8).map(|port| ((hub_address, port), 20)).collect();
+    assert_eq!(translators, each);
+}
+
+#[test]
+fn a_seventh_low_speed_keyboard_on_a_full_translator_is_refused() {
+    // 121 us each: six fit in the 750 us the start-splits in micro-frames
+    // 0-3 can carry, a seventh does not.
+    let (m, keyboards) = keyboards_behind_a_hub(7, Speed::Low, false);
+    let (mut bus, found) = enumerated(m);
+    assert_eq!(found, 6, "{:#?}", model(&mut bus).log);
+    let refused = model(&mut bus)
+        .log
+        .iter()
+        .filter(|line| line.contains("ehci: no room in the periodic schedule for endpoint 1"))
+        .count();
+    assert_eq!(refused, 1, "{:#?}", model(&mut bus).log);
+    assert!(logged(
+        model(&mut bus),
+        "(Low speed, 8 bytes every 1 frames, through hub 1's translator): pipe refused"
+    ));
+    let working: Vec<usize> = keyboards
+        .into_iter()
+        .filter(|&k| model(&mut bus).tree.keyboard_state(k).1 != 0)
+        .collect();
+    let addresses = type_on_each(&mut bus, &working[..6]);
+    let m = model(&mut bus);
+    assert_eq!(
+        starts_by_micro_frame(m, &addresses),
+        [1, 2, 2, 1, 0, 0, 0, 0]
+    );
+    assert_eq!(
+        m.periodic_load
+            .translators
+            .values()
+            .copied()
+            .collect::<Vec<_>>(),
+        [726]
+    );
+    assert_clean(m);
+}
+
+#[test]
+fn a_thousand_plug_cycles_on_a_full_translator_give_its_time_back() {
+    // Six low-speed keyboards leave 24 us of the translator's 750: a
+    // keyboard's 121 us not given back would refuse the next one.
+    let (m, keyboards) = keyboards_behind_a_hub(6, Speed::Low, false);
+    let (mut bus, found) = enumerated(m);
+    assert_eq!(found, 6, "{:#?}", model(&mut bus).log);
+    run(&mut bus, 2_000);
+    let full = model(&mut bus).periodic_load.clone();
+    let booked: Vec<_> = bus.controller().bookings().collect();
+    let mut last = keyboards[5];
+    for cycle in 0..1_000 {
+        model(&mut bus).tree.unplug(&[1, 6]);
+        let mut waited = 0;
+        // The hub and five keyboards.
+        while bus.devices() != 6 {
+            run(&mut bus, 10_000);
+            waited += 1;
+            assert!(waited < 100, "cycle {cycle}: not gone");
+        }
+        last = model(&mut bus)
+            .tree
+            .plug(&[1, 6], Device::Keyboard(Speed::Low));
+        let mut waited = 0;
+        while bus.keyboards().count() != 6 {
+            run(&mut bus, 10_000);
+            waited += 1;
+            assert!(waited < 100, "cycle {cycle}: {:#?}", model(&mut bus).log);
+        }
+    }
+    assert_eq!(type_key(&mut bus, last, KEY_B), [B_MAKE, B_BREAK]);
+    assert_eq!(model(&mut bus).periodic_load, full);
+    let mut again: Vec<_> = bus.controller().bookings().collect();
+    let mut before = booked.clone();
+    let key = |b: &Booking| (b.phase, b.s_mask, b.translator_micros);
+    again.sort_by_key(key);
+    before.sort_by_key(key);
+    assert_eq!(again, before);
+    // Every keyboard gone: only the hub's own poll is left.
+    for port in 1..=6 {
+        model(&mut bus).tree.unplug(&[1, port]);
+    }
+    run(&mut bus, 200_000);
+    assert_eq!(bus.keyboards().count(), 0);
+    assert_eq!(bus.controller().bookings().count(), 1);
+    let m = model(&mut bus);
+    assert!(m.periodic_load.translators.is_empty());
+    assert_eq!(m.periodic_load.micro_frames, [1, 0, 0, 0, 0, 0, 0, 0]);
+    assert_clean(m);
+}
+
+#[test]
+fn pipes_polled_every_eight_frames_go_to_eight_different_frames() {
+    let mut ehci = started(Model::new(9));
+    let mut devices = Vec::new();
+    for port in 1..=9u8 {
+        ehci.hardware()
+            .tree
+            .plug(&[port], Device::Keyboard(Speed::High));
+        devices.push(addressed_keyboard(&mut ehci, port, port));
+    }
+    let pipes: Vec<PipeId> = devices[..8]
+        .iter()
+        .map(|&d| ehci.interrupt_open(d, 1, 8, 8).unwrap())
+        .collect();
+    let mut phases: Vec<(u16, u8)> = ehci.bookings().map(|b| (b.phase, b.s_mask)).collect();
+    phases.sort();
+    assert_eq!(phases, (0..8).map(|phase| (phase, 1)).collect::<Vec<_>>());
+    // As the controller runs it: each frame polls exactly one of them.
+    let polls = ehci.hardware().polls;
+    ehci.hardware().advance(64_000);
+    let m = ehci.hardware();
+    for address in 1..=8 {
+        let polled = m.polls[address] - polls[address];
+        assert!((7..=9).contains(&polled), "address {address}: {polled}");
+    }
+    assert_eq!(m.periodic_load.micro_frames, [2, 0, 0, 0, 0, 0, 0, 0]);
+    // A ninth every frame goes where the others are not: micro-frame 1.
+    let ninth = ehci.interrupt_open(devices[8], 1, 8, 1);
+    assert!(ninth.is_ok());
+    ehci.hardware().advance(2_000);
+    assert_eq!(
+        ehci.hardware().periodic_load.micro_frames,
+        [2, 2, 0, 0, 0, 0, 0, 0]
+    );
+    for pipe in pipes {
+        ehci.interrupt_close(pipe);
+    }
+    ehci.interrupt_close(ninth.unwrap());
+    ehci.hardware().advance(2_000);
+    assert_eq!(ehci.bookings().count(), 0);
+    assert_eq!(ehci.hardware().periodic_load, Default::default());
+    assert_clean(ehci.hardware());
+}
+
+#[test]
+fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
+    use crate::model::devices::rollover_report;
+    // Split through a hub's translator: three packets, three polls.
+    let (mut m, _) = keyboards_behind_a_hub(0, Speed::Full, false);
+    let keyboard = m.tree.plug(&[1, 2], Device::RolloverKeyboard(Speed::Full));
+    let (mut bus, found) = enumerated(m);
+    assert_eq!(found, 1, "{:#?}", model(&mut bus).log);
+    assert!(logged(model(&mut bus), "(2 key fields, 20-byte reports)"));
+    let a_and_b = rollover_report(&[0x04, 0x05]);
+    assert!(model(&mut bus).tree.send_packets(keyboard, &a_and_b, false));
+    assert_eq!(run(&mut bus, 20_000), [A_MAKE, B_MAKE]);
+    // Cut short after 10 bytes: dropped, and the next report is whole.
+    assert!(model(&mut bus)
+        .tree
+        .send_packets(keyboard, &a_and_b[..10], false));
+    let released = rollover_report(&[]);
+    assert!(model(&mut bus)
+        .tree
+        .send_packets(keyboard, &released, false));
+    assert_eq!(run(&mut bus, 20_000), [A_BREAK, B_BREAK]);
+    assert!(logged(
+        model(&mut bus),
+        "keyboard: 1 unreadable reports dropped (the last 10 bytes)"
+    ));
+    assert_eq!(bus.dropped_reports(), 1);
+    assert_clean(model(&mut bus));
+}
+
+#[test]
+fn the_model_refuses_a_schedule_over_budget_or_with_bad_split_masks() {
+    let mut ehci = started(Model::new(1));
+    let frame_list = Layout::new(DMA_BASE).frame_list();
+    let m = ehci.hardware();
+    // Queue heads the driver never wrote, past its memory: five
+    // high-speed polls of 1,024 bytes (21 us each) in micro-frame 0; two
+    // low-speed ones of 64 bytes (475 us each) and a full-speed one (20 us)
+    // through one translator, the full-speed one started in micro-frame 4
+    // with complete-splits that would run past the frame. Each split's
+    // start-split adds 1 us of high speed.
+    let high_speed = 2 << 12 | 1024 << 16 | 1 << 8;
+    let low_speed = 1 << 12 | 64 << 16 | 1 << 8;
+    let full_speed = 8 << 16 | 1 << 8 | 5;
+    let split = |s_mask: u32, c_mask: u32| 1 << 30 | 1 << 23 | 1 << 16 | c_mask << 8 | s_mask;
+    let heads = [
+        (high_speed | 1, 1 << 30 | 1),
+        (high_speed | 2, 1 << 30 | 1),
+        (high_speed | 3, 1 << 30 | 1),
+        (high_speed | 4, 1 << 30 | 1),
+        (high_speed | 5, 1 << 30 | 1),
+        (low_speed | 6, split(0x01, 0x1C)),
+        (low_speed | 7, split(0x01, 0x1C)),
+        (full_speed, split(0x10, 0xC0)),
+    ];
+    let base = DMA_BASE + 0x2_0000;
+    for (i, &(characteristics, capabilities)) in heads.iter().enumerate() {
+        let qh = base + 0x80 * i as u64;
+        let next = if i + 1 < heads.len() {
+            (qh + 0x80) as u32 | 2
+        } else {
+            1
+        };
+        let qtd = base + 0x1000 + 0x40 * i as u64;
+        for (offset, word) in [(0, next), (4, characteristics), (8, capabilities)] {
+            m.poke(qh + offset, word);
+        }
+        for offset in [0x10, 0x14] {
+            m.poke(qh + offset, 1);
+        }
+        // The split's qTD is active, so it runs (and its masks are seen).
+        let active = i + 1 == heads.len();
+        m.poke(qh + 0x18, 0);
+        m.poke(qtd, 1);
+        m.poke(qtd + 4, 1);
+        m.poke(qtd + 8, 1 << 7 | 1 << 8 | 3 << 10 | 8 << 16);
+        m.poke(qtd + 12, (base + 0x2000) as u32);
+        if active {
+            m.poke(qh + 0x10, qtd as u32);
+        }
+    }
+    m.poke(frame_list, base as u32 | 2);
+    m.advance(1_000);
+    let expected = [
+        "micro-frame 0 has 107 us of high-speed periodic time (at most 100)",
+        "translator (1, 0) has 970 us of full- and low-speed time (at most 900)",
+        "translator (1, 0) ends a split started in micro-frame 0 at 600 us",
+        "S-mask 0x10 with C-mask 0xc0",
+    ];
+    for text in expected {
+        assert!(
+            m.errors.iter().any(|e| e.contains(text)),
+            "{text}: {:#?}",
+            m.errors
+        );
+    }
 }

@@ -73,6 +73,24 @@ pub const KEYBOARD_REPORT_DESCRIPTOR: [u8; 63] = [
     0x05, 0x08, 0x19, 0x01, 0x29, 0x05, 0x91, 0x02, 0x95, 0x01, 0x75, 0x03, 0x91, 0x01, 0x95, 0x06,
     0x75, 0x08, 0x15, 0x00, 0x25, 0xFF, 0x05, 0x07, 0x19, 0x00, 0x29, 0xFF, 0x81, 0x00, 0xC0,
 ];
+/// An N-key-rollover keyboard's report descriptor: modifier bits, a
+/// constant byte, then a bit for each of usages 0-143: 20-byte reports,
+/// sent in 8-byte packets (its endpoint's wMaxPacketSize).
+pub const ROLLOVER_REPORT_DESCRIPTOR: [u8; 45] = [
+    0x05, 0x01, 0x09, 0x06, 0xA1, 0x01, 0x05, 0x07, 0x19, 0xE0, 0x29, 0xE7, 0x15, 0x00, 0x25, 0x01,
+    0x75, 0x01, 0x95, 0x08, 0x81, 0x02, 0x95, 0x01, 0x75, 0x08, 0x81, 0x01, 0x05, 0x07, 0x19, 0x00,
+    0x29, 0x8F, 0x15, 0x00, 0x25, 0x01, 0x75, 0x01, 0x95, 0x90, 0x81, 0x02, 0xC0,
+];
+/// The length of the rollover keyboard's report.
+pub const ROLLOVER_REPORT_BYTES: usize = 20;
+/// The rollover keyboard's report with `usages` down.
+pub fn rollover_report(usages: &[u8]) -> [u8; ROLLOVER_REPORT_BYTES] {
+    let mut report = [0; ROLLOVER_REPORT_BYTES];
+    for &usage in usages {
+        report[2 + usize::from(usage / 8)] |= 1 << (usage % 8);
+    }
+    report
+}
 /// A full-speed hub's device descriptor (class 9, protocol 0: no
 /// transaction translator), an 8-byte endpoint 0.
 pub const HUB_DEVICE: [u8; 18] = [
@@ -226,6 +244,9 @@ pub enum Device {
     /// A keyboard whose device descriptor says bLength 18 but whose
     /// configuration's wTotalLength is larger than what it sends.
     LyingKeyboard(Speed),
+    /// An N-key-rollover keyboard: 20-byte reports
+    /// ([`ROLLOVER_REPORT_DESCRIPTOR`]) in 8-byte packets.
+    RolloverKeyboard(Speed),
 }
 
 // ---------------------------------------------------------------------------
@@ -313,13 +334,27 @@ impl Device {
     /// full-speed hub runs at full speed).
     pub fn speed(&self) -> Speed {
         match self {
-            Device::Keyboard(speed) | Device::Dead(speed) | Device::LyingKeyboard(speed) => *speed,
+            Device::Keyboard(speed)
+            | Device::Dead(speed)
+            | Device::LyingKeyboard(speed)
+            | Device::RolloverKeyboard(speed) => *speed,
             Device::Hub { speed, .. } => *speed,
         }
     }
 
     fn is_keyboard(&self) -> bool {
-        matches!(self, Device::Keyboard(_) | Device::LyingKeyboard(_))
+        matches!(
+            self,
+            Device::Keyboard(_) | Device::LyingKeyboard(_) | Device::RolloverKeyboard(_)
+        )
+    }
+
+    /// A keyboard's report descriptor.
+    fn report_descriptor(&self) -> &'static [u8] {
+        match self {
+            Device::RolloverKeyboard(_) => &ROLLOVER_REPORT_DESCRIPTOR,
+            _ => &KEYBOARD_REPORT_DESCRIPTOR,
+        }
     }
 }
 
@@ -339,6 +374,12 @@ fn descriptors(device: &Device, speed: Speed) -> (Vec<u8>, Vec<u8>) {
             HIGH_SPEED_KEYBOARD_DEVICE.to_vec(),
             HIGH_SPEED_KEYBOARD_CONFIGURATION.to_vec(),
         ),
+        (Device::RolloverKeyboard(_), speed) => {
+            let (device, mut configuration) = descriptors(&Device::Keyboard(speed), speed);
+            // The HID descriptor's wDescriptorLength of the report descriptor.
+            configuration[25] = ROLLOVER_REPORT_DESCRIPTOR.len() as u8;
+            (device, configuration)
+        }
         (Device::LyingKeyboard(_), Speed::Low) => (
             LOW_SPEED_KEYBOARD_DEVICE.to_vec(),
             LYING_KEYBOARD_CONFIGURATION.to_vec(),
@@ -449,10 +490,11 @@ struct Keyboard {
     idle: u8,
     /// SET_REPORT's LED byte.
     leds: u8,
-    /// Reports not sent yet.
-    reports: VecDeque<[u8; 8]>,
-    /// The last report sent.
-    last: Option<[u8; 8]>,
+    /// Interrupt packets not sent yet (a report of more than 8 bytes is
+    /// several).
+    reports: VecDeque<Vec<u8>>,
+    /// The last packet sent.
+    last: Option<Vec<u8>>,
     /// The knob: send `last` again with its old toggle.
     repeat_next: bool,
 }
@@ -762,7 +804,28 @@ impl UsbTree {
         {
             return false;
         }
-        node.keyboard.reports.push_back(report);
+        node.keyboard.reports.push_back(report.to_vec());
+        true
+    }
+
+    /// Queues a report of any length on keyboard `device`, cut into
+    /// packets of 8 bytes (its endpoint's wMaxPacketSize), the last short
+    /// (a zero-length one if the report fills whole packets and `end_with_empty`);
+    /// false, with nothing queued, where [`Self::send_report`] would be.
+    pub fn send_packets(&mut self, device: usize, report: &[u8], end_with_empty: bool) -> bool {
+        let node = &mut self.nodes[device];
+        assert!(node.device.is_keyboard(), "device {device} is no keyboard");
+        let mut packets: Vec<Vec<u8>> = report.chunks(8).map(<[u8]>::to_vec).collect();
+        if end_with_empty && report.len() % 8 == 0 {
+            packets.push(Vec::new());
+        }
+        if !node.attached
+            || node.configuration == 0
+            || node.keyboard.reports.len() + packets.len() > REPORT_QUEUE
+        {
+            return false;
+        }
+        node.keyboard.reports.extend(packets);
         true
     }
 
@@ -842,6 +905,20 @@ impl UsbTree {
                 | bit(hub_port.suspend_change, port_bits::C_SUSPEND)
                 | bit(hub_port.reset_change, port_bits::C_RESET),
         )
+    }
+
+    /// Whether the hub at USB address `address` runs a transaction
+    /// translator per port (a multi-TT hub at high speed, its alternate
+    /// setting 1 chosen); false for any other device or address.
+    pub fn translator_per_port(&self, address: u8) -> bool {
+        self.nodes.iter().enumerate().any(|(index, node)| {
+            node.attached
+                && node.reset
+                && node.address == address
+                && matches!(node.device, Device::Hub { multi_tt: true, .. })
+                && self.speed_of(index) == Speed::High
+                && node.alternate == 1
+        })
     }
 
     /// The LED byte keyboard `device` was last given with SET_REPORT.
@@ -1217,21 +1294,21 @@ impl UsbTree {
         }
         let bytes = if self.nodes[index].device.is_keyboard() {
             let keyboard = &mut self.nodes[index].keyboard;
-            if let (true, Some(last)) = (keyboard.repeat_next, keyboard.last) {
+            if let (true, Some(last)) = (keyboard.repeat_next, keyboard.last.clone()) {
                 // The ACK of `last` was lost: it comes again with the old
                 // toggle, and this ACK flips the device's toggle back to
                 // where the host already is.
                 keyboard.repeat_next = false;
                 return Reply::Data {
-                    bytes: last.to_vec(),
+                    bytes: last,
                     toggle: !self.nodes[index].interrupt_toggle,
                 };
             }
             let Some(report) = keyboard.reports.pop_front() else {
                 return Reply::Nak;
             };
-            keyboard.last = Some(report);
-            report.to_vec()
+            keyboard.last = Some(report.clone());
+            report
         } else {
             let bitmap = self.change_bitmap(index);
             if bitmap.iter().all(|&b| b == 0) {
@@ -1363,7 +1440,7 @@ impl UsbTree {
             (0x81, GET_DESCRIPTOR) if node.device.is_keyboard() && setup.index == 0 => {
                 match setup.value >> 8 {
                     0x21 => Some(Response::In(configuration[18..27].to_vec())),
-                    0x22 => Some(Response::In(KEYBOARD_REPORT_DESCRIPTOR.to_vec())),
+                    0x22 => Some(Response::In(node.device.report_descriptor().to_vec())),
                     _ => None,
                 }
             }
@@ -1404,9 +1481,9 @@ impl UsbTree {
         }
         let keyboard = &mut node.keyboard;
         match (setup.request_type, setup.request) {
-            (0xA1, GET_REPORT) if setup.value == 0x0100 => {
-                Some(Response::In(keyboard.last.unwrap_or_default().to_vec()))
-            }
+            (0xA1, GET_REPORT) if setup.value == 0x0100 => Some(Response::In(
+                keyboard.last.clone().unwrap_or_else(|| vec![0; 8]),
+            )),
             (0xA1, GET_IDLE) if setup.value & 0xFF == 0 => Some(Response::In(vec![keyboard.idle])),
             (0xA1, GET_PROTOCOL) => Some(Response::In(vec![keyboard.protocol])),
             (0x21, SET_REPORT) if setup.value >> 8 == 2 => {

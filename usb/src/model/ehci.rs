@@ -11,7 +11,13 @@
 //! bad alignment, fields the spec reserves, H bits, S-/C-masks, a queue
 //! head rewritten before the controller let go of it (the Interrupt on
 //! Async Advance doorbell, two frame boundaries on the periodic side),
-//! writes while the firmware owns the controller, and more.
+//! writes while the firmware owns the controller, and more. Each time the
+//! periodic schedule changes, every frame's list is priced with USB 2.0
+//! 5.11.3's bus times: a micro-frame with more than 100 us of high-speed
+//! periodic time, a translator with more than 900 us of full- and
+//! low-speed time in a frame, or one that cannot end a split's
+//! transaction before its last complete-split, is an error
+//! ([`Model::periodic_load`] keeps the peaks).
 //!
 //! Knobs: the firmware's hand-off, 64-bit addressing, the number of
 //! companion controllers (0: an integrated rate-matching hub, which the
@@ -19,6 +25,10 @@
 //! looping EECP chain, a halt or reset that never ends.
 
 use super::devices::{Packet, Pid, Reply, Split, UsbTree};
+use crate::ehci::budget::{
+    high_speed_micros, translator_micros, MICRO_FRAME_BUDGET_MICROS, TT_FRAME_BUDGET_MICROS,
+    TT_MICRO_FRAME_MICROS,
+};
 use crate::host::Speed;
 use crate::{Hardware, Memory, PciHardware};
 use std::collections::{BTreeMap, BTreeSet};
@@ -122,6 +132,21 @@ pub struct SplitRecord {
     pub periodic: bool,
 }
 
+/// What the periodic schedule, as last linked, asks of the bus: the
+/// peaks over every frame.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct PeriodicLoad {
+    /// High-speed time in each micro-frame (us), the most any frame has.
+    pub micro_frames: [u32; 8],
+    /// Each translator's (hub address, port; port 0 for a hub with one
+    /// translator) full- and low-speed time in its busiest frame (us).
+    pub translators: BTreeMap<(u8, u8), u32>,
+}
+
+/// A split's work on its translator in one frame: the start-split's
+/// micro-frame, the C-mask, and its full- or low-speed time (us).
+type SplitWork = (u32, u8, u32);
+
 /// The EHCI register model.
 #[derive(Debug)]
 pub struct Model {
@@ -188,6 +213,8 @@ pub struct Model {
     pub polls: [u64; 128],
     /// Times the async advance doorbell was answered.
     pub async_advances: u32,
+    /// The periodic schedule's bus time, as last linked.
+    pub periodic_load: PeriodicLoad,
     /// The driver's log.
     pub log: Vec<String>,
     /// What real hardware would not have taken.
@@ -240,6 +267,7 @@ impl Model {
             periodic_transactions: 0,
             polls: [0; 128],
             async_advances: 0,
+            periodic_load: PeriodicLoad::default(),
             log: Vec::new(),
             errors: Vec::new(),
         }
@@ -402,6 +430,14 @@ impl Model {
             Some(i) => self.memory[i] = value,
             None => self.error(format!("the controller was sent to write {address:#x}")),
         }
+    }
+
+    /// Writes word `address` behind the driver's back, unchecked, as a
+    /// test building a schedule the driver never would does; the
+    /// periodic schedule is looked at again.
+    pub fn poke(&mut self, address: u64, value: u32) {
+        self.hc_write(address, value);
+        self.periodic_dirty = true;
     }
 
     /// Reads word `address` as the test sees it.
@@ -697,7 +733,7 @@ impl Model {
             let mut progress = false;
             let mut qh = head;
             for _ in 0..WALK_LIMIT {
-                if self.service_qh(qh, false, 0) {
+                if self.service_qh(qh, false) {
                     progress = true;
                     transactions += 1;
                     if transactions >= ASYNC_TRANSACTIONS {
@@ -730,6 +766,7 @@ impl Model {
             let entry = self.hc_read(base + 4 * frame);
             entries.insert(entry);
         }
+        self.price_periodic(&entries);
         let mut seen = BTreeMap::new();
         for entry in entries {
             let mut link = entry;
@@ -758,6 +795,90 @@ impl Model {
         self.periodic_live = seen;
     }
 
+    /// Prices each frame's list (`entries`: the distinct frame list
+    /// entries) in bus time, as the spec budgets it; notes what is over.
+    fn price_periodic(&mut self, entries: &BTreeSet<u32>) {
+        let mut load = PeriodicLoad::default();
+        for &entry in entries {
+            let mut high_speed = [0u32; 8];
+            let mut splits: BTreeMap<(u8, u8), Vec<SplitWork>> = BTreeMap::new();
+            let mut link = entry;
+            let mut seen = BTreeSet::new();
+            while link & 1 == 0 && link >> 1 & 3 == 1 && seen.len() < WALK_LIMIT {
+                let qh = self.pointer(link & !0x1F);
+                if !seen.insert(qh) {
+                    break;
+                }
+                let characteristics = self.hc_read(qh + 4);
+                let capabilities = self.hc_read(qh + 8);
+                link = self.hc_read(qh);
+                let max_packet = (characteristics >> 16 & 0x7FF) as u16;
+                let speed = match characteristics >> 12 & 3 {
+                    0 => Speed::Full,
+                    1 => Speed::Low,
+                    _ => Speed::High,
+                };
+                let s_mask = (capabilities & 0xFF) as u8;
+                let c_mask = (capabilities >> 8 & 0xFF) as u8;
+                let (start, complete) = high_speed_micros(speed, max_packet);
+                for (micro_frame, time) in high_speed.iter_mut().enumerate() {
+                    if s_mask & 1 << micro_frame != 0 {
+                        *time += start;
+                    }
+                    if c_mask & 1 << micro_frame != 0 {
+                        *time += complete;
+                    }
+                }
+                if speed != Speed::High {
+                    let hub = (capabilities >> 16 & 0x7F) as u8;
+                    let port = if self.tree.translator_per_port(hub) {
+                        (capabilities >> 23 & 0x7F) as u8
+                    } else {
+                        0
+                    };
+                    splits.entry((hub, port)).or_default().push((
+                        s_mask.trailing_zeros(),
+                        c_mask,
+                        translator_micros(speed, max_packet),
+                    ));
+                }
+            }
+            for (micro_frame, &time) in high_speed.iter().enumerate() {
+                if time > MICRO_FRAME_BUDGET_MICROS {
+                    self.error(format!(
+                        "frame list entry {entry:#x}: micro-frame {micro_frame} has {time} us of high-speed periodic time (at most {MICRO_FRAME_BUDGET_MICROS})"
+                    ));
+                }
+                load.micro_frames[micro_frame] = load.micro_frames[micro_frame].max(time);
+            }
+            for (translator, mut work) in splits {
+                let total: u32 = work.iter().map(|&(_, _, time)| time).sum();
+                if total > TT_FRAME_BUDGET_MICROS {
+                    self.error(format!(
+                        "frame list entry {entry:#x}: translator {translator:?} has {total} us of full- and low-speed time (at most {TT_FRAME_BUDGET_MICROS})"
+                    ));
+                }
+                let peak = load.translators.entry(translator).or_default();
+                *peak = (*peak).max(total);
+                // The translator runs them in turn, each from the
+                // micro-frame after its start-split; each must end before
+                // the micro-frame of its last complete-split.
+                work.sort_by_key(|&(start, _, _)| start);
+                let mut busy_until = 0;
+                for (start, c_mask, time) in work {
+                    busy_until = busy_until.max(TT_MICRO_FRAME_MICROS * (start + 1)) + time;
+                    let last_complete = 7u32.saturating_sub(c_mask.leading_zeros());
+                    if c_mask == 0 || busy_until > TT_MICRO_FRAME_MICROS * last_complete {
+                        self.error(format!(
+                            "frame list entry {entry:#x}: translator {translator:?} ends a split started in micro-frame {start} at {busy_until} us, after its last complete-split (C-mask {c_mask:#x})"
+                        ));
+                    }
+                }
+            }
+        }
+        self.periodic_load = load;
+    }
+
     fn run_periodic(&mut self) {
         let frame = u64::from(self.frindex >> 3 & 0x3FF);
         let micro_frame = self.frindex & 7;
@@ -775,7 +896,7 @@ impl Model {
             }
             let s_mask = self.hc_read(qh + 8) & 0xFF;
             if s_mask & 1 << micro_frame != 0 {
-                self.service_qh(qh, true, micro_frame);
+                self.service_qh(qh, true);
             }
             link = self.hc_read(qh);
         }
@@ -785,7 +906,7 @@ impl Model {
     // One queue head.
 
     /// Runs one transaction on `qh` if it has one to run; says whether it did.
-    fn service_qh(&mut self, qh: u64, periodic: bool, micro_frame: u32) -> bool {
+    fn service_qh(&mut self, qh: u64, periodic: bool) -> bool {
         let characteristics = self.hc_read(qh + 4);
         let capabilities = self.hc_read(qh + 8);
         let mut token = self.hc_read(qh + 0x18);
@@ -836,7 +957,7 @@ impl Model {
                 return false;
             }
         }
-        if !self.check_qh(qh, characteristics, capabilities, periodic, micro_frame) {
+        if !self.check_qh(qh, characteristics, capabilities, periodic) {
             return false;
         }
         self.transaction(qh, characteristics, capabilities, token, periodic)
@@ -849,7 +970,6 @@ impl Model {
         characteristics: u32,
         capabilities: u32,
         periodic: bool,
-        micro_frame: u32,
     ) -> bool {
         let endpoint = characteristics >> 8 & 0xF;
         let eps = characteristics >> 12 & 3;
@@ -903,14 +1023,14 @@ impl Model {
                 problems.push(format!("C-mask {c_mask:#x} at high speed"));
             }
             if split {
-                // One start-split, complete-splits from two micro-frames
-                // after it (EHCI 4.12.2), within the frame.
-                let first_complete = micro_frame + 2;
-                if s_mask.count_ones() != 1
-                    || c_mask == 0
-                    || c_mask & ((1 << first_complete.min(8)) - 1) != 0
-                {
-                    problems.push(format!("S-mask {s_mask:#x} with C-mask {c_mask:#x}"));
+                // One start-split in N, complete-splits in N+2, N+3 and
+                // N+4 (USB 2.0 11.18.4, EHCI 4.12.2.1), all inside the
+                // frame: past micro-frame 7 they would need an FSTN.
+                let start = s_mask.trailing_zeros();
+                if s_mask.count_ones() != 1 || start > 3 || c_mask != 0b111 << (start + 2) {
+                    problems.push(format!(
+                        "S-mask {s_mask:#x} with C-mask {c_mask:#x} (complete-splits belong in the start's micro-frame + 2, 3 and 4)"
+                    ));
                 }
             }
         } else if s_mask != 0 {

@@ -1072,6 +1072,34 @@ mod through_the_bus {
         assert_clean(&mut bus);
     }
 
+    #[test]
+    fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
+        use crate::model::devices::rollover_report;
+        let mut model = OhciModel::new(1);
+        let keyboard = model.tree.plug(&[1], Device::RolloverKeyboard(Speed::Full));
+        let mut bus = bus(model);
+        assert_eq!(bus.enumerate(), 1, "{:#?}", model_log(&mut bus));
+        let logged =
+            |bus: &mut Bus<Driver>, text: &str| hw(bus).log.iter().any(|line| line.contains(text));
+        assert!(logged(&mut bus, "(2 key fields, 20-byte reports)"));
+        let a_and_b = rollover_report(&[0x04, 0x05]);
+        assert!(hw(&mut bus).tree.send_packets(keyboard, &a_and_b, false));
+        assert_eq!(typed(&mut bus, 2), [0x1E, 0x30]);
+        // Cut short after 10 bytes: dropped, and the next report is whole.
+        assert!(hw(&mut bus)
+            .tree
+            .send_packets(keyboard, &a_and_b[..10], false));
+        assert!(hw(&mut bus)
+            .tree
+            .send_packets(keyboard, &rollover_report(&[]), false));
+        assert_eq!(typed(&mut bus, 2), [0x9E, 0xB0]);
+        assert!(logged(
+            &mut bus,
+            "keyboard: 1 unreadable reports dropped (the last 10 bytes)"
+        ));
+        assert_clean(&mut bus);
+    }
+
     fn model_log(bus: &mut Bus<Driver>) -> Vec<String> {
         hw(bus).log.clone()
     }

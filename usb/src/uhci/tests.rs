@@ -1021,3 +1021,34 @@ fn a_keyboard_plugged_into_a_hub_after_boot_is_found() {
     );
     assert_clean(bus.controller().hardware());
 }
+
+#[test]
+fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
+    use crate::model::devices::rollover_report;
+    let mut model = UhciModel::new(2);
+    let keyboard = model.plug(&[1], Device::RolloverKeyboard(Speed::Low));
+    let mut bus = bus_with(model);
+    assert_eq!(bus.enumerate(), 1, "{:?}", bus.controller().hardware().log);
+    let logged = |bus: &mut Bus<Uhci<UhciModel>>, text: &str| {
+        bus.controller()
+            .hardware()
+            .log
+            .iter()
+            .any(|l| l.contains(text))
+    };
+    assert!(logged(&mut bus, "(2 key fields, 20-byte reports)"));
+    let a_and_b = rollover_report(&[0x04, 0x05]);
+    let tree = &mut bus.controller().hardware().tree;
+    assert!(tree.send_packets(keyboard, &a_and_b, false));
+    assert_eq!(typed(&mut bus, 100), [0x1E, 0x30]);
+    // Cut short after 10 bytes: dropped, and the next report is whole.
+    let tree = &mut bus.controller().hardware().tree;
+    assert!(tree.send_packets(keyboard, &a_and_b[..10], false));
+    assert!(tree.send_packets(keyboard, &rollover_report(&[]), false));
+    assert_eq!(typed(&mut bus, 100), [0x9E, 0xB0]);
+    assert!(logged(
+        &mut bus,
+        "keyboard: 1 unreadable reports dropped (the last 10 bytes)"
+    ));
+    assert_clean(bus.controller().hardware());
+}

@@ -534,3 +534,33 @@ fn a_full_speed_keyboard_behind_high_speed_hubs_names_the_last_ones_translator()
         assert_eq!(poll(&mut bus), [0x01], "tiers {tiers}");
     }
 }
+
+#[test]
+fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
+    use crate::model::devices::{rollover_report, ROLLOVER_REPORT_DESCRIPTOR};
+    let mut model = Model::new();
+    model.report_descriptor = Some(ROLLOVER_REPORT_DESCRIPTOR.to_vec());
+    // The HID descriptor's wDescriptorLength of the report descriptor.
+    model.configuration[25] = ROLLOVER_REPORT_DESCRIPTOR.len() as u8;
+    let mut bus = with_keyboards(model, 1);
+    assert!(logged(&mut bus, "(2 key fields, 20-byte reports)"));
+    // A packet a transfer, as the endpoint's 8 bytes allow.
+    let send = |bus: &mut Bus<Xhci<Model>>, report: &[u8]| {
+        let mut bytes = Vec::new();
+        for packet in report.chunks(8) {
+            assert!(hw(bus).send_bytes(packet));
+            bytes.extend(poll(bus));
+        }
+        bytes
+    };
+    let a_and_b = rollover_report(&[0x04, 0x05]);
+    assert_eq!(send(&mut bus, &a_and_b), [0x1E, 0x30]);
+    // Cut short after 10 bytes: dropped, and the next report is whole.
+    assert_eq!(send(&mut bus, &a_and_b[..10]), []);
+    assert_eq!(send(&mut bus, &rollover_report(&[])), [0x9E, 0xB0]);
+    assert!(logged(
+        &mut bus,
+        "keyboard: 1 unreadable reports dropped (the last 10 bytes)"
+    ));
+    assert_clean(&mut bus);
+}
