@@ -200,12 +200,12 @@ fn demoted(level: HeadingLevel) -> HeadingLevel {
 }
 
 /// One chapter's Markdown as the page's HTML; `picture` gives a picture's
-/// `data:` URI from its path as the chapter writes it.
+/// `data:` URI (and size) from its path as the chapter writes it.
 pub fn render_chapter(
     name: &str,
     markdown: &str,
     chapters: &[&str],
-    picture: &mut dyn FnMut(&str) -> Result<String, String>,
+    picture: &mut dyn FnMut(&str) -> Result<Picture, String>,
 ) -> Result<String, String> {
     let options = Options::ENABLE_TABLES | Options::ENABLE_STRIKETHROUGH;
     let mut events: Vec<Event> = Parser::new_ext(markdown, options).collect();
@@ -266,11 +266,38 @@ pub fn render_chapter(
                     unlinked = false;
                 }
             }
-            Event::Start(Tag::Image { dest_url, .. }) => {
-                let uri = picture(dest_url)?;
-                if let Event::Start(Tag::Image { dest_url, .. }) = &mut events[index] {
-                    *dest_url = CowStr::from(uri);
+            Event::Start(Tag::Image {
+                dest_url, title, ..
+            }) => {
+                // The tag written whole, with the picture's size, so that the
+                // page is laid out before the pictures decode and an anchor
+                // followed stays in view.
+                let found = picture(dest_url)?;
+                let title = title.to_string();
+                let mut alt = String::new();
+                let mut inner = index + 1;
+                while !matches!(events[inner], Event::End(TagEnd::Image)) {
+                    if let Event::Text(text) | Event::Code(text) = &events[inner] {
+                        alt.push_str(text);
+                    }
+                    events[inner] = Event::Text(CowStr::from(""));
+                    inner += 1;
                 }
+                events[inner] = Event::Text(CowStr::from(""));
+                let size = found
+                    .size
+                    .map(|(width, height)| format!(" width=\"{width}\" height=\"{height}\""))
+                    .unwrap_or_default();
+                let title = if title.is_empty() {
+                    String::new()
+                } else {
+                    format!(" title=\"{}\"", escape_html(&title))
+                };
+                events[index] = Event::InlineHtml(CowStr::from(format!(
+                    "<img src=\"{}\" alt=\"{}\"{size}{title}>",
+                    found.uri,
+                    escape_html(&alt)
+                )));
             }
             Event::Code(code) if !in_link && is_page_url(code) => {
                 let code = escape_html(code);
@@ -286,10 +313,20 @@ pub fn render_chapter(
     Ok(html)
 }
 
+/// A picture as the page holds it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Picture {
+    /// Its `data:` URI.
+    pub uri: String,
+    /// Its width and height in pixels, if its format says them in a
+    /// header (PNG, GIF).
+    pub size: Option<(u32, u32)>,
+}
+
 /// The book's pictures as `data:` URIs, each read once.
 struct Pictures<'a> {
     docs: &'a Path,
-    made: HashMap<String, String>,
+    made: HashMap<String, Picture>,
 }
 
 impl<'a> Pictures<'a> {
@@ -300,19 +337,38 @@ impl<'a> Pictures<'a> {
         }
     }
 
-    fn data_uri(&mut self, source: &str) -> Result<String, String> {
-        if let Some(uri) = self.made.get(source) {
-            return Ok(uri.clone());
+    fn data_uri(&mut self, source: &str) -> Result<Picture, String> {
+        if let Some(picture) = self.made.get(source) {
+            return Ok(picture.clone());
         }
-        let uri = picture_data_uri(self.docs, source)?;
-        self.made.insert(source.to_owned(), uri.clone());
-        Ok(uri)
+        let picture = picture_data_uri(self.docs, source)?;
+        self.made.insert(source.to_owned(), picture.clone());
+        Ok(picture)
     }
 }
 
+/// The width and height a PNG's IHDR or a GIF's screen descriptor gives.
+pub fn picture_size(bytes: &[u8]) -> Option<(u32, u32)> {
+    let word = |at: usize| -> Option<u32> {
+        Some(u32::from_be_bytes(bytes.get(at..at + 4)?.try_into().ok()?))
+    };
+    let half = |at: usize| -> Option<u32> {
+        Some(u32::from(u16::from_le_bytes(
+            bytes.get(at..at + 2)?.try_into().ok()?,
+        )))
+    };
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") && bytes.get(12..16) == Some(b"IHDR") {
+        return Some((word(16)?, word(20)?));
+    }
+    if bytes.starts_with(b"GIF87a") || bytes.starts_with(b"GIF89a") {
+        return Some((half(6)?, half(8)?));
+    }
+    None
+}
+
 /// A picture under `docs` (a path relative to it, as a chapter links it)
-/// as a `data:` URI.
-pub fn picture_data_uri(docs: &Path, source: &str) -> Result<String, String> {
+/// as a `data:` URI, with its size.
+pub fn picture_data_uri(docs: &Path, source: &str) -> Result<Picture, String> {
     let relative = Path::new(source);
     if source.contains("://")
         || !relative
@@ -337,10 +393,10 @@ pub fn picture_data_uri(docs: &Path, source: &str) -> Result<String, String> {
         "jpg" | "jpeg" => ("image/jpeg", bytes),
         _ => return Err(format!("picture {source:?}: not a PNG, GIF, SVG or JPEG")),
     };
-    Ok(format!(
-        "data:{kind};base64,{}",
-        crate::build::base64(&bytes)
-    ))
+    Ok(Picture {
+        uri: format!("data:{kind};base64,{}", crate::build::base64(&bytes)),
+        size: picture_size(&bytes),
+    })
 }
 
 /// The PNG again with a palette (1, 2, 4 or 8 bits a pixel), if it has at

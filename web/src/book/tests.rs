@@ -1,6 +1,6 @@
 use super::*;
 
-fn no_pictures(source: &str) -> Result<String, String> {
+fn no_pictures(source: &str) -> Result<Picture, String> {
     Err(format!("no picture {source}"))
 }
 
@@ -57,6 +57,17 @@ fn a_chapter_renders_with_ids_links_tables_and_live_urls() {
     assert!(!html.contains("href"), "{html}");
     let missing = render_chapter("web", "![p](gone.png)", &chapters, &mut no_pictures);
     assert_eq!(missing, Err("no picture gone.png".into()));
+    let mut one = |_: &str| {
+        Ok(Picture {
+            uri: "data:image/png;base64,AA==".into(),
+            size: Some((4, 3)),
+        })
+    };
+    let html = render_chapter("web", "![a \"b\" `c`](p.png \"t\")", &chapters, &mut one).unwrap();
+    assert_eq!(
+        html,
+        "<p><img src=\"data:image/png;base64,AA==\" alt=\"a &quot;b&quot; c\" width=\"4\" height=\"3\" title=\"t\"></p>\n"
+    );
 }
 
 #[test]
@@ -68,8 +79,17 @@ fn pictures_are_data_uris_of_files_under_docs() {
         "<svg xmlns=\"http://www.w3.org/2000/svg\"/>",
     )
     .unwrap();
-    let uri = picture_data_uri(&docs, "p.svg").unwrap();
-    assert!(uri.starts_with("data:image/svg+xml;base64,PHN2Zy"), "{uri}");
+    let svg = picture_data_uri(&docs, "p.svg").unwrap();
+    assert!(
+        svg.uri.starts_with("data:image/svg+xml;base64,PHN2Zy"),
+        "{svg:?}"
+    );
+    assert_eq!(svg.size, None);
+    std::fs::write(docs.join("p.gif"), b"GIF89a\x40\x01\xF0\x00rest").unwrap();
+    assert_eq!(
+        picture_data_uri(&docs, "p.gif").unwrap().size,
+        Some((320, 240))
+    );
     assert!(picture_data_uri(&docs, "../p.svg")
         .unwrap_err()
         .contains("under docs/"));
@@ -198,4 +218,9 @@ fn the_book_has_every_chapter_and_vgas_step_by_step_urls_are_live() {
     ] {
         assert!(html.contains(tag), "the book has no {tag}");
     }
+    // Each picture with its size, so that the page's layout is set before
+    // the pictures decode.
+    assert!(html.contains(
+        "alt=\"The crowd (X, S), under QEMU on the loaded machine\" width=\"640\" height=\"480\">"
+    ));
 }
