@@ -839,44 +839,28 @@ fn strings_of(value: &serde_json::Value) -> Vec<String> {
         .collect()
 }
 
-/// A left click on the link `selector` matches, as a reader makes it: the
-/// link scrolled to the middle of the window, the mouse on the middle of its
-/// first line (a link that wraps has a gap in the middle of its box).
-fn click_link(page: &Page, selector: &str) {
+/// The `href` of each link `selector` matches, as written.
+fn hrefs(page: &Page, selector: &str) -> Vec<String> {
     let quoted = serde_json::Value::from(selector).to_string();
-    let centre = page
-        .evaluate(&format!(
-            "(() => {{
-                const link = document.querySelector({quoted});
-                link.scrollIntoView({{block: 'center'}});
-                const line = link.getClientRects()[0];
-                return [line.left + line.width / 2, line.top + line.height / 2];
-            }})()"
-        ))
-        .unwrap();
-    let (x, y) = (centre[0].as_f64().unwrap(), centre[1].as_f64().unwrap());
-    page.mouse_move(x, y).unwrap();
-    for kind in ["mousePressed", "mouseReleased"] {
-        page.call(
-            "Input.dispatchMouseEvent",
-            serde_json::json!({"type": kind, "x": x, "y": y, "button": "left", "clickCount": 1}),
-        )
-        .unwrap();
-    }
+    strings_of(
+        &page
+            .evaluate(&format!(
+                "[...document.querySelectorAll({quoted})].map(a => a.getAttribute('href'))"
+            ))
+            .unwrap(),
+    )
+}
+
+/// The single-file page opened from disk, paused, once its first frame is up.
+fn open_single_file(browser: &Browser) -> Page<'_> {
+    open_url(browser, &format!("{}?paused=1", single_file().0))
 }
 
 #[test]
 fn caption_links_scroll_to_their_chapter_in_the_single_file() {
-    let (url, _) = single_file();
     let browser = Browser::start().unwrap();
-    let page = open_url(&browser, &format!("{url}?paused=1"));
-    let links = strings_of(
-        &page
-            .evaluate(
-                "[...document.querySelectorAll('figcaption a')].map(a => a.getAttribute('href'))",
-            )
-            .unwrap(),
-    );
+    let page = open_single_file(&browser);
+    let links = hrefs(&page, "figcaption a");
     assert!(links.len() >= 5, "the captions' links: {links:?}");
     assert!(links.contains(&"#vga/step-by-step-in-the-browser".to_owned()));
     for href in &links {
@@ -892,7 +876,7 @@ fn caption_links_scroll_to_their_chapter_in_the_single_file() {
         page.evaluate("window.scrollTo(0, 0)").unwrap();
         let selector = format!("figcaption a[href=\"{href}\"]");
         let before = page.evaluate("window.scrollY").unwrap();
-        click_link(&page, &selector);
+        page.click(&selector).unwrap();
         // The fragment is followed and the target is in the window, from
         // wherever the caption was.
         page.wait_for(
@@ -916,9 +900,8 @@ fn caption_links_scroll_to_their_chapter_in_the_single_file() {
 
 #[test]
 fn the_book_in_the_single_file_has_headings_tables_code_and_pictures() {
-    let (url, _) = single_file();
     let browser = Browser::start().unwrap();
-    let page = open_url(&browser, &format!("{url}?paused=1"));
+    let page = open_single_file(&browser);
     let sections = strings_of(
         &page
             .evaluate("[...document.querySelectorAll('#book > section')].map(s => s.id).sort()")
@@ -960,20 +943,13 @@ fn the_book_in_the_single_file_has_headings_tables_code_and_pictures() {
 #[test]
 fn vgas_step_by_step_urls_open_the_page_in_their_state() {
     with_big_stack(|| {
-        let (url, _) = single_file();
         let browser = Browser::start().unwrap();
-        let page = open_url(&browser, &format!("{url}?paused=1"));
-        let links = strings_of(
-            &page
-                .evaluate(
-                    "[...document.querySelectorAll('#vga a.live')].map(a => a.getAttribute('href'))",
-                )
-                .unwrap(),
-        );
+        let page = open_single_file(&browser);
+        let links = hrefs(&page, "#vga a.live");
         assert!(links.len() >= 5, "vga's live links: {links:?}");
         for query in &links {
             let selector = format!("#vga a.live[href=\"{query}\"]");
-            click_link(&page, &selector);
+            page.click(&selector).unwrap();
             let session = page.session().to_owned();
             browser
                 .wait_event(
