@@ -347,7 +347,9 @@ impl<'a> Pictures<'a> {
     }
 }
 
-/// The width and height a PNG's IHDR or a GIF's screen descriptor gives.
+/// The width and height a PNG's IHDR, a GIF's screen descriptor or an
+/// SVG's root element (its `width` and `height` in pixels, else its
+/// `viewBox`) gives.
 pub fn picture_size(bytes: &[u8]) -> Option<(u32, u32)> {
     let word = |at: usize| -> Option<u32> {
         Some(u32::from_be_bytes(bytes.get(at..at + 4)?.try_into().ok()?))
@@ -363,7 +365,34 @@ pub fn picture_size(bytes: &[u8]) -> Option<(u32, u32)> {
     if bytes.starts_with(b"GIF87a") || bytes.starts_with(b"GIF89a") {
         return Some((half(6)?, half(8)?));
     }
-    None
+    svg_size(std::str::from_utf8(bytes).ok()?)
+}
+
+fn svg_size(text: &str) -> Option<(u32, u32)> {
+    let root = &text[text.find("<svg")?..];
+    let root = &root[..root.find('>')?];
+    let attribute = |name: &str| -> Option<&str> {
+        let at = root.find(&format!(" {name}=\""))? + name.len() + 3;
+        Some(&root[at..at + root[at..].find('"')?])
+    };
+    let pixels = |value: &str| -> Option<u32> {
+        let number = value.strip_suffix("px").unwrap_or(value);
+        number.parse::<f64>().ok().map(|n| n.round() as u32)
+    };
+    if let (Some(width), Some(height)) = (attribute("width"), attribute("height")) {
+        if let (Some(width), Some(height)) = (pixels(width), pixels(height)) {
+            return Some((width, height));
+        }
+    }
+    let view: Vec<u32> = attribute("viewBox")?
+        .split([' ', ','])
+        .filter(|part| !part.is_empty())
+        .map(pixels)
+        .collect::<Option<_>>()?;
+    match view[..] {
+        [_, _, width, height] => Some((width, height)),
+        _ => None,
+    }
 }
 
 /// A picture under `docs` (a path relative to it, as a chapter links it)

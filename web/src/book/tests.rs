@@ -85,6 +85,27 @@ fn pictures_are_data_uris_of_files_under_docs() {
         "{svg:?}"
     );
     assert_eq!(svg.size, None);
+    for (root, size) in [
+        (
+            "<svg xmlns=\"x\" width=\"320\" height=\"200.4px\">",
+            Some((320, 200)),
+        ),
+        (
+            "<svg viewBox=\"0 0 640 480\" width=\"100%\" height=\"auto\">",
+            Some((640, 480)),
+        ),
+        (
+            "<?xml version=\"1.0\"?><svg viewBox=\"0,0,8,4\">",
+            Some((8, 4)),
+        ),
+        ("<svg width=\"1em\">", None),
+    ] {
+        assert_eq!(
+            picture_size(format!("{root}</svg>").as_bytes()),
+            size,
+            "{root}"
+        );
+    }
     std::fs::write(docs.join("p.gif"), b"GIF89a\x40\x01\xF0\x00rest").unwrap();
     assert_eq!(
         picture_data_uri(&docs, "p.gif").unwrap().size,
