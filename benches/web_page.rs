@@ -16,7 +16,8 @@
 //!   `requestAnimationFrame` does (the module's frame, the picture and panels
 //!   rendered, the canvases painted), timed with `performance.now()`;
 //! - the page's weight: the bytes the browser fetched to show it (the
-//!   navigation's and every resource's body) and the files the build wrote.
+//!   navigation's and every resource's body, the book included) and the
+//!   files the build wrote.
 //!
 //! It prints a table and a machine-readable last line.
 
@@ -245,10 +246,11 @@ fn main() {
         fetched_total as f64 / MIB * 100.0
     );
     println!(
-        "as built: {} bytes in {} files; the single-file page: {} bytes",
+        "as built: {} bytes in {} files; the single-file page: {} bytes; the book in either: {} bytes",
         built.weight(),
         built.files.len(),
-        single.weight()
+        single.weight(),
+        single.book_bytes
     );
     println!(
         "(performance.now() in a page that is not cross-origin isolated counts in steps of 0.1 ms)"

@@ -50,6 +50,18 @@ fn with_big_stack(test: impl FnOnce() + Send + 'static) {
     }
 }
 
+/// Builds the page into `out` within [`BUILD_TIMEOUT`].
+fn built_within(out: PathBuf, files: web::PageFiles) -> web::Built {
+    let (done, built) = mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = done.send(web::build_page_with(&out, files).map_err(|e| e.to_string()));
+    });
+    built
+        .recv_timeout(BUILD_TIMEOUT)
+        .expect("the page is built within the bound")
+        .expect("the page builds")
+}
+
 /// The page's URL, served once for the whole test binary: built into the
 /// test's target scratch directory (no temporary directory left behind),
 /// served from a thread until the binary ends.
@@ -57,15 +69,7 @@ fn page_url() -> &'static str {
     static SERVED: OnceLock<(web::Server, String)> = OnceLock::new();
     let (_, url) = SERVED.get_or_init(|| {
         let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("web_page");
-        let (done, built) = mpsc::channel();
-        let out = dir.clone();
-        std::thread::spawn(move || {
-            let _ = done.send(web::build_page(&out).map_err(|e| e.to_string()));
-        });
-        let built = built
-            .recv_timeout(BUILD_TIMEOUT)
-            .expect("the page is built within the bound")
-            .expect("the page builds");
+        let built = built_within(dir.clone(), web::PageFiles::default());
         assert!(built.weight() > 0);
         let server = web::serve(&dir, 0).expect("the page is served");
         let url = server.url();
@@ -74,11 +78,27 @@ fn page_url() -> &'static str {
     url
 }
 
+/// The single-file page, as `cargo run --release -p web -- --out DIR
+/// --single-file` writes it, opened from disk (a `file://` URL: offline, no
+/// server), with what the build said.
+fn single_file() -> &'static (String, web::Built) {
+    static BUILT: OnceLock<(String, web::Built)> = OnceLock::new();
+    BUILT.get_or_init(|| {
+        let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("web_single");
+        let built = built_within(dir.clone(), web::PageFiles { single_file: true });
+        let url = format!("file://{}", dir.join("index.html").display());
+        (url, built)
+    })
+}
+
 /// The page opened with `query`, once its hook says the first frame is up.
 fn open<'b>(browser: &'b Browser, query: &str) -> Page<'b> {
-    let page = browser
-        .open(&format!("{}{query}", page_url()))
-        .expect("the page loads");
+    open_url(browser, &format!("{}{query}", page_url()))
+}
+
+/// The page at `url`, once its hook says the first frame is up.
+fn open_url<'b>(browser: &'b Browser, url: &str) -> Page<'b> {
+    let page = browser.open(url).expect("the page loads");
     page.wait_for("window.modexPage && modexPage.ready", PAGE_TIMEOUT)
         .expect("the page draws its first frame");
     page
@@ -794,4 +814,206 @@ fn a_browser_without_webassembly_gets_a_message() {
         assert!(message.contains("WebAssembly"), "{message:?}");
         assert_eq!(page.evaluate("window.modexPage.ready").unwrap(), false);
     });
+}
+
+/// The book's chapters: the names of `docs/*.md`.
+fn chapter_names() -> Vec<String> {
+    let docs = concat!(env!("CARGO_MANIFEST_DIR"), "/docs");
+    let mut names: Vec<String> = std::fs::read_dir(docs)
+        .expect("docs/")
+        .filter_map(|entry| {
+            let name = entry.unwrap().file_name().into_string().unwrap();
+            name.strip_suffix(".md").map(String::from)
+        })
+        .collect();
+    names.sort();
+    names
+}
+
+fn strings_of(value: &serde_json::Value) -> Vec<String> {
+    value
+        .as_array()
+        .unwrap_or_else(|| panic!("not a list: {value}"))
+        .iter()
+        .map(|v| v.as_str().unwrap().to_owned())
+        .collect()
+}
+
+/// The `href` of each link `selector` matches, as written.
+fn hrefs(page: &Page, selector: &str) -> Vec<String> {
+    let quoted = serde_json::Value::from(selector).to_string();
+    strings_of(
+        &page
+            .evaluate(&format!(
+                "[...document.querySelectorAll({quoted})].map(a => a.getAttribute('href'))"
+            ))
+            .unwrap(),
+    )
+}
+
+/// The single-file page opened from disk, paused, once its first frame is up.
+fn open_single_file(browser: &Browser) -> Page<'_> {
+    open_url(browser, &format!("{}?paused=1", single_file().0))
+}
+
+#[test]
+fn caption_links_scroll_to_their_chapter_in_the_single_file() {
+    let browser = Browser::start().unwrap();
+    let page = open_single_file(&browser);
+    let links = hrefs(&page, "figcaption a");
+    assert!(links.len() >= 5, "the captions' links: {links:?}");
+    assert!(links.contains(&"#vga/step-by-step-in-the-browser".to_owned()));
+    for href in &links {
+        let id = href
+            .strip_prefix('#')
+            .unwrap_or_else(|| panic!("the caption link {href:?} leaves the page"));
+        let target = format!("document.getElementById({})", serde_json::Value::from(id));
+        assert_eq!(
+            page.evaluate(&format!("{target} !== null")).unwrap(),
+            true,
+            "the caption link {href} has no target"
+        );
+        page.evaluate("window.scrollTo(0, 0)").unwrap();
+        let selector = format!("figcaption a[href=\"{href}\"]");
+        let before = page.evaluate("window.scrollY").unwrap();
+        page.click(&selector).unwrap();
+        // The fragment is followed and the target is in the window, from
+        // wherever the caption was.
+        page.wait_for(
+            &format!(
+                "location.hash === {hash} && (() => {{
+                    const box = {target}.getBoundingClientRect();
+                    return box.top >= -1 && box.top < innerHeight;
+                }})()",
+                hash = serde_json::Value::from(href.as_str())
+            ),
+            PAGE_TIMEOUT,
+        )
+        .unwrap_or_else(|e| panic!("{href}: the target is not scrolled into view: {e}"));
+        assert_ne!(
+            page.evaluate("window.scrollY").unwrap(),
+            before,
+            "{href}: no scroll"
+        );
+    }
+}
+
+#[test]
+fn the_book_in_the_single_file_has_headings_tables_code_and_pictures() {
+    let browser = Browser::start().unwrap();
+    let page = open_single_file(&browser);
+    let sections = strings_of(
+        &page
+            .evaluate("[...document.querySelectorAll('#book > section')].map(s => s.id).sort()")
+            .unwrap(),
+    );
+    assert_eq!(sections, chapter_names(), "one section per chapter");
+    let count = |selector: &str| {
+        evaluate_u64(
+            &page,
+            &format!("document.querySelectorAll('{selector}').length"),
+        )
+    };
+    assert_eq!(
+        count("#book > section > h2:first-child"),
+        sections.len() as u64,
+        "each chapter's title"
+    );
+    assert!(count("#book h3") > 50, "the chapters' headings");
+    assert!(count("#book table td") > 100, "the chapters' tables");
+    assert!(count("#book pre code") > 10, "the chapters' code");
+    let pictures = count("#book img");
+    assert!(pictures >= 10, "{pictures} pictures");
+    // Every picture decodes, from inside the file.
+    page.wait_for(
+        "[...document.querySelectorAll('#book img')].every(i => i.complete && i.naturalWidth > 0 && i.src.startsWith('data:'))",
+        PAGE_TIMEOUT,
+    )
+    .expect("every picture of the book loads");
+    // At its own size: the crowd's screenshot is 640x480.
+    let crowd = page
+        .evaluate(
+            "(() => { const i = [...document.querySelectorAll('#book img')].find(i => i.alt.startsWith('The crowd')); \
+             return [i.naturalWidth, i.naturalHeight]; })()",
+        )
+        .unwrap();
+    assert_eq!(crowd, serde_json::json!([640, 480]));
+}
+
+#[test]
+fn vgas_step_by_step_urls_open_the_page_in_their_state() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open_single_file(&browser);
+        let links = hrefs(&page, "#vga a.live");
+        assert!(links.len() >= 5, "vga's live links: {links:?}");
+        for query in &links {
+            let selector = format!("#vga a.live[href=\"{query}\"]");
+            page.click(&selector).unwrap();
+            let session = page.session().to_owned();
+            browser
+                .wait_event(
+                    &format!("the page opened at {query}"),
+                    PAGE_TIMEOUT,
+                    |event| {
+                        event["sessionId"] == session.as_str()
+                            && event["method"] == "Page.frameNavigated"
+                            && event["params"]["frame"]["url"]
+                                .as_str()
+                                .is_some_and(|url| url.ends_with(query.as_str()))
+                    },
+                )
+                .unwrap();
+            page.wait_for(
+                &format!(
+                    "location.search === {} && window.modexPage && modexPage.ready",
+                    serde_json::Value::from(query.as_str())
+                ),
+                PAGE_TIMEOUT,
+            )
+            .unwrap_or_else(|e| panic!("{query}: the page did not open: {e}"));
+            // The page's canvases in that state: the operation the host's
+            // page names for the same URL, in the slow-motion panel.
+            let host = web::page::Page::new(query);
+            assert_eq!(
+                evaluate_string(&page, "modexPage.lastOp()"),
+                host.last_op(),
+                "{query}"
+            );
+            assert_eq!(
+                page.evaluate("document.getElementById('ops').hidden")
+                    .unwrap(),
+                false,
+                "{query}: the slow-motion panel is shown"
+            );
+            assert_same_pixels(
+                query,
+                WIDTH,
+                &page_screen(&page),
+                &rgb_of(host.screen_rgba(), "host"),
+            );
+        }
+    });
+}
+
+#[test]
+fn the_page_with_the_book_weighs_under_1_mib() {
+    let (_, single) = single_file();
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("web_weight");
+    let files = built_within(dir, web::PageFiles::default());
+    for (what, built) in [("the single file", single), ("the page's files", &files)] {
+        println!(
+            "{what}: {} bytes, {} of them the book ({:.0} % of 1 MiB)",
+            built.weight(),
+            built.book_bytes,
+            built.weight() as f64 * 100.0 / web::PAGE_BUDGET_BYTES as f64
+        );
+        assert!(built.book_bytes > 100_000, "{what}: the book is in it");
+        assert!(
+            built.weight() <= web::PAGE_BUDGET_BYTES,
+            "{what}: {} bytes, over the budget of {}",
+            built.weight(),
+            web::PAGE_BUDGET_BYTES
+        );
+    }
 }

@@ -921,14 +921,20 @@ impl Page<'_> {
         Ok(())
     }
 
-    /// A left click on the middle of the first element `selector` matches.
+    /// A left click on the first element `selector` matches, as a reader
+    /// makes it: the element scrolled to the middle of the window if it is
+    /// out of it, the mouse on the middle of its first line box (a link
+    /// that wraps has a gap, or other text, in the middle of its whole box).
     pub fn click(&self, selector: &str) -> Result<()> {
         let quoted = Value::from(selector).to_string();
         let centre = self.evaluate(&format!(
             "(() => {{
                 const element = document.querySelector({quoted});
                 if (!element) throw new Error('no element matches ' + {quoted});
-                const box = element.getBoundingClientRect();
+                const whole = element.getBoundingClientRect();
+                if (whole.top < 0 || whole.bottom > innerHeight || whole.left < 0 || whole.right > innerWidth)
+                    element.scrollIntoView({{block: 'center', inline: 'center'}});
+                const box = element.getClientRects()[0] || element.getBoundingClientRect();
                 return [box.left + box.width / 2, box.top + box.height / 2];
             }})()"
         ))?;

@@ -21,18 +21,27 @@
     return;
   }
 
-  // The single-file page carries the module in base64 (see web/src/build.rs).
+  // The module comes deflated (zlib's format: a seventh of its size), in
+  // base64 inside the single-file page or as modex.wasm.deflate beside it
+  // (see web/src/build.rs); the browser inflates it.
   async function loadModule() {
+    if (typeof DecompressionStream !== "function") {
+      throw new Error("this browser has no DecompressionStream to inflate it");
+    }
+    let deflated;
     const inline = $("modex-wasm");
     if (inline) {
       const text = atob(inline.textContent.trim());
       const bytes = new Uint8Array(text.length);
       for (let i = 0; i < text.length; i++) bytes[i] = text.charCodeAt(i);
-      return WebAssembly.instantiate(bytes, {});
+      deflated = new Blob([bytes]).stream();
+    } else {
+      const response = await fetch("modex.wasm.deflate");
+      if (!response.ok) throw new Error("modex.wasm.deflate: HTTP " + response.status);
+      deflated = response.body;
     }
-    const response = await fetch("modex.wasm");
-    if (!response.ok) throw new Error("modex.wasm: HTTP " + response.status);
-    return WebAssembly.instantiate(await response.arrayBuffer(), {});
+    const inflated = deflated.pipeThrough(new DecompressionStream("deflate"));
+    return WebAssembly.instantiate(await new Response(inflated).arrayBuffer(), {});
   }
 
   loadModule().then(

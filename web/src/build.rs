@@ -1,6 +1,7 @@
 //! The page's files: the crate built for `wasm32-unknown-unknown` (by the
 //! toolchain's own target, from `rust-toolchain.toml`: nothing is
-//! downloaded), the HTML and the JavaScript loader; or all three in one
+//! downloaded) and deflated, the HTML with the book rendered into it
+//! (`book.rs`) and the JavaScript loader; or all three in one
 //! self-contained HTML file.
 
 use std::fmt;
@@ -13,11 +14,16 @@ const INDEX_HTML: &str = include_str!("../page/index.html");
 const MODEX_JS: &str = include_str!("../page/modex.js");
 /// Where the single-file page's loader finds the module (see `modex.js`).
 const INLINE_WASM_ID: &str = "modex-wasm";
+/// The module's file beside the page: zlib's format, which the browser's
+/// `DecompressionStream("deflate")` reads (see `modex.js`).
+const MODULE_FILE: &str = "modex.wasm.deflate";
+/// Where the book goes in `index.html`.
+const BOOK_MARK: &str = "<!-- the book -->";
+/// The page's weight budget, book included: 1 MiB, in either form.
+pub const PAGE_BUDGET_BYTES: u64 = 1 << 20;
 /// The cargo profile the module is built with (the workspace's Cargo.toml).
 const WASM_PROFILE: &str = "web-wasm";
 const WASM_TARGET: &str = "wasm32-unknown-unknown";
-/// The book's chapters the captions link to, copied beside the page.
-const CHAPTERS: &[&str] = &["vga.md", "simulator.md", "rendering.md", "web.md"];
 
 /// How the page is written.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -31,6 +37,9 @@ pub struct PageFiles {
 pub struct Built {
     /// Each file the page loads, with its size in bytes.
     pub files: Vec<(PathBuf, u64)>,
+    /// The bytes of `index.html` that are the book (its sections, pictures
+    /// included).
+    pub book_bytes: u64,
 }
 
 impl Built {
@@ -49,6 +58,8 @@ pub enum BuildError {
     Compile(std::process::ExitStatus),
     /// A file could not be read or written.
     Io(PathBuf, std::io::Error),
+    /// A chapter could not be rendered (a picture missing, say).
+    Book(String),
 }
 
 impl fmt::Display for BuildError {
@@ -61,6 +72,7 @@ impl fmt::Display for BuildError {
                  {WASM_TARGET} target installed (boot/setup.sh, or rustup target add {WASM_TARGET})?"
             ),
             BuildError::Io(path, e) => write!(f, "{}: {e}", path.display()),
+            BuildError::Book(problem) => write!(f, "the book: {problem}"),
         }
     }
 }
@@ -112,9 +124,8 @@ pub fn build_wasm() -> Result<PathBuf, BuildError> {
         .join("web.wasm"))
 }
 
-/// Writes the page into `out` (made if missing): `index.html`, `modex.js`
-/// and `modex.wasm`, with the book's chapters the captions link to in
-/// `out/docs/`.
+/// Writes the page into `out` (made if missing): `index.html` (the page
+/// and the book), `modex.js` and `modex.wasm.deflate`.
 pub fn build_page(out: &Path) -> Result<Built, BuildError> {
     build_page_with(out, PageFiles::default())
 }
@@ -126,8 +137,21 @@ pub fn build_page_with(out: &Path, files: PageFiles) -> Result<Built, BuildError
     write_page(out, files, &wasm)
 }
 
-/// Writes the page's files around an already built module.
+/// Writes the page's files around an already built module, with the book
+/// read from the workspace's `docs/`.
 pub fn write_page(out: &Path, files: PageFiles, wasm: &[u8]) -> Result<Built, BuildError> {
+    let book = crate::book::read_book(&workspace().join("docs")).map_err(BuildError::Book)?;
+    write_page_with_book(out, files, wasm, &book.html())
+}
+
+/// Writes the page's files around an already built module and a rendered
+/// book.
+fn write_page_with_book(
+    out: &Path,
+    files: PageFiles,
+    wasm: &[u8],
+    book: &str,
+) -> Result<Built, BuildError> {
     let io = |path: &Path| {
         let path = path.to_path_buf();
         move |e| BuildError::Io(path, e)
@@ -140,31 +164,35 @@ pub fn write_page(out: &Path, files: PageFiles, wasm: &[u8]) -> Result<Built, Bu
         written.push((path, bytes.len() as u64));
         Ok(())
     };
+    // The module deflated: 683,375 bytes were 97,893 in zlib's format
+    // (most of the module is tables and zeroed data).
+    let module = deflate(wasm);
+    let page = INDEX_HTML.replace(BOOK_MARK, book);
     if files.single_file {
-        write("index.html", single_file_html(wasm).as_bytes())?;
+        write("index.html", single_file_html(&page, &module).as_bytes())?;
     } else {
-        write("index.html", INDEX_HTML.as_bytes())?;
+        write("index.html", page.as_bytes())?;
         write("modex.js", MODEX_JS.as_bytes())?;
-        write("modex.wasm", wasm)?;
-        // The captions' links, for a reader of the page served from here
-        // (not part of the page's weight: nothing loads them unasked).
-        let docs = out.join("docs");
-        std::fs::create_dir_all(&docs).map_err(io(&docs))?;
-        for chapter in CHAPTERS {
-            let from = workspace().join("docs").join(chapter);
-            std::fs::copy(&from, docs.join(chapter)).map_err(io(&from))?;
-        }
+        write(MODULE_FILE, &module)?;
     }
-    Ok(Built { files: written })
+    Ok(Built {
+        files: written,
+        book_bytes: book.len() as u64,
+    })
 }
 
-/// The page with the loader inline and the module in base64.
-fn single_file_html(wasm: &[u8]) -> String {
+/// The module in zlib's format, compressed as far as miniz goes.
+pub fn deflate(wasm: &[u8]) -> Vec<u8> {
+    miniz_oxide::deflate::compress_to_vec_zlib(wasm, 10)
+}
+
+/// The page with the loader inline and the deflated module in base64.
+fn single_file_html(page: &str, module: &[u8]) -> String {
     let inline = format!(
         "<script type=\"application/octet-stream\" id=\"{INLINE_WASM_ID}\">{}</script>\n<script>\n{MODEX_JS}</script>",
-        base64(wasm)
+        base64(module)
     );
-    INDEX_HTML.replace("<script src=\"modex.js\"></script>", &inline)
+    page.replace("<script src=\"modex.js\"></script>", &inline)
 }
 
 /// Standard base64 with padding (RFC 4648), as the browser's `atob` reads it.
@@ -228,16 +256,21 @@ mod tests {
     }
 
     #[test]
-    fn the_single_file_holds_the_module_and_the_loader() {
+    fn the_single_file_holds_the_module_the_loader_and_the_book() {
         let out = std::env::temp_dir().join(format!("web-single-{}", std::process::id()));
-        let wasm = b"\0asm\x01\0\0\0 not a real module";
+        let wasm = b"\0asm\x01\0\0\0 not a real module, not a real module";
         let built = write_page(&out, PageFiles { single_file: true }, wasm).unwrap();
         assert_eq!(built.files.len(), 1);
         let html = std::fs::read_to_string(out.join("index.html")).unwrap();
-        assert!(html.contains(&base64(wasm)));
+        assert!(html.contains(&base64(&deflate(wasm))));
+        let inflated = miniz_oxide::inflate::decompress_to_vec_zlib(&deflate(wasm)).unwrap();
+        assert_eq!(inflated, wasm);
         assert!(html.contains(INLINE_WASM_ID) && MODEX_JS.contains(INLINE_WASM_ID));
-        assert!(!html.contains("src=\"modex.js\""));
+        assert!(MODEX_JS.contains(MODULE_FILE) && MODEX_JS.contains("\"deflate\""));
+        assert!(!html.contains("src=\"modex.js\"") && !html.contains(BOOK_MARK));
+        assert!(html.contains("<section id=\"vga\" class=\"chapter\">"));
         assert_eq!(built.weight(), html.len() as u64);
+        assert!(built.book_bytes > 0 && built.book_bytes < built.weight());
 
         let built = write_page(&out, PageFiles::default(), wasm).unwrap();
         let names: Vec<_> = built
@@ -245,8 +278,91 @@ mod tests {
             .iter()
             .map(|(p, _)| p.file_name().unwrap())
             .collect();
-        assert_eq!(names, ["index.html", "modex.js", "modex.wasm"]);
-        assert!(out.join("docs/vga.md").exists());
+        assert_eq!(names, ["index.html", "modex.js", MODULE_FILE]);
+        let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+        assert!(html.contains("<section id=\"vga\" class=\"chapter\">"));
         std::fs::remove_dir_all(&out).unwrap();
+    }
+
+    /// The values of `attribute="..."` in `html`, `&amp;` decoded.
+    fn attribute_values(html: &str, attribute: &str) -> Vec<String> {
+        let opening = format!(" {attribute}=\"");
+        html.match_indices(&opening)
+            .map(|(at, _)| {
+                let value = &html[at + opening.len()..];
+                value[..value.find('"').expect("a closed attribute")].replace("&amp;", "&")
+            })
+            .collect()
+    }
+
+    /// Every link of the single file, the captions' and the chapters',
+    /// lands on an id the file holds (or is a web address, or one of the
+    /// page's own URLs); every id is unique; every chapter is there.
+    fn assert_links_resolve(html: &str) {
+        let ids = attribute_values(html, "id");
+        let mut unique = std::collections::BTreeSet::new();
+        for id in &ids {
+            assert!(unique.insert(id), "the id {id:?} is given twice");
+        }
+        let mut anchors = 0;
+        for href in attribute_values(html, "href") {
+            if let Some(anchor) = href.strip_prefix('#') {
+                assert!(
+                    unique.contains(&anchor.to_owned()),
+                    "a link to #{anchor}, which no element has"
+                );
+                anchors += 1;
+            } else if href.starts_with('?') {
+                assert!(
+                    crate::book::is_page_url(&href),
+                    "{href}: not a URL the page reads"
+                );
+            } else {
+                assert!(
+                    href.starts_with("https://") || href.starts_with("http://"),
+                    "a link to {href:?}, outside the page"
+                );
+            }
+        }
+        assert!(anchors > 100, "{anchors} links within the page");
+        let docs = workspace().join("docs");
+        for entry in std::fs::read_dir(&docs).unwrap() {
+            let name = entry.unwrap().file_name().into_string().unwrap();
+            if let Some(chapter) = name.strip_suffix(".md") {
+                assert!(
+                    unique.contains(&chapter.to_owned()),
+                    "no section for docs/{name}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn every_link_of_the_single_file_lands_inside_it() {
+        let book = crate::book::read_book(&workspace().join("docs")).unwrap();
+        let page = INDEX_HTML.replace(BOOK_MARK, &book.html());
+        let html = single_file_html(&page, b"module");
+        assert_links_resolve(&html);
+        // The captions' links among them.
+        let captions: Vec<String> = INDEX_HTML
+            .split("<figcaption>")
+            .skip(1)
+            .flat_map(|caption| {
+                attribute_values(&caption[..caption.find("</figcaption>").unwrap()], "href")
+            })
+            .collect();
+        assert!(captions.len() >= 5, "{captions:?}");
+        assert!(captions.contains(&"#vga/step-by-step-in-the-browser".to_owned()));
+    }
+
+    #[test]
+    fn a_link_to_a_missing_anchor_is_caught() {
+        let book = crate::book::read_book(&workspace().join("docs")).unwrap();
+        let page = INDEX_HTML
+            .replace(BOOK_MARK, &book.html())
+            .replace("href=\"#simulator\"", "href=\"#simulator/no-such-heading\"");
+        let html = single_file_html(&page, b"module");
+        let caught = std::panic::catch_unwind(|| assert_links_resolve(&html));
+        assert!(caught.is_err(), "a dead caption link passed");
     }
 }

@@ -12,7 +12,8 @@
 //! * [`slow`]: one frame's bus operations stepped one by one, named by the
 //!   `modex` function that issued each;
 //! * [`page`]: the page's state, which the WebAssembly exports drive;
-//! * `build` and `serve` (host only): the page's files, and a local server.
+//! * `book`, `build` and `serve` (host only): the book rendered into the
+//!   page, the page's files, and a local server.
 //!
 //! The exports use no `wasm-bindgen`: plain `extern "C"` functions and
 //! buffers in the module's linear memory (`web/page/modex.js` reads them);
@@ -48,6 +49,8 @@ pub mod url;
 mod exports;
 
 #[cfg(not(target_arch = "wasm32"))]
+pub mod book;
+#[cfg(not(target_arch = "wasm32"))]
 pub mod build;
 #[cfg(not(target_arch = "wasm32"))]
 pub mod serve;
@@ -68,6 +71,9 @@ pub(crate) fn with_big_stack(test: impl FnOnce() + Send + 'static) {
 }
 
 #[cfg(not(target_arch = "wasm32"))]
-pub use build::{base64, build_page, build_page_with, build_wasm, BuildError, Built, PageFiles};
+pub use build::{
+    base64, build_page, build_page_with, build_wasm, BuildError, Built, PageFiles,
+    PAGE_BUDGET_BYTES,
+};
 #[cfg(not(target_arch = "wasm32"))]
 pub use serve::{serve, Server};

@@ -1,5 +1,6 @@
 //! `cargo run --release -p web -- --out DIR [--single-file]`: builds the web
-//! page (the demo compiled to WebAssembly, its HTML and loader) into DIR;
+//! page (the demo compiled to WebAssembly, its HTML with the book, and its
+//! loader) into DIR;
 //! `-- --serve [--port N]` builds it into a temporary directory (or DIR)
 //! and serves it on 127.0.0.1, printing `serving http://127.0.0.1:PORT/`.
 
@@ -10,9 +11,10 @@ const USAGE: &str = "\
 usage: web --out DIR [--single-file]
        web --serve [--port N] [--out DIR] [--single-file]
 
-Builds the modex-cube web page: DIR/index.html, DIR/modex.js, DIR/modex.wasm
-(with --single-file, one self-contained DIR/index.html). --serve serves it on
-127.0.0.1 (port 0, the default: any free port) and prints its address.";
+Builds the modex-cube web page, with the book (docs/) in it: DIR/index.html,
+DIR/modex.js, DIR/modex.wasm.deflate (with --single-file, one self-contained
+DIR/index.html). --serve serves it on 127.0.0.1 (port 0, the default: any free
+port) and prints its address.";
 
 #[derive(Debug, Default)]
 struct Args {
@@ -72,9 +74,10 @@ fn main() -> ExitCode {
     };
     // With --serve, stdout carries the one line a test waits for.
     let report = format!(
-        "Wrote the page to {} ({} bytes in all: {})",
+        "Wrote the page to {} ({} bytes in all, {} of them the book: {})",
         out.display(),
         built.weight(),
+        built.book_bytes,
         built
             .files
             .iter()

@@ -175,7 +175,6 @@ fn content_type(path: &Path) -> &'static str {
         Some("js") => "text/javascript; charset=utf-8",
         // instantiateStreaming insists on this type.
         Some("wasm") => "application/wasm",
-        Some("md") => "text/plain; charset=utf-8",
         Some("gif") => "image/gif",
         Some("png") => "image/png",
         _ => "application/octet-stream",
