@@ -994,6 +994,7 @@ impl<H: PciHardware> HostController for Ehci<H> {
             Speed::High => max_packet == 64,
             Speed::Full => matches!(max_packet, 8 | 16 | 32 | 64),
             Speed::Low => max_packet == 8,
+            Speed::Super => false,
         };
         if !valid {
             self.hw.log(format_args!(

@@ -76,6 +76,9 @@ pub enum Speed {
     Full,
     /// 480 Mbit/s.
     High,
+    /// 5 Gbit/s and up (USB 3, xHCI only): endpoint 0 takes 512-byte
+    /// packets, its bMaxPacketSize0 is the exponent 9.
+    Super,
 }
 
 /// A root port as the controller reports it.

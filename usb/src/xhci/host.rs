@@ -39,7 +39,6 @@
 //! the next device when it goes (after Disable Slot is queued: the command
 //! ring runs it before the Enable Slot of whoever gets them next).
 
-use super::enumeration::COMMAND_MICROS;
 use super::{
     configure_endpoint, Xhci, COMPLETION_COMMAND_RING_STOPPED, COMPLETION_CONTEXT_STATE,
     COMPLETION_SHORT_PACKET, COMPLETION_STALL, COMPLETION_SUCCESS, CRCR, CRCR_COMMAND_ABORT,
@@ -56,6 +55,9 @@ use crate::Hardware;
 use core::fmt;
 use xhci::ring::trb::{command, transfer};
 
+/// How long a command may take before it is aborted (Linux's
+/// `XHCI_CMD_DEFAULT_TIMEOUT`, 5 s).
+pub(super) const COMMAND_MICROS: u64 = 5_000_000;
 /// Devices kept: one a slot the driver enables (CONFIG's MaxSlotsEn).
 pub const HOST_DEVICES: usize = MAX_SLOTS as usize;
 
@@ -358,6 +360,7 @@ fn speed_id(speed: Speed) -> u32 {
         Speed::Low => speed::LOW,
         Speed::Full => speed::FULL,
         Speed::High => speed::HIGH,
+        Speed::Super => speed::SUPER,
     }
 }
 
@@ -365,7 +368,11 @@ fn speed_id(speed: Speed) -> u32 {
 /// the power of two at or below, within what the speed allows.
 fn interval_exponent(speed: Speed, frames: u8) -> u8 {
     let exponent = 3 + (7 - frames.max(1).leading_zeros() as u8);
-    let most = if speed == Speed::High { 15 } else { 10 };
+    let most = if matches!(speed, Speed::High | Speed::Super) {
+        15
+    } else {
+        10
+    };
     exponent.clamp(3, most)
 }
 
@@ -424,8 +431,8 @@ impl<H: Hardware> Xhci<H> {
     }
 
     /// A command stuck past Linux's 5 s is aborted (CRCR's CA) and counts
-    /// as failed for its device.
-    fn check_command_timeouts(&mut self) {
+    /// as failed for its device; says whether one was.
+    fn check_command_timeouts(&mut self) -> bool {
         if !self
             .host
             .devices
@@ -433,8 +440,9 @@ impl<H: Hardware> Xhci<H> {
             .flatten()
             .any(|d| d.ops.in_flight.is_some())
         {
-            return;
+            return false;
         }
+        let mut aborted = false;
         let now = self.hw.now_micros();
         for index in 0..HOST_DEVICES {
             let stuck = self.host.devices[index]
@@ -448,8 +456,10 @@ impl<H: Hardware> Xhci<H> {
                     COMMAND_MICROS / 1_000
                 ));
                 self.command_done(index, None, 0);
+                aborted = true;
             }
         }
+        aborted
     }
 
     fn command_completed(&mut self, event: &Trb) {
@@ -552,7 +562,9 @@ impl<H: Hardware> Xhci<H> {
                     "device {index}: endpoint {dci} not recovered (completion code {})",
                     code.unwrap_or(0)
                 ));
-                if dci == 1 {
+                // Endpoint 0 lost, or a controller that stopped answering
+                // commands: nothing more will work on this device.
+                if dci == 1 || code.is_none() {
                     self.fail_device(index, TransferError::Controller);
                 }
             }
@@ -1092,13 +1104,14 @@ impl<H: Hardware> HostController for Xhci<H> {
         }
         let register = self.portsc(port);
         if self.usb3_port(port) {
+            // The link trained by itself: enabled, or nothing there.
             let status = self.read(register);
-            if status != u32::MAX && status & (PORT_CONNECTED | PORT_ENABLED) != 0 {
-                self.say(format_args!(
-                    "port {port}: a SuperSpeed device; the device layer takes USB 2 devices only (a USB 3 hub's USB 2 half is on a port of its own)"
-                ));
+            if status == u32::MAX
+                || status & (PORT_CONNECTED | PORT_ENABLED) != PORT_CONNECTED | PORT_ENABLED
+            {
+                return ResetOutcome::Failed;
             }
-            return ResetOutcome::Failed;
+            return ResetOutcome::Enabled(Speed::Super);
         }
         // The controller ends the reset itself; a little late is allowed.
         self.wait_for(register, ROOT_RESET_END_MICROS, |s| {
@@ -1196,7 +1209,11 @@ impl<H: Hardware> HostController for Xhci<H> {
             slot: None,
             context,
             multi_tt,
-            max_packet_0: if info.speed == Speed::High { 64 } else { 8 },
+            max_packet_0: match info.speed {
+                Speed::Super => 512,
+                Speed::High => 64,
+                Speed::Full | Speed::Low => 8,
+            },
             address: 0,
             hub: false,
             ops: Ops::new(),
@@ -1234,6 +1251,7 @@ impl<H: Hardware> HostController for Xhci<H> {
             Speed::Low => max_packet == 8,
             Speed::Full => matches!(max_packet, 8 | 16 | 32 | 64),
             Speed::High => max_packet == 64,
+            Speed::Super => max_packet == 512,
         };
         if !allowed {
             return Err(HostError::Invalid);
@@ -1511,7 +1529,10 @@ impl<H: Hardware> HostController for Xhci<H> {
             // More may wait: the next call looks again.
             self.host.news = true;
         }
-        news || taken > 0
+        // A command past its time fails its device: news too (no read
+        // unless a command is on the ring).
+        let aborted = self.check_command_timeouts();
+        news || taken > 0 || aborted
     }
 
     fn halt(&mut self) -> bool {
