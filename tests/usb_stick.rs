@@ -165,9 +165,11 @@ fn stick_tablet_and_keyboard_on_one_xhci(firmware: Firmware) {
     );
     // QEMU's usb-storage is 46f4:0001, its usb-tablet 0627:0001.
     for expected in [
-        "usb: port 1: device 46f4:0001 (mass storage, class 08/06/50) is not a keyboard or a hub; left alone",
-        "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on port 6",
-        "usb: port 7: device 0627:0001 is a HID device without keys; left alone",
+        // The stick is SuperSpeed: enumerated through the device layer with
+        // endpoint 0's 512-byte packets, and left alone.
+        "usb: xhci port 1: device 46f4:0001 (mass storage, class 08/06/50) is not a keyboard or a hub; left alone",
+        "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on xhci port 6",
+        "usb: xhci port 7: device 0627:0001 is a HID device without keys; left alone",
     ] {
         assert!(
             console.lines().any(|l| l == expected),
