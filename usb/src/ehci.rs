@@ -214,6 +214,7 @@ impl Device {
     const NONE: Device = Device {
         slot: Slot::Free,
         info: DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: 0,
             translator: None,

@@ -1088,9 +1088,15 @@ impl<C: HostController> Bus<C> {
             .iter()
             .position(Option::is_none)
             .ok_or(BusError::NoRoom)?;
+        let hub_ports = job.location.hub_ports();
         let info = DeviceInfo {
             speed: job.speed,
             root_port: job.location.root_port(),
+            route: hub_ports.iter().rev().try_fold(0, |route, &port| {
+                (1..=15)
+                    .contains(&port)
+                    .then_some(route << 4 | u32::from(port))
+            }),
             translator: job.translator,
         };
         let id = self.controller.device_new(info)?;

@@ -274,6 +274,7 @@ fn a_firmware_that_never_lets_go_keeps_the_controller_untouched() {
     assert!(ehci.halt(), "halted as the firmware left it");
     assert_eq!(
         ehci.device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: 1,
             translator: None,
@@ -454,6 +455,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     let ehci = bus.controller();
     let device = ehci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: 2,
             translator: None,
@@ -507,6 +509,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     );
     // Full speed only behind a translator; a translator only for it.
     let full = DeviceInfo {
+        route: Some(0),
         speed: Speed::Full,
         root_port: 1,
         translator: None,
@@ -518,6 +521,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     });
     assert_eq!(
         ehci.device_new(DeviceInfo {
+            route: Some(0),
             translator: tt,
             ..full
         }),
@@ -525,6 +529,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     );
     assert_eq!(
         ehci.device_new(DeviceInfo {
+            route: Some(0),
             root_port: 3,
             ..full
         }),
@@ -708,6 +713,7 @@ fn addressed_keyboard(ehci: &mut Ehci<Model>, port: u8, address: u8) -> DeviceId
     );
     let device = ehci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: port,
             translator: None,

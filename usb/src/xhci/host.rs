@@ -1,7 +1,5 @@
 //! xHCI as one [`HostController`] under the controller-independent device
-//! layer ([`crate::bus::Bus`]), beside the driver's own enumeration (which
-//! the kernel still uses; a controller is driven by one or the other, never
-//! both: [`Xhci::poll`] and these calls share the event ring).
+//! layer ([`crate::bus::Bus`]).
 //!
 //! What xHCI does differently from the other controllers, and how it is
 //! hidden behind the trait:
@@ -17,21 +15,17 @@
 //! - The controller, not the host software, sends SET_ADDRESS: a
 //!   SET_ADDRESS given to [`HostController::control_begin`] becomes Address
 //!   Device (BSR=0), and its completion is the transfer's.
-//! - A slot names its place by root port and route string, and a full- or
-//!   low-speed device behind a high-speed hub names that hub by its slot.
-//!   The route string is learnt as the hub learns it: the port a hub was
-//!   last told to reset (SET_FEATURE(PORT_RESET) through
-//!   [`HostController::control_begin`]) is where the next device made
-//!   hangs, or the root port last reset ([`DeviceInfo`] carries only the root
-//!   port). The translator's hub is found by the USB address the device
-//!   layer gave it.
+//! - A slot names its place by root port and route string, both in
+//!   [`DeviceInfo`], and a full- or low-speed device behind a high-speed hub
+//!   names that hub by its slot, found by the USB address the device layer
+//!   gave it.
 //! - A stall or an error halts the endpoint in the controller too:
 //!   endpoint 0 is reset (Reset Endpoint, Set TR Dequeue Pointer past what
 //!   was queued) before its next transfer, an interrupt pipe on
 //!   [`HostController::interrupt_restart`].
-//! - SuperSpeed devices are refused at their port: the device layer has no
-//!   speed for them (a USB 3 hub's USB 2 half, where keyboards hang, is on
-//!   a USB 2 root port of its own).
+//! - A USB 3 root port trains its link by itself: its device is
+//!   SuperSpeed once enabled (a USB 3 hub's USB 2 half, where keyboards
+//!   hang, is on a USB 2 root port of its own).
 //!
 //! DMA: a device takes two pages (its output context, endpoint 0's ring
 //! and control buffer; its input context, and its one interrupt pipe's
@@ -93,10 +87,8 @@ const PORT_KEEP: u32 = (0x3 << 14) | (0x7 << 25);
 /// changes so that the next change raises a Port Status Change event again.
 const PORT_CONNECT_CHANGES: u32 = PORT_CHANGES & !PORT_RESET_CHANGE;
 const PORT_RESET_DONE_CHANGES: u32 = PORT_RESET_CHANGE | (1 << 19) | (1 << 18);
-/// The Setup TRB's bmRequestType/bRequest of SET_ADDRESS and a hub's
-/// SET_FEATURE(PORT_RESET).
+/// SET_ADDRESS's bRequest: the controller sends it (Address Device).
 const SET_ADDRESS: u8 = 5;
-const HUB_PORT_RESET: u16 = 4;
 /// Completion codes mapped to the device layer's errors.
 const COMPLETION_DATA_BUFFER: u8 = 2;
 const COMPLETION_BABBLE: u8 = 3;
@@ -305,19 +297,10 @@ struct HostDevice {
     removed: bool,
 }
 
-/// Where the next device made hangs: the root port, and its route string
-/// (None: a hub port a route string cannot name, past 15 or past five tiers).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct LastReset {
-    root_port: u8,
-    route: Option<u32>,
-}
-
 /// What the [`HostController`] side of the driver keeps.
 #[derive(Debug)]
 pub(super) struct HostState {
     devices: [Option<HostDevice>; HOST_DEVICES],
-    last_reset: Option<LastReset>,
     /// Events were taken outside [`HostController::anything_happened`]
     /// (their results wait to be polled).
     news: bool,
@@ -327,7 +310,6 @@ impl HostState {
     pub(super) const fn new() -> HostState {
         HostState {
             devices: [const { None }; HOST_DEVICES],
-            last_reset: None,
             news: false,
         }
     }
@@ -1082,10 +1064,6 @@ impl<H: Hardware> HostController for Xhci<H> {
         if !self.valid_port(port) {
             return;
         }
-        self.host.last_reset = Some(LastReset {
-            root_port: port,
-            route: Some(0),
-        });
         if self.usb3_port(port) {
             // USB 3 ports train and enable by themselves.
             return;
@@ -1160,12 +1138,11 @@ impl<H: Hardware> HostController for Xhci<H> {
         if self.commands.is_none() {
             return Err(HostError::ControllerGone);
         }
-        // The device hangs where the last reset was.
-        let route = match self.host.last_reset.take() {
-            Some(LastReset { root_port, route }) if root_port == info.root_port => route,
-            _ => Some(0),
-        };
-        let Some(route) = route else {
+        // Where the device hangs, as the slot context names it.
+        let Some(route) = info
+            .route
+            .filter(|&route| route_depth(route) <= 5 && route >> 20 == 0)
+        else {
             self.say(format_args!(
                 "port {}: a hub port a route string cannot name (past port 15 or five tiers)",
                 info.root_port
@@ -1337,20 +1314,6 @@ impl<H: Hardware> HostController for Xhci<H> {
                 return Err(HostError::Busy);
             };
             self.write_dma(buffer, &out[..length]);
-        }
-        let entry = self.host_device(device)?;
-        if entry.hub && setup.request_type == 0x23 && setup.request == 3 {
-            // SET_FEATURE(PORT_RESET): the next device made is there.
-            if setup.value == HUB_PORT_RESET {
-                let (root_port, route) = (entry.context.root_port, entry.context.route_string);
-                let depth = route_depth(route);
-                let port = setup.index;
-                self.host.last_reset = Some(LastReset {
-                    root_port,
-                    route: ((1..=15).contains(&port) && depth < 5)
-                        .then(|| route | u32::from(port) << (4 * depth)),
-                });
-            }
         }
         let entry = self.host_device(device)?;
         entry.control = Control::Waiting(setup);
