@@ -548,11 +548,18 @@ impl<C: HostController> Bus<C> {
         out: &mut impl FnMut(u8),
     ) {
         let bouncing = self.queue.first_change(location);
+        // A connect change with nothing known there (an xHCI's ports after
+        // its reset) is not news.
+        let known = self
+            .devices
+            .iter()
+            .flatten()
+            .any(|device| location.holds(device.location));
         self.release_under(location, out);
         if bouncing.is_none() {
             if connected {
                 self.say_at(location, format_args!("device plugged in"));
-            } else {
+            } else if known {
                 self.say_at(location, format_args!("device pulled out"));
             }
         }
