@@ -2295,10 +2295,10 @@ fn paths_are_told_from_other_code() {
 
 #[test]
 fn a_quoted_constant_must_match_the_code() {
-    // usb/src/xhci/enumeration.rs: COMMAND_MICROS = 5_000_000.
+    // usb/src/xhci/host.rs: COMMAND_MICROS = 5_000_000.
     let right = "A command is given up after 5 s (`COMMAND_MICROS`), or\n\
                  5,000 ms (`COMMAND_MICROS`), and a port reset after 0.8 s\n\
-                 (`enumeration::PORT_RESET_MICROS`); Linux's name (`XHCI_CMD_DEFAULT_TIMEOUT`) is not ours.\n";
+                 (`enumeration::HUB_RESET_MICROS`); Linux's name (`XHCI_CMD_DEFAULT_TIMEOUT`) is not ours.\n";
     assert_eq!(problems_in(right), Vec::<String>::new());
     let made_up = "A command is given up after 0.3 s (`COMMAND_MICROS`).\n";
     let problems = problems_in(made_up);

@@ -61,6 +61,20 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
     let crowd = time_frames(vga, &mut *renderer, &[SceneCommand::ToggleCrowd]);
     drop(renderer);
     vga.set_mode();
+    let phases = [
+        ("cube", time_phases(vga, &[])),
+        ("crowd", time_phases(vga, &[SceneCommand::ToggleCrowd])),
+    ];
+    say_frames(ours, per_pixel, crowd, &phases);
+    ps2_poll_cost();
+    usb_poll_cost();
+    largest_grid_at_60_fps(vga);
+    vga.set_mode();
+}
+
+/// Says the frame timings: apart from [`run`], which is built once per VGA
+/// bus, so that the formatting is built once (`tests/size.rs`).
+fn say_frames(ours: u64, per_pixel: u64, crowd: u64, phases: &[(&str, Phases)]) {
     serial_println!(
         "bench: {} frames each: ours {} us/frame, per-pixel {} us/frame, per-pixel/ours = {}.{:02}",
         FRAMES,
@@ -75,11 +89,7 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
         demo::scene::MAX_OBJECTS,
         crowd
     );
-    for (name, commands) in [
-        ("cube", &[][..]),
-        ("crowd", &[SceneCommand::ToggleCrowd][..]),
-    ] {
-        let phases = time_phases(vga, commands);
+    for (name, phases) in phases {
         serial_println!(
             "bench: phases of the {} (us/frame): motion {}, transform, projection and culling {}, \
              depth policy and scan conversion {}, comparison and grouping {}, bus writes {}",
@@ -91,10 +101,6 @@ pub fn run<B: VgaBus>(vga: &mut ModeX<B>) {
             phases.bus_writes
         );
     }
-    ps2_poll_cost();
-    usb_poll_cost();
-    largest_grid_at_60_fps(vga);
-    vga.set_mode();
 }
 
 /// Calls of the PS/2 poll timed together.

@@ -216,6 +216,7 @@ impl Device {
     const NONE: Device = Device {
         slot: Slot::Free,
         info: DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: 0,
             translator: None,
@@ -1026,6 +1027,7 @@ impl<H: PciHardware> HostController for Ehci<H> {
             Speed::High => max_packet == 64,
             Speed::Full => matches!(max_packet, 8 | 16 | 32 | 64),
             Speed::Low => max_packet == 8,
+            Speed::Super => false,
         };
         if !valid {
             self.hw.log(format_args!(

@@ -1,6 +1,6 @@
 //! The one narrow, polled interface between the controller-independent
 //! device layer ([`crate::bus`]) and a host controller driver (EHCI, OHCI,
-//! UHCI; xHCI keeps its own enumeration, see `docs/architecture.md`).
+//! UHCI and xHCI).
 //!
 //! Nothing here waits for a device: every call either does its register and
 //! DMA work and returns, or starts something whose end a later `*_poll` call
@@ -76,6 +76,9 @@ pub enum Speed {
     Full,
     /// 480 Mbit/s.
     High,
+    /// 5 Gbit/s and up (USB 3, xHCI only): endpoint 0 takes 512-byte
+    /// packets, its bMaxPacketSize0 is the exponent 9.
+    Super,
 }
 
 /// A root port as the controller reports it.
@@ -125,6 +128,11 @@ pub struct DeviceInfo {
     pub speed: Speed,
     /// The root port (1-based) the device is below.
     pub root_port: u8,
+    /// Its place below the root port as a route string (USB 3.2 8.9, xHCI
+    /// 4.5.2): the hub port on each tier, four bits a tier, the first tier
+    /// lowest; `Some(0)` on a root port. `None` when a hub port past 15 is
+    /// on the way, which a route string cannot name (only xHCI needs it).
+    pub route: Option<u32>,
     /// For a full- or low-speed device reached through a high-speed hub:
     /// that hub's transaction translator. `None` on UHCI and OHCI.
     pub translator: Option<TransactionTranslator>,

@@ -873,7 +873,7 @@ impl<H: PciHardware> HostController for Ohci<H> {
 
     fn device_new(&mut self, info: DeviceInfo) -> core::result::Result<DeviceId, HostError> {
         self.running()?;
-        if info.speed == Speed::High || !self.valid_port(info.root_port) {
+        if matches!(info.speed, Speed::High | Speed::Super) || !self.valid_port(info.root_port) {
             return Err(HostError::Invalid);
         }
         let Some(index) = self.devices.iter().position(|d| !d.in_use) else {

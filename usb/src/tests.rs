@@ -1,24 +1,86 @@
-//! The driver against the register model: ownership, reset, scratchpads,
-//! context sizes, ring wrap, a keyboard end to end, and misbehaviour.
+//! The xHCI driver under the device layer against the register model:
+//! ownership, reset, scratchpads, context sizes, ring wrap, a keyboard end
+//! to end, hubs, hot-plug and misbehaviour.
 
+use super::bus::{Bus, Location};
 use super::model::{Model, Port2, BAR_BYTES, DMA_BASE, DMA_BYTES};
-use super::xhci::{Handoff, Location, Xhci, XhciError, HANDOFF_MICROS, PAGE_BYTES, RESET_MICROS};
+use super::xhci::{
+    Capabilities, Handoff, Xhci, XhciError, HANDOFF_MICROS, PAGE_BYTES, RESET_MICROS,
+};
+use super::Hardware;
 use std::vec::Vec;
 
-fn controller(model: Model) -> Xhci<Model> {
-    Xhci::new(model, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap()
+/// The driver under the device layer, with the driver's own start-up
+/// calls beside the device layer's.
+struct Tested<H: Hardware>(Bus<Xhci<H>>);
+
+impl<H: Hardware> core::ops::Deref for Tested<H> {
+    type Target = Bus<Xhci<H>>;
+    fn deref(&self) -> &Bus<Xhci<H>> {
+        &self.0
+    }
+}
+
+impl<H: Hardware> core::ops::DerefMut for Tested<H> {
+    fn deref_mut(&mut self) -> &mut Bus<Xhci<H>> {
+        &mut self.0
+    }
+}
+
+impl<H: Hardware> Tested<H> {
+    fn new(hardware: H) -> Tested<H> {
+        Tested(Bus::new(
+            Xhci::new(hardware, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap(),
+        ))
+    }
+    fn hardware(&mut self) -> &mut H {
+        self.0.controller().hardware()
+    }
+    fn capabilities(&mut self) -> Capabilities {
+        self.0.controller().capabilities()
+    }
+    fn take_ownership(&mut self) -> Handoff {
+        self.0.controller().take_ownership()
+    }
+    fn reset_and_start(&mut self) -> Result<(), XhciError> {
+        self.0.controller().reset_and_start()
+    }
+    fn no_op(&mut self) -> Result<(), XhciError> {
+        self.0.controller().no_op()
+    }
+}
+
+/// Where a device hangs, by root port and route string (a hub port a
+/// nibble, the first tier lowest), as the xHCI slot context names it.
+fn location(root_port: u8, route: u32) -> Location {
+    let mut at = Location::root(root_port);
+    let mut route = route;
+    while route & 0xF != 0 {
+        at = at.below((route & 0xF) as u8).unwrap();
+        route >>= 4;
+    }
+    at
+}
+
+/// A controller whose endpoint 0 halts on a stall, as on real hardware.
+fn controller(mut model: Model) -> Tested<Model> {
+    model.ep0_halts = true;
+    Tested::new(model)
 }
 
 /// A controller taken, reset and started, its keyboard set up.
-fn with_keyboard(model: Model) -> Xhci<Model> {
+fn with_keyboard(model: Model) -> Tested<Model> {
     let mut xhci = controller(model);
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
     assert_eq!(xhci.enumerate(), 1, "{:?}", xhci.hardware().log);
+    // The pipe's Configure Endpoint completes after the enumeration's
+    // last step; the next poll queues its transfers.
+    assert_eq!(poll(&mut xhci), []);
     xhci
 }
 
-fn poll(xhci: &mut Xhci<Model>) -> Vec<u8> {
+fn poll(xhci: &mut Tested<Model>) -> Vec<u8> {
     let mut bytes = Vec::new();
     xhci.poll(&mut |b| bytes.push(b));
     bytes
@@ -30,7 +92,7 @@ const POLL_MICROS_BOUND: u64 = 1_000;
 /// Polls a frame (1 ms of model time) apart, at least once and then until
 /// nothing is left to enumerate, each poll within [`POLL_MICROS_BOUND`];
 /// gives the bytes typed meanwhile and the polls it took.
-fn settle(xhci: &mut Xhci<Model>) -> (Vec<u8>, u32) {
+fn settle(xhci: &mut Tested<Model>) -> (Vec<u8>, u32) {
     let mut bytes = Vec::new();
     let mut polls = 0;
     while polls == 0 || !xhci.enumeration_idle() {
@@ -49,6 +111,9 @@ fn settle(xhci: &mut Xhci<Model>) -> (Vec<u8>, u32) {
         );
         xhci.hardware().now += 1_000;
     }
+    // The last pipe's Configure Endpoint completes after the enumeration's
+    // last step; this poll queues its transfers.
+    xhci.poll(&mut |b| bytes.push(b));
     (bytes, polls)
 }
 
@@ -161,14 +226,8 @@ fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
             .log
             .iter()
             .any(|l| l
-                == "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on port 1"));
-        assert_eq!(
-            xhci.keyboards().collect::<Vec<_>>(),
-            [Location {
-                root_port: 1,
-                route: 0
-            }]
-        );
+                == "keyboard: USB keyboard, read by its report descriptor (2 key fields, 8-byte reports), on xhci port 1"));
+        assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [location(1, 0)]);
     }
 }
 
@@ -238,7 +297,7 @@ fn a_controller_that_never_answers_commands_costs_bounded_time() {
     assert!(waited < 2_500_000, "{waited} us");
     assert!(
         xhci.hardware().log.iter().any(|l| l.starts_with(
-            "usb: boot enumeration cut short after 2000 ms, port 1 still enabling a slot"
+            "usb: xhci: boot enumeration cut short after 2000 ms, port 1 still reading the device descriptor's first 8 bytes"
         )),
         "{:?}",
         xhci.hardware().log
@@ -248,9 +307,8 @@ fn a_controller_that_never_answers_commands_costs_bounded_time() {
     assert!((5_000_000..6_000_000).contains(&waited), "{waited} us");
     let model = xhci.hardware();
     assert!(
-        model.log.iter().any(|l| l.starts_with(
-            "usb: port 1: command (TRB type 9) not completed while enabling a slot; left alone after "
-        )),
+        model.log.iter().any(|l| l
+            .starts_with("usb: xhci: a command for device 0 not completed in 5000 ms; aborted")),
         "{:?}",
         model.log
     );
@@ -297,7 +355,7 @@ fn nonsense_descriptors_are_refused_and_survived() {
             xhci.hardware()
                 .log
                 .iter()
-                .any(|l| l.starts_with("usb: port 1: ")),
+                .any(|l| l.starts_with("usb: xhci port 1: ")),
             "{what}: {:?}",
             xhci.hardware().log
         );
@@ -328,13 +386,7 @@ fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
     let mut model = Model::new();
     model.hub = true;
     let mut xhci = with_keyboard(model);
-    assert_eq!(
-        xhci.keyboards().collect::<Vec<_>>(),
-        [Location {
-            root_port: 1,
-            route: 2
-        }]
-    );
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [location(1, 2)]);
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
     assert!(model.hub_states[0].configured && model.hub_states[0].marked);
@@ -346,7 +398,7 @@ fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
     );
     assert!(model.log.iter().any(|l| l
         .starts_with("keyboard: USB keyboard, read by its report descriptor")
-        && l.ends_with(" on port 1.2")));
+        && l.ends_with(" on xhci port 1.2")));
     assert!(model.send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
     assert_eq!(poll(&mut xhci), [0x01]);
 }
@@ -358,6 +410,9 @@ fn keyboard_described_by(report_descriptor: &[u8]) -> Model {
     let length = (report_descriptor.len() as u16).to_le_bytes();
     model.configuration[25..27].copy_from_slice(&length);
     model.report_descriptor = Some(report_descriptor.to_vec());
+    // The whole report in one packet: a report over several packets is the
+    // device layer's to put together (issue 46, periodic scheduling).
+    model.configuration[31] = 32;
     model
 }
 
@@ -379,7 +434,7 @@ fn an_nkro_keyboard_that_ignores_set_protocol_is_read_through_its_descriptor() {
         report
     };
     assert!(xhci.hardware().log.iter().any(|l| l.contains(
-        "read by its report descriptor (2 key fields, 21-byte reports, numbered), on port 1"
+        "read by its report descriptor (2 key fields, 21-byte reports, numbered), on xhci port 1"
     )));
     // Left Shift and A, then Left too: eight bytes of a boot decoder would
     // have read the bitmap as phantom usages.
@@ -434,7 +489,7 @@ fn a_boot_keyboard_without_a_report_descriptor_is_put_in_the_boot_protocol() {
         .hardware()
         .log
         .iter()
-        .any(|l| l == "keyboard: USB keyboard, boot protocol, on port 1"));
+        .any(|l| l == "keyboard: USB keyboard, boot protocol, on xhci port 1"));
     assert!(xhci.hardware().send_report([0, 0, 0x15, 0, 0, 0, 0, 0]));
     assert_eq!(poll(&mut xhci), [0x13]);
     // Only eight bytes are a boot report.
@@ -450,12 +505,12 @@ fn a_lying_report_descriptor_refuses_the_device_and_a_tablet_is_left_alone() {
         (
             "unclosed",
             BOOT[..BOOT.len() - 1].to_vec(),
-            "usb: port 1: report descriptor refused (1 collections never closed); device left alone",
+            "usb: xhci port 1: report descriptor refused (1 collections never closed); device left alone",
         ),
         (
             "tablet",
             TABLET.to_vec(),
-            "usb: port 1: device 0627:0001 is a HID device without keys; left alone",
+            "usb: xhci port 1: device 0627:0001 is a HID device without keys; left alone",
         ),
     ] {
         let mut model = keyboard_described_by(&descriptor);
@@ -496,7 +551,7 @@ fn a_stall_mid_run_is_recovered_and_the_keyboard_comes_back_by_itself() {
         model
             .log
             .iter()
-            .any(|l| l == "usb: keyboard on port 1: recovered"),
+            .any(|l| l == "usb: xhci port 1: halt cleared; recovered"),
         "{:?}",
         model.log
     );
@@ -509,7 +564,11 @@ fn a_stall_mid_run_is_recovered_and_the_keyboard_comes_back_by_itself() {
     // without CLEAR_FEATURE, and again many times over.
     for round in 0..20 {
         assert!(xhci.hardware().fail_transfer(4), "round {round}");
-        poll(&mut xhci);
+        // Reset Endpoint, Set TR Dequeue Pointer, the transfers queued
+        // again: a command a poll.
+        for _ in 0..4 {
+            poll(&mut xhci);
+        }
         assert!(
             xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0]),
             "round {round}"
@@ -526,14 +585,17 @@ fn a_stall_mid_run_is_recovered_and_the_keyboard_comes_back_by_itself() {
 #[test]
 fn a_keyboard_that_fails_every_transfer_is_given_up_in_bounded_time() {
     let mut xhci = with_keyboard(Model::new());
-    let mut rounds = 0;
+    let (mut rounds, mut failures) = (0, 0);
     while xhci.keyboards().count() == 1 {
         rounds += 1;
-        assert!(rounds <= 20, "never given up");
-        xhci.hardware().fail_transfer(4);
+        assert!(rounds <= 40, "never given up");
+        // Fails the transfer queued, once the restart has queued one.
+        if xhci.hardware().fail_transfer(4) {
+            failures += 1;
+        }
         poll(&mut xhci);
     }
-    assert_eq!(rounds, 9, "eight recoveries, then given up");
+    assert_eq!(failures, 9, "eight recoveries, then given up");
     assert!(xhci
         .hardware()
         .log
@@ -553,7 +615,13 @@ fn a_recovery_the_controller_never_answers_gives_the_keyboard_up() {
         // A poll never waits for the controller.
         assert!(xhci.hardware().now - before < 1_000);
         xhci.hardware().now += 10_000;
-        assert!(xhci.hardware().now - start < 1_000_000, "never given up");
+        // The Reset Endpoint is aborted after Linux's 5 s for a command
+        // (the driver's own recovery gave 300 ms).
+        assert!(
+            xhci.hardware().now - start < 6_000_000,
+            "never given up: {:?}",
+            xhci.hardware().log
+        );
     }
 }
 
@@ -615,10 +683,12 @@ fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
         mmio: 0,
         dma: 0,
     };
-    let mut xhci = Xhci::new(counting, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
+    let mut xhci = Tested::new(counting);
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
     assert_eq!(xhci.enumerate(), 1);
+    // The pipe's Configure Endpoint completes after the enumeration.
+    xhci.poll(&mut |_| {});
     // A key held (repeat due later) is the usual state mid-spin too.
     assert!(xhci
         .hardware()
@@ -646,7 +716,7 @@ fn shut_down_switches_the_ports_off_then_halts_and_resets() {
         (false, true, std::vec![true, true])
     );
     let start = xhci.hardware().now;
-    xhci.shut_down().unwrap();
+    assert!(xhci.shut_down());
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
     assert_eq!(
@@ -728,13 +798,7 @@ fn a_keyboard_behind_three_and_five_tiers_of_hubs_is_reached() {
         model.hub = true;
         model.hub_tiers = tiers;
         let mut xhci = with_keyboard(model);
-        assert_eq!(
-            xhci.keyboards().collect::<Vec<_>>(),
-            [Location {
-                root_port: 1,
-                route
-            }]
-        );
+        assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [location(1, route)]);
         assert_eq!(std::format!("{}", xhci.keyboards().next().unwrap()), name);
         let model = xhci.hardware();
         assert!(model.errors.is_empty(), "{:?}", model.errors);
@@ -760,8 +824,11 @@ fn a_sixth_tier_of_hubs_is_left_alone() {
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
     assert!(
-        model.log.iter().any(|l| l
-            == "usb: hub on port 1.2.2.2.2.2: past the five hub tiers a route string names; left alone"),
+        model
+            .log
+            .iter()
+            .any(|l| l
+                == "usb: xhci port 1.2.2.2.2.2: hub past the 5 hub tiers USB allows; left alone"),
         "{:?}",
         model.log
     );
@@ -796,7 +863,7 @@ fn a_keyboard_switched_back_and_forth_a_thousand_times_still_types() {
 
 /// A controller taken, reset and started, its ports to be enumerated by
 /// the polls that follow.
-fn started(model: Model) -> Xhci<Model> {
+fn started(model: Model) -> Tested<Model> {
     let mut xhci = controller(model);
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
@@ -844,12 +911,13 @@ fn a_device_that_never_answers_costs_its_timeouts_and_never_a_frame() {
     let model = xhci.hardware();
     assert!(
         model.log.iter().any(|l| l.starts_with(
-            "usb: port 2: control transfer not completed while reading the device descriptor's first 8 bytes; left alone after "
+            "usb: xhci port 2: control transfer not completed in 5000 ms while reading the device descriptor's first 8 bytes; port disabled, left until it changes again"
         )),
         "{:?}",
         model.log
     );
     assert_eq!(model.slots_disabled, [2], "the dead device's slot");
+    assert_eq!(model.ports_disabled, [2], "and its port, as Linux does");
     assert!(model.errors.is_empty(), "{:?}", model.errors);
     assert_eq!(xhci.keyboards().count(), 1);
 }
@@ -880,7 +948,7 @@ fn a_keyboard_plugged_in_while_a_dead_device_is_probed_waits_its_turn_then_types
     assert!(model
         .log
         .iter()
-        .any(|l| l.starts_with("usb: port 2: control transfer not completed")));
+        .any(|l| l.starts_with("usb: xhci port 2: control transfer not completed")));
 }
 
 #[test]
@@ -892,10 +960,9 @@ fn two_keyboards_at_boot_are_both_set_up_and_both_type() {
     xhci.reset_and_start().unwrap();
     assert_eq!(xhci.enumerate(), 2, "{:?}", xhci.hardware().log);
     assert!(xhci.enumeration_idle());
-    let at = |root_port| Location {
-        root_port,
-        route: 0,
-    };
+    // The last pipe's Configure Endpoint completes after the enumeration.
+    assert_eq!(poll(&mut xhci), []);
+    let at = |root_port| location(root_port, 0);
     assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [at(1), at(2)]);
     assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
     assert!(xhci.hardware().send_report_2([0, 0, 0x05, 0, 0, 0, 0, 0])); // B
@@ -943,7 +1010,7 @@ fn a_keyboard_behind_one_and_three_hubs_is_plugged_and_pulled_many_times() {
         assert!(model.errors.is_empty(), "{:?}", model.errors);
         assert_eq!(model.slots_disabled.len(), 100);
         assert_eq!(model.keyboard_port_status_after_reset(), 0b11);
-        let gone = std::format!("usb: port 1{}: device gone", ".2".repeat(tiers));
+        let gone = std::format!("usb: xhci port 1{}: keyboard gone", ".2".repeat(tiers));
         assert_eq!(
             model.log.iter().filter(|l| l.starts_with(&gone)).count(),
             100
@@ -971,20 +1038,14 @@ fn a_hub_pulled_out_takes_the_keyboard_behind_it() {
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
     assert_eq!(model.slots_disabled.len(), 2, "the hub and the keyboard");
-    for at in ["1.2", "1.2.2"] {
-        let line = std::format!("usb: port {at}: device gone");
+    for (at, what) in [("1.2", "hub"), ("1.2.2", "keyboard")] {
+        let line = std::format!("usb: xhci port {at}: {what} gone");
         assert!(model.log.iter().any(|l| l.starts_with(&line)), "{at}");
     }
     // Plugged back: the hub and then its keyboard are enumerated again.
     model.plug_behind_hub(0);
     settle(&mut xhci);
-    assert_eq!(
-        xhci.keyboards().collect::<Vec<_>>(),
-        [Location {
-            root_port: 1,
-            route: 0x22
-        }]
-    );
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [location(1, 0x22)]);
     assert!(xhci.hardware().send_report([0, 0, 0x29, 0, 0, 0, 0, 0])); // Esc
     assert_eq!(poll(&mut xhci), [0x01]);
     assert!(xhci.hardware().errors.is_empty());
@@ -1000,10 +1061,7 @@ fn a_keyboard_behind_two_usb_3_hubs_is_reached_and_found_again_after_an_unplug()
     model.device_descriptor[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
     model.device_descriptor[7] = 9;
     let mut xhci = with_keyboard(model);
-    let behind = Location {
-        root_port: 1,
-        route: 0x22,
-    };
+    let behind = location(1, 0x22);
     assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [behind]);
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);

@@ -746,7 +746,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
         let low_speed = match info.speed {
             Speed::Low => true,
             Speed::Full => false,
-            Speed::High => return Err(HostError::Invalid),
+            Speed::High | Speed::Super => return Err(HostError::Invalid),
         };
         if info.translator.is_some() || !(1..=self.ports).contains(&info.root_port) {
             return Err(HostError::Invalid);

@@ -1,49 +1,29 @@
 //! The xHCI controller, polled: no interrupts, MSI or IOAPIC routing. The
-//! kernel calls [`Xhci::poll`] from its loops; every wait in here is bounded
+//! device layer ([`crate::bus::Bus`]) drives it through
+//! [`crate::host::HostController`] (`xhci/host.rs`); every wait in here is bounded
 //! by the clock, every index the controller or a device gives is checked,
 //! and every failure is an [`XhciError`] the caller logs and survives.
 
-use super::context::{
-    endpoint_type, interrupt_interval, speed, ContextLayout, EndpointContext, SlotContext,
-};
-use super::descriptor::{self, Function, InterruptIn};
-use super::hid::{self, Decoded, KeySet, KeyboardLayout};
-use super::report::{self, BootKeyboard};
+use super::context::ContextLayout;
 use super::ring::{trb_type, EventRing, ProducerRing, Trb};
 use super::Hardware;
 // TRBs are built with the `xhci` crate's layouts; the rings here own the
 // cycle bit.
-use xhci::ring::trb::{command, transfer};
+use xhci::ring::trb::command;
 
-mod enumeration;
 mod host;
 #[cfg(test)]
 mod host_tests;
-pub use enumeration::BOOT_ENUMERATION_MICROS;
 pub use host::HOST_DEVICES;
 
 /// Bytes in a page: DMA memory is handed out a page at a time.
 pub const PAGE_BYTES: u64 = 4096;
 /// TRBs in the command and event rings (one page each).
 const RING_TRBS: u16 = 256;
-/// TRBs in a keyboard's interrupt ring, each with a 64-byte report buffer
-/// (together one page).
-const INTERRUPT_RING_TRBS: u16 = 64;
-const REPORT_BUFFER_BYTES: u64 = 64;
-/// Normal TRBs kept queued on a keyboard's interrupt endpoint.
-const QUEUED_REPORTS: u16 = 16;
-/// Keyboards are polled every 2^3 x 125 us = 1 ms, however slowly they
-/// ask to be: a host may poll an interrupt endpoint more often than its
-/// bInterval (USB 2.0 5.7.4), and keys then wait at most 1 ms, not 8-10.
-const KEYBOARD_INTERVAL: u8 = 3;
-/// Devices (slots) this driver keeps: a hub and keyboards.
-pub const MAX_DEVICES: usize = 8;
 /// Slots enabled in CONFIG (the DCBAA has this many entries plus one).
 const MAX_SLOTS: u8 = 16;
 /// Events handled in one poll, so a controller that floods cannot stall the loop.
 const EVENTS_PER_POLL: u32 = 64;
-/// The largest configuration descriptor read.
-const CONFIGURATION_BYTES: u16 = 1024;
 
 /// How long the firmware gets to let go of the controller.
 pub const HANDOFF_MICROS: u64 = 1_000_000;
@@ -52,8 +32,6 @@ const HALT_MICROS: u64 = 50_000;
 pub const RESET_MICROS: u64 = 500_000;
 /// How long the No Op at start may take (a check that the rings work).
 const NO_OP_MICROS: u64 = 300_000;
-/// How long each command of a keyboard's recovery may take.
-const RECOVERY_MICROS: u64 = 300_000;
 
 // Capability registers.
 const CAPLENGTH: u32 = 0x00;
@@ -128,21 +106,6 @@ pub enum XhciError {
     CommandTimeout(u32),
     /// A command completed with an error code.
     CommandFailed(u32, u8),
-    /// A control transfer got no completion in time.
-    TransferTimeout,
-    /// A transfer completed with an error code (6 is a stall).
-    TransferFailed(u8),
-    /// A descriptor that makes no sense.
-    Descriptor(descriptor::DescriptorError),
-    /// The controller gave a slot ID outside what was enabled.
-    BadSlot(u8),
-    /// More devices than this driver keeps.
-    TooManyDevices,
-    /// The device being enumerated was let go of in the meantime (pulled
-    /// out, or its hub was).
-    Gone,
-    /// A port reset did not finish, or left the port disabled.
-    PortReset,
 }
 
 impl core::fmt::Display for XhciError {
@@ -160,22 +123,7 @@ impl core::fmt::Display for XhciError {
             XhciError::CommandFailed(t, c) => {
                 write!(f, "command (TRB type {t}) failed with completion code {c}")
             }
-            XhciError::TransferTimeout => write!(f, "control transfer not completed"),
-            XhciError::TransferFailed(c) => {
-                write!(f, "transfer failed with completion code {c}")
-            }
-            XhciError::Descriptor(e) => write!(f, "{e}"),
-            XhciError::BadSlot(s) => write!(f, "the controller gave slot {s}"),
-            XhciError::TooManyDevices => write!(f, "too many devices"),
-            XhciError::Gone => write!(f, "the device went away during its enumeration"),
-            XhciError::PortReset => write!(f, "port reset failed"),
         }
-    }
-}
-
-impl From<descriptor::DescriptorError> for XhciError {
-    fn from(e: descriptor::DescriptorError) -> Self {
-        XhciError::Descriptor(e)
     }
 }
 
@@ -194,191 +142,6 @@ pub enum Handoff {
     /// cleared by the driver.
     Forced,
 }
-
-/// Where a device hangs: a root port, and the hub ports on the way down.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Location {
-    /// The root hub port, 1-based.
-    pub root_port: u8,
-    /// The route string: the port on each hub tier below the root port,
-    /// four bits a tier, the first tier lowest (0: the root port itself).
-    pub route: u32,
-}
-
-/// Hub tiers below the root hub a route string can name (USB 2.0 and
-/// xHCI: five, four bits each).
-pub const MAX_HUB_TIERS: u32 = 5;
-
-impl Location {
-    /// The hub tiers between the root port and the device.
-    pub fn depth(&self) -> u32 {
-        (0..MAX_HUB_TIERS)
-            .take_while(|tier| (self.route >> (4 * tier)) & 0xF != 0)
-            .count() as u32
-    }
-
-    /// Port `port` of the hub at this location.
-    fn below(&self, port: u8) -> Location {
-        Location {
-            root_port: self.root_port,
-            route: self.route | u32::from(port & 0xF) << (4 * self.depth()),
-        }
-    }
-}
-
-impl core::fmt::Display for Location {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        write!(f, "{}", self.root_port)?;
-        for tier in 0..self.depth() {
-            write!(f, ".{}", (self.route >> (4 * tier)) & 0xF)?;
-        }
-        Ok(())
-    }
-}
-
-/// A device with a slot.
-#[derive(Clone, Debug)]
-struct Device {
-    slot: u8,
-    location: Location,
-    speed: u32,
-    output: u64,
-    input: u64,
-    buffer: u64,
-    ep0: ProducerRing,
-    slot_context: SlotContext,
-    keyboard: Option<Keyboard>,
-    hub: Option<Hub>,
-}
-
-/// A configured hub's status change endpoint.
-#[derive(Clone, Debug)]
-struct Hub {
-    ports: u8,
-    /// The endpoint's device context index (0: none, nothing plugged in
-    /// later is seen).
-    dci: u8,
-    ring: ProducerRing,
-    /// The page its reports land in.
-    buffer: u64,
-}
-
-/// How a keyboard's reports are read.
-// The layout lives in the keyboard itself: the driver has no allocator to
-// box it in, and a keyboard is a few of these at most.
-#[allow(clippy::large_enum_variant)]
-#[derive(Clone, Copy, Debug)]
-enum ReportFormat {
-    /// The boot report, exactly 8 bytes (the keyboard was put in the boot
-    /// protocol because its report descriptor could not be read).
-    Boot,
-    /// As its report descriptor lays them out (report protocol).
-    Described(KeyboardLayout),
-}
-
-/// Where a keyboard's report endpoint stands: running, or a step of its
-/// recovery after a failed transfer (each with the TRB whose event ends the
-/// step, and when it began).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Recovery {
-    Running,
-    ResettingEndpoint {
-        command: u64,
-        since: u64,
-        stalled: bool,
-    },
-    SettingDequeue {
-        command: u64,
-        since: u64,
-        stalled: bool,
-    },
-    ClearingHalt {
-        status: u64,
-        since: u64,
-    },
-}
-
-impl Recovery {
-    fn command(&self) -> Option<u64> {
-        match *self {
-            Recovery::ResettingEndpoint { command, .. }
-            | Recovery::SettingDequeue { command, .. } => Some(command),
-            _ => None,
-        }
-    }
-
-    fn since(&self) -> Option<u64> {
-        match *self {
-            Recovery::Running => None,
-            Recovery::ResettingEndpoint { since, .. }
-            | Recovery::SettingDequeue { since, .. }
-            | Recovery::ClearingHalt { since, .. } => Some(since),
-        }
-    }
-}
-
-/// Failed reports in a row after which a keyboard is given up (a device
-/// that fails every transfer is gone or broken; hot-plug finds it again).
-const MAX_RECOVERIES: u32 = 8;
-
-/// Report IDs whose keys are kept apart (a keyboard may split its keys over
-/// several numbered reports; the keys down are the union).
-const KEY_REPORTS: usize = 4;
-
-/// A configured keyboard's interrupt endpoint.
-#[derive(Clone, Debug)]
-struct Keyboard {
-    dci: u8,
-    ring: ProducerRing,
-    reports: u64,
-    report_bytes: u32,
-    format: ReportFormat,
-    /// The keys each report ID last said are down.
-    keys_by_report: [(u8, KeySet); KEY_REPORTS],
-    state: BootKeyboard,
-    /// Reports that could not be read, dropped.
-    dropped: u32,
-    recovery: Recovery,
-    /// Failed transfers since the last good report.
-    failures_in_a_row: u32,
-    failed: bool,
-}
-
-impl Keyboard {
-    /// Takes one report: gives the keys now down, or why it changes nothing.
-    fn keys(&mut self, report: &[u8]) -> core::result::Result<KeySet, Decoded> {
-        match &self.format {
-            ReportFormat::Boot if report.len() == report::REPORT_BYTES => {
-                report::boot_report_keys(report).ok_or(Decoded::Rollover)
-            }
-            ReportFormat::Boot => Err(Decoded::Unreadable),
-            ReportFormat::Described(layout) => match layout.decode(report) {
-                Decoded::Keys { report_id, keys } => {
-                    let slot = match self
-                        .keys_by_report
-                        .iter()
-                        .position(|&(id, _)| id == report_id)
-                    {
-                        Some(slot) => slot,
-                        None => self
-                            .keys_by_report
-                            .iter()
-                            .position(|&(id, _)| id == u8::MAX)
-                            .ok_or(Decoded::Unreadable)?,
-                    };
-                    self.keys_by_report[slot] = (report_id, keys);
-                    Ok(self
-                        .keys_by_report
-                        .iter()
-                        .filter(|&&(id, _)| id != u8::MAX)
-                        .fold(KeySet::default(), |all, (_, keys)| all.union(keys)))
-                }
-                other => Err(other),
-            },
-        }
-    }
-}
-
 /// A bump allocator of zeroed pages in the DMA region, with the pages of
 /// devices pulled out kept for the next ones (a KVM switched back and
 /// forth all day must not run the region dry).
@@ -425,34 +188,6 @@ impl PortProtocols {
             .map(|&(major, _, _)| major)
     }
 }
-
-/// A USB control request's setup packet.
-#[derive(Clone, Copy, Debug)]
-struct Setup {
-    request_type: u8,
-    request: u8,
-    value: u16,
-    index: u16,
-    length: u16,
-}
-
-const GET_STATUS: u8 = 0;
-const CLEAR_FEATURE: u8 = 1;
-const SET_FEATURE: u8 = 3;
-const GET_DESCRIPTOR: u8 = 6;
-const SET_CONFIGURATION: u8 = 9;
-const HID_SET_IDLE: u8 = 0x0A;
-const HID_SET_PROTOCOL: u8 = 0x0B;
-const PROTOCOL_BOOT: u16 = 0;
-const PROTOCOL_REPORT: u16 = 1;
-const ENDPOINT_HALT: u16 = 0;
-const HUB_PORT_RESET: u16 = 4;
-const HUB_PORT_POWER: u16 = 8;
-const HUB_C_PORT_RESET_FEATURE: u16 = 20;
-/// SET_HUB_DEPTH (USB 3.2 10.16.2.9): a SuperSpeed hub's tier, for the
-/// route string it reads.
-const SET_HUB_DEPTH: u8 = 12;
-
 /// The controller and what hangs on it.
 #[derive(Debug)]
 pub struct Xhci<H: Hardware> {
@@ -468,26 +203,10 @@ pub struct Xhci<H: Hardware> {
     commands: Option<ProducerRing>,
     events: Option<EventRing>,
     protocols: PortProtocols,
-    devices: [Option<Device>; MAX_DEVICES],
-    /// Ports and hubs waiting for their turn to be enumerated.
-    queue: enumeration::WorkQueue,
-    /// The enumeration in progress, a step per poll.
-    enumeration: Option<enumeration::Enumeration>,
-    /// When the root ports are first looked at.
-    scan_at: Option<u64>,
-    /// Scancodes of keys let go by a step (a keyboard behind a hub pulled
-    /// out), handed on by the poll that ran it.
-    released: [u8; RELEASED_BYTES],
-    released_count: usize,
     /// What the [`crate::host::HostController`] side keeps (devices by
-    /// handle, their commands and pipes); unused by [`Xhci::poll`].
+    /// handle, their commands and pipes).
     host: host::HostState,
 }
-
-/// Room for the releases of every key a keyboard can hold down (each up
-/// to 4 bytes with its prefixes), a few keyboards' worth.
-const RELEASED_BYTES: usize = 256;
-
 impl<H: Hardware> Xhci<H> {
     /// Reads the capability registers of a controller whose BAR0 is
     /// `mmio_bytes` long; DMA memory is `dma_bytes` at physical `dma_base`
@@ -547,12 +266,6 @@ impl<H: Hardware> Xhci<H> {
             commands: None,
             events: None,
             protocols: PortProtocols::default(),
-            devices: Default::default(),
-            queue: enumeration::WorkQueue::default(),
-            enumeration: None,
-            scan_at: None,
-            released: [0; RELEASED_BYTES],
-            released_count: 0,
             host: host::HostState::new(),
         })
     }
@@ -806,8 +519,8 @@ impl<H: Hardware> Xhci<H> {
         Some(event)
     }
 
-    /// Waits for the event `wanted` picks, handling the others as `poll`
-    /// would (keys pressed meanwhile are dropped: nobody listens yet).
+    /// Waits for the event `wanted` picks (the No Op at start, before any
+    /// device: the others are dropped).
     fn wait_event(&mut self, micros: u64, wanted: impl Fn(&Trb) -> bool) -> Option<Trb> {
         let start = self.hw.now_micros();
         loop {
@@ -815,7 +528,6 @@ impl<H: Hardware> Xhci<H> {
                 if wanted(&event) {
                     return Some(event);
                 }
-                self.other_event(&event, &mut |_| {});
             }
             if self.hw.now_micros().saturating_sub(start) >= micros {
                 return None;
@@ -847,288 +559,6 @@ impl<H: Hardware> Xhci<H> {
             .map(|_| ())
     }
 
-    /// Queues a control transfer on device `index`'s endpoint 0 and rings
-    /// its doorbell; gives the slot and the Status TRB's address, whose
-    /// event ends the transfer.
-    fn queue_control(&mut self, index: usize, setup: Setup) -> Result<(u8, u64)> {
-        let Some(device) = self.devices[index].as_mut() else {
-            return Err(XhciError::TransferTimeout);
-        };
-        let slot = device.slot;
-        let buffer = device.buffer;
-        let ring = &mut device.ep0;
-        ring.reserve_contiguous(&mut self.hw, 3);
-        let device_to_host = setup.request_type & 0x80 != 0;
-        let has_data = setup.length > 0;
-        let mut setup_stage = transfer::SetupStage::new();
-        setup_stage
-            .set_request_type(setup.request_type)
-            .set_request(setup.request)
-            .set_value(setup.value)
-            .set_index(setup.index)
-            .set_length(setup.length)
-            .set_transfer_type(match (has_data, device_to_host) {
-                (false, _) => transfer::TransferType::No,
-                (true, false) => transfer::TransferType::Out,
-                (true, true) => transfer::TransferType::In,
-            });
-        ring.push(&mut self.hw, Trb(setup_stage.into_raw()));
-        if has_data {
-            let mut data = transfer::DataStage::new();
-            data.set_data_buffer_pointer(buffer)
-                .set_trb_transfer_length(u32::from(setup.length))
-                .set_direction(if device_to_host {
-                    transfer::Direction::In
-                } else {
-                    transfer::Direction::Out
-                });
-            ring.push(&mut self.hw, Trb(data.into_raw()));
-        }
-        // The status stage goes the other way from the data (IN if none).
-        let mut status_stage = transfer::StatusStage::new();
-        status_stage.set_interrupt_on_completion();
-        if !has_data || !device_to_host {
-            status_stage.set_direction();
-        }
-        let status = ring.push(&mut self.hw, Trb(status_stage.into_raw()));
-        self.write(self.doorbells + 4 * u32::from(slot), 1);
-        Ok((slot, status))
-    }
-
-    /// Reads `length` bytes (at most a page) of the control buffer of device `index`.
-    fn read_buffer(&mut self, index: usize, out: &mut [u8]) {
-        let Some(buffer) = self.devices[index].as_ref().map(|d| d.buffer) else {
-            return;
-        };
-        for (word, chunk) in out.chunks_mut(4).enumerate() {
-            let value = self.hw.mem_read(buffer + word as u64 * 4).to_le_bytes();
-            chunk.copy_from_slice(&value[..chunk.len()]);
-        }
-    }
-
-    /// Handles the controller's events (at most a bounded number) and the
-    /// keyboards' repeat: `out` gets PS/2 set-1 scancode bytes.
-    pub fn poll(&mut self, out: &mut impl FnMut(u8)) {
-        for _ in 0..EVENTS_PER_POLL {
-            let Some(event) = self.next_event() else {
-                break;
-            };
-            self.other_event(&event, out);
-        }
-        // Checked here, so that the idle poll pays no call.
-        if !self.enumeration_idle() {
-            self.advance_enumeration();
-            for &byte in &self.released[..self.released_count] {
-                out(byte);
-            }
-            self.released_count = 0;
-        }
-        let now = self.hw.now_micros();
-        for index in 0..MAX_DEVICES {
-            let Some(keyboard) = self.devices[index]
-                .as_mut()
-                .and_then(|d| d.keyboard.as_mut())
-            else {
-                continue;
-            };
-            keyboard.state.tick(now, out);
-            if keyboard
-                .recovery
-                .since()
-                .is_some_and(|since| now.saturating_sub(since) > RECOVERY_MICROS)
-            {
-                self.give_up(index, 0, out);
-            }
-        }
-    }
-
-    fn other_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
-        // After a Command Abort the ring stops with an event naming the
-        // command that would have run next: that command's, it is not.
-        if event.kind() == trb_type::COMMAND_COMPLETION
-            && event.completion_code() == COMPLETION_COMMAND_RING_STOPPED
-        {
-            return;
-        }
-        if self.enumeration_event(event) {
-            return;
-        }
-        match event.kind() {
-            trb_type::TRANSFER_EVENT => self.transfer_event(event, out),
-            trb_type::COMMAND_COMPLETION => self.recovery_command_done(event),
-            trb_type::PORT_STATUS_CHANGE => self.root_port_changed(event.port(), out),
-            _ => {}
-        }
-    }
-
-    fn transfer_event(&mut self, event: &Trb, out: &mut impl FnMut(u8)) {
-        let now = self.hw.now_micros();
-        let Some(index) = self
-            .devices
-            .iter()
-            .position(|d| d.as_ref().is_some_and(|d| d.slot == event.slot()))
-        else {
-            return;
-        };
-        let Some(device) = self.devices[index].as_mut() else {
-            return;
-        };
-        let location = device.location;
-        let slot = device.slot;
-        if let Some(hub) = device.hub.as_ref() {
-            if hub.dci != 0 && event.endpoint() == hub.dci {
-                self.hub_status_changed(index, event);
-            }
-            return;
-        }
-        let Some(keyboard) = device.keyboard.as_mut() else {
-            return;
-        };
-        if keyboard.failed {
-            return;
-        }
-        if event.endpoint() == 1 {
-            // Endpoint 0: the end of a recovery's CLEAR_FEATURE(ENDPOINT_HALT).
-            if let Recovery::ClearingHalt { status, .. } = keyboard.recovery {
-                if event.parameter() == status {
-                    let code = event.completion_code();
-                    if code == COMPLETION_SUCCESS || code == COMPLETION_SHORT_PACKET {
-                        self.resume_reports(index);
-                    } else {
-                        self.give_up(index, code, out);
-                    }
-                }
-            }
-            return;
-        }
-        if event.endpoint() != keyboard.dci || keyboard.recovery != Recovery::Running {
-            return;
-        }
-        let code = event.completion_code();
-        let Some(trb_index) = keyboard.ring.index_of(event.parameter()) else {
-            self.hw.log(format_args!(
-                "usb: keyboard on port {location}: event for a TRB not on its ring ignored"
-            ));
-            return;
-        };
-        if code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET {
-            self.recover(index, code, out);
-            return;
-        }
-        keyboard.failures_in_a_row = 0;
-        let mut report = [0u8; REPORT_BUFFER_BYTES as usize];
-        let length =
-            (keyboard.report_bytes.saturating_sub(event.residual()) as usize).min(report.len());
-        let buffer = keyboard.reports + u64::from(trb_index) * REPORT_BUFFER_BYTES;
-        for (word, chunk) in report[..length].chunks_mut(4).enumerate() {
-            let value = self.hw.mem_read(buffer + word as u64 * 4).to_le_bytes();
-            chunk.copy_from_slice(&value[..chunk.len()]);
-        }
-        match keyboard.keys(&report[..length]) {
-            Ok(keys) => keyboard.state.keys(&keys, now, out),
-            Err(Decoded::Unreadable) => {
-                keyboard.dropped = keyboard.dropped.saturating_add(1);
-                // The first says what happened; a count says how often.
-                if keyboard.dropped.is_power_of_two() {
-                    self.hw.log(format_args!(
-                        "usb: keyboard on port {location}: {} unreadable reports dropped (the last {length} bytes)",
-                        keyboard.dropped
-                    ));
-                }
-            }
-            Err(_) => {} // rollover, or a report without keys
-        }
-        queue_report(&mut self.hw, keyboard);
-        let dci = keyboard.dci;
-        self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
-    }
-
-    /// A hub's status change endpoint reported: the ports it names are
-    /// looked at in their turn.
-    fn hub_status_changed(&mut self, index: usize, event: &Trb) {
-        let Some(device) = self.devices[index].as_ref() else {
-            return;
-        };
-        let (slot, location) = (device.slot, device.location);
-        let Some(hub) = device.hub.as_ref() else {
-            return;
-        };
-        let code = event.completion_code();
-        if code != COMPLETION_SUCCESS && code != COMPLETION_SHORT_PACKET {
-            // A hub pulled out fails its transfer; its port's change says the rest.
-            self.hw.log(format_args!(
-                "usb: hub on port {location}: status change transfer failed (completion code {code}); its ports are no longer watched"
-            ));
-            return;
-        }
-        let buffer = hub.buffer;
-        let changed = self.hw.mem_read(buffer) as u16;
-        // Bit 0 is the hub itself (power, over-current): nothing to do there.
-        if changed & !1 != 0 {
-            self.queue_hub_ports(slot, changed);
-        } else {
-            self.queue_status_change(index);
-        }
-    }
-
-    /// A root port's status changed. A device pulled out (or switched away
-    /// by a KVM) is let go of with everything behind it; a device plugged in
-    /// (or switched back) is enumerated once its connection has settled.
-    fn root_port_changed(&mut self, port: u8, out: &mut impl FnMut(u8)) {
-        if port == 0 || port > self.capabilities.ports {
-            return;
-        }
-        let register = self.portsc(port);
-        let status = self.read(register);
-        if status == u32::MAX {
-            return;
-        }
-        let connected = status & PORT_CONNECTED != 0;
-        // A reset's own change, acknowledged where the reset is waited for.
-        if connected && status & PORT_CONNECT_CHANGE == 0 {
-            return;
-        }
-        // Acknowledge the changes (write-1-to-clear), keeping the power,
-        // never writing PED (write-1-to-disable).
-        self.write(register, PORT_POWER | (status & PORT_CHANGES));
-        let location = Location {
-            root_port: port,
-            route: 0,
-        };
-        self.release_under(location, out);
-        if connected {
-            self.hw
-                .log(format_args!("usb: port {port}: device plugged in"));
-            self.queue_port(location, false);
-        }
-    }
-
-    /// The devices at `location` and below are gone: their held keys
-    /// released, their slots disabled (queued, not waited for), their pages
-    /// kept for the next, and the work queued or running for them dropped.
-    fn release_under(&mut self, location: Location, out: &mut impl FnMut(u8)) {
-        let mut gone = [0u8; MAX_DEVICES];
-        for (index, slot) in gone.iter_mut().enumerate() {
-            let Some(device) = self.devices[index].as_mut() else {
-                continue;
-            };
-            if !location.holds(device.location) {
-                continue;
-            }
-            let (at, id) = (device.location, device.slot);
-            if let Some(keyboard) = device.keyboard.as_mut() {
-                keyboard.state.release_all(out);
-            }
-            *slot = id;
-            self.free_pages_of(index);
-            self.disable_slot(id);
-            self.hw.log(format_args!(
-                "usb: port {at}: device gone; its keys released and slot {id} disabled"
-            ));
-        }
-        self.forget_work_under(location, &gone);
-    }
-
     /// Keeps a page for the next device.
     fn free_page(&mut self, page: u64) {
         if self.pages.freed_count < FREED_PAGES {
@@ -1137,186 +567,12 @@ impl<H: Hardware> Xhci<H> {
         }
     }
 
-    /// Forgets a device and keeps its pages for the next. They are
-    /// touched again only after a later Enable Slot completes, which the
-    /// command ring runs after this device's Disable Slot.
-    fn free_pages_of(&mut self, index: usize) {
-        let Some(device) = self.devices[index].take() else {
-            return;
-        };
-        let keyboard = device.keyboard.map(|k| [k.ring.base(), k.reports]);
-        let hub = device.hub.map(|h| [h.ring.base(), h.buffer]);
-        let pages = [
-            device.output,
-            device.input,
-            device.buffer,
-            device.ep0.base(),
-        ];
-        for page in pages
-            .into_iter()
-            .chain(keyboard.into_iter().flatten())
-            .chain(hub.into_iter().flatten())
-        {
-            self.free_page(page);
-        }
-    }
-
-    /// A report transfer failed and the endpoint halted: lets go of the
-    /// keys (their releases may be lost) and starts the recovery, a step
-    /// per event: Reset Endpoint, Set TR Dequeue Pointer past the TRBs
-    /// queued, CLEAR_FEATURE(ENDPOINT_HALT) after a stall, then the
-    /// reports queued again.
-    fn recover(&mut self, index: usize, code: u8, out: &mut impl FnMut(u8)) {
-        let now = self.hw.now_micros();
-        let Some(device) = self.devices[index].as_mut() else {
-            return;
-        };
-        let (slot, location) = (device.slot, device.location);
-        let Some(keyboard) = device.keyboard.as_mut() else {
-            return;
-        };
-        keyboard.failures_in_a_row += 1;
-        if keyboard.failures_in_a_row > MAX_RECOVERIES {
-            self.give_up(index, code, out);
-            return;
-        }
-        keyboard.state.release_all(out);
-        keyboard.keys_by_report = [(u8::MAX, KeySet::default()); KEY_REPORTS];
-        let dci = keyboard.dci;
-        self.hw.log(format_args!(
-            "usb: keyboard on port {location}: report failed (completion code {code}); recovering"
-        ));
-        let mut reset = command::ResetEndpoint::new();
-        reset.set_slot_id(slot).set_endpoint_id(dci);
-        let Some(command) = self.queue_command(Trb(reset.into_raw())) else {
-            self.give_up(index, code, out);
-            return;
-        };
-        if let Some(keyboard) = self.devices[index]
-            .as_mut()
-            .and_then(|d| d.keyboard.as_mut())
-        {
-            keyboard.recovery = Recovery::ResettingEndpoint {
-                command,
-                since: now,
-                stalled: code == COMPLETION_STALL,
-            };
-        }
-    }
-
-    /// A command completed: the next step of the recovery it belongs to.
-    fn recovery_command_done(&mut self, event: &Trb) {
-        let now = self.hw.now_micros();
-        let Some(index) = self.devices.iter().position(|d| {
-            d.as_ref()
-                .and_then(|d| d.keyboard.as_ref())
-                .is_some_and(|k| k.recovery.command() == Some(event.parameter()))
-        }) else {
-            return;
-        };
-        let Some(device) = self.devices[index].as_mut() else {
-            return;
-        };
-        let slot = device.slot;
-        let Some(keyboard) = device.keyboard.as_mut() else {
-            return;
-        };
-        let code = event.completion_code();
-        match keyboard.recovery {
-            // Context State Error: the endpoint was not halted after all;
-            // the dequeue pointer still has to move past the failed TRB.
-            Recovery::ResettingEndpoint { stalled, .. }
-                if code == COMPLETION_SUCCESS || code == COMPLETION_CONTEXT_STATE =>
-            {
-                let mut dequeue = command::SetTrDequeuePointer::new();
-                let pointer = keyboard.ring.enqueue_pointer();
-                dequeue
-                    .set_slot_id(slot)
-                    .set_endpoint_id(keyboard.dci)
-                    .set_new_tr_dequeue_pointer(pointer & !0xF);
-                if pointer & 1 != 0 {
-                    dequeue.set_dequeue_cycle_state();
-                }
-                match self.queue_command(Trb(dequeue.into_raw())) {
-                    Some(command) => {
-                        if let Some(k) = self.devices[index]
-                            .as_mut()
-                            .and_then(|d| d.keyboard.as_mut())
-                        {
-                            k.recovery = Recovery::SettingDequeue {
-                                command,
-                                since: now,
-                                stalled,
-                            };
-                        }
-                    }
-                    None => self.give_up(index, code, &mut |_| {}),
-                }
-            }
-            Recovery::SettingDequeue { stalled: true, .. } if code == COMPLETION_SUCCESS => {
-                // The device halted its endpoint too: clear it there.
-                let endpoint = 0x80 | ((keyboard.dci - 1) / 2);
-                let setup = Setup {
-                    request_type: 0x02,
-                    request: CLEAR_FEATURE,
-                    value: ENDPOINT_HALT,
-                    index: u16::from(endpoint),
-                    length: 0,
-                };
-                match self.queue_control(index, setup) {
-                    Ok((_, status)) => {
-                        if let Some(k) = self.devices[index]
-                            .as_mut()
-                            .and_then(|d| d.keyboard.as_mut())
-                        {
-                            k.recovery = Recovery::ClearingHalt { status, since: now };
-                        }
-                    }
-                    Err(_) => self.give_up(index, code, &mut |_| {}),
-                }
-            }
-            Recovery::SettingDequeue { .. } if code == COMPLETION_SUCCESS => {
-                self.resume_reports(index)
-            }
-            _ => self.give_up(index, code, &mut |_| {}),
-        }
-    }
-
-    /// The recovery is done: the reports are queued again.
-    fn resume_reports(&mut self, index: usize) {
-        let Some(device) = self.devices[index].as_mut() else {
-            return;
-        };
-        let (slot, location) = (device.slot, device.location);
-        let Some(keyboard) = device.keyboard.as_mut() else {
-            return;
-        };
-        keyboard.recovery = Recovery::Running;
-        for _ in 0..QUEUED_REPORTS {
-            queue_report(&mut self.hw, keyboard);
-        }
-        let dci = keyboard.dci;
-        self.write(self.doorbells + 4 * u32::from(slot), u32::from(dci));
-        self.hw
-            .log(format_args!("usb: keyboard on port {location}: recovered"));
-    }
-
-    /// The keyboard failed past recovery: its keys are let go and it is
-    /// no longer read.
-    fn give_up(&mut self, index: usize, code: u8, out: &mut impl FnMut(u8)) {
-        let Some(device) = self.devices[index].as_mut() else {
-            return;
-        };
-        let location = device.location;
-        let Some(keyboard) = device.keyboard.as_mut() else {
-            return;
-        };
-        keyboard.failed = true;
-        keyboard.recovery = Recovery::Running;
-        keyboard.state.release_all(out);
-        self.hw.log(format_args!(
-            "usb: keyboard on port {location}: not recovered (completion code {code}); keyboard given up"
-        ));
+    /// Disable Slot, queued: the slot's pages are reused only after a
+    /// later Enable Slot completes, which the ring runs after this.
+    fn disable_slot(&mut self, slot: u8) {
+        let mut disable = command::DisableSlot::new();
+        disable.set_slot_id(slot);
+        let _ = self.queue_command(Trb(disable.into_raw()));
     }
 
     /// Pushes a command and rings the command doorbell, without waiting:
@@ -1340,7 +596,7 @@ impl<H: Hardware> Xhci<H> {
         let halted = self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED != 0);
         self.commands = None;
         self.events = None;
-        self.devices = Default::default();
+        self.host = host::HostState::new();
         let reset = halted && {
             self.op_write(USBCMD, CMD_RESET);
             self.pause(1_000);
@@ -1361,53 +617,6 @@ impl<H: Hardware> Xhci<H> {
             (true, true) => Ok(()),
         }
     }
-
-    /// The keyboards set up, by where they hang.
-    pub fn keyboards(&self) -> impl Iterator<Item = Location> + '_ {
-        self.devices
-            .iter()
-            .flatten()
-            .filter(|d| d.keyboard.as_ref().is_some_and(|k| !k.failed))
-            .map(|d| d.location)
-    }
-
-    /// Reports dropped because they could not be read, over all keyboards.
-    pub fn dropped_reports(&self) -> u32 {
-        self.devices
-            .iter()
-            .flatten()
-            .filter_map(|d| d.keyboard.as_ref())
-            .fold(0, |sum, k| sum.saturating_add(k.dropped))
-    }
-
-    /// The slot state of every device with a slot (for the host tests).
-    pub fn slot_states(&mut self) -> [u32; MAX_DEVICES] {
-        let mut states = [0; MAX_DEVICES];
-        for (state, device) in states.iter_mut().zip(self.devices.iter()) {
-            if let Some(device) = device {
-                *state = self
-                    .capabilities
-                    .layout
-                    .slot_state(&mut self.hw, device.output);
-            }
-        }
-        states
-    }
-}
-
-/// Queues one Normal TRB for a report into the buffer that belongs to the
-/// ring index it lands on.
-fn queue_report(hw: &mut impl Hardware, keyboard: &mut Keyboard) {
-    let enqueue = keyboard.ring.enqueue_address();
-    let index = keyboard.ring.index_of(enqueue).unwrap_or(0);
-    let buffer = keyboard.reports + u64::from(index) * REPORT_BUFFER_BYTES;
-    let mut normal = transfer::Normal::new();
-    normal
-        .set_data_buffer_pointer(buffer)
-        .set_trb_transfer_length(keyboard.report_bytes)
-        .set_interrupt_on_completion()
-        .set_interrupt_on_short_packet();
-    keyboard.ring.push(hw, Trb(normal.into_raw()));
 }
 
 fn configure_endpoint(input: u64, slot: u8) -> Trb {

@@ -55,8 +55,10 @@ const HUB_C_PORT_CONNECTION: u32 = 1 << 16;
 const HUB_C_PORT_ENABLE: u32 = 1 << 17;
 const HUB_C_PORT_RESET: u32 = 1 << 20;
 /// C_PORT_CONNECTION to C_PORT_RESET: each cleared with the feature of its
-/// bit's number (16 to 20).
-const HUB_PORT_CHANGES: u32 = 0x1F << 16;
+/// bit's number (16 to 20); and a SuperSpeed hub's C_BH_PORT_RESET,
+/// C_PORT_LINK_STATE and C_PORT_CONFIG_ERROR (bits 21 to 23, USB 3.2
+/// 10.16.2.6.2), reserved on a USB 2 hub.
+const HUB_PORT_CHANGES: u32 = 0xFF << 16;
 /// The hub's own changes (wHubChange, USB 2.0 11.24.2.6): C_HUB_LOCAL_POWER
 /// and C_HUB_OVER_CURRENT, cleared with features 0 and 1.
 const HUB_CHANGES: u32 = 0x3 << 16;
@@ -306,6 +308,8 @@ pub(super) enum Step {
     ConfiguringHub,
     /// SET_INTERFACE: alternate setting 1, a translator per port.
     SelectingMultiTt,
+    /// SET_HUB_DEPTH to a SuperSpeed hub.
+    SettingHubDepth,
     /// SET_FEATURE(PORT_POWER) of one hub port.
     PoweringHubPort(u8),
     /// The hub's power-on-to-good time and the devices' connect time.
@@ -345,6 +349,7 @@ impl fmt::Display for Step {
             SettingIdle => write!(f, "setting idle"),
             ReadingHubDescriptor => write!(f, "reading the hub descriptor"),
             SelectingMultiTt => write!(f, "selecting a translator per port"),
+            SettingHubDepth => write!(f, "setting the hub's depth"),
             PoweringHubPort(port) => write!(f, "powering hub port {port}"),
             WaitingForHubPower => write!(f, "waiting for the hub's power"),
             ReadingHubStatus => write!(f, "reading the hub's status"),
@@ -504,12 +509,15 @@ impl Job {
     }
 }
 
-/// Endpoint 0's packet sizes a device of `speed` may have (USB 2.0 5.5.3).
-fn packet_size_allowed(speed: Speed, size: u8) -> bool {
-    match speed {
-        Speed::Low => size == 8,
-        Speed::Full => matches!(size, 8 | 16 | 32 | 64),
-        Speed::High => size == 64,
+/// Endpoint 0's packet size a device of `speed` says in bMaxPacketSize0,
+/// if allowed (USB 2.0 5.5.3; USB 3.2 9.6.1: SuperSpeed gives 2^9).
+fn endpoint_0_packet(speed: Speed, size: u8) -> Option<u16> {
+    match (speed, size) {
+        (Speed::Low, 8) | (Speed::Full, 8 | 16 | 32 | 64) | (Speed::High, 64) => {
+            Some(u16::from(size))
+        }
+        (Speed::Super, 9) => Some(512),
+        _ => None,
     }
 }
 
@@ -518,7 +526,7 @@ fn packet_size_allowed(speed: Speed, size: u8) -> bool {
 /// at high speed (USB 2.0 9.6.6).
 fn interval_frames(speed: Speed, interval: u8, most: u8) -> u8 {
     let frames: u32 = match speed {
-        Speed::High => (1u32 << (u32::from(interval.clamp(1, 16)) - 1)) / 8,
+        Speed::High | Speed::Super => (1u32 << (u32::from(interval.clamp(1, 16)) - 1)) / 8,
         _ => u32::from(interval),
     };
     let frames = frames.clamp(1, u32::from(most.max(1)));
@@ -540,11 +548,18 @@ impl<C: HostController> Bus<C> {
         out: &mut impl FnMut(u8),
     ) {
         let bouncing = self.queue.first_change(location);
+        // A connect change with nothing known there (an xHCI's ports after
+        // its reset) is not news.
+        let known = self
+            .devices
+            .iter()
+            .flatten()
+            .any(|device| location.holds(device.location));
         self.release_under(location, out);
         if bouncing.is_none() {
             if connected {
                 self.say_at(location, format_args!("device plugged in"));
-            } else {
+            } else if known {
                 self.say_at(location, format_args!("device pulled out"));
             }
         }
@@ -750,6 +765,7 @@ impl<C: HostController> Bus<C> {
             ReadingHubDescriptor => self.reading_hub_descriptor(job, done),
             ConfiguringHub => self.configuring_hub(job, done),
             SelectingMultiTt => self.selecting_multi_tt(job, done),
+            SettingHubDepth => self.setting_hub_depth(job, done),
             PoweringHubPort(port) => self.powering_hub_port(job, done, port),
             WaitingForHubPower => self.waiting_for_hub_power(job),
             ReadingHubStatus => self.reading_hub_status(job, done),
@@ -874,7 +890,10 @@ impl<C: HostController> Bus<C> {
     /// request).
     fn get_descriptor(&mut self, job: &mut Job, step: Step, kind: u8, length: u16) -> Result<Next> {
         let index = job.device()?;
-        let request_type = if kind == descriptor::kind::HUB {
+        let request_type = if matches!(
+            kind,
+            descriptor::kind::HUB | descriptor::kind::SUPERSPEED_HUB
+        ) {
             0xA0
         } else {
             0x80
@@ -1042,7 +1061,11 @@ impl<C: HostController> Bus<C> {
         }
         let hub = job.hub()?;
         let parent = self.devices[hub].as_ref().ok_or(BusError::Gone)?;
-        job.speed = if status & HUB_PORT_LOW_SPEED != 0 {
+        // Below a SuperSpeed hub everything is SuperSpeed (its USB 2 half
+        // is a hub of its own); bit 9 is its power bit, not low speed.
+        job.speed = if parent.speed == Speed::Super {
+            Speed::Super
+        } else if status & HUB_PORT_LOW_SPEED != 0 {
             Speed::Low
         } else if status & HUB_PORT_HIGH_SPEED != 0 && parent.speed == Speed::High {
             Speed::High
@@ -1072,9 +1095,15 @@ impl<C: HostController> Bus<C> {
             .iter()
             .position(Option::is_none)
             .ok_or(BusError::NoRoom)?;
+        let hub_ports = job.location.hub_ports();
         let info = DeviceInfo {
             speed: job.speed,
             root_port: job.location.root_port(),
+            route: hub_ports.iter().rev().try_fold(0, |route, &port| {
+                (1..=15)
+                    .contains(&port)
+                    .then_some(route << 4 | u32::from(port))
+            }),
             translator: job.translator,
         };
         let id = self.controller.device_new(info)?;
@@ -1095,15 +1124,15 @@ impl<C: HostController> Bus<C> {
         let index = job.device()?;
         let header = descriptor::device(self.received(job, 8)?)?;
         let size = header.max_packet_0;
-        if !packet_size_allowed(job.speed, size) {
+        let Some(packet) = endpoint_0_packet(job.speed, size) else {
             return Err(BusError::PacketSize(size));
-        }
+        };
         let address = self.addresses.take().ok_or(BusError::NoAddress)?;
         let device = self.devices[index].as_mut().ok_or(BusError::Gone)?;
         // Kept with the device from now on, so that its removal frees it.
         device.address = address;
         let id = device.id;
-        self.controller.device_set_max_packet(id, u16::from(size))?;
+        self.controller.device_set_max_packet(id, packet)?;
         self.request(
             job,
             Step::Addressing,
@@ -1194,7 +1223,13 @@ impl<C: HostController> Bus<C> {
             }
             Some(Function::Hub { status_change }) if location.depth() < MAX_HUB_TIERS => {
                 job.hub_setup.status_change = status_change;
-                self.get_descriptor(job, Step::ReadingHubDescriptor, descriptor::kind::HUB, 9)
+                // A SuperSpeed hub has its own descriptor type (USB 3.2 10.15.2.1).
+                let (kind, length) = if job.speed == Speed::Super {
+                    (descriptor::kind::SUPERSPEED_HUB, 12)
+                } else {
+                    (descriptor::kind::HUB, 9)
+                };
+                self.get_descriptor(job, Step::ReadingHubDescriptor, kind, length)
             }
             Some(Function::Hub { .. }) => {
                 self.say_at(
@@ -1440,6 +1475,17 @@ impl<C: HostController> Bus<C> {
     fn configuring_hub(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
         done?;
         let index = job.device()?;
+        if job.speed == Speed::Super {
+            // Its tier, for the route string it reads (USB 3.2 10.16.2.9):
+            // 0 on a root port.
+            let depth = job.location.depth() as u16;
+            return self.request(
+                job,
+                Step::SettingHubDepth,
+                index,
+                (0x20, SET_HUB_DEPTH, depth, 0),
+            );
+        }
         if job.speed == Speed::High && job.device_protocol == HUB_PROTOCOL_MULTI_TT {
             return self.request(
                 job,
@@ -1448,6 +1494,11 @@ impl<C: HostController> Bus<C> {
                 (0x01, SET_INTERFACE, 1, 0),
             );
         }
+        self.mark_hub(job)
+    }
+
+    fn setting_hub_depth(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
+        done?;
         self.mark_hub(job)
     }
 
@@ -1622,11 +1673,19 @@ impl<C: HostController> Bus<C> {
         if pending != 0 {
             let bit = pending.trailing_zeros();
             job.hub_setup.status &= !(1 << bit);
+            // SuperSpeed's changes past C_PORT_RESET have features of
+            // their own (USB 3.2 table 10-9).
+            let feature = match bit {
+                21 => 29,
+                22 => 25,
+                23 => 26,
+                bit => bit as u16,
+            };
             return self.request(
                 job,
                 Step::ClearingHubPortChange(port),
                 hub,
-                (0x23, CLEAR_FEATURE, bit as u16, u16::from(port)),
+                (0x23, CLEAR_FEATURE, feature, u16::from(port)),
             );
         }
         self.hub_port_examined(job, port, out)

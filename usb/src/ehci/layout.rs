@@ -204,7 +204,8 @@ pub fn characteristics(
     let eps = match speed {
         Speed::Full => EPS_FULL,
         Speed::Low => EPS_LOW,
-        Speed::High => EPS_HIGH,
+        // SuperSpeed never reaches EHCI (`device_new` refuses it).
+        Speed::High | Speed::Super => EPS_HIGH,
     };
     let mut word = u32::from(address) & DEVICE_ADDRESS_MASK
         | (u32::from(endpoint) & 0xF) << 8

@@ -276,6 +276,7 @@ fn a_firmware_that_never_lets_go_keeps_the_controller_untouched() {
     assert!(ehci.halt(), "halted as the firmware left it");
     assert_eq!(
         ehci.device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: 1,
             translator: None,
@@ -456,6 +457,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     let ehci = bus.controller();
     let device = ehci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: 2,
             translator: None,
@@ -509,6 +511,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     );
     // Full speed only behind a translator; a translator only for it.
     let full = DeviceInfo {
+        route: Some(0),
         speed: Speed::Full,
         root_port: 1,
         translator: None,
@@ -520,6 +523,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     });
     assert_eq!(
         ehci.device_new(DeviceInfo {
+            route: Some(0),
             translator: tt,
             ..full
         }),
@@ -527,6 +531,7 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
     );
     assert_eq!(
         ehci.device_new(DeviceInfo {
+            route: Some(0),
             root_port: 3,
             ..full
         }),
@@ -710,6 +715,7 @@ fn addressed_keyboard(ehci: &mut Ehci<Model>, port: u8, address: u8) -> DeviceId
     );
     let device = ehci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             root_port: port,
             translator: None,

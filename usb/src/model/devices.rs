@@ -370,7 +370,8 @@ fn descriptors(device: &Device, speed: Speed) -> (Vec<u8>, Vec<u8>) {
         (Device::Keyboard(_), Speed::Full) => {
             (KEYBOARD_DEVICE.to_vec(), KEYBOARD_CONFIGURATION.to_vec())
         }
-        (Device::Keyboard(_), Speed::High) => (
+        // The USB 2 models have no SuperSpeed (the xHCI model does its own).
+        (Device::Keyboard(_), Speed::High | Speed::Super) => (
             HIGH_SPEED_KEYBOARD_DEVICE.to_vec(),
             HIGH_SPEED_KEYBOARD_CONFIGURATION.to_vec(),
         ),

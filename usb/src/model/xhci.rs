@@ -200,6 +200,8 @@ pub struct Model {
     pub events_dropped: u32,
     /// Slots the driver disabled, in order.
     pub slots_disabled: Vec<u8>,
+    /// Root ports (1-based) the driver disabled (PED written), in order.
+    pub ports_disabled: Vec<u8>,
     pub events_posted: u32,
     pub log: Vec<String>,
     pub errors: Vec<String>,
@@ -258,6 +260,7 @@ impl Model {
             hub_states: vec![HubState::default(); 6],
             events_dropped: 0,
             slots_disabled: Vec::new(),
+            ports_disabled: Vec::new(),
             events_posted: 0,
             log: Vec::new(),
             errors: Vec::new(),
@@ -1181,8 +1184,7 @@ impl Hardware for Model {
             o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * PORTS as u32).contains(&o) => {
                 let port = ((o - OPERATIONAL - 0x400) / 0x10) as usize;
                 if value & 0b10 != 0 {
-                    self.errors
-                        .push("PED written: the port was disabled".into());
+                    self.ports_disabled.push(port as u8 + 1);
                 }
                 let status = &mut self.portsc[port];
                 *status &= !(value & (0x7F << 17));

@@ -118,6 +118,7 @@ fn reset_root_port(ohci: &mut Driver, port: u8) -> Speed {
 fn enumerate(ohci: &mut Driver, speed: Speed, root_port: u8, address: u8) -> DeviceId {
     let device = ohci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed,
             root_port,
             translator: None,
@@ -330,6 +331,7 @@ fn a_keyboard_asking_for_10_ms_is_polled_every_8_frames() {
     // device that does not answer, goes on another branch.
     let silent = ohci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::Full,
             root_port: 1,
             translator: None,
@@ -463,6 +465,7 @@ fn a_dead_device_fails_with_no_response_and_a_cancel_frees_endpoint_0() {
     reset_root_port(&mut ohci, 1);
     let device = ohci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::Full,
             root_port: 1,
             translator: None,
@@ -548,6 +551,7 @@ fn every_device_and_pipe_slot_can_be_used_and_the_next_is_refused() {
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let info = DeviceInfo {
+        route: Some(0),
         speed: Speed::Full,
         root_port: 1,
         translator: None,
@@ -599,12 +603,14 @@ fn handles_and_requests_the_driver_never_gave_are_refused() {
     model.tree.plug(&[1], Device::Keyboard(Speed::Low));
     let mut ohci = started(model);
     let low = DeviceInfo {
+        route: Some(0),
         speed: Speed::Low,
         root_port: 1,
         translator: None,
     };
     assert_eq!(
         ohci.device_new(DeviceInfo {
+            route: Some(0),
             root_port: 2,
             ..low
         }),
@@ -612,6 +618,7 @@ fn handles_and_requests_the_driver_never_gave_are_refused() {
     );
     assert_eq!(
         ohci.device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::High,
             ..low
         }),

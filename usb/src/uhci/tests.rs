@@ -106,6 +106,7 @@ fn keyboard_by_hand(uhci: &mut Uhci<UhciModel>, port: u8, address: u8) -> (Devic
     };
     let device = uhci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed,
             root_port: port,
             translator: None,
@@ -291,6 +292,7 @@ fn the_device_descriptor_is_read_whatever_the_packet_size_and_length() {
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     let device = uhci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::Full,
             root_port: 1,
             translator: None,
@@ -427,6 +429,7 @@ fn a_device_that_never_answers_fails_after_three_strikes() {
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     let device = uhci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::Full,
             root_port: 1,
             translator: None,
@@ -452,6 +455,7 @@ fn a_cancelled_transfer_leaves_the_device_ready_for_the_next() {
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     let device = uhci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::Full,
             root_port: 1,
             translator: None,
@@ -509,6 +513,7 @@ fn every_slot_can_be_taken_and_the_next_is_refused() {
     model.plug(&[1], Device::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let info = DeviceInfo {
+        route: Some(0),
         speed: Speed::Full,
         root_port: 1,
         translator: None,
@@ -703,6 +708,7 @@ fn halt_stops_the_controller_and_leaves_legsup_as_linux_does() {
         Transfer::Failed(TransferError::Controller)
     );
     let info = DeviceInfo {
+        route: Some(0),
         speed: Speed::Full,
         root_port: 1,
         translator: None,
@@ -818,12 +824,14 @@ fn an_empty_port_resets_to_nothing() {
     assert_eq!(reset_port(&mut uhci, 2), ResetOutcome::Failed);
     assert!(!uhci.port_status(2).connected);
     let info = DeviceInfo {
+        route: Some(0),
         speed: Speed::High,
         root_port: 1,
         translator: None,
     };
     assert_eq!(uhci.device_new(info), Err(HostError::Invalid));
     let info = DeviceInfo {
+        route: Some(0),
         speed: Speed::Full,
         root_port: 3,
         translator: None,
@@ -838,6 +846,7 @@ fn memory_is_reused_only_after_the_frame_has_moved_on() {
     model.plug(&[1], Device::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let info = DeviceInfo {
+        route: Some(0),
         speed: Speed::Full,
         root_port: 1,
         translator: None,
@@ -899,6 +908,7 @@ fn requests_the_driver_cannot_do_are_refused() {
     let mut uhci = started(model);
     let device = uhci
         .device_new(DeviceInfo {
+            route: Some(0),
             speed: Speed::Full,
             root_port: 1,
             translator: None,

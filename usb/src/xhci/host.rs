@@ -1,7 +1,5 @@
 //! xHCI as one [`HostController`] under the controller-independent device
-//! layer ([`crate::bus::Bus`]), beside the driver's own enumeration (which
-//! the kernel still uses; a controller is driven by one or the other, never
-//! both: [`Xhci::poll`] and these calls share the event ring).
+//! layer ([`crate::bus::Bus`]).
 //!
 //! What xHCI does differently from the other controllers, and how it is
 //! hidden behind the trait:
@@ -17,21 +15,17 @@
 //! - The controller, not the host software, sends SET_ADDRESS: a
 //!   SET_ADDRESS given to [`HostController::control_begin`] becomes Address
 //!   Device (BSR=0), and its completion is the transfer's.
-//! - A slot names its place by root port and route string, and a full- or
-//!   low-speed device behind a high-speed hub names that hub by its slot.
-//!   The route string is learnt as the hub learns it: the port a hub was
-//!   last told to reset (SET_FEATURE(PORT_RESET) through
-//!   [`HostController::control_begin`]) is where the next device made
-//!   hangs, or the root port last reset ([`DeviceInfo`] carries only the root
-//!   port). The translator's hub is found by the USB address the device
-//!   layer gave it.
+//! - A slot names its place by root port and route string, both in
+//!   [`DeviceInfo`], and a full- or low-speed device behind a high-speed hub
+//!   names that hub by its slot, found by the USB address the device layer
+//!   gave it.
 //! - A stall or an error halts the endpoint in the controller too:
 //!   endpoint 0 is reset (Reset Endpoint, Set TR Dequeue Pointer past what
 //!   was queued) before its next transfer, an interrupt pipe on
 //!   [`HostController::interrupt_restart`].
-//! - SuperSpeed devices are refused at their port: the device layer has no
-//!   speed for them (a USB 3 hub's USB 2 half, where keyboards hang, is on
-//!   a USB 2 root port of its own).
+//! - A USB 3 root port trains its link by itself: its device is
+//!   SuperSpeed once enabled (a USB 3 hub's USB 2 half, where keyboards
+//!   hang, is on a USB 2 root port of its own).
 //!
 //! DMA: a device takes two pages (its output context, endpoint 0's ring
 //! and control buffer; its input context, and its one interrupt pipe's
@@ -39,7 +33,6 @@
 //! the next device when it goes (after Disable Slot is queued: the command
 //! ring runs it before the Enable Slot of whoever gets them next).
 
-use super::enumeration::COMMAND_MICROS;
 use super::{
     configure_endpoint, Xhci, COMPLETION_COMMAND_RING_STOPPED, COMPLETION_CONTEXT_STATE,
     COMPLETION_SHORT_PACKET, COMPLETION_STALL, COMPLETION_SUCCESS, CRCR, CRCR_COMMAND_ABORT,
@@ -56,6 +49,9 @@ use crate::Hardware;
 use core::fmt;
 use xhci::ring::trb::{command, transfer};
 
+/// How long a command may take before it is aborted (Linux's
+/// `XHCI_CMD_DEFAULT_TIMEOUT`, 5 s).
+pub(super) const COMMAND_MICROS: u64 = 5_000_000;
 /// Devices kept: one a slot the driver enables (CONFIG's MaxSlotsEn).
 pub const HOST_DEVICES: usize = MAX_SLOTS as usize;
 
@@ -91,10 +87,8 @@ const PORT_KEEP: u32 = (0x3 << 14) | (0x7 << 25);
 /// changes so that the next change raises a Port Status Change event again.
 const PORT_CONNECT_CHANGES: u32 = PORT_CHANGES & !PORT_RESET_CHANGE;
 const PORT_RESET_DONE_CHANGES: u32 = PORT_RESET_CHANGE | (1 << 19) | (1 << 18);
-/// The Setup TRB's bmRequestType/bRequest of SET_ADDRESS and a hub's
-/// SET_FEATURE(PORT_RESET).
+/// SET_ADDRESS's bRequest: the controller sends it (Address Device).
 const SET_ADDRESS: u8 = 5;
-const HUB_PORT_RESET: u16 = 4;
 /// Completion codes mapped to the device layer's errors.
 const COMPLETION_DATA_BUFFER: u8 = 2;
 const COMPLETION_BABBLE: u8 = 3;
@@ -303,19 +297,10 @@ struct HostDevice {
     removed: bool,
 }
 
-/// Where the next device made hangs: the root port, and its route string
-/// (None: a hub port a route string cannot name, past 15 or past five tiers).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct LastReset {
-    root_port: u8,
-    route: Option<u32>,
-}
-
 /// What the [`HostController`] side of the driver keeps.
 #[derive(Debug)]
 pub(super) struct HostState {
     devices: [Option<HostDevice>; HOST_DEVICES],
-    last_reset: Option<LastReset>,
     /// Events were taken outside [`HostController::anything_happened`]
     /// (their results wait to be polled).
     news: bool,
@@ -325,7 +310,6 @@ impl HostState {
     pub(super) const fn new() -> HostState {
         HostState {
             devices: [const { None }; HOST_DEVICES],
-            last_reset: None,
             news: false,
         }
     }
@@ -358,6 +342,7 @@ fn speed_id(speed: Speed) -> u32 {
         Speed::Low => speed::LOW,
         Speed::Full => speed::FULL,
         Speed::High => speed::HIGH,
+        Speed::Super => speed::SUPER,
     }
 }
 
@@ -365,7 +350,11 @@ fn speed_id(speed: Speed) -> u32 {
 /// the power of two at or below, within what the speed allows.
 fn interval_exponent(speed: Speed, frames: u8) -> u8 {
     let exponent = 3 + (7 - frames.max(1).leading_zeros() as u8);
-    let most = if speed == Speed::High { 15 } else { 10 };
+    let most = if matches!(speed, Speed::High | Speed::Super) {
+        15
+    } else {
+        10
+    };
     exponent.clamp(3, most)
 }
 
@@ -424,8 +413,8 @@ impl<H: Hardware> Xhci<H> {
     }
 
     /// A command stuck past Linux's 5 s is aborted (CRCR's CA) and counts
-    /// as failed for its device.
-    fn check_command_timeouts(&mut self) {
+    /// as failed for its device; says whether one was.
+    fn check_command_timeouts(&mut self) -> bool {
         if !self
             .host
             .devices
@@ -433,8 +422,9 @@ impl<H: Hardware> Xhci<H> {
             .flatten()
             .any(|d| d.ops.in_flight.is_some())
         {
-            return;
+            return false;
         }
+        let mut aborted = false;
         let now = self.hw.now_micros();
         for index in 0..HOST_DEVICES {
             let stuck = self.host.devices[index]
@@ -448,8 +438,10 @@ impl<H: Hardware> Xhci<H> {
                     COMMAND_MICROS / 1_000
                 ));
                 self.command_done(index, None, 0);
+                aborted = true;
             }
         }
+        aborted
     }
 
     fn command_completed(&mut self, event: &Trb) {
@@ -552,7 +544,9 @@ impl<H: Hardware> Xhci<H> {
                     "device {index}: endpoint {dci} not recovered (completion code {})",
                     code.unwrap_or(0)
                 ));
-                if dci == 1 {
+                // Endpoint 0 lost, or a controller that stopped answering
+                // commands: nothing more will work on this device.
+                if dci == 1 || code.is_none() {
                     self.fail_device(index, TransferError::Controller);
                 }
             }
@@ -1070,10 +1064,6 @@ impl<H: Hardware> HostController for Xhci<H> {
         if !self.valid_port(port) {
             return;
         }
-        self.host.last_reset = Some(LastReset {
-            root_port: port,
-            route: Some(0),
-        });
         if self.usb3_port(port) {
             // USB 3 ports train and enable by themselves.
             return;
@@ -1092,13 +1082,14 @@ impl<H: Hardware> HostController for Xhci<H> {
         }
         let register = self.portsc(port);
         if self.usb3_port(port) {
+            // The link trained by itself: enabled, or nothing there.
             let status = self.read(register);
-            if status != u32::MAX && status & (PORT_CONNECTED | PORT_ENABLED) != 0 {
-                self.say(format_args!(
-                    "port {port}: a SuperSpeed device; the device layer takes USB 2 devices only (a USB 3 hub's USB 2 half is on a port of its own)"
-                ));
+            if status == u32::MAX
+                || status & (PORT_CONNECTED | PORT_ENABLED) != PORT_CONNECTED | PORT_ENABLED
+            {
+                return ResetOutcome::Failed;
             }
-            return ResetOutcome::Failed;
+            return ResetOutcome::Enabled(Speed::Super);
         }
         // The controller ends the reset itself; a little late is allowed.
         self.wait_for(register, ROOT_RESET_END_MICROS, |s| {
@@ -1147,12 +1138,11 @@ impl<H: Hardware> HostController for Xhci<H> {
         if self.commands.is_none() {
             return Err(HostError::ControllerGone);
         }
-        // The device hangs where the last reset was.
-        let route = match self.host.last_reset.take() {
-            Some(LastReset { root_port, route }) if root_port == info.root_port => route,
-            _ => Some(0),
-        };
-        let Some(route) = route else {
+        // Where the device hangs, as the slot context names it.
+        let Some(route) = info
+            .route
+            .filter(|&route| route_depth(route) <= 5 && route >> 20 == 0)
+        else {
             self.say(format_args!(
                 "port {}: a hub port a route string cannot name (past port 15 or five tiers)",
                 info.root_port
@@ -1196,7 +1186,11 @@ impl<H: Hardware> HostController for Xhci<H> {
             slot: None,
             context,
             multi_tt,
-            max_packet_0: if info.speed == Speed::High { 64 } else { 8 },
+            max_packet_0: match info.speed {
+                Speed::Super => 512,
+                Speed::High => 64,
+                Speed::Full | Speed::Low => 8,
+            },
             address: 0,
             hub: false,
             ops: Ops::new(),
@@ -1234,6 +1228,7 @@ impl<H: Hardware> HostController for Xhci<H> {
             Speed::Low => max_packet == 8,
             Speed::Full => matches!(max_packet, 8 | 16 | 32 | 64),
             Speed::High => max_packet == 64,
+            Speed::Super => max_packet == 512,
         };
         if !allowed {
             return Err(HostError::Invalid);
@@ -1319,20 +1314,6 @@ impl<H: Hardware> HostController for Xhci<H> {
                 return Err(HostError::Busy);
             };
             self.write_dma(buffer, &out[..length]);
-        }
-        let entry = self.host_device(device)?;
-        if entry.hub && setup.request_type == 0x23 && setup.request == 3 {
-            // SET_FEATURE(PORT_RESET): the next device made is there.
-            if setup.value == HUB_PORT_RESET {
-                let (root_port, route) = (entry.context.root_port, entry.context.route_string);
-                let depth = route_depth(route);
-                let port = setup.index;
-                self.host.last_reset = Some(LastReset {
-                    root_port,
-                    route: ((1..=15).contains(&port) && depth < 5)
-                        .then(|| route | u32::from(port) << (4 * depth)),
-                });
-            }
         }
         let entry = self.host_device(device)?;
         entry.control = Control::Waiting(setup);
@@ -1511,7 +1492,10 @@ impl<H: Hardware> HostController for Xhci<H> {
             // More may wait: the next call looks again.
             self.host.news = true;
         }
-        news || taken > 0
+        // A command past its time fails its device: news too (no read
+        // unless a command is on the ring).
+        let aborted = self.check_command_timeouts();
+        news || taken > 0 || aborted
     }
 
     fn halt(&mut self) -> bool {

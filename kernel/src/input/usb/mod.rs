@@ -12,15 +12,14 @@
 //! first, the EHCIs last (their CONFIGFLAG cleared hands every port back).
 
 mod hardware;
-mod legacy;
-mod xhci;
+mod host;
 
 use crate::{dma, facts, input::ps2, pci, serial_println, time};
 use bootloader_api::info::MemoryRegions;
 use core::fmt::{self, Write};
 use core::sync::atomic::{AtomicU64, Ordering};
 use hardware::{Reads, Registers, Window};
-use legacy::Legacy;
+use host::Host;
 use protocol::line::{self, UsbKeyboards};
 use spin::Mutex;
 use usb::bus::Bus;
@@ -39,7 +38,7 @@ const MAX_FOUND: usize = 32;
 const XHCI_DMA_BYTES: u64 = 2 << 20;
 /// DMA memory per EHCI, OHCI or UHCI: frame list, queue heads, transfer
 /// descriptors, buffers (the driver allocates inside it).
-const LEGACY_DMA_BYTES: u64 = 256 << 10;
+const USB2_DMA_BYTES: u64 = 256 << 10;
 /// Page-table pages a register mapping may need (PDPT, PD, PT).
 const MAPPING_BYTES: u64 = 3 * dma::PAGE;
 /// Keyboards remembered per controller, to say each new one once.
@@ -59,107 +58,27 @@ const LOCATION_BYTES: usize = 24;
 #[allow(clippy::large_enum_variant)]
 enum Controller {
     Absent,
-    Xhci(Xhci<Registers>),
-    /// An EHCI, OHCI or UHCI under the device layer.
-    Legacy(Bus<Legacy>),
+    /// A controller under the device layer.
+    Running(Bus<Host>),
     /// Taken from the firmware, not started yet (the device layer is
     /// made once the driver knows its ports).
-    Taken(Legacy),
-}
-
-/// What the kernel needs of a driven controller, whichever its kind.
-trait Driven {
-    fn poll(&mut self, out: &mut impl FnMut(u8));
-    fn enumeration_idle(&self) -> bool;
-    /// Hands each keyboard's location, as text, to `each`.
-    fn keyboards(&self, each: impl FnMut(Text));
-    fn registers(&mut self) -> &mut Registers;
-    /// Halts the controller before power-off or reset: `Ok` with what was
-    /// done beyond the halt, or why it did not halt.
-    fn halt(&mut self) -> Result<&'static str, HaltProblem>;
-}
-
-/// Why a controller did not halt.
-enum HaltProblem {
-    Xhci(usb::xhci::XhciError),
-    Legacy,
-}
-
-impl fmt::Display for HaltProblem {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            HaltProblem::Xhci(problem) => write!(f, "{problem}"),
-            HaltProblem::Legacy => f.write_str("still running after the bounded wait"),
-        }
-    }
-}
-
-impl Driven for Xhci<Registers> {
-    #[inline]
-    fn poll(&mut self, out: &mut impl FnMut(u8)) {
-        Xhci::poll(self, out)
-    }
-    #[inline]
-    fn enumeration_idle(&self) -> bool {
-        Xhci::enumeration_idle(self)
-    }
-    fn keyboards(&self, mut each: impl FnMut(Text)) {
-        Xhci::keyboards(self).for_each(|location| each(Text::of(location)))
-    }
-    fn registers(&mut self) -> &mut Registers {
-        self.hardware()
-    }
-    fn halt(&mut self) -> Result<&'static str, HaltProblem> {
-        self.shut_down()
-            .map(|()| " and reset, ports switched off")
-            .map_err(HaltProblem::Xhci)
-    }
-}
-
-/// The device layer over an EHCI, OHCI or UHCI driver.
-impl Driven for Bus<Legacy> {
-    #[inline]
-    fn poll(&mut self, out: &mut impl FnMut(u8)) {
-        Bus::poll(self, out)
-    }
-    #[inline]
-    fn enumeration_idle(&self) -> bool {
-        Bus::enumeration_idle(self)
-    }
-    fn keyboards(&self, mut each: impl FnMut(Text)) {
-        Bus::keyboards(self).for_each(|location| each(Text::of(location)))
-    }
-    fn registers(&mut self) -> &mut Registers {
-        self.controller().hardware()
-    }
-    fn halt(&mut self) -> Result<&'static str, HaltProblem> {
-        if self.shut_down() {
-            Ok("")
-        } else {
-            Err(HaltProblem::Legacy)
-        }
-    }
-}
-
-/// Runs `$body` with `$driver` bound to the controller in `$place`, of
-/// whichever kind; `None` for an empty place.
-macro_rules! with_driven {
-    ($place:expr, |$driver:ident| $body:expr) => {
-        match $place {
-            Controller::Absent | Controller::Taken(_) => None,
-            Controller::Xhci($driver) => Some($body),
-            Controller::Legacy($driver) => Some($body),
-        }
-    };
+    Taken(Host),
 }
 
 impl Controller {
     fn kind(&self) -> Option<ControllerKind> {
         match self {
             Controller::Absent => None,
-            Controller::Xhci(_) => Some(ControllerKind::Xhci),
-            Controller::Legacy(bus) => Some(bus.kind()),
-            Controller::Taken(legacy) => Some(legacy.kind()),
+            Controller::Running(bus) => Some(bus.kind()),
+            Controller::Taken(host) => Some(host.kind()),
+        }
+    }
+
+    /// The device layer over the controller, if it runs.
+    fn running(&mut self) -> Option<&mut Bus<Host>> {
+        match self {
+            Controller::Running(bus) => Some(bus),
+            Controller::Absent | Controller::Taken(_) => None,
         }
     }
 }
@@ -230,14 +149,14 @@ impl Keyboards {
     }
 
     /// The controller's keyboards now.
-    fn of(driven: &impl Driven) -> Keyboards {
+    fn of(bus: &Bus<Host>) -> Keyboards {
         let mut now = Keyboards::NONE;
-        driven.keyboards(|location| {
+        for location in bus.keyboards() {
             if usize::from(now.count) < MAX_KEYBOARDS {
-                now.known[usize::from(now.count)] = location;
+                now.known[usize::from(now.count)] = Text::of(location);
                 now.count += 1;
             }
-        });
+        }
         now
     }
 }
@@ -274,8 +193,8 @@ fn label(kind: ControllerKind) -> &'static str {
 fn memory_needed(kind: ControllerKind) -> u64 {
     match kind {
         ControllerKind::Xhci => XHCI_DMA_BYTES + MAPPING_BYTES,
-        ControllerKind::Ehci | ControllerKind::Ohci => LEGACY_DMA_BYTES + MAPPING_BYTES,
-        ControllerKind::Uhci => LEGACY_DMA_BYTES,
+        ControllerKind::Ehci | ControllerKind::Ohci => USB2_DMA_BYTES + MAPPING_BYTES,
+        ControllerKind::Uhci => USB2_DMA_BYTES,
     }
 }
 
@@ -352,26 +271,16 @@ pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
             if place.kind() != Some(pass) {
                 continue;
             }
-            if let Controller::Taken(_) = place {
-                let Controller::Taken(legacy) = core::mem::replace(place, Controller::Absent)
-                else {
-                    continue;
-                };
-                *place = start_legacy(legacy);
+            if let Controller::Taken(host) = core::mem::replace(place, Controller::Absent) {
+                *place = start(host);
             }
-            let started = with_driven!(place, |driven| {
-                let started = Start::start(driven);
-                if started {
-                    *keyboards = Keyboards::of(driven);
-                    let function = driven.registers().function;
-                    for location in &keyboards.known[..usize::from(keyboards.count)] {
-                        say_keyboard(pass, function, location);
-                    }
+            if let Some(bus) = place.running() {
+                enumerate_at_boot(bus);
+                *keyboards = Keyboards::of(bus);
+                let function = bus.controller().hardware().function;
+                for location in &keyboards.known[..usize::from(keyboards.count)] {
+                    say_keyboard(pass, function, location);
                 }
-                started
-            });
-            if started != Some(true) {
-                *place = Controller::Absent;
             }
         }
     }
@@ -396,7 +305,7 @@ fn open(
     };
     let dma_bytes = match kind {
         ControllerKind::Xhci => XHCI_DMA_BYTES,
-        _ => LEGACY_DMA_BYTES,
+        _ => USB2_DMA_BYTES,
     };
     let dma = memory.split(dma_bytes)?;
     let registers = Registers::new(window, function, dma, physical_memory_offset);
@@ -408,76 +317,48 @@ fn open(
     let refused = |problem: &dyn fmt::Display| {
         serial_println!("usb: {} {}: {}", label(kind), function, problem);
     };
-    let controller = match kind {
+    let host = match kind {
         ControllerKind::Xhci => match Xhci::new(registers, window_bytes, base, bytes) {
-            Ok(xhci) => Controller::Xhci(xhci),
+            Ok(xhci) => Host::Xhci(xhci),
             Err(problem) => {
                 refused(&problem);
                 return None;
             }
         },
         ControllerKind::Ehci => match Ehci::new(registers, window_bytes, base, bytes) {
-            Ok(ehci) => Controller::Taken(Legacy::Ehci(ehci)),
+            Ok(ehci) => Host::Ehci(ehci),
             Err(problem) => {
                 refused(&problem);
                 return None;
             }
         },
         ControllerKind::Ohci => match Ohci::new(registers, window_bytes, base, bytes) {
-            Ok(ohci) => Controller::Taken(Legacy::Ohci(ohci)),
+            Ok(ohci) => Host::Ohci(ohci),
             Err(problem) => {
                 refused(&problem);
                 return None;
             }
         },
         ControllerKind::Uhci => match Uhci::new(registers, base, bytes) {
-            Ok(uhci) => Controller::Taken(Legacy::Uhci(uhci)),
+            Ok(uhci) => Host::Uhci(uhci),
             Err(problem) => {
                 refused(&problem);
                 return None;
             }
         },
     };
-    take_from_firmware(controller, kind, function)
+    take_from_firmware(host, kind, function)
 }
 
 /// Takes the controller from the firmware and says how that went; a
 /// controller the firmware never let go of is left alone (`None`).
 fn take_from_firmware(
-    mut controller: Controller,
+    mut host: Host,
     kind: ControllerKind,
     function: pci::Function,
 ) -> Option<Controller> {
     let name = label(kind);
-    let handoff = match &mut controller {
-        Controller::Absent | Controller::Legacy(_) => return None,
-        Controller::Xhci(xhci) => {
-            let capabilities = xhci.capabilities();
-            serial_println!(
-                "usb: xHCI {}, {} ports, {}-byte contexts, {} scratchpad pages",
-                function,
-                capabilities.ports,
-                capabilities.layout.context_bytes,
-                capabilities.scratchpads
-            );
-            return match xhci.take_ownership() {
-                usb::xhci::Handoff::Forced => {
-                    serial_println!(
-                        "usb: the firmware did not let go of the xHCI within 1 s; taken anyway"
-                    );
-                    Some(controller)
-                }
-                usb::xhci::Handoff::Released(micros) => {
-                    serial_println!("usb: the firmware handed the xHCI over in {} us", micros);
-                    Some(controller)
-                }
-                usb::xhci::Handoff::NoLegacyCapability | usb::xhci::Handoff::NotOwned => {
-                    Some(controller)
-                }
-            };
-        }
-        Controller::Taken(legacy) => legacy.take_ownership(),
-    };
+    let handoff = host.take_ownership();
     match handoff {
         Handoff::NotOwned => {
             serial_println!("usb: {} {}: the firmware did not own it", name, function);
@@ -499,7 +380,7 @@ fn take_from_firmware(
             return None;
         }
     }
-    Some(controller)
+    Some(Controller::Taken(host))
 }
 
 /// UHCI's registers: I/O BAR4, with I/O decoding and bus mastering on.
@@ -573,49 +454,37 @@ fn memory_window(
     }
 }
 
-/// Starting, by kind: the legacy controllers through their drivers and the
-/// device layer, the xHCI as before (`xhci.rs`).
-trait Start {
-    /// Starts a controller taken from the firmware and runs its boot
-    /// enumeration; whether it runs.
-    fn start(&mut self) -> bool;
-}
-
-/// Resets and starts an EHCI, OHCI or UHCI taken from the firmware, and
-/// puts the device layer over it; `Absent` (logged, and halted again) if
-/// it would not start.
-fn start_legacy(mut legacy: Legacy) -> Controller {
-    match legacy.reset_and_start() {
-        Ok(()) => Controller::Legacy(Bus::new(legacy)),
+/// Resets and starts a controller taken from the firmware, and puts the
+/// device layer over it; `Absent` (logged, and halted again) if it would
+/// not start.
+fn start(mut host: Host) -> Controller {
+    match host.reset_and_start() {
+        Ok(()) => Controller::Running(Bus::new(host)),
         Err(problem) => {
-            let function = legacy.hardware().function;
+            let function = host.hardware().function;
             serial_println!(
                 "usb: {} {}: {}; USB keyboards on it not used",
-                label(legacy.kind()),
+                label(host.kind()),
                 function,
                 problem
             );
             // Whatever the reset left running is stopped.
-            legacy.halt();
+            host.halt();
             Controller::Absent
         }
     }
 }
 
-impl Start for Bus<Legacy> {
-    fn start(&mut self) -> bool {
-        // Boot enumeration: bounded by the device layer, then it carries on
-        // from the frame loop's polls.
-        if self.enumerate() == 0 {
-            let function = self.controller().hardware().function;
-            let kind = self.kind();
-            serial_println!(
-                "usb: no USB keyboard on the {} {} at boot; its ports stay watched",
-                label(kind),
-                function
-            );
-        }
-        true
+/// Boot enumeration: bounded by the device layer, then it carries on from
+/// the frame loop's polls.
+fn enumerate_at_boot(bus: &mut Bus<Host>) {
+    if bus.enumerate() == 0 {
+        let function = bus.controller().hardware().function;
+        serial_println!(
+            "usb: no USB keyboard on the {} {} at boot; its ports stay watched",
+            label(bus.kind()),
+            function
+        );
     }
 }
 
@@ -668,31 +537,26 @@ pub fn shut_down() {
             if place.kind().is_none() || (place.kind() == Some(ControllerKind::Ehci)) != ehci_pass {
                 continue;
             }
-            let kind = place.kind();
             let mut controller = core::mem::replace(place, Controller::Absent);
-            with_driven!(&mut controller, |driven| {
-                let function = driven.registers().function;
-                let name = kind.map_or("", ControllerKind::name);
-                let halted = line::UsbHalted {
-                    kind: name,
-                    function,
-                    halted: true,
-                };
-                match Driven::halt(driven) {
-                    Ok(beyond) => serial_println!("{}{}", halted, beyond),
-                    Err(problem) => serial_println!(
-                        "{}{}",
-                        line::UsbHalted {
-                            halted: false,
-                            ..halted
-                        },
-                        problem
-                    ),
+            let Some(bus) = controller.running() else {
+                continue;
+            };
+            let kind = bus.kind();
+            let function = bus.controller().hardware().function;
+            let halted = bus.shut_down();
+            let said = line::UsbHalted {
+                kind: kind.name(),
+                function,
+                halted,
+            };
+            match (halted, kind) {
+                (true, ControllerKind::Xhci) => {
+                    serial_println!("{} and reset, ports switched off", said)
                 }
-                if kind == Some(ControllerKind::Xhci) {
-                    xhci::hand_ports_back(function);
-                }
-            });
+                (true, _) => serial_println!("{}", said),
+                (false, _) => serial_println!("{}still running after the bounded wait", said),
+            }
+            bus.controller().hand_ports_back();
         }
     }
 }
@@ -706,12 +570,8 @@ pub fn running() -> (
     let mut count = 0;
     if let Some(mut table) = TABLE.try_lock() {
         for place in table.controllers.iter_mut() {
-            let kind = place.kind();
-            if let (Some(kind), Some(function)) = (
-                kind,
-                with_driven!(place, |driven| driven.registers().function),
-            ) {
-                running[count] = Some((kind, function));
+            if let Some(bus) = place.running() {
+                running[count] = Some((bus.kind(), bus.controller().hardware().function));
                 count += 1;
             }
         }
@@ -723,23 +583,19 @@ pub fn running() -> (
 /// the reads its polls made.
 pub fn poll_one(function: pci::Function, calls: u64) -> Option<Reads> {
     let mut table = TABLE.try_lock()?;
-    let index = (0..MAX_CONTROLLERS).find(|&index| {
-        with_driven!(&mut table.controllers[index], |driven| driven
-            .registers()
-            .function)
-            == Some(function)
-    })?;
-    let place = &mut table.controllers[index];
-    with_driven!(place, |driven| {
-        let before = driven.registers().reads;
-        for _ in 0..calls {
-            driven.poll(&mut push);
-        }
-        let after = driven.registers().reads;
-        Reads {
-            registers: after.registers - before.registers,
-            dma: after.dma - before.dma,
-        }
+    let bus = table
+        .controllers
+        .iter_mut()
+        .filter_map(Controller::running)
+        .find_map(|bus| (bus.controller().hardware().function == function).then_some(bus))?;
+    let before = bus.controller().hardware().reads;
+    for _ in 0..calls {
+        bus.poll(&mut push);
+    }
+    let after = bus.controller().hardware().reads;
+    Some(Reads {
+        registers: after.registers - before.registers,
+        dma: after.dma - before.dma,
     })
 }
 
@@ -767,11 +623,9 @@ pub fn poll() {
         .zip(table.keyboards.iter_mut())
         .zip(LONGEST_ENUMERATION_POLL.iter())
     {
-        let kind = place.kind();
-        keyboards_changed |= with_driven!(place, |driven| {
-            poll_controller(driven, kind, known, longest)
-        })
-        .unwrap_or(false);
+        if let Some(bus) = place.running() {
+            keyboards_changed |= poll_controller(bus, known, longest);
+        }
     }
     if keyboards_changed {
         record_facts(table);
@@ -780,23 +634,18 @@ pub fn poll() {
 
 /// One controller's poll; whether its keyboards changed.
 #[inline]
-fn poll_controller(
-    driven: &mut impl Driven,
-    kind: Option<ControllerKind>,
-    known: &mut Keyboards,
-    longest: &AtomicU64,
-) -> bool {
+fn poll_controller(bus: &mut Bus<Host>, known: &mut Keyboards, longest: &AtomicU64) -> bool {
     // Only a poll with enumeration work reads the clock: the idle poll
     // stays as cheap as it was.
-    let enumerating = !driven.enumeration_idle();
+    let enumerating = !bus.enumeration_idle();
     let start = if enumerating { time::micros() } else { 0 };
-    driven.poll(&mut push);
-    let idle = driven.enumeration_idle();
+    bus.poll(&mut push);
+    let idle = bus.enumeration_idle();
     if !enumerating {
         if !idle {
             // Work begins (a device plugged in): the keyboards there are
             // now, so that the new ones can be said when it is done.
-            *known = Keyboards::of(driven);
+            *known = Keyboards::of(bus);
         }
         return false;
     }
@@ -809,15 +658,13 @@ fn poll_controller(
         "usb: enumeration work done; its longest poll took {} us",
         longest.swap(0, Ordering::Relaxed)
     );
-    let now = Keyboards::of(driven);
-    if let Some(kind) = kind {
-        let function = driven.registers().function;
-        for location in now.known[..usize::from(now.count)]
-            .iter()
-            .filter(|location| !known.contains(location))
-        {
-            say_keyboard(kind, function, location);
-        }
+    let now = Keyboards::of(bus);
+    let (kind, function) = (bus.kind(), bus.controller().hardware().function);
+    for location in now.known[..usize::from(now.count)]
+        .iter()
+        .filter(|location| !known.contains(location))
+    {
+        say_keyboard(kind, function, location);
     }
     *known = now;
     true

@@ -1,10 +1,11 @@
-//! The EHCI, OHCI and UHCI drivers as one type, [`Legacy`], under one
-//! device layer (`Bus<Legacy>`): the device layer is generic over its
-//! controller, and one copy of its code for the three kinds instead of
-//! three keeps the kernel file inside its budget (`tests/size.rs`). Each
-//! call is passed to the driver inside; the match costs a compare.
+//! The four drivers as one type, [`Host`], under one device layer
+//! (`Bus<Host>`): the device layer is generic over its controller, and one
+//! copy of its code for the four kinds instead of four keeps the kernel
+//! file inside its budget (`tests/size.rs`). Each call is passed to the
+//! driver inside; the match costs a compare.
 
 use super::hardware::Registers;
+use crate::{pci, serial_println};
 use core::fmt;
 use usb::ehci::Ehci;
 use usb::host::{
@@ -13,21 +14,27 @@ use usb::host::{
 };
 use usb::ohci::Ohci;
 use usb::uhci::Uhci;
+use usb::xhci::Xhci;
 
-/// An EHCI, OHCI or UHCI driver.
-pub enum Legacy {
+/// A host controller driver, of whichever kind.
+// The drivers live in the controller table (no heap): an xHCI's device
+// table is the largest, and every place has room for it.
+#[allow(clippy::large_enum_variant)]
+pub enum Host {
     Ehci(Ehci<Registers>),
     Ohci(Ohci<Registers>),
     Uhci(Uhci<Registers>),
+    Xhci(Xhci<Registers>),
 }
 
-/// Runs `$body` with `$driver` bound to the driver inside `$legacy`.
+/// Runs `$body` with `$driver` bound to the driver inside `$host`.
 macro_rules! each {
-    ($legacy:expr, |$driver:ident| $body:expr) => {
-        match $legacy {
-            Legacy::Ehci($driver) => $body,
-            Legacy::Ohci($driver) => $body,
-            Legacy::Uhci($driver) => $body,
+    ($host:expr, |$driver:ident| $body:expr) => {
+        match $host {
+            Host::Ehci($driver) => $body,
+            Host::Ohci($driver) => $body,
+            Host::Uhci($driver) => $body,
+            Host::Xhci($driver) => $body,
         }
     };
 }
@@ -39,6 +46,7 @@ enum StartError {
     Ehci(usb::ehci::EhciError),
     Ohci(usb::ohci::OhciError),
     Uhci(usb::uhci::UhciError),
+    Xhci(usb::xhci::XhciError),
 }
 
 impl fmt::Display for StartProblem {
@@ -47,28 +55,86 @@ impl fmt::Display for StartProblem {
             StartError::Ehci(problem) => write!(f, "{problem}"),
             StartError::Ohci(problem) => write!(f, "{problem}"),
             StartError::Uhci(problem) => write!(f, "{problem}"),
+            StartError::Xhci(problem) => write!(f, "{problem}"),
         }
     }
 }
 
-impl Legacy {
-    /// Takes the controller from the firmware (bounded).
+impl Host {
+    /// Takes the controller from the firmware (bounded). An xHCI the
+    /// firmware never lets go of is taken anyway after 1 s, as Linux does.
     pub fn take_ownership(&mut self) -> Handoff {
-        each!(self, |driver| driver.take_ownership())
+        match self {
+            Host::Ehci(driver) => driver.take_ownership(),
+            Host::Ohci(driver) => driver.take_ownership(),
+            Host::Uhci(driver) => driver.take_ownership(),
+            Host::Xhci(xhci) => {
+                let capabilities = xhci.capabilities();
+                serial_println!(
+                    "usb: xHCI {}, {} ports, {}-byte contexts, {} scratchpad pages",
+                    xhci.hardware().function,
+                    capabilities.ports,
+                    capabilities.layout.context_bytes,
+                    capabilities.scratchpads
+                );
+                match xhci.take_ownership() {
+                    usb::xhci::Handoff::Forced => {
+                        serial_println!(
+                            "usb: the firmware did not let go of the xHCI within 1 s; taken anyway"
+                        );
+                        Handoff::NotOwned
+                    }
+                    usb::xhci::Handoff::Released(micros) => Handoff::Released { micros },
+                    usb::xhci::Handoff::NoLegacyCapability | usb::xhci::Handoff::NotOwned => {
+                        Handoff::NotOwned
+                    }
+                }
+            }
+        }
     }
 
     /// Resets and starts the controller (bounded waits).
     pub fn reset_and_start(&mut self) -> Result<(), StartProblem> {
         match self {
-            Legacy::Ehci(ehci) => ehci
+            Host::Ehci(ehci) => ehci
                 .reset_and_start()
                 .map_err(|e| StartProblem(StartError::Ehci(e))),
-            Legacy::Ohci(ohci) => ohci
+            Host::Ohci(ohci) => ohci
                 .reset_and_start()
                 .map_err(|e| StartProblem(StartError::Ohci(e))),
-            Legacy::Uhci(uhci) => uhci
+            Host::Uhci(uhci) => uhci
                 .reset_and_start()
                 .map_err(|e| StartProblem(StartError::Uhci(e))),
+            Host::Xhci(xhci) => {
+                // Intel's switchable ports routed to the xHCI first, as Linux does.
+                if let Some(routed) = pci::route_intel_ports_to_xhci(xhci.hardware().function) {
+                    serial_println!(
+                        "usb: Intel PCH ports switched to the xHCI (XUSB2PR {:#x})",
+                        routed
+                    );
+                }
+                // The No Op proves the command and event rings work.
+                xhci.reset_and_start()
+                    .and_then(|()| xhci.no_op())
+                    .map_err(|e| StartProblem(StartError::Xhci(e)))
+            }
+        }
+    }
+
+    /// After an xHCI's halt: Intel's switched ports handed back to the
+    /// EHCI (some 7-series boards otherwise power straight back on).
+    pub fn hand_ports_back(&mut self) {
+        let Host::Xhci(xhci) = self else {
+            return;
+        };
+        if let Some((usb2, superspeed)) =
+            pci::hand_intel_ports_back_to_ehci(xhci.hardware().function)
+        {
+            serial_println!(
+                "usb: Intel PCH ports handed back to the EHCI (XUSB2PR {:#x}, USB3_PSSEN {:#x})",
+                usb2,
+                superspeed
+            );
         }
     }
 
@@ -78,7 +144,7 @@ impl Legacy {
     }
 }
 
-impl HostController for Legacy {
+impl HostController for Host {
     fn kind(&self) -> ControllerKind {
         each!(self, |driver| driver.kind())
     }
@@ -190,6 +256,7 @@ impl HostController for Legacy {
         each!(self, |driver| driver.anything_happened())
     }
 
+    /// An xHCI is also reset and its ports switched off (`Xhci::shut_down`).
     fn halt(&mut self) -> bool {
         each!(self, |driver| driver.halt())
     }
