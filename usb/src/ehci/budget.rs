@@ -64,7 +64,9 @@ pub const fn interrupt_in_nanos(speed: Speed, bytes: u16) -> u32 {
             64_060 + 2 * HUB_LOW_SPEED_SETUP_NANOS + HOST_DELAY_NANOS + 67_667 * bits / 1_000
         }
         Speed::Full => 9_107 + HOST_DELAY_NANOS + 8_354 * bits / 1_000,
-        Speed::High => {
+        // EHCI never sees SuperSpeed (its ports are USB 2); priced as high
+        // speed so the function stays total.
+        Speed::High | Speed::Super => {
             (55 * 8 * 2_083 + 2_083 * (3 + bit_time(bytes as u32))) / 1_000
                 + HIGH_SPEED_HOST_DELAY_NANOS
         }
