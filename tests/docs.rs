@@ -6,7 +6,9 @@
 //!   accepts (the runner binary's own `--help`), and `cargo run -p sim --
 //!   OPTIONS` only the simulator's (its clap fields in `sim/src/main.rs`);
 //! - every relative link, and every backticked path that looks like a file
-//!   or folder of the repository, exists;
+//!   or folder of the repository, exists, and a link to a heading
+//!   (`glossary.md#latch`, `#faults`) names one the page has (GitHub's
+//!   anchor for it);
 //! - no line is longer than [`MAX_LINE`] characters (tables, links and
 //!   program output in `text` blocks excepted), and the README stays short;
 //! - the key names in `docs/runner.md` are exactly the runner's table;
@@ -1042,12 +1044,31 @@ fn check_document(context: &Context, path: &Path, text: &str) -> Vec<String> {
             ));
         }
         for target in link_targets(line) {
-            if target.contains("://") || target.starts_with('#') || target.starts_with("mailto:") {
+            if target.contains("://") || target.starts_with("mailto:") {
                 continue;
             }
-            let file = target.split('#').next().unwrap();
-            if !directory.join(file).exists() {
+            let (file, fragment) = match target.split_once('#') {
+                Some((file, fragment)) => (file, Some(fragment)),
+                None => (target.as_str(), None),
+            };
+            let linked = directory.join(file);
+            if !file.is_empty() && !linked.exists() {
                 problems.push(format!("{where_}: the link {target} leads nowhere"));
+                continue;
+            }
+            // A heading's anchor, in this page or another chapter.
+            let Some(fragment) = fragment else { continue };
+            let linked_text = if file.is_empty() {
+                text.to_string()
+            } else if file.ends_with(".md") {
+                std::fs::read_to_string(&linked).unwrap_or_default()
+            } else {
+                continue;
+            };
+            if !heading_anchors(&linked_text).contains(fragment) {
+                problems.push(format!(
+                    "{where_}: the link {target} leads to no heading (#{fragment})"
+                ));
             }
         }
     }
@@ -1658,6 +1679,30 @@ fn anchor(heading: &str) -> String {
         .collect()
 }
 
+/// The anchors GitHub gives a document's headings (those outside fences);
+/// a repeated heading's anchor gets `-1`, `-2`, ... after it.
+fn heading_anchors(text: &str) -> BTreeSet<String> {
+    let (_, prose) = split_fences(text);
+    let mut anchors = BTreeSet::new();
+    for line in &prose {
+        let Some(heading) = line
+            .strip_prefix('#')
+            .map(|rest| rest.trim_start_matches('#'))
+            .and_then(|rest| rest.strip_prefix(' '))
+        else {
+            continue;
+        };
+        let base = anchor(heading);
+        let mut unique = base.clone();
+        let mut repeat = 0;
+        while !anchors.insert(unique.clone()) {
+            repeat += 1;
+            unique = format!("{base}-{repeat}");
+        }
+    }
+    anchors
+}
+
 fn glossary_of(text: &str) -> Glossary {
     let mut entries = Vec::new();
     for heading in text.lines().filter_map(|line| line.strip_prefix("## ")) {
@@ -1850,25 +1895,13 @@ fn check_glossary_links(name: &str, text: &str, glossary: &Glossary) -> Vec<Stri
     problems
 }
 
-/// Chapters whose glossary links wait for a rewrite in flight, each with
-/// why. Empty once it is merged.
-const GLOSSARY_LINKS_PENDING: &[(&str, &str)] = &[(
-    "docs/vga.md",
-    "rewritten as a teaching chapter on the branch bookvga (issue 49), with its glossary links",
-)];
-
 #[test]
 fn every_chapter_links_the_glossary_at_the_first_use_of_a_term() {
     let glossary = glossary_of(&read("docs/glossary.md"));
     assert!(glossary.entries.len() > 40, "{}", glossary.entries.len());
     let mut problems = Vec::new();
     for (name, text) in book() {
-        if name == "docs/glossary.md"
-            || !name.starts_with("docs/")
-            || GLOSSARY_LINKS_PENDING
-                .iter()
-                .any(|(pending, _)| *pending == name)
-        {
+        if name == "docs/glossary.md" || !name.starts_with("docs/") {
             continue;
         }
         problems.extend(check_glossary_links(&name, &text, &glossary));
@@ -2235,6 +2268,28 @@ fn a_broken_link_is_caught() {
     let problems = problems_in("See [the chapter](no-such-chapter.md) and [vga](vga.md).\n");
     assert_eq!(problems.len(), 1, "{problems:?}");
     assert!(problems[0].contains("no-such-chapter.md"), "{problems:?}");
+}
+
+#[test]
+fn a_link_to_a_heading_that_does_not_exist_is_caught() {
+    let text = "# A page\n\n## The start address\n\n```sh\n# Not a heading\n```\n\n\
+                [Here](#the-start-address), [the CRTC](glossary.md#crtc) and\n\
+                [a latch](glossary.md#latches), [code](#not-a-heading) and\n\
+                [VGA](vga.md#planar-memory).\n";
+    assert_eq!(
+        problems_in(text),
+        [
+            "docs/broken.md:10: the link glossary.md#latches leads to no heading (#latches)",
+            "docs/broken.md:10: the link #not-a-heading leads to no heading (#not-a-heading)",
+        ]
+    );
+}
+
+#[test]
+fn repeated_headings_get_numbered_anchors() {
+    let anchors = heading_anchors("# Odd/even\n## Faults\n### Faults\n## `show_page`, again\n");
+    let expected = ["oddeven", "faults", "faults-1", "show_page-again"];
+    assert_eq!(anchors, expected.into_iter().map(String::from).collect());
 }
 
 #[test]
