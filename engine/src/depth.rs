@@ -22,6 +22,7 @@
 
 use crate::math::Vec3;
 use crate::project::{PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
+use modex::LineSpans;
 
 /// Fractional bits of w in `DepthPlane`, and the bits dropped from that to
 /// store w in the depth buffer (which keeps 32).
@@ -99,9 +100,9 @@ const BAND_PIXELS: usize = (SCREEN_WIDTH * BAND_ROWS) as usize;
 #[derive(Clone)]
 pub struct DepthBand {
     first_row: i32,
-    /// Rows of the band written since the last `start` (local, half-open):
+    /// The spans written since the last `start` (rows local to the band):
     /// only they need clearing for the next band.
-    touched: (usize, usize),
+    written: LineSpans<{ BAND_ROWS as usize }>,
     w: [u32; BAND_PIXELS],
 }
 
@@ -110,7 +111,7 @@ impl core::fmt::Debug for DepthBand {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("DepthBand")
             .field("first_row", &self.first_row)
-            .field("touched", &self.touched)
+            .field("written", &self.written)
             .finish_non_exhaustive()
     }
 }
@@ -126,7 +127,7 @@ impl DepthBand {
     pub const fn new() -> Self {
         DepthBand {
             first_row: 0,
-            touched: (0, 0),
+            written: LineSpans::none(),
             w: [0; BAND_PIXELS],
         }
     }
@@ -134,10 +135,8 @@ impl DepthBand {
     /// Starts band `band` (rows band·BAND_ROWS ..): nothing drawn yet.
     pub fn start(&mut self, band: i32) {
         self.first_row = band * BAND_ROWS;
-        let width = SCREEN_WIDTH as usize;
-        let (from, to) = self.touched;
-        self.w[from * width..to * width].fill(0);
-        self.touched = (0, 0);
+        self.written.fill(&mut self.w, 0);
+        self.written.clear();
     }
 
     /// The band's rows as a clip rectangle.
@@ -163,11 +162,8 @@ impl DepthBand {
         colour: u8,
     ) {
         let local = (y - self.first_row) as usize;
-        self.touched = if self.touched.0 == self.touched.1 {
-            (local, local + 1)
-        } else {
-            (self.touched.0.min(local), self.touched.1.max(local + 1))
-        };
+        self.written
+            .mark(local, x0 as usize..x0 as usize + pixels.len());
         let start = local * SCREEN_WIDTH as usize + x0 as usize;
         let nearest = &mut self.w[start..start + pixels.len()];
         let mut w = plane.at(x0, y);
