@@ -22,7 +22,7 @@
 
 use crate::math::Vec3;
 use crate::project::{PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
-use modex::LineSpans;
+use modex::PageSpans;
 
 /// Fractional bits of w in `DepthPlane`, and the bits dropped from that to
 /// store w in the depth buffer (which keeps 32).
@@ -100,9 +100,6 @@ const BAND_PIXELS: usize = (SCREEN_WIDTH * BAND_ROWS) as usize;
 #[derive(Clone)]
 pub struct DepthBand {
     first_row: i32,
-    /// The spans written since the last `start` (rows local to the band):
-    /// only they need clearing for the next band.
-    written: LineSpans<{ BAND_ROWS as usize }>,
     w: [u32; BAND_PIXELS],
 }
 
@@ -111,7 +108,6 @@ impl core::fmt::Debug for DepthBand {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("DepthBand")
             .field("first_row", &self.first_row)
-            .field("written", &self.written)
             .finish_non_exhaustive()
     }
 }
@@ -127,16 +123,23 @@ impl DepthBand {
     pub const fn new() -> Self {
         DepthBand {
             first_row: 0,
-            written: LineSpans::none(),
             w: [0; BAND_PIXELS],
         }
     }
 
-    /// Starts band `band` (rows band·BAND_ROWS ..): nothing drawn yet.
+    /// Starts band `band` (rows band·BAND_ROWS ..), with nothing drawn if
+    /// the band was cleared after it was last drawn in.
     pub fn start(&mut self, band: i32) {
         self.first_row = band * BAND_ROWS;
-        self.written.fill(&mut self.w, 0);
-        self.written.clear();
+    }
+
+    /// Back to nothing drawn. `written` marks, in frame rows, at least every
+    /// span tested since the band started (the frame's own marks serve:
+    /// each span tested is marked there too); only those depths are
+    /// cleared, not the band.
+    pub fn clear(&mut self, written: &PageSpans) {
+        let rows = self.first_row as usize..(self.first_row + BAND_ROWS) as usize;
+        written.fill_lines(rows, &mut self.w, 0);
     }
 
     /// The band's rows as a clip rectangle.
@@ -162,8 +165,6 @@ impl DepthBand {
         colour: u8,
     ) {
         let local = (y - self.first_row) as usize;
-        self.written
-            .mark(local, x0 as usize..x0 as usize + pixels.len());
         let start = local * SCREEN_WIDTH as usize + x0 as usize;
         let nearest = &mut self.w[start..start + pixels.len()];
         let mut w = plane.at(x0, y);
@@ -247,7 +248,8 @@ mod tests {
             .collect();
         assert_eq!(&row[..30], &expected[..]);
         assert_eq!(band.clip().y0, BAND_ROWS);
-        // The next band starts with nothing drawn.
+        // Cleared, the next band starts with nothing drawn.
+        band.clear(&PageSpans::all());
         band.start(2);
         band.test_span(&far, 85, 10, &mut row[10..20], 5);
         assert_eq!(&row[10..20], &[5; 10]);

@@ -36,14 +36,37 @@ pub fn fill_convex_polygon(points: &[Point], clip: ClipRect, mut span: impl FnMu
     }
     let top = points.iter().map(|p| p.y).min().unwrap_or(0).max(clip.y0);
     let bottom = points.iter().map(|p| p.y).max().unwrap_or(0).min(clip.y1);
+    if top >= bottom {
+        return;
+    }
+    // Each edge's crossing stepped from row to row, exactly: one division
+    // per edge rather than two per edge on every row. A polygon with more
+    // corners than the steps hold (none the models have) is filled with a
+    // division per edge and row.
+    let mut edges = [EdgeStep::default(); STEPPED_EDGES];
+    let stepped = points.len() <= STEPPED_EDGES;
+    if stepped {
+        for (i, edge) in edges.iter_mut().enumerate().take(points.len()) {
+            *edge = EdgeStep::new(points[i], points[(i + 1) % points.len()], top, bottom);
+        }
+    }
     for y in top..bottom {
         let mut left = i64::MAX;
         let mut right = i64::MIN;
-        for (i, &a) in points.iter().enumerate() {
-            let b = points[(i + 1) % points.len()];
-            if let Some(x) = ceil_crossing(a, b, y) {
-                left = left.min(x);
-                right = right.max(x);
+        if stepped {
+            for edge in &mut edges[..points.len()] {
+                if let Some(x) = edge.crossing(y) {
+                    left = left.min(x);
+                    right = right.max(x);
+                }
+            }
+        } else {
+            for (i, &a) in points.iter().enumerate() {
+                let b = points[(i + 1) % points.len()];
+                if let Some(x) = ceil_crossing(a, b, y) {
+                    left = left.min(x);
+                    right = right.max(x);
+                }
             }
         }
         let x_start = left.max(i64::from(clip.x0));
@@ -52,6 +75,72 @@ pub fn fill_convex_polygon(points: &[Point], clip: ClipRect, mut span: impl FnMu
             // Both lie within the clip rectangle's i32 range.
             span(y, x_start as i32, x_end as i32);
         }
+    }
+}
+
+/// Edges a polygon may have for its crossings to be stepped.
+const STEPPED_EDGES: usize = 8;
+
+/// One edge's crossings with successive rows, from its first row inside the
+/// fill to its last: x = ⌈upper.x + n/dy⌉ with n = (y − upper.y)·dx, kept as
+/// the quotient and remainder of n/dy and stepped by those of dx/dy, so
+/// each row's crossing is exact (the same as `ceil_crossing`'s) with no
+/// division. |x| stays within 2^33, so nothing overflows.
+#[derive(Clone, Copy, Default)]
+struct EdgeStep {
+    /// Rows covered and not yet stepped past: `next_row..end_row`.
+    next_row: i32,
+    end_row: i32,
+    /// upper.x + ⌊n/dy⌋, and n mod dy.
+    quotient: i64,
+    remainder: i64,
+    step_quotient: i64,
+    step_remainder: i64,
+    dy: i64,
+}
+
+impl EdgeStep {
+    /// Edge a–b, over the rows of `top..bottom` it covers (an edge covers
+    /// rows min(a.y, b.y) ..< max(a.y, b.y), as in `ceil_crossing`).
+    fn new(a: Point, b: Point, top: i32, bottom: i32) -> EdgeStep {
+        let (upper, lower) = if a.y < b.y { (a, b) } else { (b, a) };
+        let (first, end) = (upper.y.max(top), lower.y.min(bottom));
+        if first >= end {
+            return EdgeStep::default();
+        }
+        let dx = i64::from(lower.x) - i64::from(upper.x);
+        let dy = i64::from(lower.y) - i64::from(upper.y);
+        let down = i64::from(first) - i64::from(upper.y);
+        // Once per edge, so in i128 whatever the size.
+        let n = i128::from(down) * i128::from(dx);
+        let d = i128::from(dy);
+        EdgeStep {
+            next_row: first,
+            end_row: end,
+            quotient: i64::from(upper.x) + n.div_euclid(d) as i64,
+            remainder: n.rem_euclid(d) as i64,
+            step_quotient: dx.div_euclid(dy),
+            step_remainder: dx.rem_euclid(dy),
+            dy,
+        }
+    }
+
+    /// The crossing with row `y` (rows are asked for in order), if the edge
+    /// covers it.
+    #[inline(always)]
+    fn crossing(&mut self, y: i32) -> Option<i64> {
+        if y != self.next_row || y >= self.end_row {
+            return None;
+        }
+        let x = self.quotient + i64::from(self.remainder != 0);
+        self.next_row += 1;
+        self.quotient += self.step_quotient;
+        self.remainder += self.step_remainder;
+        if self.remainder >= self.dy {
+            self.remainder -= self.dy;
+            self.quotient += 1;
+        }
+        Some(x)
     }
 }
 
@@ -64,8 +153,7 @@ fn ceil_crossing(a: Point, b: Point, y: i32) -> Option<i64> {
         return None;
     }
     // On-screen polygons fit in i64, whose division is one instruction; the
-    // kernel's i128 division is a library call, and this runs for every edge
-    // on every row.
+    // kernel's i128 division is a library call.
     let dx = i64::from(lower.x) - i64::from(upper.x);
     let dy = i64::from(lower.y) - i64::from(upper.y);
     let down = i64::from(y) - i64::from(upper.y);

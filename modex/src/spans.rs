@@ -109,10 +109,16 @@ impl<const LINES: usize> LineSpans<LINES> {
     /// how a picture goes back to the background, or a depth buffer back to
     /// nothing drawn, at the cost of what was drawn.
     pub fn fill<T: Copy>(&self, pixels: &mut [T], value: T) {
-        for line in 0..LINES {
+        self.fill_lines(0..LINES, pixels, value);
+    }
+
+    /// As [`LineSpans::fill`], for the lines `lines` only, `pixels` holding
+    /// just those lines.
+    pub fn fill_lines<T: Copy>(&self, lines: Range<usize>, pixels: &mut [T], value: T) {
+        for (row, line) in lines.enumerate() {
             for run in self.runs(line) {
                 if let Some(run) =
-                    pixels.get_mut(line * WIDTH + 4 * run.start..line * WIDTH + 4 * run.end)
+                    pixels.get_mut(row * WIDTH + 4 * run.start..row * WIDTH + 4 * run.end)
                 {
                     run.fill(value);
                 }

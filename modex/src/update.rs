@@ -282,7 +282,7 @@ fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, mut write: 
     while i < quads.end {
         // Most addresses inside a changed range keep their pixels: one
         // compare, and on. (An unchanged address never starts a run.)
-        if quad(old_line, i) == quad(new_line, i) {
+        if quad_bits(old_line, i) == quad_bits(new_line, i) {
             i += 1;
             continue;
         }
@@ -334,6 +334,13 @@ fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (PlaneMask
 /// A mask's bit in a set of masks (one bit per mask value, 0 to 15).
 fn mask_bit(planes: PlaneMask) -> u16 {
     1 << planes.bits()
+}
+
+/// The four pixels at `address` as one word: one load and one compare.
+fn quad_bits(line: &[u8], address: usize) -> u32 {
+    line.get(4 * address..4 * address + 4)
+        .and_then(|quad| quad.try_into().ok())
+        .map_or(0, u32::from_ne_bytes)
 }
 
 fn quad(line: &[u8], address: usize) -> [u8; 4] {

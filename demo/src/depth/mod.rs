@@ -100,7 +100,7 @@ pub fn render_with_depth(
             painter_rows(faces, image, drawn, untested);
         }
     }
-    depth_test_bands(band, first..last, |band, clip| {
+    depth_test_bands(band, drawn, first..last, |band, drawn, clip| {
         let rows = clip.y0..clip.y1;
         for face in faces.all() {
             if let (true, Some(plane)) = (face.meets_rows(&rows), &face.depth_plane) {
@@ -130,7 +130,7 @@ pub fn render_faces_with_depth(
     mut faces: impl FnMut(ClipRect, &mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
 ) -> FaceCounts {
     erase(image, drawn);
-    depth_test_bands(band, 0..BANDS, |band, clip| {
+    depth_test_bands(band, drawn, 0..BANDS, |band, drawn, clip| {
         faces(clip, &mut |visible, colour| {
             if let Some(plane) = visible.depth_plane() {
                 fill_nearer(image, drawn, band, clip, visible.polygon, &plane, colour);
@@ -140,18 +140,22 @@ pub fn render_faces_with_depth(
 }
 
 /// The bands in `bands`, one after the other: each band starts with
-/// nothing drawn, then `draw_band` draws into its rows with the depth test.
-/// Returns what `draw_band` counted in the first band.
+/// nothing drawn, then `draw_band` draws into its rows with the depth test,
+/// marking in `drawn` every span it tests; then the band's depths are
+/// cleared at those marks. Returns what `draw_band` counted in the first
+/// band.
 fn depth_test_bands(
     band: &mut DepthBand,
+    drawn: &mut PageSpans,
     bands: Range<i32>,
-    mut draw_band: impl FnMut(&mut DepthBand, ClipRect) -> FaceCounts,
+    mut draw_band: impl FnMut(&mut DepthBand, &mut PageSpans, ClipRect) -> FaceCounts,
 ) -> FaceCounts {
     let mut counts = None;
     for index in bands {
         band.start(index);
         let clip = band.clip();
-        let band_counts = draw_band(band, clip);
+        let band_counts = draw_band(band, drawn, clip);
+        band.clear(drawn);
         counts.get_or_insert(band_counts);
     }
     counts.unwrap_or_default()
