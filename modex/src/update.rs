@@ -125,7 +125,7 @@ impl<B: VgaBus> ModeX<B> {
         let mut line_masks = [0u16; SCREEN_HEIGHT as usize];
         let mut frame_masks = 0u16;
         for (y, masks) in line_masks.iter_mut().enumerate() {
-            each_write_on_line(spans, shadow, target, y, |write| {
+            each_write_on_line(spans, shadow, target, y, &mut |write| {
                 *masks |= mask_bit(write.mask);
             });
             frame_masks |= *masks;
@@ -138,7 +138,7 @@ impl<B: VgaBus> ModeX<B> {
                     continue;
                 }
                 let line_base = page.base() + y as u16 * BYTES_PER_LINE;
-                each_write_on_line(spans, shadow, target, y, |write| {
+                each_write_on_line(spans, shadow, target, y, &mut |write| {
                     if write.mask != mask {
                         return;
                     }
@@ -210,7 +210,7 @@ impl Writes {
         let mut overflow = false;
         for y in 0..SCREEN_HEIGHT as usize {
             let line_base = y as u16 * BYTES_PER_LINE;
-            each_write_on_line(spans, shadow, target, y, |write| {
+            each_write_on_line(spans, shadow, target, y, &mut |write| {
                 if overflow
                     || !self.push(Write {
                         address: line_base + write.address,
@@ -258,17 +258,19 @@ impl Writes {
 
 /// Calls `write` for each write line `y` needs, over the addresses
 /// `spans` marks on it, in address order (addresses relative to the line).
+/// One indirect call a write keeps the search compiled once, not once for
+/// each bus and caller.
 fn each_write_on_line(
     spans: &PageSpans,
     shadow: &PageImage,
     target: &PageImage,
     y: usize,
-    mut write: impl FnMut(Write),
+    write: &mut dyn FnMut(Write),
 ) {
     let width = SCREEN_WIDTH as usize;
     let (old_line, new_line) = (&shadow[y * width..][..width], &target[y * width..][..width]);
     for run in spans.runs(y) {
-        each_write(old_line, new_line, run, &mut write);
+        each_write(old_line, new_line, run, write);
     }
 }
 
@@ -277,7 +279,7 @@ fn each_write_on_line(
 /// a run of addresses whose four pixels all become one colour is one write
 /// with all planes (a fill); any other changed address gets one write per
 /// distinct new colour among its changed pixels.
-fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, mut write: impl FnMut(Write)) {
+fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, write: &mut dyn FnMut(Write)) {
     let mut i = quads.start;
     while i < quads.end {
         // Most addresses inside a changed range keep their pixels: one
