@@ -151,6 +151,19 @@ fn each_visible_face_in_rows<'a>(
 ) -> FaceCounts {
     let mut counts = FaceCounts::default();
     for object in objects {
+        // The frame's counts are the first band's (`render_faces_with_depth`),
+        // so there every object is culled and counted; in the others one
+        // whose corners all lie above or below the band is passed over
+        // without culling its faces again.
+        if rows.start > 0 {
+            let corners = object.screen_vertices().iter().map(|p| p.y);
+            let (top, bottom) = corners.fold((i32::MAX, i32::MIN), |(top, bottom), y| {
+                (top.min(y), bottom.max(y))
+            });
+            if top >= rows.end || bottom <= rows.start {
+                continue;
+            }
+        }
         counts += object.each_visible_face(|visible| {
             let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
             let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
