@@ -124,7 +124,10 @@ impl<const N: usize> Grid<N> {
 
     /// The grid drawn into `image`, the depth test on every row, in the
     /// faces' own colours; `drawn` marks where `image` may differ from the
-    /// background, before and after (see `depth::render_with_depth`).
+    /// background, before and after (see `depth::render_with_depth`). Kept
+    /// out of line: one copy in the kernel file, not one per bus its bench
+    /// draws on.
+    #[inline(never)]
     pub fn render(
         &mut self,
         image: &mut PageImage,
