@@ -66,16 +66,18 @@ fn fill(points: &[Point], clip: ClipRect, span: &mut dyn FnMut(i32, i32, i32)) {
     for y in top..bottom {
         let mut left = i64::MAX;
         let mut right = i64::MIN;
-        for i in 0..corners {
-            let crossing = if stepped {
-                edges[i].crossing(y)
-            } else {
-                edge(i, y, y + 1).crossing(y)
-            };
+        let mut cross = |crossing: Option<i64>| {
             if let Some(x) = crossing {
                 left = left.min(x);
                 right = right.max(x);
             }
+        };
+        if stepped {
+            edges[..corners]
+                .iter_mut()
+                .for_each(|step| cross(step.crossing(y)));
+        } else {
+            (0..corners).for_each(|i| cross(edge(i, y, y + 1).crossing(y)));
         }
         let x_start = left.max(i64::from(clip.x0));
         let x_end = right.min(i64::from(clip.x1));
