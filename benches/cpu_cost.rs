@@ -16,7 +16,7 @@ use demo::frame::{render_faces_with_depth, BACKGROUND};
 use demo::solids::{CUBE, ICOSAHEDRON, TETRAHEDRON};
 use engine::{DepthBand, FaceCounts, Model, Object, Xform};
 use modex::soft::SoftVga;
-use modex::{ModeX, Page, PAGE_PIXELS};
+use modex::{ModeX, Page, PageSpans, PAGE_PIXELS};
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
@@ -88,15 +88,22 @@ fn measure(faces: usize) -> Measured {
             object.object_to_world_mut().append_rotation_x(0.01);
         }
         let start = Instant::now();
-        let counts = render_faces_with_depth(&mut image, &mut band, |_, draw| {
-            let mut counts = FaceCounts::default();
-            for object in &mut objects {
-                counts += object.each_visible_face(|visible| draw(visible, visible.face.colour));
-            }
-            counts
-        });
+        let counts =
+            render_faces_with_depth(&mut image, &mut PageSpans::all(), &mut band, |_, draw| {
+                let mut counts = FaceCounts::default();
+                for object in &mut objects {
+                    counts +=
+                        object.each_visible_face(|visible| draw(visible, visible.face.colour));
+                }
+                counts
+            });
         let rendered = Instant::now();
-        ModeX::new(&mut *soft).update_page(Page::One, &mut shadow, black_box(&image));
+        ModeX::new(&mut *soft).update_page(
+            Page::One,
+            &mut shadow,
+            black_box(&image),
+            &PageSpans::all(),
+        );
         update += rendered.elapsed();
         render += rendered - start;
         drawn += u64::from(counts.drawn);

@@ -13,7 +13,7 @@ use demo::frame::BACKGROUND;
 use demo::grid::Grid;
 use engine::DepthBand;
 use modex::soft::SoftVga;
-use modex::{ModeX, Page, PAGE_PIXELS};
+use modex::{ModeX, Page, PageSpans, PAGE_PIXELS};
 
 const LIMIT: usize = 1024;
 const FRAMES: u64 = 30;
@@ -22,18 +22,28 @@ fn main() {
     let mut grid: Box<Grid<LIMIT>> = Box::default();
     let mut band = Box::new(DepthBand::new());
     let mut next = Box::new([BACKGROUND; PAGE_PIXELS]);
+    let mut drawn = Box::new(PageSpans::none());
     let mut soft = Box::new(SoftVga::new());
     let found = demo::scale::largest_that_fits(16, LIMIT, clock::pacing::FRAME_MICROS, |count| {
         let mut vga = ModeX::new(&mut *soft);
         vga.set_mode();
         let mut shadows = Box::new([[BACKGROUND; PAGE_PIXELS]; 2]);
+        let mut held = Box::new([PageSpans::none(), PageSpans::none()]);
+        next.fill(BACKGROUND);
+        drawn.clear();
         grid.reset(count);
         let mut page = Page::Zero;
         let mut frame = |vga: &mut ModeX<&mut SoftVga>| {
             page = page.other();
             grid.tick();
-            grid.render(&mut next, &mut band);
-            vga.update_page(page, &mut shadows[usize::from(page.index())], &next)
+            grid.render(&mut next, &mut drawn, &mut band);
+            // What the page held and what the frame drew: as the renderer.
+            let held = &mut held[usize::from(page.index())];
+            held.add(&drawn);
+            let written =
+                vga.update_page(page, &mut shadows[usize::from(page.index())], &next, held);
+            held.clone_from(&drawn);
+            written
         };
         // As in the kernel: two frames onto the blank pages first.
         frame(&mut vga);

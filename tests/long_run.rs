@@ -1,5 +1,6 @@
 //! A million frames of random commands through the host pipeline, with the
-//! software VGA checking that every write lands inside the page being drawn.
+//! software VGA checking that every write lands inside the page being drawn,
+//! and that the spans the page update compared held every change.
 
 mod common;
 
@@ -70,6 +71,14 @@ fn a_million_frames_of_random_commands() {
             0,
             "frame {frame}: write outside page {}",
             back.index()
+        );
+        // The page update compared only the spans drawn and held: had a
+        // changed pixel lain outside them, the shadow would still hold the
+        // old one. Equal, every change was compared, and so the writes were
+        // those of comparing every pixel (`modex`'s update tests).
+        assert!(
+            renderer.shadow(back)[..] == renderer.frame()[..],
+            "frame {frame}: a change outside the spans compared"
         );
 
         let xform = scene.primary().object_to_world();

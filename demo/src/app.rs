@@ -368,12 +368,11 @@ impl<R: BorrowMut<Renderer>> App<R> {
         self.frames_drawn += 1;
         self.frame_rate.frame_drawn(start);
         let (overlay, stats) = (self.overlay, self.stats());
-        let (page, faces) =
-            self.renderer
-                .borrow_mut()
-                .draw_with_overlay(vga, &mut self.scene, |image, faces| {
-                    osd::draw(image, overlay, &Stats { faces, ..stats })
-                });
+        let (page, faces) = self.renderer.borrow_mut().draw_with_overlay(
+            vga,
+            &mut self.scene,
+            |image, drawn, faces| osd::draw(image, drawn, overlay, &Stats { faces, ..stats }),
+        );
         self.last_faces = faces;
         let elapsed = clock.micros().saturating_sub(start);
         self.last_frame_micros = u32::try_from(elapsed).unwrap_or(u32::MAX);

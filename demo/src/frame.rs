@@ -3,7 +3,9 @@
 //! then the hidden page is brought up to date by writing only the pixels that
 //! differ from what that page holds — which the renderer remembers, one shadow
 //! image per page, since the two pages hold different frames — and the page is
-//! shown in step with vertical retrace.
+//! shown in step with vertical retrace. Only the spans the frame drew and the
+//! spans the page held are compared (`modex::spans`): everywhere else both
+//! are the background.
 //!
 //! This module orchestrates the frame, and a frame's data goes one way
 //! through it: the scene hands out its faces ([`Scene::faces`], plain data
@@ -18,7 +20,7 @@
 use crate::depth;
 use crate::scene::{Scene, SceneFaces};
 use engine::{DepthBand, FaceCounts};
-use modex::{ModeX, Page, PageImage, VgaBus, PAGE_PIXELS};
+use modex::{ModeX, Page, PageImage, PageSpans, VgaBus, PAGE_PIXELS};
 
 pub use crate::depth::render_faces_with_depth;
 pub use crate::screen::{BACKGROUND, SCREEN_CLIP};
@@ -30,7 +32,12 @@ pub use crate::screen::{BACKGROUND, SCREEN_CLIP};
 /// them, are on the stack.
 pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
     let mut list = SceneFaces::new();
-    depth::render_with_depth(scene.faces(&mut list), image, &mut DepthBand::new())
+    depth::render_with_depth(
+        scene.faces(&mut list),
+        image,
+        &mut PageSpans::all(),
+        &mut DepthBand::new(),
+    )
 }
 
 /// The scene painted by the painter's algorithm, kept for comparison (see
@@ -61,11 +68,18 @@ pub struct Renderer {
     shown: Page,
     /// What pages 0 and 1 hold.
     shadows: [PageImage; 2],
+    /// Where pages 0 and 1 can hold anything but the background: the spans
+    /// drawn into the frame each was last given.
+    held: [PageSpans; 2],
     /// The frame being drawn.
     next: PageImage,
+    /// Where `next` can differ from the background: the spans drawn into it.
+    drawn: PageSpans,
     depth: DepthBand,
     /// The scene's faces this frame.
     faces: SceneFaces,
+    /// Compare every pixel, not the spans (a check on the spans for tests).
+    compare_every_pixel: bool,
 }
 
 impl Default for Renderer {
@@ -91,9 +105,12 @@ impl Renderer {
         Renderer {
             shown: Page::Zero,
             shadows: [[BACKGROUND; PAGE_PIXELS]; 2],
+            held: [PageSpans::none(), PageSpans::none()],
             next: [BACKGROUND; PAGE_PIXELS],
+            drawn: PageSpans::none(),
             depth: DepthBand::new(),
             faces: SceneFaces::new(),
+            compare_every_pixel: false,
         }
     }
 
@@ -105,6 +122,26 @@ impl Renderer {
         for image in self.shadows.iter_mut().chain([&mut self.next]) {
             image.fill(BACKGROUND);
         }
+        for spans in self.held.iter_mut().chain([&mut self.drawn]) {
+            spans.clear();
+        }
+    }
+
+    /// With `true`, each page update compares every pixel of the frame
+    /// with the page's shadow instead of the spans drawn and held: the same
+    /// bus operations if the spans are right, which tests check.
+    pub fn compare_every_pixel(&mut self, every_pixel: bool) {
+        self.compare_every_pixel = every_pixel;
+    }
+
+    /// The frame last drawn, as it went to the page.
+    pub fn frame(&self) -> &PageImage {
+        &self.next
+    }
+
+    /// What the renderer believes `page` holds.
+    pub fn shadow(&self, page: Page) -> &PageImage {
+        &self.shadows[usize::from(page.index())]
     }
 
     /// The page last drawn: the one on screen once the caller has flipped.
@@ -116,21 +153,29 @@ impl Renderer {
     /// shown; returns that page (counted as shown from now on) and what the
     /// scene drew and culled. The scene's faces go to the depth policy,
     /// which draws them into the next frame; the frame goes to the page.
+    /// `overlay` must mark in the spans it is given every pixel it draws.
     pub fn draw_with_overlay<B: VgaBus>(
         &mut self,
         vga: &mut ModeX<B>,
         scene: &mut Scene,
-        overlay: impl FnOnce(&mut PageImage, FaceCounts),
+        overlay: impl FnOnce(&mut PageImage, &mut PageSpans, FaceCounts),
     ) -> (Page, FaceCounts) {
         let faces = scene.faces(&mut self.faces);
-        let faces = depth::render_with_depth(faces, &mut self.next, &mut self.depth);
-        overlay(&mut self.next, faces);
+        let faces =
+            depth::render_with_depth(faces, &mut self.next, &mut self.drawn, &mut self.depth);
+        overlay(&mut self.next, &mut self.drawn, faces);
         let page = self.shown.other();
-        vga.update_page(
-            page,
-            &mut self.shadows[usize::from(page.index())],
-            &self.next,
-        );
+        let index = usize::from(page.index());
+        // The page can differ from the frame only where one of them is not
+        // the background; from now on it holds the frame's spans.
+        let held = &mut self.held[index];
+        if self.compare_every_pixel {
+            held.mark_all();
+        } else {
+            held.add(&self.drawn);
+        }
+        vga.update_page(page, &mut self.shadows[index], &self.next, held);
+        held.clone_from(&self.drawn);
         self.shown = page;
         (page, faces)
     }
@@ -138,7 +183,7 @@ impl Renderer {
 
 impl FrameDrawer for Renderer {
     fn draw<B: VgaBus>(&mut self, vga: &mut ModeX<B>, scene: &mut Scene) -> Page {
-        self.draw_with_overlay(vga, scene, |_, _| {}).0
+        self.draw_with_overlay(vga, scene, |_, _, _| {}).0
     }
 }
 
@@ -188,12 +233,18 @@ mod tests {
                 scene.tick();
                 skipped += usize::from(!needs_depth_test(&mut scene));
                 // The depth test itself, even where it would be skipped.
-                let a = render_faces_with_depth(&mut depth, &mut band, |_, draw| {
-                    scene.each_visible_face(|v, c| draw(v, c))
-                });
+                let a = render_faces_with_depth(
+                    &mut depth,
+                    &mut PageSpans::all(),
+                    &mut band,
+                    |_, draw| scene.each_visible_face(|v, c| draw(v, c)),
+                );
                 let b = render_painter(&mut scene, &mut painter);
                 let faces = scene.faces(&mut list);
-                assert_eq!(depth::render_with_depth(faces, &mut mixed, &mut band), a);
+                assert_eq!(
+                    depth::render_with_depth(faces, &mut mixed, &mut PageSpans::all(), &mut band),
+                    a
+                );
                 assert!(depth == mixed, "the bands drawn without the test differ");
                 assert_eq!(a, b);
                 assert!(

@@ -15,13 +15,13 @@
 //! ```
 //! use demo::grid::Grid;
 //! use engine::DepthBand;
-//! use modex::PAGE_PIXELS;
+//! use modex::{PageSpans, PAGE_PIXELS};
 //!
 //! let mut grid: Box<Grid<16>> = Box::default();
 //! let (mut image, mut band) = (Box::new([0u8; PAGE_PIXELS]), Box::new(DepthBand::new()));
 //! grid.reset(12);
 //! grid.tick();
-//! let counts = grid.render(&mut image, &mut band);
+//! let counts = grid.render(&mut image, &mut PageSpans::all(), &mut band);
 //! assert!(counts.drawn > 12); // each solid shows more than one face
 //! ```
 
@@ -30,7 +30,7 @@ use crate::solids::SHAPES;
 use core::f64::consts::PI;
 use core::ops::Range;
 use engine::{DepthBand, FaceCounts, Object, VisibleFace, Xform, PROJECTION_RATIO};
-use modex::{PageImage, SCREEN_HEIGHT, SCREEN_WIDTH};
+use modex::{PageImage, PageSpans, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Centre to centre, in model units: the solids are about 26 units from
 /// centre to corner, so neighbours' corners pass through each other now and
@@ -123,10 +123,19 @@ impl<const N: usize> Grid<N> {
     }
 
     /// The grid drawn into `image`, the depth test on every row, in the
-    /// faces' own colours.
-    pub fn render(&mut self, image: &mut PageImage, band: &mut DepthBand) -> FaceCounts {
+    /// faces' own colours; `drawn` marks where `image` may differ from the
+    /// background, before and after (see `depth::render_with_depth`). Kept
+    /// out of line: one copy in the kernel file, not one per bus its bench
+    /// draws on.
+    #[inline(never)]
+    pub fn render(
+        &mut self,
+        image: &mut PageImage,
+        drawn: &mut PageSpans,
+        band: &mut DepthBand,
+    ) -> FaceCounts {
         let objects = &mut self.objects[..self.count];
-        render_faces_with_depth(image, band, |clip, draw| {
+        render_faces_with_depth(image, drawn, band, |clip, draw| {
             each_visible_face_in_rows(solids(objects), clip.y0..clip.y1, |visible| {
                 draw(visible, visible.face.colour)
             })
@@ -145,6 +154,19 @@ fn each_visible_face_in_rows<'a>(
 ) -> FaceCounts {
     let mut counts = FaceCounts::default();
     for object in objects {
+        // The frame's counts are the first band's (`render_faces_with_depth`),
+        // so there every object is culled and counted; in the others one
+        // whose corners all lie above or below the band is passed over
+        // without culling its faces again.
+        if rows.start > 0 {
+            let corners = object.screen_vertices().iter().map(|p| p.y);
+            let (top, bottom) = corners.fold((i32::MAX, i32::MIN), |(top, bottom), y| {
+                (top.min(y), bottom.max(y))
+            });
+            if top >= rows.end || bottom <= rows.start {
+                continue;
+            }
+        }
         counts += object.each_visible_face(|visible| {
             let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
             let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
@@ -231,12 +253,13 @@ mod tests {
         let mut grid: Box<Grid<300>> = Box::default();
         let mut image = Box::new([0u8; PAGE_PIXELS]);
         let mut band = Box::new(DepthBand::new());
+        let mut drawn = Box::new(PageSpans::all());
         for count in [1, 2, 7, 16, 59, 100, 200, 300] {
             grid.reset(count);
             assert_eq!(grid.count(), count);
             for _ in 0..3 {
                 grid.tick();
-                let counts = grid.render(&mut image, &mut band);
+                let counts = grid.render(&mut image, &mut drawn, &mut band);
                 assert!(counts.drawn as usize >= count, "{count}: {counts:?}");
             }
             let (x0, y0, x1, y1) = drawn_box(&image).expect("something drawn");
@@ -257,7 +280,11 @@ mod tests {
         assert_eq!(grid.count(), grid.capacity());
         grid.reset(0);
         let mut image = Box::new([BACKGROUND; PAGE_PIXELS]);
-        let counts = grid.render(&mut image, &mut Box::new(DepthBand::new()));
+        let counts = grid.render(
+            &mut image,
+            &mut PageSpans::all(),
+            &mut Box::new(DepthBand::new()),
+        );
         assert_eq!(counts, FaceCounts::default());
         assert!(drawn_box(&image).is_none());
     }

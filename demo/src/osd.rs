@@ -11,7 +11,7 @@ use embedded_graphics::prelude::*;
 use embedded_graphics::primitives::{PrimitiveStyleBuilder, Rectangle};
 use embedded_graphics::text::{Baseline, Text};
 use engine::FaceCounts;
-use modex::{ImageCanvas, PageImage, PaletteIndex, SCREEN_HEIGHT, SCREEN_WIDTH};
+use modex::{ImageCanvas, PageImage, PageSpans, PaletteIndex, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Rows the statistics lines may use at the top and at the bottom.
 pub const BAR_ROWS: i32 = 12;
@@ -115,9 +115,10 @@ fn text_style(background: u8) -> MonoTextStyle<'static, PaletteIndex> {
         .build()
 }
 
-/// Draws the parts of the display that are on over the frame in `image`.
-pub fn draw(image: &mut PageImage, overlay: Overlay, stats: &Stats) {
-    let mut canvas = ImageCanvas::new(image);
+/// Draws the parts of the display that are on over the frame in `image`,
+/// marking every pixel drawn in `drawn`.
+pub fn draw(image: &mut PageImage, drawn: &mut PageSpans, overlay: Overlay, stats: &Stats) {
+    let mut canvas = ImageCanvas::marking(image, drawn);
     if overlay.stats {
         draw_stats(&mut canvas, stats);
     }
@@ -234,7 +235,7 @@ mod tests {
             stats: true,
             help: false,
         };
-        draw(&mut image, overlay, &stats());
+        draw(&mut image, &mut PageSpans::none(), overlay, &stats());
         let width = SCREEN_WIDTH as usize;
         let changed_rows: std::vec::Vec<usize> = (0..SCREEN_HEIGHT as usize)
             .filter(|&y| image[y * width..(y + 1) * width].iter().any(|&c| c != 7))
@@ -257,7 +258,12 @@ mod tests {
             stats: false,
             help: true,
         };
-        draw(&mut image, overlay, &stats());
+        let mut drawn = PageSpans::none();
+        draw(&mut image, &mut drawn, overlay, &stats());
+        // Every pixel drawn is marked, for the page update.
+        let mut unmarked = image;
+        drawn.fill(&mut unmarked[..], 7);
+        assert!(unmarked.iter().all(|&c| c == 7));
         let frame = help_box();
         let width = SCREEN_WIDTH as usize;
         for (pixel, &colour) in image.iter().enumerate() {
@@ -276,7 +282,12 @@ mod tests {
     #[test]
     fn nothing_is_drawn_when_the_display_is_off() {
         let mut image = [7u8; PAGE_PIXELS];
-        draw(&mut image, Overlay::default(), &stats());
+        draw(
+            &mut image,
+            &mut PageSpans::none(),
+            Overlay::default(),
+            &stats(),
+        );
         assert!(image.iter().all(|&c| c == 7));
     }
 

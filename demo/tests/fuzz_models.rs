@@ -15,7 +15,7 @@ use demo::frame::{render_faces_with_depth, BACKGROUND};
 use engine::{DepthBand, Face, Model, Object, Vec3, Xform};
 use model_file::parse;
 use modex::soft::SoftVga;
-use modex::{ModeX, Page, PAGE_BYTES, PAGE_PIXELS};
+use modex::{ModeX, Page, PageSpans, PAGE_BYTES, PAGE_PIXELS};
 use proptest::prelude::*;
 
 const DEFAULT_CASES: u32 = 1000;
@@ -102,7 +102,7 @@ proptest! {
         let mut object = Object::new(model, xform);
         let mut image = Box::new([BACKGROUND; PAGE_PIXELS]);
         let mut band = Box::new(DepthBand::new());
-        render_faces_with_depth(&mut image, &mut band, |_, draw| {
+        render_faces_with_depth(&mut image, &mut PageSpans::all(), &mut band, |_, draw| {
             object.each_visible_face(|visible| draw(visible, visible.face.colour))
         });
         // Through the page update onto the software VGA, which flags any
@@ -112,7 +112,7 @@ proptest! {
         let page = Page::One;
         soft.set_write_guard(Some(page.base()..page.base() + PAGE_BYTES));
         let mut shadow = Box::new([BACKGROUND; PAGE_PIXELS]);
-        ModeX::new(&mut *soft).update_page(page, &mut shadow, &image);
+        ModeX::new(&mut *soft).update_page(page, &mut shadow, &image, &PageSpans::all());
         prop_assert_eq!(soft.guard_violations(), 0);
         prop_assert!(shadow == image);
     }

@@ -22,6 +22,7 @@
 
 use crate::math::Vec3;
 use crate::project::{PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
+use modex::PageSpans;
 
 /// Fractional bits of w in `DepthPlane`, and the bits dropped from that to
 /// store w in the depth buffer (which keeps 32).
@@ -99,9 +100,6 @@ const BAND_PIXELS: usize = (SCREEN_WIDTH * BAND_ROWS) as usize;
 #[derive(Clone)]
 pub struct DepthBand {
     first_row: i32,
-    /// Rows of the band written since the last `start` (local, half-open):
-    /// only they need clearing for the next band.
-    touched: (usize, usize),
     w: [u32; BAND_PIXELS],
 }
 
@@ -110,7 +108,6 @@ impl core::fmt::Debug for DepthBand {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("DepthBand")
             .field("first_row", &self.first_row)
-            .field("touched", &self.touched)
             .finish_non_exhaustive()
     }
 }
@@ -126,18 +123,23 @@ impl DepthBand {
     pub const fn new() -> Self {
         DepthBand {
             first_row: 0,
-            touched: (0, 0),
             w: [0; BAND_PIXELS],
         }
     }
 
-    /// Starts band `band` (rows band·BAND_ROWS ..): nothing drawn yet.
+    /// Starts band `band` (rows band·BAND_ROWS ..), with nothing drawn if
+    /// the band was cleared after it was last drawn in.
     pub fn start(&mut self, band: i32) {
         self.first_row = band * BAND_ROWS;
-        let width = SCREEN_WIDTH as usize;
-        let (from, to) = self.touched;
-        self.w[from * width..to * width].fill(0);
-        self.touched = (0, 0);
+    }
+
+    /// Back to nothing drawn. `written` marks, in frame rows, at least every
+    /// span tested since the band started (the frame's own marks serve:
+    /// each span tested is marked there too); only those depths are
+    /// cleared, not the band.
+    pub fn clear(&mut self, written: &PageSpans) {
+        let rows = self.first_row as usize..(self.first_row + BAND_ROWS) as usize;
+        written.fill_lines(rows, &mut self.w, 0);
     }
 
     /// The band's rows as a clip rectangle.
@@ -163,11 +165,6 @@ impl DepthBand {
         colour: u8,
     ) {
         let local = (y - self.first_row) as usize;
-        self.touched = if self.touched.0 == self.touched.1 {
-            (local, local + 1)
-        } else {
-            (self.touched.0.min(local), self.touched.1.max(local + 1))
-        };
         let start = local * SCREEN_WIDTH as usize + x0 as usize;
         let nearest = &mut self.w[start..start + pixels.len()];
         let mut w = plane.at(x0, y);
@@ -251,7 +248,8 @@ mod tests {
             .collect();
         assert_eq!(&row[..30], &expected[..]);
         assert_eq!(band.clip().y0, BAND_ROWS);
-        // The next band starts with nothing drawn.
+        // Cleared, the next band starts with nothing drawn.
+        band.clear(&PageSpans::all());
         band.start(2);
         band.test_span(&far, 85, 10, &mut row[10..20], 5);
         assert_eq!(&row[10..20], &[5; 10]);

@@ -16,7 +16,7 @@ use demo::grid::Grid;
 use demo::scene::{Scene, SceneCommand, SceneFaces};
 use engine::DepthBand;
 use modex::regs::Port;
-use modex::{ModeX, Page, PageImage, VgaBus, PAGE_PIXELS};
+use modex::{ModeX, Page, PageImage, PageSpans, VgaBus, PAGE_PIXELS};
 use spin::Mutex;
 
 const FRAMES: u64 = 120;
@@ -181,7 +181,7 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
         clock::pacing::FRAME_MICROS,
         |count| {
             vga.set_mode();
-            images.shadows = [[BACKGROUND; PAGE_PIXELS]; 2];
+            images.blank();
             grid.reset(count);
             let mut page = Page::Zero;
             // One frame: the drawing's TSC cycles and the bytes written.
@@ -189,13 +189,9 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
                 page = page.other();
                 let t0 = time::tsc::rdtsc();
                 grid.tick();
-                grid.render(&mut images.next, &mut images.band);
+                grid.render(&mut images.next, &mut images.drawn, &mut images.band);
                 let cycles = time::tsc::rdtsc() - t0;
-                let shadow = &mut images.shadows[usize::from(page.index())];
-                (
-                    cycles,
-                    u64::from(vga.update_page(page, shadow, &images.next)),
-                )
+                (cycles, u64::from(images.update_page(vga, page)))
             };
             // Two frames first, one into each page, so that what is timed is
             // the steady state, not the grid appearing on blank pages.
@@ -261,10 +257,14 @@ struct Phases {
 }
 
 /// The frame, the two pages' shadows, a copy of a shadow for the dry run,
-/// the depth band and the scene's faces: ~430 KiB, kept off the stack.
+/// the spans drawn into the frame and held by each page (as `Renderer`
+/// keeps them), the depth band and the scene's faces: ~440 KiB, kept off
+/// the stack.
 struct Images {
     next: PageImage,
+    drawn: PageSpans,
     shadows: [PageImage; 2],
+    held: [PageSpans; 2],
     dry_run_shadow: PageImage,
     band: DepthBand,
     faces: SceneFaces,
@@ -272,11 +272,45 @@ struct Images {
 
 static IMAGES: Mutex<Images> = Mutex::new(Images {
     next: [BACKGROUND; PAGE_PIXELS],
+    drawn: PageSpans::none(),
     shadows: [[BACKGROUND; PAGE_PIXELS]; 2],
+    held: [PageSpans::none(), PageSpans::none()],
     dry_run_shadow: [BACKGROUND; PAGE_PIXELS],
     band: DepthBand::new(),
     faces: SceneFaces::new(),
 });
+
+impl Images {
+    /// Both pages and the frame blank, as the mode set leaves the pages.
+    fn blank(&mut self) {
+        for image in self.shadows.iter_mut().chain([&mut self.next]) {
+            image.fill(BACKGROUND);
+        }
+        for spans in self.held.iter_mut().chain([&mut self.drawn]) {
+            spans.clear();
+        }
+    }
+
+    /// Adds to the spans `page` holds those the frame drew: what the page
+    /// update compares (as `Renderer` does).
+    fn spans_to_compare(&mut self, page: Page) {
+        self.held[usize::from(page.index())].add(&self.drawn);
+    }
+
+    /// `page` brought up to the frame over the spans, which it then holds.
+    fn update_page<B: VgaBus>(&mut self, vga: &mut ModeX<B>, page: Page) -> u32 {
+        let index = usize::from(page.index());
+        self.spans_to_compare(page);
+        let written = vga.update_page(
+            page,
+            &mut self.shadows[index],
+            &self.next,
+            &self.held[index],
+        );
+        self.held[index].clone_from(&self.drawn);
+        written
+    }
+}
 
 /// A VGA that takes every write and answers every read with zero: the
 /// driver's own work without the bus.
@@ -301,7 +335,7 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
     vga.set_mode();
     let mut images = IMAGES.lock();
     let images = &mut *images;
-    images.shadows = [[BACKGROUND; PAGE_PIXELS]; 2];
+    images.blank();
     let mut dry_run = ModeX::new(NoBus);
     let mut scene = Scene::new();
     for &command in commands {
@@ -311,18 +345,22 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
     let mut page = Page::Zero;
     for _ in 0..FRAMES {
         page = page.other();
-        let shadow = &mut images.shadows[usize::from(page.index())];
-        images.dry_run_shadow.copy_from_slice(shadow);
+        let index = usize::from(page.index());
+        images
+            .dry_run_shadow
+            .copy_from_slice(&images.shadows[index]);
         let t0 = time::tsc::rdtsc();
         scene.tick();
         let t1 = time::tsc::rdtsc();
         let faces = scene.faces(&mut images.faces);
         let t2 = time::tsc::rdtsc();
-        render_with_depth(faces, &mut images.next, &mut images.band);
+        render_with_depth(faces, &mut images.next, &mut images.drawn, &mut images.band);
         let t3 = time::tsc::rdtsc();
-        dry_run.update_page(page, &mut images.dry_run_shadow, &images.next);
+        images.spans_to_compare(page);
+        let spans = &images.held[index];
+        dry_run.update_page(page, &mut images.dry_run_shadow, &images.next, spans);
         let t4 = time::tsc::rdtsc();
-        vga.update_page(page, shadow, &images.next);
+        images.update_page(vga, page);
         let t5 = time::tsc::rdtsc();
         let comparison = t4 - t3;
         let writes = (t5 - t4).saturating_sub(comparison);

@@ -3,7 +3,7 @@
 //! memory, [`ImageCanvas`] into a RAM image of a page (which
 //! [`ModeX::update_page`] then writes out, changed pixels only).
 
-use crate::{ModeX, Page, PageImage, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
+use crate::{ModeX, Page, PageImage, PageSpans, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
 use core::convert::Infallible;
 use embedded_graphics_core::pixelcolor::raw::RawU8;
 use embedded_graphics_core::pixelcolor::PixelColor;
@@ -98,9 +98,11 @@ impl<B: VgaBus> DrawTarget for PageCanvas<'_, B> {
     }
 }
 
-/// Draws into a RAM image of a page, one byte per pixel, row by row.
+/// Draws into a RAM image of a page, one byte per pixel, row by row, and
+/// marks what it draws in the image's spans if it was given them.
 pub struct ImageCanvas<'a> {
     image: &'a mut PageImage,
+    drawn: Option<&'a mut PageSpans>,
 }
 
 /// Leaves out the image's 75 KiB.
@@ -113,7 +115,16 @@ impl core::fmt::Debug for ImageCanvas<'_> {
 impl<'a> ImageCanvas<'a> {
     /// A canvas over `image`.
     pub fn new(image: &'a mut PageImage) -> Self {
-        ImageCanvas { image }
+        ImageCanvas { image, drawn: None }
+    }
+
+    /// A canvas over `image` that marks every pixel it draws in `drawn`,
+    /// for an image whose page update compares only the spans drawn.
+    pub fn marking(image: &'a mut PageImage, drawn: &'a mut PageSpans) -> Self {
+        ImageCanvas {
+            image,
+            drawn: Some(drawn),
+        }
     }
 }
 
@@ -134,6 +145,10 @@ impl DrawTarget for ImageCanvas<'_> {
         for Pixel(point, colour) in pixels {
             if (0..SCREEN_WIDTH).contains(&point.x) && (0..SCREEN_HEIGHT).contains(&point.y) {
                 self.image[(point.y * SCREEN_WIDTH + point.x) as usize] = colour.0;
+                if let Some(drawn) = self.drawn.as_deref_mut() {
+                    let x = point.x as usize;
+                    drawn.mark(point.y as usize, x..x + 1);
+                }
             }
         }
         Ok(())
@@ -144,6 +159,9 @@ impl DrawTarget for ImageCanvas<'_> {
             for y in y0..y1 {
                 let row = (y * SCREEN_WIDTH) as usize;
                 self.image[row + x0 as usize..row + x1 as usize].fill(colour.0);
+                if let Some(drawn) = self.drawn.as_deref_mut() {
+                    drawn.mark(y as usize, x0 as usize..x1 as usize);
+                }
             }
         }
         Ok(())

@@ -60,6 +60,7 @@ pub mod palette;
 pub mod present;
 pub mod regs;
 pub mod soft;
+mod spans;
 mod text;
 mod update;
 
@@ -70,6 +71,7 @@ pub use driver::ModeX;
 pub use mirror::MirroredVga;
 pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
 pub use palette::Rgb6;
+pub use spans::{LineSpans, PageSpans};
 pub use text::{TEXT_COLUMNS, TEXT_ROWS};
 pub use update::{PageImage, PAGE_PIXELS};
 

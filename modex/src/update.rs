@@ -13,6 +13,7 @@ use crate::bus::VgaBus;
 use crate::driver::ModeX;
 use crate::page::Page;
 use crate::regs::PlaneMask;
+use crate::spans::PageSpans;
 use crate::{BYTES_PER_LINE, SCREEN_HEIGHT, SCREEN_WIDTH};
 use core::ops::Range;
 
@@ -23,43 +24,39 @@ pub const PAGE_PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
 pub type PageImage = [u8; PAGE_PIXELS];
 
 impl<B: VgaBus> ModeX<B> {
-    /// Makes `page` show `target`, given that it shows `shadow` now; only
-    /// changed pixels are written, and `shadow` becomes `target`. Returns the
-    /// number of video-memory bytes written.
+    /// Makes `page` show `target`, given that it shows `shadow` now and
+    /// that the two can differ only at the addresses `spans` marks; only
+    /// changed pixels are written, and `shadow` becomes `target`. Returns
+    /// the number of video-memory bytes written.
+    ///
+    /// Only the marked addresses are read: the renderer marks what it drew
+    /// this frame and what the page held (`crate::spans`), and everywhere
+    /// else both are the background. [`PageSpans::all`] compares every
+    /// pixel. Either way the writes are the same, in the same order: an
+    /// unmarked address is unchanged, and no write reaches past one.
     ///
     /// Writes to different addresses are independent, so they are grouped by
     /// Map Mask: one pass per distinct mask the frame needs, each setting the
     /// Map Mask once and then writing every address that needs it. The port
     /// writes are then the number of distinct masks, not one per change of
-    /// mask between neighbouring addresses. To find the addresses of a mask
-    /// without a list of them, each line keeps the set of masks it needs, and
-    /// a pass visits only the lines that need its mask.
-    pub fn update_page(&mut self, page: Page, shadow: &mut PageImage, target: &PageImage) -> u32 {
+    /// mask between neighbouring addresses.
+    pub fn update_page(
+        &mut self,
+        page: Page,
+        shadow: &mut PageImage,
+        target: &PageImage,
+        spans: &PageSpans,
+    ) -> u32 {
         self.issued_by("ModeX::update_page", |vga| {
-            let width = SCREEN_WIDTH as usize;
-            // Each line's changed bytes, found eight at a time: the rest of the
-            // work is bounded by what changed, not by the screen.
-            let mut changed: [Option<Range<usize>>; SCREEN_HEIGHT as usize] =
-                [const { None }; SCREEN_HEIGHT as usize];
-            for (y, range) in changed.iter_mut().enumerate() {
-                *range =
-                    changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width]);
-            }
             let mut writes = Writes::new();
-            let written = if writes.collect(&changed, shadow, target) {
+            let written = if writes.collect(spans, shadow, target) {
                 vga.write_by_mask(page, &writes)
             } else {
                 // More writes than the list holds (a whole new picture): the
                 // same writes in the same order, found again for each mask.
-                vga.write_by_passes(page, &changed, shadow, target)
+                vga.write_by_passes(page, spans, shadow, target)
             };
-            for (y, range) in changed.iter().enumerate() {
-                if let Some(range) = range {
-                    let line = y * width;
-                    shadow[line + range.start..line + range.end]
-                        .copy_from_slice(&target[line + range.start..line + range.end]);
-                }
-            }
+            spans.copy(target, shadow);
             written
         })
     }
@@ -121,36 +118,27 @@ impl<B: VgaBus> ModeX<B> {
     fn write_by_passes(
         &mut self,
         page: Page,
-        changed: &[Option<Range<usize>>],
+        spans: &PageSpans,
         shadow: &PageImage,
         target: &PageImage,
     ) -> u32 {
-        let width = SCREEN_WIDTH as usize;
         let mut line_masks = [0u16; SCREEN_HEIGHT as usize];
         let mut frame_masks = 0u16;
-        for (y, range) in changed.iter().enumerate() {
-            let Some(range) = range else { continue };
-            let (old_line, new_line) =
-                (&shadow[y * width..][..width], &target[y * width..][..width]);
-            each_write(old_line, new_line, quads(range), |write| {
-                line_masks[y] |= mask_bit(write.mask);
+        for (y, masks) in line_masks.iter_mut().enumerate() {
+            each_write_on_line(spans, shadow, target, y, &mut |write| {
+                *masks |= mask_bit(write.mask);
             });
-            frame_masks |= line_masks[y];
+            frame_masks |= *masks;
         }
         let mut written = 0;
         for mask in self.mask_order(frame_masks) {
             self.io.set_map_mask(mask);
-            for (y, range) in changed.iter().enumerate() {
-                let Some(range) = range
-                    .as_ref()
-                    .filter(|_| line_masks[y] & mask_bit(mask) != 0)
-                else {
+            for (y, masks) in line_masks.iter().enumerate() {
+                if masks & mask_bit(mask) == 0 {
                     continue;
-                };
-                let (old_line, new_line) =
-                    (&shadow[y * width..][..width], &target[y * width..][..width]);
+                }
                 let line_base = page.base() + y as u16 * BYTES_PER_LINE;
-                each_write(old_line, new_line, quads(range), |write| {
+                each_write_on_line(spans, shadow, target, y, &mut |write| {
                     if write.mask != mask {
                         return;
                     }
@@ -216,22 +204,13 @@ impl Writes {
         }
     }
 
-    /// Collects every write the changed lines need; false if there are more
-    /// than the list holds (what was collected is then of no use).
-    fn collect(
-        &mut self,
-        changed: &[Option<Range<usize>>],
-        shadow: &PageImage,
-        target: &PageImage,
-    ) -> bool {
-        let width = SCREEN_WIDTH as usize;
+    /// Collects every write the marked addresses need; false if there are
+    /// more than the list holds (what was collected is then of no use).
+    fn collect(&mut self, spans: &PageSpans, shadow: &PageImage, target: &PageImage) -> bool {
         let mut overflow = false;
-        for (y, range) in changed.iter().enumerate() {
-            let Some(range) = range else { continue };
-            let (old_line, new_line) =
-                (&shadow[y * width..][..width], &target[y * width..][..width]);
+        for y in 0..SCREEN_HEIGHT as usize {
             let line_base = y as u16 * BYTES_PER_LINE;
-            each_write(old_line, new_line, quads(range), |write| {
+            each_write_on_line(spans, shadow, target, y, &mut |write| {
                 if overflow
                     || !self.push(Write {
                         address: line_base + write.address,
@@ -277,31 +256,22 @@ impl Writes {
     }
 }
 
-/// The byte addresses (quads of four pixels) that hold the changed bytes.
-fn quads(bytes: &Range<usize>) -> Range<usize> {
-    bytes.start / 4..bytes.end.div_ceil(4)
-}
-
-/// The bytes from the first that differs to the last that differs, compared
-/// eight at a time; `None` if the lines are equal.
-fn changed_bytes(old: &[u8], new: &[u8]) -> Option<Range<usize>> {
-    const WORD: usize = 8;
-    let differs = |i: usize| {
-        let a = u64::from_ne_bytes(old[i * WORD..][..WORD].try_into().unwrap_or_default());
-        let b = u64::from_ne_bytes(new[i * WORD..][..WORD].try_into().unwrap_or_default());
-        a != b
-    };
-    let words = old.len().min(new.len()) / WORD;
-    let first = (0..words).find(|&i| differs(i))?;
-    let last = (first..words).rev().find(|&i| differs(i)).unwrap_or(first);
-    let (start, end) = (first * WORD, (last + 1) * WORD);
-    // Narrow to the exact bytes within the first and last words.
-    let start = (start..end).find(|&i| old[i] != new[i]).unwrap_or(start);
-    let end = (start..end)
-        .rev()
-        .find(|&i| old[i] != new[i])
-        .map_or(end, |i| i + 1);
-    Some(start..end)
+/// Calls `write` for each write line `y` needs, over the addresses
+/// `spans` marks on it, in address order (addresses relative to the line).
+/// One indirect call a write keeps the search compiled once, not once for
+/// each bus and caller.
+fn each_write_on_line(
+    spans: &PageSpans,
+    shadow: &PageImage,
+    target: &PageImage,
+    y: usize,
+    write: &mut dyn FnMut(Write),
+) {
+    let width = SCREEN_WIDTH as usize;
+    let (old_line, new_line) = (&shadow[y * width..][..width], &target[y * width..][..width]);
+    for run in spans.runs(y) {
+        each_write(old_line, new_line, run, write);
+    }
 }
 
 /// Calls `write` for each write that brings `old_line` to `new_line` at the
@@ -309,12 +279,12 @@ fn changed_bytes(old: &[u8], new: &[u8]) -> Option<Range<usize>> {
 /// a run of addresses whose four pixels all become one colour is one write
 /// with all planes (a fill); any other changed address gets one write per
 /// distinct new colour among its changed pixels.
-fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, mut write: impl FnMut(Write)) {
+fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, write: &mut dyn FnMut(Write)) {
     let mut i = quads.start;
     while i < quads.end {
         // Most addresses inside a changed range keep their pixels: one
         // compare, and on. (An unchanged address never starts a run.)
-        if quad(old_line, i) == quad(new_line, i) {
+        if quad_bits(old_line, i) == quad_bits(new_line, i) {
             i += 1;
             continue;
         }
@@ -366,6 +336,13 @@ fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (PlaneMask
 /// A mask's bit in a set of masks (one bit per mask value, 0 to 15).
 fn mask_bit(planes: PlaneMask) -> u16 {
     1 << planes.bits()
+}
+
+/// The four pixels at `address` as one word: one load and one compare.
+fn quad_bits(line: &[u8], address: usize) -> u32 {
+    line.get(4 * address..4 * address + 4)
+        .and_then(|quad| quad.try_into().ok())
+        .map_or(0, u32::from_ne_bytes)
 }
 
 fn quad(line: &[u8], address: usize) -> [u8; 4] {
@@ -420,7 +397,7 @@ mod tests {
                 }
             }
             let before = vga.bus().counts();
-            let written = vga.update_page(Page::Zero, &mut shadow, &target);
+            let written = vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all());
             let after = vga.bus().counts();
             assert_eq!(after.vram_writes - before.vram_writes, u64::from(written));
             // At most one Map Mask write per distinct mask (15 at most).
@@ -433,7 +410,10 @@ mod tests {
         }
         // Nothing changed: nothing is written.
         let before = vga.bus().counts();
-        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 0);
+        assert_eq!(
+            vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
+            0
+        );
         assert_eq!(vga.bus().counts(), before);
     }
 
@@ -445,9 +425,15 @@ mod tests {
         let mut shadow = Box::new([0u8; PAGE_PIXELS]);
         let mut target = Box::new([0u8; PAGE_PIXELS]);
         target[..4].copy_from_slice(&[5, 5, 0, 6]);
-        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 2);
+        assert_eq!(
+            vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
+            2
+        );
         target[..4].copy_from_slice(&[5, 7, 7, 7]);
-        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 1);
+        assert_eq!(
+            vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
+            1
+        );
         assert_eq!(&indices(vga.bus())[..4], &[5, 7, 7, 7]);
     }
 
@@ -471,7 +457,10 @@ mod tests {
             }
         }
         let before = vga.bus().counts();
-        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 8000);
+        assert_eq!(
+            vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
+            8000
+        );
         let after = vga.bus().counts();
         assert!(after.port_writes - before.port_writes <= 2);
         assert_eq!(indices(vga.bus()), target.to_vec());
@@ -519,12 +508,7 @@ mod tests {
                 let len = 1 + (seed >> 3) as usize % 14;
                 target[at..at + len].fill(9 + (seed % 7) as u8);
             }
-            let width = SCREEN_WIDTH as usize;
-            let changed: std::vec::Vec<_> = (0..SCREEN_HEIGHT as usize)
-                .map(|y| {
-                    changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width])
-                })
-                .collect();
+            let changed = PageSpans::all();
             let mut writes = Box::new(Writes::new());
             assert!(
                 writes.collect(&changed, &shadow, &target),
@@ -538,24 +522,8 @@ mod tests {
             assert_eq!(by_list.bus().0, by_passes.bus().0, "round {round}");
             // And the whole update leaves the shadow equal to the target.
             let mut vga = ModeX::new(Recorder::default());
-            vga.update_page(Page::One, &mut shadow, &target);
+            vga.update_page(Page::One, &mut shadow, &target, &changed);
             assert!(shadow[..] == target[..], "round {round}");
-        }
-    }
-
-    #[test]
-    fn changed_bytes_are_found_exactly() {
-        let old = [0u8; 320];
-        assert_eq!(changed_bytes(&old, &old), None);
-        for (first, last) in [(0, 0), (7, 8), (9, 9), (3, 318), (319, 319), (100, 163)] {
-            let mut new = old;
-            new[first] = 1;
-            new[last] = 2;
-            assert_eq!(
-                changed_bytes(&old, &new),
-                Some(first..last + 1),
-                "{first}..={last}"
-            );
         }
     }
 
@@ -568,13 +536,123 @@ mod tests {
         // Every address changes two ways: 2 writes each, 38,400 in all.
         let target: Box<PageImage> =
             Box::new(core::array::from_fn(|i| if i % 4 < 2 { 9 } else { 10 }));
-        let width = SCREEN_WIDTH as usize;
-        let changed: std::vec::Vec<_> = (0..SCREEN_HEIGHT as usize)
-            .map(|y| changed_bytes(&shadow[y * width..][..width], &target[y * width..][..width]))
-            .collect();
+        let changed = PageSpans::all();
         assert!(!Writes::new().collect(&changed, &shadow, &target));
-        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target), 38_400);
+        assert_eq!(
+            vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
+            38_400
+        );
         assert_eq!(indices(vga.bus()), target.to_vec());
         assert!(shadow[..] == target[..]);
+    }
+
+    /// The page update over the spans the renderer keeps (the union of what
+    /// the frame drew and what the page held when last drawn) makes the bus
+    /// operations of comparing every pixel: the same ones, in the same
+    /// order, frame after frame on two pages. The frames are random spans,
+    /// runs and single pixels drawn over the background the way the
+    /// renderer draws them (cleared at the last frame's marks, every span
+    /// marked), now and then a blank frame, and now and then one with more
+    /// writes than the list holds.
+    #[test]
+    fn the_marked_spans_make_the_bus_operations_of_comparing_every_pixel() {
+        const BACKGROUND: u8 = 0;
+        let width = SCREEN_WIDTH as usize;
+        let mut frame = Box::new([BACKGROUND; PAGE_PIXELS]);
+        let mut drawn = Box::new(PageSpans::none());
+        let mut held = [Box::new(PageSpans::none()), Box::new(PageSpans::none())];
+        let mut shadows = [Box::new(*frame), Box::new(*frame)];
+        let mut full_shadows = shadows.clone();
+        let mut by_spans = ModeX::new(Recorder::default());
+        let mut by_pixels = ModeX::new(Recorder::default());
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut random = move |below: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 16) as usize % below
+        };
+        let (mut compared, mut overflowed) = (0, 0);
+        for round in 0..400 {
+            drawn.fill(&mut frame[..], BACKGROUND);
+            drawn.clear();
+            let mut span = |y: usize, x0: usize, x1: usize, colour: u8| {
+                frame[y * width + x0..y * width + x1].fill(colour);
+                drawn.mark(y, x0..x1);
+            };
+            match round % 50 {
+                // A blank frame: the last two are erased.
+                7 => {}
+                // Noise on most lines: more writes than the list holds.
+                31 => {
+                    for y in 20..220 {
+                        for x in 0..width {
+                            span(y, x, x + 1, 1 + random(5) as u8);
+                        }
+                    }
+                }
+                _ => {
+                    // Solids' spans: a few shapes of spans, and stray pixels.
+                    for _ in 0..1 + random(12) {
+                        let (top, rows) = (random(240), 1 + random(60));
+                        let (mut x0, mut x1) = (random(320), 0);
+                        x1 = (x0 + random(90)).min(width).max(x1);
+                        let colour = 1 + random(14) as u8;
+                        for y in top..(top + rows).min(240) {
+                            x0 = (x0 + random(5)).saturating_sub(2).min(width - 1);
+                            x1 = (x1 + random(5)).saturating_sub(2).clamp(x0 + 1, width);
+                            span(y, x0, x1, colour);
+                        }
+                    }
+                    for _ in 0..random(30) {
+                        let x = random(width);
+                        span(random(240), x, x + 1, random(16) as u8);
+                    }
+                }
+            }
+            let page = round % 2;
+            let mut compare = held[page].clone();
+            compare.add(&drawn);
+            let which = if page == 0 { Page::Zero } else { Page::One };
+            by_spans.bus_mut().0.clear();
+            by_pixels.bus_mut().0.clear();
+            let written = by_spans.update_page(which, &mut shadows[page], &frame, &compare);
+            let expected =
+                by_pixels.update_page(which, &mut full_shadows[page], &frame, &PageSpans::all());
+            assert_eq!(by_spans.bus().0, by_pixels.bus().0, "round {round}");
+            assert_eq!(written, expected, "round {round}");
+            assert!(shadows[page][..] == frame[..], "round {round}");
+            assert!(full_shadows[page][..] == frame[..], "round {round}");
+            compared += usize::from(written > 0);
+            overflowed += usize::from(written > WRITE_LIST_CAPACITY as u32);
+            held[page].clone_from(&drawn);
+        }
+        assert!(compared > 350 && overflowed > 0, "{compared}, {overflowed}");
+    }
+
+    #[test]
+    fn runs_are_the_marked_addresses_and_touching_spans_are_one_run() {
+        let mut spans = PageSpans::none();
+        assert_eq!(spans.runs(3).count(), 0);
+        spans.mark(3, 5..9); // addresses 1 and 2
+        spans.mark(3, 12..13); // 3: touches, one run
+        spans.mark(3, 40..41);
+        spans.mark(3, 316..400); // cut at the line's end
+        spans.mark(3, 20..20); // empty
+        spans.mark(240, 0..320); // no such line
+        let runs: std::vec::Vec<_> = spans.runs(3).collect();
+        assert_eq!(runs, [1..4, 10..11, 79..80]);
+        let mut image = [7u8; PAGE_PIXELS];
+        spans.fill(&mut image[..], 0);
+        let cleared: std::vec::Vec<_> = (0..PAGE_PIXELS).filter(|&i| image[i] == 0).collect();
+        let expected: std::vec::Vec<_> = [4..16, 40..44, 316..320]
+            .into_iter()
+            .flatten()
+            .map(|x| 3 * 320 + x)
+            .collect();
+        assert_eq!(cleared, expected);
+        let mut whole_line = PageSpans::all().runs(239);
+        assert_eq!(whole_line.next(), Some(0..80));
+        assert_eq!(whole_line.next(), None);
     }
 }

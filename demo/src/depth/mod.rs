@@ -24,7 +24,7 @@ use engine::{
     fill_convex_polygon, ClipRect, DepthBand, DepthPlane, FaceCounts, Point, VisibleFace, BANDS,
     BAND_ROWS,
 };
-use modex::{PageImage, SCREEN_HEIGHT, SCREEN_WIDTH};
+use modex::{PageImage, PageSpans, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Whether hidden surfaces need the depth test this frame. Within one convex
 /// solid, backface removal leaves faces that never overlap; so the test is
@@ -74,71 +74,88 @@ pub fn rows_needing_depth_test(faces: Faces<'_>) -> Option<Range<i32>> {
 /// frame, at the cost it had before the depth test. Each row is drawn once,
 /// one way or the other. Tests check this gives the picture of the depth
 /// test everywhere. Returns the faces' counts.
+///
+/// `drawn` marks where `image` may differ from the background (see
+/// `modex::spans`): only there is the last frame erased, and every span
+/// filled is marked, so that on return it marks this frame's spans.
 pub fn render_with_depth(
     faces: Faces<'_>,
     image: &mut PageImage,
+    drawn: &mut PageSpans,
     band: &mut DepthBand,
 ) -> FaceCounts {
+    erase(image, drawn);
     let Some(rows) = rows_needing_depth_test(faces) else {
-        return render_painter(faces, image);
+        painter_rows(faces, image, drawn, 0..SCREEN_HEIGHT);
+        return faces.counts();
     };
     let first = rows.start.clamp(0, SCREEN_HEIGHT) / BAND_ROWS;
     let last = (rows.end.clamp(0, SCREEN_HEIGHT) + BAND_ROWS - 1) / BAND_ROWS;
     if first == last {
-        return render_painter(faces, image);
+        painter_rows(faces, image, drawn, 0..SCREEN_HEIGHT);
+        return faces.counts();
     }
     for untested in [0..first * BAND_ROWS, last * BAND_ROWS..SCREEN_HEIGHT] {
         if !untested.is_empty() {
-            painter_rows(faces, image, untested);
+            painter_rows(faces, image, drawn, untested);
         }
     }
-    depth_test_bands(image, band, first..last, |image, band, clip| {
+    depth_test_bands(band, drawn, first..last, |band, drawn, clip| {
         let rows = clip.y0..clip.y1;
         for face in faces.all() {
             if let (true, Some(plane)) = (face.meets_rows(&rows), &face.depth_plane) {
-                fill_nearer(image, band, clip, face.polygon(), plane, face.colour);
+                fill_nearer(image, drawn, band, clip, face.polygon(), plane, face.colour);
             }
         }
         faces.counts()
     })
 }
 
+/// Back to the background wherever `drawn` marks, and nothing marked.
+fn erase(image: &mut PageImage, drawn: &mut PageSpans) {
+    drawn.fill(image, BACKGROUND);
+    drawn.clear();
+}
+
 /// The depth-tested drawing of `render_with_depth`, on every row, for any
 /// set of objects: `faces` is called once per band, with the band's rows,
 /// and must hand every face that survived backface removal — it may leave
 /// out those that miss the band's rows — with its colour, to the function it
-/// is given. The counts of the first band are returned.
+/// is given. The counts of the first band are returned. `drawn` is as for
+/// [`render_with_depth`].
 pub fn render_faces_with_depth(
     image: &mut PageImage,
+    drawn: &mut PageSpans,
     band: &mut DepthBand,
     mut faces: impl FnMut(ClipRect, &mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
 ) -> FaceCounts {
-    depth_test_bands(image, band, 0..BANDS, |image, band, clip| {
-        faces(clip, &mut move |visible, colour| {
+    erase(image, drawn);
+    depth_test_bands(band, drawn, 0..BANDS, |band, drawn, clip| {
+        faces(clip, &mut |visible, colour| {
             if let Some(plane) = visible.depth_plane() {
-                fill_nearer(image, band, clip, visible.polygon, &plane, colour);
+                fill_nearer(image, drawn, band, clip, visible.polygon, &plane, colour);
             }
         })
     })
 }
 
-/// The bands in `bands`, one after the other: each band's rows are cleared
-/// to the background, then `draw_band` draws into them with the depth test;
-/// the rest of `image` is left as it is. Returns what `draw_band` counted in
-/// the first band.
+/// The bands in `bands`, one after the other: each band starts with
+/// nothing drawn, then `draw_band` draws into its rows with the depth test,
+/// marking in `drawn` every span it tests; then the band's depths are
+/// cleared at those marks. Returns what `draw_band` counted in the first
+/// band.
 fn depth_test_bands(
-    image: &mut PageImage,
     band: &mut DepthBand,
+    drawn: &mut PageSpans,
     bands: Range<i32>,
-    mut draw_band: impl FnMut(&mut PageImage, &mut DepthBand, ClipRect) -> FaceCounts,
+    mut draw_band: impl FnMut(&mut DepthBand, &mut PageSpans, ClipRect) -> FaceCounts,
 ) -> FaceCounts {
     let mut counts = None;
     for index in bands {
         band.start(index);
         let clip = band.clip();
-        let rows = (clip.y0 * SCREEN_WIDTH) as usize..(clip.y1 * SCREEN_WIDTH) as usize;
-        image[rows].fill(BACKGROUND);
-        let band_counts = draw_band(image, band, clip);
+        let band_counts = draw_band(band, drawn, clip);
+        band.clear(drawn);
         counts.get_or_insert(band_counts);
     }
     counts.unwrap_or_default()
@@ -151,6 +168,7 @@ fn depth_test_bands(
 #[inline(always)]
 fn fill_nearer(
     image: &mut PageImage,
+    drawn: &mut PageSpans,
     band: &mut DepthBand,
     clip: ClipRect,
     polygon: &[Point],
@@ -159,6 +177,7 @@ fn fill_nearer(
 ) {
     fill_convex_polygon(polygon, clip, |y, x_start, x_end| {
         let row = (y * SCREEN_WIDTH) as usize;
+        drawn.mark(y as usize, x_start as usize..x_end as usize);
         let pixels = &mut image[row + x_start as usize..row + x_end as usize];
         band.test_span(plane, y, x_start, pixels, colour);
     });
@@ -169,15 +188,14 @@ fn fill_nearer(
 /// depth test. Exact only for convex objects that do not interpenetrate.
 /// Returns the faces' counts.
 pub fn render_painter(faces: Faces<'_>, image: &mut PageImage) -> FaceCounts {
-    painter_rows(faces, image, 0..SCREEN_HEIGHT);
+    image.fill(BACKGROUND);
+    painter_rows(faces, image, &mut PageSpans::none(), 0..SCREEN_HEIGHT);
     faces.counts()
 }
 
-/// `render_painter` for the rows in `rows` only; the rest of `image` is left
-/// as it is.
-fn painter_rows(faces: Faces<'_>, image: &mut PageImage, rows: Range<i32>) {
-    image[(rows.start * SCREEN_WIDTH) as usize..(rows.end * SCREEN_WIDTH) as usize]
-        .fill(BACKGROUND);
+/// The faces far to near over the rows in `rows` only, each span marked in
+/// `drawn`; the rest of `image` is left as it is.
+fn painter_rows(faces: Faces<'_>, image: &mut PageImage, drawn: &mut PageSpans, rows: Range<i32>) {
     let clip = ClipRect {
         y0: rows.start,
         y1: rows.end,
@@ -187,6 +205,7 @@ fn painter_rows(faces: Faces<'_>, image: &mut PageImage, rows: Range<i32>) {
         for face in object {
             fill_convex_polygon(face.polygon(), clip, |y, x_start, x_end| {
                 let row = (y * SCREEN_WIDTH) as usize;
+                drawn.mark(y as usize, x_start as usize..x_end as usize);
                 image[row + x_start as usize..row + x_end as usize].fill(face.colour);
             });
         }
@@ -263,16 +282,24 @@ mod tests {
             let faces = list.faces();
             let rows = rows_needing_depth_test(faces).expect("the test somewhere");
             assert!(rows.start > 0 && rows.end < SCREEN_HEIGHT, "{rows:?}");
-            let counts = render_faces_with_depth(&mut everywhere, &mut band, |_, draw| {
-                let mut counts = FaceCounts::default();
-                for object in &mut objects {
-                    counts +=
-                        object.each_visible_face(|visible| draw(visible, visible.face.colour));
-                }
-                counts
-            });
+            let counts = render_faces_with_depth(
+                &mut everywhere,
+                &mut PageSpans::all(),
+                &mut band,
+                |_, draw| {
+                    let mut counts = FaceCounts::default();
+                    for object in &mut objects {
+                        counts +=
+                            object.each_visible_face(|visible| draw(visible, visible.face.colour));
+                    }
+                    counts
+                },
+            );
             assert_eq!(counts, faces.counts());
-            assert_eq!(render_with_depth(faces, &mut mixed, &mut band), counts);
+            assert_eq!(
+                render_with_depth(faces, &mut mixed, &mut PageSpans::all(), &mut band),
+                counts
+            );
             assert!(mixed.iter().any(|&pixel| pixel != BACKGROUND));
             assert!(everywhere == mixed);
         }
