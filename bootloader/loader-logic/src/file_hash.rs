@@ -242,11 +242,10 @@ impl Sha256 {
             self.compress(&block);
             self.in_block = 0;
         }
-        let mut blocks = bytes.chunks_exact(64);
-        for block in &mut blocks {
-            self.compress(block.try_into().expect("64 bytes"));
+        let (blocks, rest) = bytes.as_chunks::<64>();
+        for block in blocks {
+            self.compress(block);
         }
-        let rest = blocks.remainder();
         self.block[..rest.len()].copy_from_slice(rest);
         self.in_block = rest.len();
     }
@@ -261,16 +260,16 @@ impl Sha256 {
         padding[1 + zeros..9 + zeros].copy_from_slice(&bits.to_be_bytes());
         self.update(&padding[..9 + zeros]);
         let mut out = [0; 32];
-        for (chunk, word) in out.chunks_exact_mut(4).zip(self.state) {
-            chunk.copy_from_slice(&word.to_be_bytes());
+        for (chunk, word) in out.as_chunks_mut::<4>().0.iter_mut().zip(self.state) {
+            *chunk = word.to_be_bytes();
         }
         out
     }
 
     fn compress(&mut self, block: &[u8; 64]) {
         let mut schedule = [0u32; 64];
-        for (word, bytes) in schedule.iter_mut().zip(block.chunks_exact(4)) {
-            *word = u32::from_be_bytes([bytes[0], bytes[1], bytes[2], bytes[3]]);
+        for (word, bytes) in schedule.iter_mut().zip(block.as_chunks::<4>().0) {
+            *word = u32::from_be_bytes(*bytes);
         }
         for at in 16..64 {
             let a = schedule[at - 15];
