@@ -437,10 +437,6 @@ pub fn pe_section<'a>(pe: &'a [u8], name: &str) -> Option<&'a [u8]> {
     pe.get(pe_section_range(pe, name)?)
 }
 
-/// The section the UEFI loader keeps the kernel file's SHA-256 in
-/// (bootloader/uefi/src/main.rs, `KERNEL_SHA256`).
-pub const KERNEL_HASH_SECTION: &str = ".khash";
-
 /// The SHA-256 of `bytes`.
 pub fn sha256(bytes: &[u8]) -> [u8; 32] {
     use sha2::Digest;
@@ -453,11 +449,27 @@ pub fn sha256(bytes: &[u8]) -> [u8; 32] {
 /// checked it.
 pub const CERT_HASH_SECTION: &str = ".kcert";
 
-/// The loader with `kernel_sha256` in its [`KERNEL_HASH_SECTION`]: written
-/// before the loader is signed, so the signature covers it, and no rebuild
-/// of the loader is needed for a new kernel.
+/// The kernel file's SHA-256 as the loader carries it, in its hash slot
+/// (`loader_logic::file_hash`), or `None` for a loader without one.
+pub fn loader_kernel_hash(loader: &[u8]) -> Option<[u8; 32]> {
+    let slot = loader_logic::file_hash::slot_of(loader).ok()?;
+    Some(slot.hashes[loader_logic::file_hash::File::Kernel as usize])
+}
+
+/// The loader with `kernel_sha256` in its hash slot. The image build has
+/// written the same hash there already (every stick is checked, issue 48);
+/// written again before signing, so that the signature surely covers the
+/// hash of the kernel on this stick, and no rebuild of the loader is needed
+/// for a new kernel.
 pub fn with_kernel_hash(loader: &[u8], kernel_sha256: &[u8; 32]) -> Result<Vec<u8>> {
-    with_section_bytes(loader, KERNEL_HASH_SECTION, kernel_sha256)
+    use loader_logic::file_hash::{self, File};
+    let mut patched = loader.to_vec();
+    let mut slot = file_hash::slot_of(loader)
+        .map_err(|why| SecureBootError::Esp(format!("the UEFI loader: {why}")))?;
+    slot.hashes[File::Kernel as usize] = *kernel_sha256;
+    file_hash::patch(&mut patched, &slot.hashes)
+        .map_err(|why| SecureBootError::Esp(format!("the UEFI loader: {why}")))?;
+    Ok(patched)
 }
 
 /// The loader with `cert_sha256` in its [`CERT_HASH_SECTION`], written

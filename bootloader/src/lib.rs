@@ -35,6 +35,7 @@ use anyhow::Context;
 use tempfile::NamedTempFile;
 
 use crate::file_data_source::FileDataSource;
+use loader_logic::file_hash;
 pub use bootloader_boot_config::BootConfig;
 
 const KERNEL_FILE_NAME: &str = "kernel-x86_64";
@@ -50,6 +51,13 @@ const UEFI_IA32_BOOTLOADER: &[u8] = include_bytes!(env!("UEFI_IA32_BOOTLOADER_PA
 const BIOS_BOOT_SECTOR: &[u8] = include_bytes!(env!("BIOS_BOOT_SECTOR_PATH"));
 #[cfg(feature = "bios")]
 const BIOS_STAGE_2: &[u8] = include_bytes!(env!("BIOS_STAGE_2_PATH"));
+/// Patched: the BIOS second stage, to be placed in the partition that the
+/// first MBR entry describes (type 0x20), the FAT partition in the next entry.
+#[cfg(feature = "bios")]
+pub fn bios_stage_2() -> &'static [u8] {
+    BIOS_STAGE_2
+}
+
 #[cfg(feature = "bios")]
 const BIOS_STAGE_3: &[u8] = include_bytes!(env!("BIOS_STAGE_3_PATH"));
 #[cfg(feature = "bios")]
@@ -62,12 +70,6 @@ pub fn bios_boot_sector() -> &'static [u8] {
     BIOS_BOOT_SECTOR
 }
 
-/// Patched: the BIOS second stage, to be placed in the partition that the
-/// first MBR entry describes (type 0x20), the FAT partition in the next entry.
-#[cfg(feature = "bios")]
-pub fn bios_stage_2() -> &'static [u8] {
-    BIOS_STAGE_2
-}
 
 /// Allows creating disk images for a specified set of files.
 ///
@@ -123,6 +125,32 @@ impl DiskImageBuilder {
         self.set_file_source(destination.into(), FileDataSource::File(file_path))
     }
 
+    /// Patched (issue 48): the SHA-256 of each file a loader checks, in
+    /// `loader_logic::file_hash::File` order.
+    fn file_hashes(&self) -> anyhow::Result<[[u8; 32]; file_hash::File::COUNT]> {
+        let kernel = self
+            .files
+            .get(KERNEL_FILE_NAME)
+            .context("no kernel file was set")?;
+        let mut kernel_bytes = Vec::new();
+        kernel.copy_to(&mut kernel_bytes)?;
+        let mut hashes = [[0; 32]; file_hash::File::COUNT];
+        hashes[file_hash::File::Kernel as usize] = file_hash::sha256(&kernel_bytes);
+        #[cfg(feature = "bios")]
+        {
+            hashes[file_hash::File::Stage4 as usize] = file_hash::sha256(BIOS_STAGE_4);
+        }
+        Ok(hashes)
+    }
+
+    /// Patched (issue 48): `loader` with the files' hashes in its slot.
+    fn with_hashes(&self, loader: &[u8], name: &str) -> anyhow::Result<FileDataSource> {
+        let mut patched = loader.to_vec();
+        file_hash::patch(&mut patched, &self.file_hashes()?)
+            .map_err(|why| anyhow::anyhow!("{name}: {why}"))?;
+        Ok(FileDataSource::Data(patched))
+    }
+
     #[cfg(feature = "bios")]
     /// Create an MBR disk image for booting on BIOS systems.
     pub fn create_bios_image(&self, image_path: &Path) -> anyhow::Result<()> {
@@ -174,7 +202,10 @@ impl DiskImageBuilder {
         const UEFI_BOOT_FILENAME: &str = "efi/boot/bootx64.efi";
 
         let mut internal_files = BTreeMap::new();
-        internal_files.insert(UEFI_BOOT_FILENAME, FileDataSource::Bytes(UEFI_BOOTLOADER));
+        internal_files.insert(
+            UEFI_BOOT_FILENAME,
+            self.with_hashes(UEFI_BOOTLOADER, UEFI_BOOT_FILENAME)?, // Patched (issue 48)
+        );
         self.create_fat_filesystem_image(internal_files, partition_path)
             .context("failed to create FAT partition")?;
 
@@ -189,13 +220,14 @@ impl DiskImageBuilder {
     /// (`efi/boot/bootia32.efi`), which needs stage 4 from this partition.
     pub fn create_bios_uefi_fat_partition(&self, partition_path: &Path) -> anyhow::Result<()> {
         let mut internal_files = BTreeMap::new();
+        // Patched (issue 48): each loader with the hashes of what it starts.
         internal_files.insert(
             "efi/boot/bootx64.efi",
-            FileDataSource::Bytes(UEFI_BOOTLOADER),
+            self.with_hashes(UEFI_BOOTLOADER, "bootx64.efi")?,
         );
         internal_files.insert(
             "efi/boot/bootia32.efi",
-            FileDataSource::Bytes(UEFI_IA32_BOOTLOADER), // Patched (issue 38)
+            self.with_hashes(UEFI_IA32_BOOTLOADER, "bootia32.efi")?, // Patched (issue 38)
         );
         internal_files.insert("boot-stage-3", FileDataSource::Bytes(BIOS_STAGE_3));
         internal_files.insert("boot-stage-4", FileDataSource::Bytes(BIOS_STAGE_4));
@@ -213,7 +245,10 @@ impl DiskImageBuilder {
             .with_context(|| format!("failed to create out dir at {}", tftp_path.display()))?;
 
         let to = tftp_path.join(UEFI_TFTP_BOOT_FILENAME);
-        fs::write(&to, UEFI_BOOTLOADER).with_context(|| {
+        let mut loader = Vec::new(); // Patched (issue 48): with the kernel's hash
+        self.with_hashes(UEFI_BOOTLOADER, UEFI_TFTP_BOOT_FILENAME)?
+            .copy_to(&mut loader)?;
+        fs::write(&to, loader).with_context(|| {
             format!(
                 "failed to copy bootloader from the embedded binary to {}",
                 to.display()

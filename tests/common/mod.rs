@@ -528,9 +528,17 @@ pub fn doubled(picture: &RgbImage) -> RgbImage {
 }
 
 /// The disk image `disk` with one bit of one byte in the middle of the
-/// kernel file on its ESP flipped: a kernel the signed loader must refuse.
-#[allow(dead_code)] // used by the Secure Boot test files only
+/// kernel file on its ESP flipped: a kernel the loaders must refuse.
+#[allow(dead_code)] // used by some test files only
 pub fn with_a_kernel_byte_changed(disk: &[u8]) -> Vec<u8> {
+    with_a_file_byte_changed(disk, boot::secure_boot::KERNEL_FILE_NAME)
+}
+
+/// The disk image `disk` with one bit of one byte in the middle of file
+/// `name` on its ESP flipped, as a stick that rots or a firmware that
+/// hands back wrong bytes as a good read.
+#[allow(dead_code)] // used by some test files only
+pub fn with_a_file_byte_changed(disk: &[u8], name: &str) -> Vec<u8> {
     use boot::secure_boot as sb;
     use std::io::{Read, Seek, SeekFrom, Write};
     let mut disk = disk.to_vec();
@@ -542,7 +550,7 @@ pub fn with_a_kernel_byte_changed(disk: &[u8]) -> Vec<u8> {
     let mut esp = std::io::Cursor::new(disk[esp_range.clone()].to_vec());
     {
         let fs = fatfs::FileSystem::new(&mut esp, fatfs::FsOptions::new()).unwrap();
-        let mut file = fs.root_dir().open_file(sb::KERNEL_FILE_NAME).unwrap();
+        let mut file = fs.root_dir().open_file(name).unwrap();
         let middle = file.seek(SeekFrom::End(0)).unwrap() / 2;
         file.seek(SeekFrom::Start(middle)).unwrap();
         let mut byte = [0u8];

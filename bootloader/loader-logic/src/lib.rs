@@ -4,6 +4,8 @@
 //!
 //! - [`gop`]: which UEFI Graphics Output Protocol instance to draw on.
 //! - [`e820`]: the BIOS INT 15h, AX=E820h memory-map walk and how it ends.
+//! - [`file_hash`]: the SHA-256 of each file a loader starts, where the
+//!   build writes it, and the words of a mismatch.
 //! - [`file_read`]: reading a file through UEFI, one more try, the words of
 //!   a failure.
 //! - [`identity_map`]: what the UEFI loader's own page tables map.
@@ -14,6 +16,7 @@
 #![no_std]
 
 pub mod e820;
+pub mod file_hash;
 pub mod file_read;
 pub mod gop;
 pub mod identity_map;

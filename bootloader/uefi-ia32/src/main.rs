@@ -25,6 +25,7 @@ use bootloader_x86_64_bios_common::{
 use core::fmt::{self, Write as _};
 use core::ptr::{self, NonNull};
 use core::time::Duration;
+use loader_logic::file_hash::{self, HashSlot};
 use loader_logic::uefi_map::{self, E820Entry, UefiRegion};
 use uefi::boot::{self, AllocateType, MemoryType};
 use uefi::proto::console::gop::{GraphicsOutput, PixelFormat as GopPixelFormat};
@@ -64,6 +65,9 @@ fn main() -> Status {
 
     let stage_4 = read_file(STAGE_4_FILE, Placement::Stage4).unwrap_or_else(|why| stop(why));
     let kernel = read_file(KERNEL_FILE, Placement::Below4Gib).unwrap_or_else(|why| stop(why));
+    // Issue 48: both checked before anything of them runs.
+    check_hash(file_hash::File::Stage4, stage_4);
+    check_hash(file_hash::File::Kernel, kernel);
     let config = match read_file(CONFIG_FILE, Placement::Below4Gib) {
         Ok(region) => region,
         Err(Failure::NotFound(_)) => Region { start: 0, len: 0 },
@@ -287,10 +291,36 @@ fn console_available() -> bool {
     })
 }
 
+/// The SHA-256 of stage 4 and of the kernel file, written into this slot of
+/// the PE file by the image build (`bootloader/src/lib.rs`,
+/// `loader_logic::file_hash`), as for the 64-bit loader (issue 48).
+static FILE_HASHES: HashSlot = HashSlot::EMPTY;
+
+/// The file in `region`, as read, against [`FILE_HASHES`]: the firmware may
+/// hand back wrong bytes as a good read. A mismatch is a stop.
+fn check_hash(file: file_hash::File, region: Region) {
+    // SAFETY: a read of a static of plain bytes. Volatile, so that the
+    // compiler cannot fold in the zeros it was built with: the image build
+    // writes the hashes into the file.
+    let expected = unsafe { ptr::read_volatile(&raw const FILE_HASHES) };
+    // SAFETY: `region` is the file as `read_file` read it into pages of our
+    // loader data, below 4 GiB; read only.
+    let bytes =
+        unsafe { core::slice::from_raw_parts(region.start as usize as *const u8, region.len as usize) };
+    if let Err(mismatch) = expected.check(file, file_hash::sha256(bytes)) {
+        wait_forever(format_args!("{mismatch}\n"));
+    }
+}
+
 /// Says why on the screen and COM1 and waits for good: the firmware's
 /// stall, a second at a time (the watchdog is off); never a reset.
 fn stop(why: Failure) -> ! {
-    say(format_args!("loader: stopped: {why}\n"));
+    wait_forever(format_args!("loader: stopped: {why}\n"))
+}
+
+/// Says `line` on the screen and COM1 and waits for good (see [`stop`]).
+fn wait_forever(line: fmt::Arguments) -> ! {
+    say(line);
     loop {
         boot::stall(Duration::from_secs(1));
     }

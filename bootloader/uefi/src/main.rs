@@ -10,6 +10,7 @@ use bootloader_x86_64_common::{
 };
 use core::net::Ipv4Addr;
 use core::{ptr, slice};
+use loader_logic::file_hash::{self, HashSlot};
 use uefi::mem::memory_map::{MemoryMap, MemoryMapMut};
 use uefi::table::cfg::ConfigTableEntry;
 use uefi::{
@@ -187,49 +188,30 @@ fn load_config_file(boot_mode: BootMode) -> Option<&'static mut [u8]> {
 
 fn load_kernel(boot_mode: BootMode) -> Option<Kernel<'static>> {
     let kernel_slice = load_file_from_boot_method(&KERNEL_FILE, boot_mode)?;
-    check_kernel_hash(kernel_slice); // Patched (issue 32)
+    check_kernel_hash(kernel_slice); // Patched (issues 32, 48)
     Some(Kernel::parse(kernel_slice))
 }
 
-/// Patched (issue 32): the SHA-256 of the only kernel file this loader
-/// starts, written into this section of the PE file by the runner before it
-/// signs the loader (boot/secure_boot.rs), so the signature covers it. All
-/// zeros: no hash was given (the unsigned images), and any kernel starts.
-#[used]
-#[unsafe(link_section = ".khash")]
-static KERNEL_SHA256: [u8; 32] = [0; 32];
+/// Patched (issues 32, 48): the SHA-256 of the kernel file this loader
+/// starts, written into this slot of the PE file by the image build
+/// (`bootloader/src/lib.rs`, `loader_logic::file_hash`), so every stick
+/// carries it; on the signed stick the signature covers it.
+static FILE_HASHES: HashSlot = HashSlot::EMPTY;
 
-/// Patched (issue 32): compares the kernel file with [`KERNEL_SHA256`]
-/// before anything of it runs; a mismatch is shown on the screen and COM1,
-/// left there for a minute, and the machine is switched off.
+/// Patched (issues 32, 48): compares the kernel file with [`FILE_HASHES`]
+/// before anything of it runs. The firmware may hand back wrong bytes as a
+/// good read (OVMF's AHCI driver, for a sector that keeps failing); a
+/// mismatch is said on the screen and COM1 and the loader stops, without a
+/// reset (`stop`).
 fn check_kernel_hash(kernel: &[u8]) {
-    use sha2::{Digest, Sha256};
     // SAFETY: a read of a static of plain bytes. Volatile, so that the
-    // compiler cannot fold in the zeros it was built with: the runner
+    // compiler cannot fold in the zeros it was built with: the build
     // changes them in the file.
-    let expected = unsafe { ptr::read_volatile(&raw const KERNEL_SHA256) };
-    if expected == [0; 32] {
-        return;
+    let expected = unsafe { ptr::read_volatile(&raw const FILE_HASHES) };
+    match expected.check(file_hash::File::Kernel, file_hash::sha256(kernel)) {
+        Ok(()) => write_com1(format_args!("loader: kernel SHA-256 matches the loader's\n")),
+        Err(mismatch) => stop(format_args!("{mismatch}")),
     }
-    let actual: [u8; 32] = Sha256::digest(kernel).into();
-    if actual == expected {
-        write_com1(format_args!(
-            "loader: kernel SHA-256 matches the signed loader's\n"
-        ));
-        return;
-    }
-    let message = format_args!(
-        "loader: kernel refused: kernel-x86_64 is not the kernel this loader was signed for \
-         (its SHA-256 differs); write the stick again. Switching off in 60 s.\n"
-    );
-    write_com1(message);
-    uefi_print(message);
-    boot::stall(core::time::Duration::from_secs(60));
-    uefi::runtime::reset(
-        uefi::runtime::ResetType::SHUTDOWN,
-        Status::SECURITY_VIOLATION,
-        None,
-    );
 }
 
 fn load_file_from_boot_method(

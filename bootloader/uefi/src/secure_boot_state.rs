@@ -16,7 +16,7 @@ use uefi::{CStr16, Status, boot, boot::MemoryType, cstr16, guid};
 
 /// Patched (issue 39): the SHA-256 of the certificate (DER) that signs this
 /// loader, written into this section by the runner before it signs the
-/// loader (boot/secure_boot.rs), like `.khash`. All zeros: not a signed
+/// loader (boot/secure_boot.rs). All zeros: not a signed
 /// stick's loader, and no database is searched.
 #[used]
 #[unsafe(link_section = ".kcert")]
@@ -102,8 +102,7 @@ fn key_in_database(name: &CStr16, vendor: &VariableVendor, cert_sha256: &[u8; 32
 }
 
 fn sha256(bytes: &[u8]) -> [u8; 32] {
-    use sha2::{Digest, Sha256};
-    Sha256::digest(bytes).into()
+    loader_logic::file_hash::sha256(bytes)
 }
 
 /// Patched (issue 39): the record, read now, in a page of its own, for the
