@@ -444,6 +444,8 @@ pub struct QemuOptions {
     /// With UEFI: boot OVMF's Secure Boot build
     /// ([`crate::secure_boot::OVMF_SECURE_BOOT_CODE`]) on a Q35 with SMM,
     /// its variables in this file (read and written: enrolled keys stay).
+    /// With 32-bit UEFI (always the Secure Boot build): its variables in
+    /// this file instead of a fresh copy of the empty [`OVMF32_VARS`].
     pub secure_boot_vars: Option<PathBuf>,
     /// QEMU's `-cpu` value, when not the board's default (for example
     /// `qemu64,-nx`: a CPU without the no-execute bit).
@@ -773,15 +775,22 @@ impl Qemu {
             (None, Firmware::Uefi) => {
                 command.args(["-bios", OVMF_CODE]);
             }
-            (_, Firmware::Uefi32) => {
-                // A fresh copy of the empty variables each boot.
-                let vars = scratch.path().join("OVMF32_VARS_4M.fd");
-                std::fs::copy(OVMF32_VARS, &vars).map_err(|e| {
-                    QemuError::Io(format!(
-                        "cannot copy {OVMF32_VARS} to {}: {e}",
-                        vars.display()
-                    ))
-                })?;
+            (given, Firmware::Uefi32) => {
+                // The given variables, else a fresh copy of the empty ones
+                // each boot.
+                let vars = match given {
+                    Some(vars) => vars.clone(),
+                    None => {
+                        let vars = scratch.path().join("OVMF32_VARS_4M.fd");
+                        std::fs::copy(OVMF32_VARS, &vars).map_err(|e| {
+                            QemuError::Io(format!(
+                                "cannot copy {OVMF32_VARS} to {}: {e}",
+                                vars.display()
+                            ))
+                        })?;
+                        vars
+                    }
+                };
                 command
                     .arg("-drive")
                     .arg(format!(

@@ -85,6 +85,8 @@ fn build_uefi_ia32_bootloader() -> PathBuf {
         local_path.clone(),
         manifest_dir.join("bios").join("common"),
         manifest_dir.join("loader-logic"),
+        // Shared with the 64-bit loader by path.
+        manifest_dir.join("uefi/src/secure_boot_state.rs"),
     ] {
         println!("cargo:rerun-if-changed={}", watched.display());
     }

@@ -7,14 +7,19 @@
 //! software VGA's pictures on the GOP's framebuffer; Esc powers the machine
 //! off through ACPI (no isa-debug-exit) and QEMU exits with 0. On a CPU
 //! without long mode the loader says so and waits, the machine neither
-//! resetting nor starting the kernel. The host test of the loader's memory
-//! map is in `bootloader/loader-logic` (`uefi_map`).
+//! resetting nor starting the kernel. The loader hands over the Secure Boot
+//! record as the 64-bit one does (issue 48): the report says "setup mode"
+//! with the empty variables, "off" with keys enrolled and Secure Boot
+//! switched off. The host tests of the loader's memory map and of what each
+//! variable read means are in `bootloader/loader-logic` (`uefi_map`,
+//! `secure_boot`).
 
 mod common;
 
 use boot::qemu::WALL_CLOCK_CEILING;
 use boot::{line, Firmware, Graphics, Qemu, QemuOptions};
 use common::{assert_pictures_equal, presented, BOOT_TIMEOUT};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// 32-bit OVMF boots in well under 30 s here; emulation on a loaded machine
@@ -26,6 +31,10 @@ const IA32_LOADER_LINE: &str = "loader: loading kernel (UEFI IA32)";
 const NO_LONG_MODE: &str = "this PC's CPU has no 64-bit mode; modex-cube needs one";
 
 fn start(cpu: Option<&str>) -> Qemu {
+    start_with(cpu, None)
+}
+
+fn start_with(cpu: Option<&str>, vars: Option<&Path>) -> Qemu {
     let images = boot::images::publish().expect("the build script made the images");
     let mut options = QemuOptions::new(images.hybrid);
     options.firmware = Firmware::Uefi32;
@@ -34,6 +43,7 @@ fn start(cpu: Option<&str>) -> Qemu {
     // RSDP the loader found in UEFI's configuration table.
     options.debug_exit = false;
     options.cpu = cpu.map(str::to_owned);
+    options.secure_boot_vars = vars.map(Path::to_owned);
     Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -125,4 +135,57 @@ fn on_a_cpu_without_long_mode_the_loader_says_so_and_waits() {
         console.matches(NO_LONG_MODE).count(),
         "started once, stopped once (the console and COM1 each say both):\n{console}"
     );
+}
+
+/// The kernel's Secure Boot fact on COM1 at the ready line, booted with
+/// `vars` (or the empty variables).
+fn secure_boot_fact(vars: Option<&Path>) -> String {
+    let mut qemu = start_with(None, vars);
+    let console = qemu
+        .wait_for_serial(line::READY, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    let prefix = format!("{}Secure Boot: ", line::MACHINE_FACT);
+    let fact = console
+        .lines()
+        .find_map(|text| text.trim_end().strip_prefix(&prefix))
+        .unwrap_or_else(|| panic!("no Secure Boot fact:\n{console}"));
+    assert!(
+        console.contains("loader: secure boot state Record"),
+        "the loader says what it read:\n{console}"
+    );
+    fact.to_owned()
+}
+
+#[test]
+fn with_the_empty_variables_the_report_says_setup_mode() {
+    // No platform key: `SetupMode` 1, `SecureBoot` 0.
+    assert_eq!(secure_boot_fact(None), "setup mode");
+}
+
+#[test]
+fn with_keys_enrolled_and_secure_boot_switched_off_the_report_says_off() {
+    // A PC whose setup screen switched Secure Boot off: Microsoft's keys
+    // (a platform key, so not setup mode) and `SecureBootEnable` 0, written
+    // into the empty variables by virt-fw-vars (boot/setup.sh installs it).
+    let tool =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
+    assert!(
+        tool.exists(),
+        "{} is missing: run boot/setup.sh",
+        tool.display()
+    );
+    let scratch = tempfile::tempdir().unwrap();
+    let vars = scratch.path().join("OVMF32_VARS_4M.fd");
+    let output = std::process::Command::new(tool)
+        .args(["--input", boot::qemu::OVMF32_VARS, "--output"])
+        .arg(&vars)
+        .args(["--enroll-microsoft", "--set-false", "SecureBootEnable"])
+        .output()
+        .unwrap();
+    assert!(
+        output.status.success(),
+        "virt-fw-vars: {}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert_eq!(secure_boot_fact(Some(&vars)), "off");
 }

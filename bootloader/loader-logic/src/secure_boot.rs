@@ -248,6 +248,135 @@ pub fn database_holds_cert(
     Ok(found)
 }
 
+/// A firmware variable the record is read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Variable {
+    /// `SecureBoot` (EFI global variable): 1 while signatures are enforced.
+    SecureBoot,
+    /// `SetupMode` (EFI global variable): 1 while there is no platform key.
+    SetupMode,
+    /// Shim's `MokSBStateRT`: set only when the user switched shim's checks
+    /// off.
+    MokSbStateRt,
+    /// The firmware's signature database `db`.
+    Db,
+    /// Shim's `MokListRT`: the user's keys enrolled through MokManager.
+    MokListRt,
+}
+
+/// `EFI_GLOBAL_VARIABLE` (8be4df61-93ca-11d2-aa0d-00e098032b8c) as it lies
+/// in memory.
+const GLOBAL_VARIABLE_GUID: [u8; 16] = [
+    0x61, 0xdf, 0xe4, 0x8b, 0xca, 0x93, 0xd2, 0x11, 0xaa, 0x0d, 0x00, 0xe0, 0x98, 0x03, 0x2b, 0x8c,
+];
+/// `EFI_IMAGE_SECURITY_DATABASE_GUID` (d719b2cb-3d3a-4596-a3bc-dad00e67656f).
+const IMAGE_SECURITY_DATABASE_GUID: [u8; 16] = [
+    0xcb, 0xb2, 0x19, 0xd7, 0x3a, 0x3d, 0x96, 0x45, 0xa3, 0xbc, 0xda, 0xd0, 0x0e, 0x67, 0x65, 0x6f,
+];
+/// Shim's variables' vendor, its lock protocol's GUID
+/// (605dab50-e046-4300-abb6-3dd810dd8b23).
+const SHIM_GUID: [u8; 16] = [
+    0x50, 0xab, 0x5d, 0x60, 0x46, 0xe0, 0x00, 0x43, 0xab, 0xb6, 0x3d, 0xd8, 0x10, 0xdd, 0x8b, 0x23,
+];
+
+impl Variable {
+    /// The variable's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Variable::SecureBoot => "SecureBoot",
+            Variable::SetupMode => "SetupMode",
+            Variable::MokSbStateRt => "MokSBStateRT",
+            Variable::Db => "db",
+            Variable::MokListRt => "MokListRT",
+        }
+    }
+
+    /// Its vendor GUID, as the bytes lie in memory (`EFI_GUID`).
+    pub fn vendor_guid(self) -> [u8; 16] {
+        match self {
+            Variable::SecureBoot | Variable::SetupMode => GLOBAL_VARIABLE_GUID,
+            Variable::Db => IMAGE_SECURITY_DATABASE_GUID,
+            Variable::MokSbStateRt | Variable::MokListRt => SHIM_GUID,
+        }
+    }
+}
+
+/// What `GetVariable` gave.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VariableRead<'a> {
+    /// The variable's bytes (possibly none).
+    Value(&'a [u8]),
+    /// `EFI_NOT_FOUND`: the variable does not exist.
+    NotFound,
+    /// Any other error, or no memory to read it into.
+    Failed,
+}
+
+/// The firmware calls the record is read with; each loader makes them
+/// (`bootloader/uefi/src/secure_boot_state.rs`, shared by both UEFI
+/// loaders) and [`read_record`] decides what they mean.
+pub trait Firmware {
+    /// Reads `variable`, whatever its size, and hands what the read gave to
+    /// `then`.
+    fn read_variable<R>(
+        &mut self,
+        variable: Variable,
+        then: impl FnOnce(VariableRead<'_>) -> R,
+    ) -> R;
+    /// Whether shim's lock protocol is installed: `Unknown` if the lookup
+    /// failed for another reason than there being none.
+    fn shim_lock(&mut self) -> Reading;
+}
+
+/// The record, from what `firmware` answers. `cert_sha256` is the SHA-256
+/// of the certificate that signs the loader (all zeros: not a signed
+/// stick's loader, and no database is read); `sha256` hashes each
+/// certificate of a database.
+pub fn read_record(
+    firmware: &mut impl Firmware,
+    cert_sha256: &[u8; 32],
+    sha256: impl Fn(&[u8]) -> [u8; 32],
+) -> Record {
+    // A boolean; `absent` is the answer when it does not exist (`None`: its
+    // absence is unknown too).
+    let mut boolean = |variable, absent: Option<Reading>| {
+        firmware.read_variable(variable, |read| match read {
+            VariableRead::Value(value) => Reading::of_variable(Some(value)),
+            VariableRead::NotFound => absent.unwrap_or(Reading::Unknown),
+            VariableRead::Failed => Reading::Unknown,
+        })
+    };
+    let secure_boot = boolean(Variable::SecureBoot, None);
+    let setup_mode = boolean(Variable::SetupMode, None);
+    // Shim sets MokSBStateRT only when the user switched its checks off.
+    let shim_validation_off = boolean(Variable::MokSbStateRt, Some(Reading::No));
+    let signed = *cert_sha256 != [0; 32];
+    let mut key_in = |variable| {
+        if !signed {
+            return Key::NotSigned;
+        }
+        firmware.read_variable(variable, |read| match read {
+            VariableRead::Value(value) => match database_holds_cert(value, cert_sha256, &sha256) {
+                Ok(true) => Key::Present,
+                Ok(false) => Key::Absent,
+                Err(MalformedDatabase) => Key::Unknown,
+            },
+            VariableRead::NotFound => Key::Absent,
+            VariableRead::Failed => Key::Unknown,
+        })
+    };
+    let key_in_db = key_in(Variable::Db);
+    let key_in_mok = key_in(Variable::MokListRt);
+    Record {
+        secure_boot,
+        setup_mode,
+        shim: firmware.shim_lock(),
+        shim_validation_off,
+        key_in_db,
+        key_in_mok,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -366,5 +495,133 @@ mod tests {
             database_holds_cert(&huge_header, &head(&ours), head),
             Err(MalformedDatabase)
         );
+    }
+
+    /// A firmware of variables: `None` is a failed read, a missing entry is
+    /// `EFI_NOT_FOUND`; it counts the variables read.
+    struct Variables {
+        values: Vec<(Variable, Option<Vec<u8>>)>,
+        shim: Reading,
+        read: Vec<Variable>,
+    }
+
+    impl Firmware for Variables {
+        fn read_variable<R>(
+            &mut self,
+            variable: Variable,
+            then: impl FnOnce(VariableRead<'_>) -> R,
+        ) -> R {
+            self.read.push(variable);
+            match self.values.iter().find(|(name, _)| *name == variable) {
+                Some((_, Some(value))) => then(VariableRead::Value(value)),
+                Some((_, None)) => then(VariableRead::Failed),
+                None => then(VariableRead::NotFound),
+            }
+        }
+
+        fn shim_lock(&mut self) -> Reading {
+            self.shim
+        }
+    }
+
+    fn firmware(values: &[(Variable, Option<&[u8]>)]) -> Variables {
+        Variables {
+            values: values
+                .iter()
+                .map(|(name, value)| (*name, value.map(Vec::from)))
+                .collect(),
+            shim: Reading::No,
+            read: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn blank_variables_are_setup_mode_and_an_unsigned_loader_reads_no_database() {
+        // OVMF's empty variable store: no platform key, no shim.
+        let mut blank = firmware(&[
+            (Variable::SecureBoot, Some(&[0])),
+            (Variable::SetupMode, Some(&[1])),
+        ]);
+        let record = read_record(&mut blank, &[0; 32], head);
+        assert_eq!(
+            record,
+            Record {
+                secure_boot: Reading::No,
+                setup_mode: Reading::Yes,
+                shim: Reading::No,
+                shim_validation_off: Reading::No,
+                key_in_db: Key::NotSigned,
+                key_in_mok: Key::NotSigned,
+            }
+        );
+        assert!(!blank.read.contains(&Variable::Db), "{:?}", blank.read);
+    }
+
+    #[test]
+    fn a_failed_read_is_unknown_and_absence_is_unknown_where_it_means_nothing() {
+        let ours = [7u8; 40];
+        let mut broken = firmware(&[
+            (Variable::SecureBoot, None),
+            (Variable::MokSbStateRt, Some(&[1])),
+            (Variable::Db, None),
+            (
+                Variable::MokListRt,
+                Some(&list(CERT_X509_GUID, &[], &[&ours])),
+            ),
+        ]);
+        broken.shim = Reading::Unknown;
+        let record = read_record(&mut broken, &head(&ours), head);
+        assert_eq!(
+            record,
+            Record {
+                secure_boot: Reading::Unknown,
+                // Absent: a firmware without `SetupMode` says nothing.
+                setup_mode: Reading::Unknown,
+                shim: Reading::Unknown,
+                shim_validation_off: Reading::Yes,
+                key_in_db: Key::Unknown,
+                key_in_mok: Key::Present,
+            }
+        );
+        // No db, and a damaged MOK list: absent, and unknown.
+        let mut damaged = firmware(&[(Variable::MokListRt, Some(&[1, 2, 3]))]);
+        let record = read_record(&mut damaged, &head(&ours), head);
+        assert_eq!(
+            (record.key_in_db, record.key_in_mok),
+            (Key::Absent, Key::Unknown)
+        );
+    }
+
+    /// An `EFI_GUID`'s bytes from its text form.
+    fn guid(text: &str) -> [u8; 16] {
+        let hex: Vec<u8> = text
+            .split('-')
+            .flat_map(|part| {
+                (0..part.len())
+                    .step_by(2)
+                    .map(move |at| u8::from_str_radix(&part[at..at + 2], 16).unwrap())
+            })
+            .collect();
+        let mut bytes = [0u8; 16];
+        bytes.copy_from_slice(&hex);
+        bytes[..4].reverse();
+        bytes[4..6].reverse();
+        bytes[6..8].reverse();
+        bytes
+    }
+
+    #[test]
+    fn the_variables_vendors_are_the_specifications_guids() {
+        let global = guid("8be4df61-93ca-11d2-aa0d-00e098032b8c");
+        assert_eq!(Variable::SecureBoot.vendor_guid(), global);
+        assert_eq!(Variable::SetupMode.vendor_guid(), global);
+        assert_eq!(
+            Variable::Db.vendor_guid(),
+            guid("d719b2cb-3d3a-4596-a3bc-dad00e67656f")
+        );
+        let shim = guid("605dab50-e046-4300-abb6-3dd810dd8b23");
+        assert_eq!(Variable::MokSbStateRt.vendor_guid(), shim);
+        assert_eq!(Variable::MokListRt.vendor_guid(), shim);
+        assert_eq!(CERT_X509_GUID, guid("a5c059a1-94e4-4aa7-87b5-ab155c2bf072"));
     }
 }

@@ -16,6 +16,9 @@
 #![deny(unsafe_op_in_unsafe_fn)]
 
 mod long_mode;
+// The 64-bit loader's Secure Boot reading, the one copy (issue 48).
+#[path = "../../uefi/src/secure_boot_state.rs"]
+mod secure_boot_state;
 
 // COM1 polled with a bound, and stage 4's span: the BIOS stages' own.
 use bootloader_x86_64_bios_common::{
@@ -75,6 +78,23 @@ fn main() -> Status {
     };
     let framebuffer = framebuffer();
     let rsdp_addr = rsdp();
+    // The Secure Boot record as the kernel's ramdisk, as the 64-bit loader
+    // hands it over (issue 48); without a page the kernel says "unknown".
+    let secure_boot = match secure_boot_state::record_as_ramdisk() {
+        Some((record, page)) => {
+            say(format_args!("loader: secure boot state {record:?}\n"));
+            Region {
+                start: page.as_ptr() as u64,
+                len: page.len() as u64,
+            }
+        }
+        None => {
+            say(format_args!(
+                "loader: no memory for the Secure Boot record; the kernel will say \"unknown\"\n"
+            ));
+            Region { start: 0, len: 0 }
+        }
+    };
 
     // Loader data for what stage 4 reads after boot services: its BiosInfo,
     // the handoff and GDT for the switch, the page tables, its stack.
@@ -174,7 +194,7 @@ fn main() -> Status {
         info.write(BiosInfo {
             stage_4,
             kernel,
-            ramdisk: Region { start: 0, len: 0 },
+            ramdisk: secure_boot,
             config_file: config,
             // Stage 4's allocator starts after it; the rest of the loader's
             // data is kept from it by the map (reserved).

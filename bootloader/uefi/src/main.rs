@@ -115,7 +115,11 @@ fn main() -> Status {
     log::info!("Trying to load ramdisk via {:?}", boot_mode);
     // Ramdisk must load from same source, or not at all.
     // Patched (issue 39): with no ramdisk file, the Secure Boot state record.
-    let ramdisk = load_ramdisk(boot_mode).or_else(secure_boot_state::record_as_ramdisk);
+    let ramdisk = load_ramdisk(boot_mode).or_else(|| {
+        let (record, page) = secure_boot_state::record_as_ramdisk()?;
+        write_com1(format_args!("loader: secure boot state {record:?}\n"));
+        Some(page)
+    });
 
     log::info!(
         "{}",
