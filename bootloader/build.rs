@@ -87,6 +87,7 @@ fn build_uefi_ia32_bootloader() -> PathBuf {
         manifest_dir.join("loader-logic"),
         // Shared with the 64-bit loader by path.
         manifest_dir.join("uefi/src/secure_boot_state.rs"),
+        manifest_dir.join("uefi/src/firmware_console.rs"),
     ] {
         println!("cargo:rerun-if-changed={}", watched.display());
     }

@@ -643,3 +643,49 @@ pub fn usb_keyboards_on(console: &str) -> Vec<(String, String, String)> {
         })
         .collect()
 }
+
+/// Each loader line on `console` (COM1) came exactly once (issue 48): under
+/// OVMF the UEFI console is copied to COM1, so the loaders write COM1
+/// themselves only where it is not. A loader line starts with `loader: `,
+/// after any terminal escapes the console's copy puts before it.
+#[allow(dead_code)] // used by some test files only
+pub fn assert_each_loader_line_once(console: &str) {
+    let mut counts = std::collections::BTreeMap::<&str, usize>::new();
+    for text in console.lines() {
+        let Some(at) = text.find("loader: ") else {
+            continue;
+        };
+        if without_escapes(&text[..at]).is_empty() {
+            *counts.entry(text[at..].trim_end()).or_default() += 1;
+        }
+    }
+    assert!(
+        counts
+            .keys()
+            .any(|text| text.starts_with(line::LOADER_START)),
+        "no loader line:\n{console}"
+    );
+    let repeated: Vec<_> = counts.iter().filter(|(_, &count)| count != 1).collect();
+    assert!(
+        repeated.is_empty(),
+        "loader lines more than once on COM1: {repeated:#?}\n{console}"
+    );
+}
+
+/// `text` without its ANSI escape sequences (ESC [ parameters letter).
+fn without_escapes(text: &str) -> String {
+    let mut out = String::new();
+    let mut chars = text.chars();
+    while let Some(c) = chars.next() {
+        if c == '\x1b' {
+            for c in chars.by_ref() {
+                if c.is_ascii_alphabetic() {
+                    break;
+                }
+            }
+        } else {
+            out.push(c);
+        }
+    }
+    out
+}

@@ -3,6 +3,8 @@
 //! the loaders, which hand their answers in here.
 //!
 //! - [`gop`]: which UEFI Graphics Output Protocol instance to draw on.
+//! - [`console`]: whether a UEFI loader writes a line to COM1 itself or
+//!   the firmware's console already copies it there.
 //! - [`e820`]: the BIOS INT 15h, AX=E820h memory-map walk and how it ends.
 //! - [`file_hash`]: the SHA-256 of each file a loader starts, where the
 //!   build writes it, and the words of a mismatch.
@@ -15,6 +17,7 @@
 //!   memory types as E820 entries.
 #![no_std]
 
+pub mod console;
 pub mod e820;
 pub mod file_hash;
 pub mod file_read;

@@ -19,6 +19,9 @@ mod long_mode;
 // The 64-bit loader's Secure Boot reading, the one copy (issue 48).
 #[path = "../../uefi/src/secure_boot_state.rs"]
 mod secure_boot_state;
+// Whether the firmware copies its console to COM1 (issue 48), the same.
+#[path = "../../uefi/src/firmware_console.rs"]
+mod firmware_console;
 
 // COM1 polled with a bound, and stage 4's span: the BIOS stages' own.
 use bootloader_x86_64_bios_common::{
@@ -278,14 +281,15 @@ impl fmt::Display for Failure {
     }
 }
 
-/// A line on the UEFI console (the screen) and on COM1.
+/// A line on the UEFI console (the screen) and on COM1, once: COM1 is
+/// written here unless the line reached a console that the firmware copies
+/// to COM1 itself (OVMF's; `firmware_console`, issue 48).
 fn say(args: fmt::Arguments) {
-    let _ = serial::Com1.write_fmt(args);
-    if console_available() {
-        uefi::system::with_stdout(|stdout| {
-            // The console wants CR LF.
-            let _ = ConsoleLines(stdout).write_fmt(args);
-        });
+    // The console wants CR LF.
+    let on_console = console_available()
+        && uefi::system::with_stdout(|stdout| ConsoleLines(stdout).write_fmt(args).is_ok());
+    if loader_logic::console::com1_too(on_console, firmware_console::copies_to_com1) {
+        let _ = serial::Com1.write_fmt(args);
     }
 }
 

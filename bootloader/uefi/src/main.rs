@@ -33,6 +33,7 @@ use x86_64::{
 };
 
 mod memory_descriptor;
+mod firmware_console; // Patched (issue 48)
 mod secure_boot_state; // Patched (issue 39)
 
 struct BootFile {
@@ -59,7 +60,7 @@ fn main() -> Status {
 
     // Patched: the loader's first line on COM1 (the logger is not set up
     // yet), so a slow load is no hang and tests can time a boot from it.
-    write_com1(format_args!("loader: loading kernel (UEFI)\n"));
+    say(format_args!("loader: loading kernel (UEFI)"));
     let mut kernel = load_kernel(boot_mode);
     if kernel.is_none() {
         // Try TFTP boot
@@ -117,7 +118,7 @@ fn main() -> Status {
     // Patched (issue 39): with no ramdisk file, the Secure Boot state record.
     let ramdisk = load_ramdisk(boot_mode).or_else(|| {
         let (record, page) = secure_boot_state::record_as_ramdisk()?;
-        write_com1(format_args!("loader: secure boot state {record:?}\n"));
+        say(format_args!("loader: secure boot state {record:?}"));
         Some(page)
     });
 
@@ -213,7 +214,7 @@ fn check_kernel_hash(kernel: &[u8]) {
     // changes them in the file.
     let expected = unsafe { ptr::read_volatile(&raw const FILE_HASHES) };
     match expected.check(file_hash::File::Kernel, file_hash::sha256(kernel)) {
-        Ok(()) => write_com1(format_args!("loader: kernel SHA-256 matches the loader's\n")),
+        Ok(()) => say(format_args!("loader: kernel SHA-256 matches the loader's")),
         Err(mismatch) => stop(format_args!("{mismatch}")),
     }
 }
@@ -243,16 +244,14 @@ fn load_file_from_disk(name: &CStr16) -> Option<&'static mut [u8]> {
                 file: name,
                 failure,
             };
-            write_com1(format_args!("{line}\n"));
-            uefi_print(format_args!("{line}\r\n"));
+            say(format_args!("{line}"));
         },
     );
     match read {
         Ok(read) => {
             if read.retried_after.is_some() {
                 let line = RecoveredLine { file: name };
-                write_com1(format_args!("{line}\n"));
-                uefi_print(format_args!("{line}\r\n"));
+                say(format_args!("{line}"));
             }
             read.value
         }
@@ -327,8 +326,8 @@ fn read_file_once(
     // SAFETY: the pages allocated above, of which nothing is kept.
     if let Err(error) = unsafe { boot::free_pages(start, pages) } {
         // A leak, not a fault: said, and the read goes on failing as it was.
-        write_com1(format_args!(
-            "loader: giving back {pages} pages for {name} failed ({:?})\n",
+        say(format_args!(
+            "loader: giving back {pages} pages for {name} failed ({:?})",
             error.status()
         ));
     }
@@ -340,16 +339,14 @@ fn read_file_once(
 /// The firmware's watchdog (which resets the machine five minutes after it
 /// started a boot option) is switched off first.
 fn stop(message: core::fmt::Arguments) -> ! {
-    write_com1(format_args!("{message}\n"));
-    uefi_print(format_args!("{message}\r\n"));
+    say(message);
     if let Err(error) = boot::set_watchdog_timer(0, 0x10000, None) {
         let line = format_args!(
             "loader: the firmware's watchdog would not switch off ({:?}); it may reset \
              the machine",
             error.status()
         );
-        write_com1(format_args!("{line}\n"));
-        uefi_print(format_args!("{line}\r\n"));
+        say(line);
     }
     loop {
         boot::stall(core::time::Duration::from_secs(1));
@@ -688,8 +685,8 @@ fn choose_gop() -> Option<(uefi::Handle, loader_logic::gop::GopCandidate)> {
             height: info.resolution().1,
             on_console: console.is_some_and(|c| c == handle.as_ptr()),
         };
-        uefi_print(format_args!(
-            "loader: GOP {}: {}x{} {:?}{}: {}\r\n",
+        say(format_args!(
+            "loader: GOP {}: {}x{} {:?}{}: {}",
             count,
             candidate.width,
             candidate.height,
@@ -710,12 +707,22 @@ fn choose_gop() -> Option<(uefi::Handle, loader_logic::gop::GopCandidate)> {
     }
     let chosen = choose(&candidates[..count]);
     match chosen {
-        Some(index) => uefi_print(format_args!("loader: drawing on GOP {index}\r\n")),
-        None => uefi_print(format_args!(
-            "loader: no usable GOP of {count}: booting without a framebuffer\r\n"
+        Some(index) => say(format_args!("loader: drawing on GOP {index}")),
+        None => say(format_args!(
+            "loader: no usable GOP of {count}: booting without a framebuffer"
         )),
     }
     found[chosen?]
+}
+
+/// Patched (issue 48): a loader line on the UEFI console (the screen) and
+/// on COM1, once: COM1 is written here unless the line reached a console
+/// that the firmware copies to COM1 itself (OVMF's; `firmware_console`).
+fn say(line: core::fmt::Arguments) {
+    let on_console = uefi_print(format_args!("{line}\r\n"));
+    if loader_logic::console::com1_too(on_console, firmware_console::copies_to_com1) {
+        write_com1(format_args!("{line}\n"));
+    }
 }
 
 /// Patched: a line on COM1, through the common crate's serial port.
@@ -726,14 +733,11 @@ fn write_com1(args: core::fmt::Arguments) {
     let _ = port.write_fmt(args);
 }
 
-/// Patched: a line on the UEFI console (screen and, under OVMF, serial).
-fn uefi_print(args: core::fmt::Arguments) {
+/// Patched: a line on the UEFI console (screen and, under OVMF, serial);
+/// whether the console took it.
+fn uefi_print(args: core::fmt::Arguments) -> bool {
     use core::fmt::Write;
-    if uefi_stdout_available() {
-        uefi::system::with_stdout(|stdout| {
-            let _ = stdout.write_fmt(args);
-        });
-    }
+    uefi_stdout_available() && uefi::system::with_stdout(|stdout| stdout.write_fmt(args).is_ok())
 }
 
 #[cfg(target_os = "uefi")]
