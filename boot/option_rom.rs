@@ -22,11 +22,19 @@ pub const HOOKED_LINE: &str = "hostile-bios: INT 10h, 13h and 15h hooked";
 /// before it jumps to the MBR it loaded.
 pub const BEV_JUMP_LINE: &str = "hostile-bios: BEV: MBR read, jumping to ";
 
+/// The line the ROM writes to COM1 when, as [`HostileBoot::NoExtensions`],
+/// it refuses INT 13h AH=41h.
+pub const NO_EXTENSIONS_LINE: &str = "hostile-bios: INT 13h AH=41h: no extensions (CF set)";
+
 /// What the ROM does besides hooking the BIOS.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HostileBoot {
     /// Nothing: the firmware boots the disk as usual, through the hooks.
     HooksOnly,
+    /// As `HooksOnly`, but INT 13h is a BIOS without the extensions (LBA
+    /// packet reads): AH=41h returns CF set and AH=01h, never reaching the
+    /// BIOS.
+    NoExtensions,
     /// The ROM is a boot device (a PnP Boot Entry Vector): it reads sector 0
     /// of drive 80h to 0000:7C00 and jumps to `segment:offset` (0000:7C00 or
     /// 07C0:0000) with `drive` in DL and junk in every other register and in
@@ -52,6 +60,7 @@ pub fn build_hostile_bios(dir: &Path, boot: HostileBoot) -> Result<PathBuf, Stri
         .map_err(|e| format!("cannot write {}: {e}", source.display()))?;
     let name = match boot {
         HostileBoot::HooksOnly => "hostile-hooks.rom".to_owned(),
+        HostileBoot::NoExtensions => "hostile-no-extensions.rom".to_owned(),
         HostileBoot::Bev {
             segment,
             offset,
@@ -61,6 +70,9 @@ pub fn build_hostile_bios(dir: &Path, boot: HostileBoot) -> Result<PathBuf, Stri
     let rom = dir.join(name);
     let mut nasm = Command::new(NASM);
     nasm.args(["-f", "bin", "-o"]).arg(&rom);
+    if boot == HostileBoot::NoExtensions {
+        nasm.arg("-DNO_EXTENSIONS=1");
+    }
     if let HostileBoot::Bev {
         segment,
         offset,

@@ -11,6 +11,10 @@
 //! the software VGA's pictures and Esc must power off with success. The
 //! hooks must have run: the ROM says so on COM1 and counts its calls in the
 //! interrupt table (`boot::option_rom::CALL_COUNTERS`), read through QMP.
+//!
+//! A BIOS without the INT 13h extensions (issue 48): the ROM's variant that
+//! fails AH=41h gets the boot sector's message on the screen (the VGA text
+//! buffer, read through QMP) and COM1, and no stage 2.
 
 mod common;
 
@@ -32,7 +36,7 @@ fn start(boot: HostileBoot) -> (Qemu, tempfile::TempDir) {
     options.option_roms.push(OptionRom {
         path: rom,
         bootindex: match boot {
-            HostileBoot::HooksOnly => None,
+            HostileBoot::HooksOnly | HostileBoot::NoExtensions => None,
             HostileBoot::Bev { .. } => Some(0),
         },
     });
@@ -134,11 +138,43 @@ fn a_boot_rom_giving_drive_00_boots_the_cube_from_80() {
     );
 }
 
+/// The boot sector's words for a BIOS without the INT 13h extensions
+/// (`bootloader/bios/boot_sector/src/boot.s`).
+const NO_EXTENSIONS_MESSAGE: &str = "loader: no INT 13h extensions";
+
+#[test]
+fn a_bios_without_int_13h_extensions_gets_the_boot_sectors_message_on_screen() {
+    let (mut qemu, _rom) = start(HostileBoot::NoExtensions);
+    let console = qemu
+        .wait_for_serial(NO_EXTENSIONS_MESSAGE, BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let refused = console
+        .find(option_rom::NO_EXTENSIONS_LINE)
+        .unwrap_or_else(|| panic!("the ROM did not refuse AH=41h:\n{console}"));
+    assert!(
+        refused < console.find(NO_EXTENSIONS_MESSAGE).unwrap(),
+        "{console}"
+    );
+    // On the screen: the boot sector prints through INT 10h's teletype.
+    let screen = qemu.text_screen().unwrap();
+    assert!(
+        screen
+            .lines()
+            .any(|row| row.trim() == NO_EXTENSIONS_MESSAGE),
+        "not on the screen:\n{screen}"
+    );
+    // The boot sector stops there: no stage 2, and no reset (-no-reboot
+    // would end QEMU).
+    assert!(!console.contains(line::LOADER_START), "{console}");
+    assert!(qemu.is_running(), "QEMU ended:\n{console}");
+}
+
 #[test]
 fn the_rom_builds_with_a_valid_checksum_and_pnp_header() {
     let dir = tempfile::tempdir().unwrap();
     for boot in [
         HostileBoot::HooksOnly,
+        HostileBoot::NoExtensions,
         HostileBoot::Bev {
             segment: 0x07C0,
             offset: 0,
@@ -152,6 +188,7 @@ fn the_rom_builds_with_a_valid_checksum_and_pnp_header() {
         let pnp = usize::from(u16::from_le_bytes([rom[0x1A], rom[0x1B]]));
         assert_eq!(&rom[pnp..pnp + 4], b"$PnP");
         let bev = u16::from_le_bytes([rom[pnp + 0x1A], rom[pnp + 0x1B]]);
-        assert_eq!(bev != 0, boot != HostileBoot::HooksOnly, "{boot:?}");
+        let booted = matches!(boot, HostileBoot::Bev { .. });
+        assert_eq!(bev != 0, booted, "{boot:?}");
     }
 }

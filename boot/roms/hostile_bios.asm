@@ -31,6 +31,9 @@
 ; DL=BOOT_DRIVE, and junk in the upper half of ESP and in every other
 ; register (the segment registers DS, ES, FS and GS too). The jump is said on
 ; COM1 first (JUMP_TEXT and DRIVE_TEXT name its target and DL).
+; NO_EXTENSIONS=1 makes INT 13h a BIOS without the extensions (issue 48):
+; AH=41h (installation check) returns CF set and AH=01h (invalid function),
+; counted and said on COM1, without calling the BIOS.
 
 bits 16
 cpu 386
@@ -38,6 +41,9 @@ org 0
 
 %ifndef BEV
 %define BEV 0
+%endif
+%ifndef NO_EXTENSIONS
+%define NO_EXTENSIONS 0
 %endif
 %ifndef JUMP_SEG
 %define JUMP_SEG 0x0000
@@ -170,7 +176,32 @@ hook10:
     HOOK hook10_font, old10, COUNT10, 0, 0
 
 hook13:
+%if NO_EXTENSIONS
+    cmp ah, 0x41                ; are the extensions there?
+    je hook13_no_extensions
+%endif
     HOOK hook13_any, old13, COUNT13, 0, 0
+
+%if NO_EXTENSIONS
+; As a BIOS without them answers: CF set in the flags IRET restores, AH=01h
+; (invalid function), every other register as the caller left it.
+hook13_no_extensions:
+    push bp
+    mov bp, sp                  ; [bp+2]: IP, [bp+4]: CS, [bp+6]: flags
+    or word [ss:bp + 6], 1      ; CF
+    pop bp
+    push ds
+    push si
+    xor si, si
+    mov ds, si
+    inc dword [COUNT13]
+    mov si, msg_no_extensions
+    call say
+    pop si
+    pop ds
+    mov ah, 0x01
+    iret
+%endif
 
 hook15:
     cmp ax, 0xE820              ; SeaBIOS looks at AX alone, so does this
@@ -277,6 +308,9 @@ say:
     ret
 
 msg_hooked: db 'hostile-bios: INT 10h, 13h and 15h hooked', 10, 0
+%if NO_EXTENSIONS
+msg_no_extensions: db 'hostile-bios: INT 13h AH=41h: no extensions (CF set)', 10, 0
+%endif
 
 %if BEV
 ; ---------------------------------------------------------------------------
