@@ -61,21 +61,11 @@ fn microsoft_vars_with(path: &Path, how: Enrolled, key: &SigningKey) -> PathBuf 
         Enrolled::Db => ("--add-db", "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d"),
         Enrolled::Mok => ("--add-mok", "605dab50-e046-4300-abb6-3dd810dd8b23"),
     };
-    let tool =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
-    let status = std::process::Command::new(&tool)
-        .args(["--input", sb::OVMF_MICROSOFT_VARS, "--output"])
-        .arg(path)
-        .args([flag, owner])
-        .arg(&key.cert)
-        .status()
-        .unwrap_or_else(|e| panic!("{}: {e}; boot/setup.sh installs it", tool.display()));
-    assert!(
-        status.success(),
-        "{} {flag} failed: {status}",
-        tool.display()
-    );
-    path.to_owned()
+    common::vars_from(
+        sb::OVMF_MICROSOFT_VARS,
+        path,
+        &[flag.as_ref(), owner.as_ref(), key.cert.as_os_str()],
+    )
 }
 
 fn secure_boot(image: &Path, vars: &Path) -> Qemu {

@@ -41,31 +41,9 @@ fn signed_stick(dir: &Path, key: &SigningKey) -> PathBuf {
     path
 }
 
-fn virt_fw_vars() -> PathBuf {
-    let tool =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
-    assert!(
-        tool.exists(),
-        "{} is missing: run boot/setup.sh",
-        tool.display()
-    );
-    tool
-}
-
 /// OVMF's blank variables with `args` applied by virt-fw-vars, at `path`.
 fn vars(path: &Path, args: &[&std::ffi::OsStr]) -> PathBuf {
-    let output = std::process::Command::new(virt_fw_vars())
-        .args(["--input", OVMF_BLANK_VARS, "--output"])
-        .arg(path)
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "virt-fw-vars {args:?}: {}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    path.to_owned()
+    common::vars_from(OVMF_BLANK_VARS, path, args)
 }
 
 /// Microsoft's keys as a PC of these years ships them, Secure Boot on:
@@ -297,7 +275,7 @@ fn a_db_made_from_the_sticks_esl_in_setup_mode_boots_the_stick() {
     let esl = file_on_disk(&disk, sb::DB_ESL_FILE);
     // The setup-mode store: no PK.
     let setup = vars(&scratch.path().join("setup.fd"), &[]);
-    let listed = std::process::Command::new(virt_fw_vars())
+    let listed = std::process::Command::new(common::virt_fw_vars())
         .arg("--input")
         .arg(&setup)
         .arg("--print")
@@ -320,7 +298,7 @@ fn a_db_made_from_the_sticks_esl_in_setup_mode_boots_the_stick() {
     let json_path = scratch.path().join("db.json");
     std::fs::write(&json_path, json.to_string()).unwrap();
     let with_db = scratch.path().join("with-db.fd");
-    let output = std::process::Command::new(virt_fw_vars())
+    let output = std::process::Command::new(common::virt_fw_vars())
         .arg("--input")
         .arg(&setup)
         .arg("--output")
@@ -336,7 +314,7 @@ fn a_db_made_from_the_sticks_esl_in_setup_mode_boots_the_stick() {
     );
     // Setup left: a platform key (the user's own) and Secure Boot on.
     let enforced = scratch.path().join("enforced.fd");
-    let output = std::process::Command::new(virt_fw_vars())
+    let output = std::process::Command::new(common::virt_fw_vars())
         .arg("--input")
         .arg(&with_db)
         .arg("--output")
@@ -566,7 +544,7 @@ fn with_secure_boot_switched_off_the_report_says_off() {
     let stick = signed_stick(scratch.path(), &key);
     let on = microsoft_2023(&scratch.path().join("uefi23.fd"), "uefi23", &[]);
     let off = scratch.path().join("uefi23-off.fd");
-    let output = std::process::Command::new(virt_fw_vars())
+    let output = std::process::Command::new(common::virt_fw_vars())
         .arg("--input")
         .arg(&on)
         .arg("--output")

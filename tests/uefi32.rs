@@ -168,25 +168,15 @@ fn with_keys_enrolled_and_secure_boot_switched_off_the_report_says_off() {
     // A PC whose setup screen switched Secure Boot off: Microsoft's keys
     // (a platform key, so not setup mode) and `SecureBootEnable` 0, written
     // into the empty variables by virt-fw-vars (boot/setup.sh installs it).
-    let tool =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
-    assert!(
-        tool.exists(),
-        "{} is missing: run boot/setup.sh",
-        tool.display()
-    );
     let scratch = tempfile::tempdir().unwrap();
-    let vars = scratch.path().join("OVMF32_VARS_4M.fd");
-    let output = std::process::Command::new(tool)
-        .args(["--input", boot::qemu::OVMF32_VARS, "--output"])
-        .arg(&vars)
-        .args(["--enroll-microsoft", "--set-false", "SecureBootEnable"])
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "virt-fw-vars: {}",
-        String::from_utf8_lossy(&output.stderr)
+    let vars = common::vars_from(
+        boot::qemu::OVMF32_VARS,
+        &scratch.path().join("OVMF32_VARS_4M.fd"),
+        &[
+            "--enroll-microsoft".as_ref(),
+            "--set-false".as_ref(),
+            "SecureBootEnable".as_ref(),
+        ],
     );
     assert_eq!(secure_boot_fact(Some(&vars)), "off");
 }

@@ -689,3 +689,38 @@ fn without_escapes(text: &str) -> String {
     }
     out
 }
+
+/// virt-fw-vars, which `boot/setup.sh` installs under `target/tools`.
+#[allow(dead_code)] // used by some test files only
+pub fn virt_fw_vars() -> std::path::PathBuf {
+    let tool = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("target/tools/virt-firmware/bin/virt-fw-vars");
+    assert!(
+        tool.exists(),
+        "{} is missing: run boot/setup.sh",
+        tool.display()
+    );
+    tool
+}
+
+/// The OVMF variable store `input` with `args` applied by virt-fw-vars,
+/// written to `output`.
+#[allow(dead_code)] // used by some test files only
+pub fn vars_from(
+    input: &str,
+    output: &std::path::Path,
+    args: &[&std::ffi::OsStr],
+) -> std::path::PathBuf {
+    let result = std::process::Command::new(virt_fw_vars())
+        .args(["--input", input, "--output"])
+        .arg(output)
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        result.status.success(),
+        "virt-fw-vars {args:?}: {}",
+        String::from_utf8_lossy(&result.stderr)
+    );
+    output.to_owned()
+}
