@@ -11,8 +11,9 @@
 //! - [`file_read`]: reading a file through UEFI, one more try, the words of
 //!   a failure.
 //! - [`identity_map`]: what the UEFI loader's own page tables map.
-//! - [`secure_boot`]: the Secure Boot state record the UEFI loader hands to
-//!   the kernel, and the search of a signature database for its certificate.
+//! - [`secure_boot`]: the Secure Boot state record the UEFI loaders hand to
+//!   the kernel, what each variable read means, and the search of a
+//!   signature database for the loader's certificate.
 //! - [`uefi_map`]: the 32-bit UEFI loader's memory map for stage 4, UEFI
 //!   memory types as E820 entries.
 #![no_std]
