@@ -6,7 +6,7 @@
 
 mod common;
 
-use boot::secure_boot::{self as sb, Route, SecureBootError, SigningKey};
+use boot::secure_boot::{self as sb, KeySet, Route, SecureBootError, SigningKey};
 use boot::{Board, Firmware, Qemu, QemuOptions};
 use demo::command::{Command, SceneCommand};
 use std::path::{Path, PathBuf};
@@ -37,13 +37,6 @@ fn signed_stick(dir: &Path, key: &SigningKey, route: Route) -> PathBuf {
     path
 }
 
-/// A fresh copy of OVMF's variables with Microsoft's keys, in `dir`.
-fn microsoft_vars(dir: &Path) -> PathBuf {
-    let vars = dir.join("OVMF_VARS_4M.ms.fd");
-    std::fs::copy(sb::OVMF_MICROSOFT_VARS, &vars).expect("OVMF is installed (boot/setup.sh)");
-    vars
-}
-
 /// Where a certificate is enrolled in a copy of OVMF's variables.
 #[derive(Clone, Copy)]
 enum Enrolled {
@@ -58,11 +51,10 @@ enum Enrolled {
 /// `path`.
 fn microsoft_vars_with(path: &Path, how: Enrolled, key: &SigningKey) -> PathBuf {
     let (flag, owner) = match how {
-        Enrolled::Db => ("--add-db", "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d"),
-        Enrolled::Mok => ("--add-mok", "605dab50-e046-4300-abb6-3dd810dd8b23"),
+        Enrolled::Db => ("--add-db", sb::KEY_OWNER_GUID),
+        Enrolled::Mok => ("--add-mok", sb::SHIM_LOCK_GUID),
     };
-    let tool =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
+    let tool = sb::virt_fw_vars().unwrap_or_else(|e| panic!("{e}"));
     let status = std::process::Command::new(&tool)
         .args(["--input", sb::OVMF_MICROSOFT_VARS, "--output"])
         .arg(path)
@@ -351,16 +343,20 @@ fn with_our_certificate_in_db_the_loader_boots_without_shim() {
         .unwrap();
 }
 
-/// A first boot on a PC that trusts only Microsoft: shim refuses the loader
+/// A first boot on a PC that trusts only Microsoft's 2011 keys, the
+/// runner's plain `--secure-boot` (`2011`): shim refuses the loader
 /// ("Verification failed") and starts MokManager, where the user enrolls the
 /// stick's certificate with the keyboard alone; the next boot, Secure Boot
-/// still enforced, reaches the cube, whose keys work, and Esc powers off.
+/// still enforced, reaches the cube, the report says "on (shim, your key)",
+/// its keys work, and Esc powers off.
 #[test]
-fn microsoft_keys_only_mokmanager_enrolls_the_key_then_the_cube_boots() {
+fn key_set_2011_mokmanager_enrolls_the_key_then_the_cube_boots() {
     let scratch = tempfile::tempdir().unwrap();
     let key = test_key(&scratch.path().join("key"));
     let stick = signed_stick(scratch.path(), &key, Route::Shim);
-    let vars = microsoft_vars(scratch.path());
+    let (vars, enrolled) = sb::runner_vars(scratch.path(), KeySet::Microsoft2011, &stick)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(!enrolled);
     assert!(!sb::is_enrolled(
         &std::fs::read(&vars).unwrap(),
         &key.cert_der
@@ -413,6 +409,14 @@ fn microsoft_keys_only_mokmanager_enrolls_the_key_then_the_cube_boots() {
     assert!(
         console.contains("loader: kernel SHA-256 matches the loader's"),
         "{console}"
+    );
+    let fact = format!(
+        "{}Secure Boot: on (shim, your key)",
+        boot::line::MACHINE_FACT
+    );
+    assert!(
+        console.lines().any(|text| text.trim_end() == fact),
+        "no {fact:?} in {console}"
     );
     save_screen(&mut qemu, "9-the-cube.png");
     common::after_each_key_on(
