@@ -343,6 +343,97 @@ fn with_our_certificate_in_db_the_loader_boots_without_shim() {
         .unwrap();
 }
 
+/// The certificates' subjects in a variables file's `name` variable (KEK,
+/// db), as `virt-fw-vars --print --verbose` lists them.
+fn subjects_in(vars: &Path, name: &str) -> Vec<String> {
+    let tool = sb::virt_fw_vars().unwrap_or_else(|e| panic!("{e}"));
+    let output = std::process::Command::new(tool)
+        .arg("--input")
+        .arg(vars)
+        .args(["--print", "--verbose"])
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{output:?}");
+    let listing = String::from_utf8_lossy(&output.stdout).into_owned();
+    let header = format!("name={name} ");
+    listing
+        .lines()
+        .skip_while(|line| !line.starts_with(&header))
+        .skip(1)
+        .take_while(|line| !line.starts_with("name="))
+        .filter_map(|line| line.trim().strip_prefix("subject "))
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The runner's variables for each `--secure-boot` key set hold exactly
+/// that set's KEK and `db`, with Secure Boot on (a platform key), and the
+/// user's certificate only where the set puts it.
+#[test]
+fn each_runner_key_set_holds_its_kek_and_db() {
+    let scratch = tempfile::tempdir().unwrap();
+    let key = test_key(&scratch.path().join("key"));
+    let stick = signed_stick(scratch.path(), &key, Route::Shim);
+    let ours = "CN=modex-cube Secure Boot key of";
+    let cases: [(KeySet, &str, &[&str], bool); 3] = [
+        (
+            KeySet::Microsoft2011,
+            "CN=Microsoft Corporation KEK CA 2011",
+            &[
+                "CN=Microsoft Windows Production PCA 2011",
+                "CN=Microsoft Corporation UEFI CA 2011",
+            ],
+            false,
+        ),
+        (
+            KeySet::Microsoft2023,
+            "CN=Microsoft Corporation KEK 2K CA 2023",
+            &["CN=Microsoft UEFI CA 2023"],
+            false,
+        ),
+        (
+            KeySet::User,
+            "CN=Microsoft Corporation KEK 2K CA 2023",
+            &["CN=Windows UEFI CA 2023", ours],
+            true,
+        ),
+    ];
+    for (keys, kek, db, in_db) in cases {
+        let dir = scratch.path().join(keys.vars_file_name());
+        let (vars, enrolled) = sb::runner_vars(&dir, keys, &stick).unwrap();
+        assert_eq!(enrolled, in_db, "{keys:?}");
+        assert_eq!(vars.file_name().unwrap(), keys.vars_file_name());
+        assert!(
+            subjects_in(&vars, "KEK").iter().any(|s| s == kek),
+            "{keys:?}: KEK {:?}",
+            subjects_in(&vars, "KEK")
+        );
+        let found = subjects_in(&vars, "db");
+        assert_eq!(found.len(), db.len(), "{keys:?}: db {found:?}");
+        for (found, wanted) in found.iter().zip(db) {
+            assert!(found.starts_with(wanted), "{keys:?}: db {found:?}");
+        }
+        assert_eq!(subjects_in(&vars, "PK").len(), 1, "{keys:?}: setup mode");
+        // Made once: a second run keeps the file (and what MokManager
+        // wrote into it).
+        let before = std::fs::metadata(&vars).unwrap().modified().unwrap();
+        sb::runner_vars(&dir, keys, &stick).unwrap();
+        let after = std::fs::metadata(&vars).unwrap().modified().unwrap();
+        assert_eq!(before, after, "{keys:?}: made again");
+    }
+    // A stick signed with another key: the user set's db is made again to
+    // hold that key, where the user set's PC would refuse the stick.
+    let other = test_key(&scratch.path().join("other"));
+    let other_stick = scratch.path().join("other");
+    let other_stick = signed_stick(&other_stick, &other, Route::Shim);
+    let dir = scratch.path().join(KeySet::User.vars_file_name());
+    let (vars, enrolled) = sb::runner_vars(&dir, KeySet::User, &other_stick).unwrap();
+    assert!(enrolled);
+    let db = std::fs::read(&vars).unwrap();
+    assert!(sb::is_enrolled(&db, &other.cert_der));
+    assert!(!sb::is_enrolled(&db, &key.cert_der));
+}
+
 /// A first boot on a PC that trusts only Microsoft's 2011 keys, the
 /// runner's plain `--secure-boot` (`2011`): shim refuses the loader
 /// ("Verification failed") and starts MokManager, where the user enrolls the
