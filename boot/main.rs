@@ -2,6 +2,7 @@
 //! (cargo does that through the build script), then boots one in QEMU.
 
 use boot::qemu::{self, Display, Firmware, Graphics, Qemu, QemuOptions};
+use boot::secure_boot::KeySet;
 use boot::usb::UsbError;
 use boot::BootRequest;
 use boot::{Chipset, DiskAttachment, UsbHost};
@@ -69,10 +70,17 @@ struct Args {
     #[arg(long, value_enum, default_value_t = ImageChoice::One)]
     image: ImageChoice,
     /// Boot (or write) the signed stick, modex-cube-secure-boot.img, with
-    /// OVMF's Secure Boot build and Microsoft's keys, its variables kept in
-    /// target/secure-boot/OVMF_VARS_4M.ms.fd (so an enrolled key stays).
-    #[arg(long)]
-    secure_boot: bool,
+    /// OVMF's Secure Boot build and the key set KEYS (plain --secure-boot:
+    /// 2011), its variables kept in target/secure-boot/ (so an enrolled key
+    /// stays).
+    #[arg(
+        long,
+        value_name = "KEYS",
+        value_enum,
+        num_args = 0..=1,
+        default_missing_value = "2011"
+    )]
+    secure_boot: Option<KeySet>,
     /// Sign with this private key (PEM) instead of the one kept in
     /// ~/.config/modex-cube/secure-boot (made there on first use).
     #[arg(long, value_name = "FILE", requires = "sign_cert")]
@@ -183,7 +191,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
     let images = boot::images::publish()?;
     // The one image boots under both firmwares.
     let image = match (&args.disk, args.image) {
-        _ if args.secure_boot || args.sign_key.is_some() => {
+        _ if args.secure_boot.is_some() || args.sign_key.is_some() => {
             signed_stick(args.sign_key.as_deref(), args.sign_cert.as_deref())?
         }
         (Some(file), _) => file.clone(),
@@ -191,7 +199,7 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
         (None, ImageChoice::Bios) => images.bios,
         (None, ImageChoice::Uefi) => images.uefi,
     };
-    let firmware = if args.secure_boot {
+    let firmware = if args.secure_boot.is_some() {
         Firmware::Uefi
     } else {
         firmware
@@ -245,8 +253,8 @@ fn run(args: Args) -> anyhow::Result<ExitCode> {
             .devices
             .push(format!("usb-kbd,bus={id}.0{full_speed}"));
     }
-    if args.secure_boot {
-        options.secure_boot_vars = Some(secure_boot_vars(&image)?);
+    if let Some(keys) = args.secure_boot {
+        options.secure_boot_vars = Some(secure_boot_vars(&image, keys)?);
     }
     println!("Booting {} ({:?})", image.display(), firmware);
     let mut qemu = Qemu::start(&options)?;
@@ -323,27 +331,22 @@ fn signed_stick(key: Option<&Path>, cert: Option<&Path>) -> anyhow::Result<PathB
     Ok(path)
 }
 
-/// The Secure Boot variables kept under target/ (a copy of OVMF's with
-/// Microsoft's keys, made once), and what to do if the key is not enrolled.
-fn secure_boot_vars(image: &Path) -> anyhow::Result<PathBuf> {
+/// The Secure Boot variables of `keys` kept under target/secure-boot/,
+/// and what to do if the stick's key is not enrolled in them.
+fn secure_boot_vars(image: &Path, keys: KeySet) -> anyhow::Result<PathBuf> {
     use boot::secure_boot as sb;
     let dir = boot::images::images_dir()
         .parent()
         .map(|target| target.join("secure-boot"))
         .unwrap_or_else(|| PathBuf::from("secure-boot"));
-    std::fs::create_dir_all(&dir)?;
-    let vars = dir.join("OVMF_VARS_4M.ms.fd");
-    if !vars.exists() {
-        let fresh = std::fs::read(sb::OVMF_MICROSOFT_VARS).map_err(|e| {
-            anyhow::anyhow!(
-                "cannot read {}: {e}; install OVMF with boot/setup.sh",
-                sb::OVMF_MICROSOFT_VARS
-            )
-        })?;
-        sb::write_whole(&vars, &fresh)?;
-    }
-    let cert = boot::secure_boot::cert_of_image(image)?;
-    if !sb::is_enrolled(&std::fs::read(&vars)?, &cert) {
+    let (vars, enrolled) = sb::runner_vars(&dir, keys, image)?;
+    if keys == KeySet::User {
+        println!(
+            "Your certificate is in db of {}, Microsoft's third-party CA is not: the firmware \
+             starts shim, and shim the loader, by your signature alone.",
+            vars.display()
+        );
+    } else if !enrolled {
         println!(
             "Your key is not enrolled in {} yet. Shim will say \"Verification failed\": press \
              Enter, then any key for MokManager; choose \"Enroll key from disk\", the disk, \
@@ -477,6 +480,28 @@ mod tests {
         assert_eq!(args.wait, Duration::from_secs(2));
         assert!(Args::try_parse_from(["runner", "--vga", "s3"]).is_err());
         assert!(Args::try_parse_from(["runner", "--timeout", "-1"]).is_err());
+    }
+
+    #[test]
+    fn plain_secure_boot_is_the_2011_key_set_and_the_others_are_named() {
+        let keys = |args: &[&str]| Args::try_parse_from(args).map(|args| args.secure_boot);
+        assert_eq!(keys(&["runner"]).unwrap(), None);
+        let plain = keys(&["runner", "--secure-boot"]).unwrap();
+        assert_eq!(plain, Some(KeySet::Microsoft2011));
+        // Plain, then another option: that option is not taken as the value.
+        let args =
+            Args::try_parse_from(["runner", "--secure-boot", "--write-usb", "/dev/sdb"]).unwrap();
+        assert_eq!(args.secure_boot, Some(KeySet::Microsoft2011));
+        assert_eq!(args.write_usb, Some(PathBuf::from("/dev/sdb")));
+        for (name, set) in [
+            ("2011", KeySet::Microsoft2011),
+            ("2023", KeySet::Microsoft2023),
+            ("user", KeySet::User),
+        ] {
+            assert_eq!(keys(&["runner", "--secure-boot", name]).unwrap(), Some(set));
+        }
+        let error = keys(&["runner", "--secure-boot", "2016"]).unwrap_err();
+        assert!(error.to_string().contains("2011, 2023, user"), "{error}");
     }
 
     #[test]

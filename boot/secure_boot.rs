@@ -82,6 +82,8 @@ pub const DB_ESL_FILE: &str = "modex-cube-db.esl";
 pub const DB_AUTH_FILE: &str = "modex-cube-db.auth";
 /// The owner GUID the signature list gives the certificate.
 pub const KEY_OWNER_GUID: &str = "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d";
+/// Shim's vendor GUID: the owner of MokList, where MokManager enrolls a key.
+pub const SHIM_LOCK_GUID: &str = "605dab50-e046-4300-abb6-3dd810dd8b23";
 
 /// The environment variable that moves the key's folder.
 pub const KEY_DIR_VARIABLE: &str = "MODEX_CUBE_SECURE_BOOT_DIR";
@@ -943,6 +945,143 @@ pub fn cert_of_image(image: &Path) -> Result<Vec<u8>> {
 pub const OVMF_SECURE_BOOT_CODE: &str = "/usr/share/OVMF/OVMF_CODE_4M.secboot.fd";
 /// OVMF's variables with Microsoft's keys enrolled and Secure Boot on.
 pub const OVMF_MICROSOFT_VARS: &str = "/usr/share/OVMF/OVMF_VARS_4M.ms.fd";
+
+/// OVMF's variables with no keys (setup mode): what virt-fw-vars enrolls a
+/// key set onto.
+pub const OVMF_BLANK_VARS: &str = "/usr/share/OVMF/OVMF_VARS_4M.fd";
+
+/// Which PC the runner's `--secure-boot` plays: the keys in its firmware's
+/// variables (issue 48).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum KeySet {
+    /// Microsoft's 2011 KEK and `db` (Windows Production PCA 2011, UEFI CA
+    /// 2011), OVMF's `.ms` variables as Debian ships them: most PCs in use.
+    /// Shim starts by its 2011 signature; the user's key goes in MokList
+    /// through MokManager.
+    #[default]
+    #[value(name = "2011")]
+    Microsoft2011,
+    /// Only Microsoft's 2023 keys (KEK CA 2023, `db` the Microsoft UEFI CA
+    /// 2023: virt-fw-vars's `uefi23`), as on PCs made since 2023. Shim starts
+    /// by its 2023 signature; the user's key goes in MokList through
+    /// MokManager.
+    #[value(name = "2023")]
+    Microsoft2023,
+    /// Microsoft's third-party CA off (KEK CA 2023, `db` the Windows UEFI
+    /// CA 2023 only: `win23`) and the user's certificate added to `db`:
+    /// shim and the loader start by the user's signature alone.
+    User,
+}
+
+impl KeySet {
+    /// The variables file's name under the runner's `target/secure-boot/`.
+    pub fn vars_file_name(self) -> &'static str {
+        match self {
+            // Today's name, so a key enrolled before key sets existed stays.
+            KeySet::Microsoft2011 => "OVMF_VARS_4M.ms.fd",
+            KeySet::Microsoft2023 => "OVMF_VARS_4M.2023.fd",
+            KeySet::User => "OVMF_VARS_4M.user-db.fd",
+        }
+    }
+
+    /// The virt-fw-vars arguments that enroll Microsoft's part of the set
+    /// onto [`OVMF_BLANK_VARS`] and switch Secure Boot on (the 2011 set is a
+    /// copy of OVMF's own file instead: none).
+    pub fn microsoft_enrollment(self) -> &'static [&'static str] {
+        match self {
+            KeySet::Microsoft2011 => &[],
+            KeySet::Microsoft2023 => &[
+                "--enroll-microsoft",
+                "--microsoft-kek",
+                "2023",
+                "--microsoft-db",
+                "uefi23",
+                "--sb",
+            ],
+            KeySet::User => &[
+                "--enroll-microsoft",
+                "--microsoft-kek",
+                "2023",
+                "--microsoft-db",
+                "win23",
+                "--sb",
+            ],
+        }
+    }
+
+    /// Whether the user's certificate reaches the firmware through
+    /// MokManager (shim's route) rather than by the set itself.
+    pub fn enrolls_through_mokmanager(self) -> bool {
+        self != KeySet::User
+    }
+}
+
+/// virt-fw-vars (PyPI's virt-firmware): the venv `boot/setup.sh` makes in
+/// `target/tools/virt-firmware`, else one on `PATH`.
+pub fn virt_fw_vars() -> Result<PathBuf> {
+    let venv =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("target/tools/virt-firmware/bin/virt-fw-vars");
+    if venv.is_file() {
+        return Ok(venv);
+    }
+    let on_path = std::env::var_os("PATH").and_then(|path| {
+        std::env::split_paths(&path)
+            .map(|dir| dir.join("virt-fw-vars"))
+            .find(|tool| tool.is_file())
+    });
+    on_path.ok_or_else(|| SecureBootError::Tool {
+        tool: "virt-fw-vars",
+        detail: format!(
+            "not in {} nor on PATH; boot/setup.sh installs it (PyPI's virt-firmware)",
+            venv.display()
+        ),
+    })
+}
+
+/// The runner's Secure Boot variables for `keys` in `dir` (kept there, so
+/// what MokManager enrolls stays), made from the system's OVMF files when
+/// missing, and for the user set made again when `db` lacks the stick's
+/// certificate. Returns the file and whether the stick's certificate is
+/// already enrolled (in `db` or MokList).
+pub fn runner_vars(dir: &Path, keys: KeySet, image: &Path) -> Result<(PathBuf, bool)> {
+    std::fs::create_dir_all(dir).map_err(|error| SecureBootError::Write {
+        path: dir.to_owned(),
+        error,
+    })?;
+    let vars = dir.join(keys.vars_file_name());
+    let cert = cert_of_image(image)?;
+    let enrolled = |vars: &Path| std::fs::read(vars).is_ok_and(|bytes| is_enrolled(&bytes, &cert));
+    if vars.exists() && (keys.enrolls_through_mokmanager() || enrolled(&vars)) {
+        return Ok((vars.clone(), enrolled(&vars)));
+    }
+    let unreadable = |path: &str, error| SecureBootError::Unreadable {
+        what: "OVMF's variables",
+        path: PathBuf::from(path),
+        error,
+        fix: "install OVMF with boot/setup.sh",
+    };
+    let fresh = if keys == KeySet::Microsoft2011 {
+        std::fs::read(OVMF_MICROSOFT_VARS).map_err(|e| unreadable(OVMF_MICROSOFT_VARS, e))?
+    } else {
+        std::fs::metadata(OVMF_BLANK_VARS).map_err(|e| unreadable(OVMF_BLANK_VARS, e))?;
+        let scratch = scratch_dir()?;
+        let made = scratch.path().join(keys.vars_file_name());
+        let mut command = Command::new(virt_fw_vars()?);
+        command
+            .args(["--input", OVMF_BLANK_VARS, "--output"])
+            .arg(&made)
+            .args(keys.microsoft_enrollment());
+        if keys == KeySet::User {
+            let cert_file = scratch.path().join(DB_CER_FILE);
+            write(&cert_file, &cert)?;
+            command.args(["--add-db", KEY_OWNER_GUID]).arg(&cert_file);
+        }
+        run_tool("virt-fw-vars", &mut command)?;
+        read_back(&made)?
+    };
+    write_whole(&vars, &fresh)?;
+    Ok((vars.clone(), enrolled(&vars)))
+}
 
 /// Whether the certificate is in the variable store: in MokList (enrolled
 /// through MokManager) or in `db`. Both keep the DER bytes whole.

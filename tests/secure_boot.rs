@@ -6,7 +6,7 @@
 
 mod common;
 
-use boot::secure_boot::{self as sb, Route, SecureBootError, SigningKey};
+use boot::secure_boot::{self as sb, KeySet, Route, SecureBootError, SigningKey};
 use boot::{Board, Firmware, Qemu, QemuOptions};
 use demo::command::{Command, SceneCommand};
 use std::path::{Path, PathBuf};
@@ -37,13 +37,6 @@ fn signed_stick(dir: &Path, key: &SigningKey, route: Route) -> PathBuf {
     path
 }
 
-/// A fresh copy of OVMF's variables with Microsoft's keys, in `dir`.
-fn microsoft_vars(dir: &Path) -> PathBuf {
-    let vars = dir.join("OVMF_VARS_4M.ms.fd");
-    std::fs::copy(sb::OVMF_MICROSOFT_VARS, &vars).expect("OVMF is installed (boot/setup.sh)");
-    vars
-}
-
 /// Where a certificate is enrolled in a copy of OVMF's variables.
 #[derive(Clone, Copy)]
 enum Enrolled {
@@ -58,8 +51,8 @@ enum Enrolled {
 /// `path`.
 fn microsoft_vars_with(path: &Path, how: Enrolled, key: &SigningKey) -> PathBuf {
     let (flag, owner) = match how {
-        Enrolled::Db => ("--add-db", "a9c2b5a0-0f5c-4f5e-9bd1-6d0e6b0c1e2d"),
-        Enrolled::Mok => ("--add-mok", "605dab50-e046-4300-abb6-3dd810dd8b23"),
+        Enrolled::Db => ("--add-db", sb::KEY_OWNER_GUID),
+        Enrolled::Mok => ("--add-mok", sb::SHIM_LOCK_GUID),
     };
     common::vars_from(
         sb::OVMF_MICROSOFT_VARS,
@@ -341,16 +334,108 @@ fn with_our_certificate_in_db_the_loader_boots_without_shim() {
         .unwrap();
 }
 
-/// A first boot on a PC that trusts only Microsoft: shim refuses the loader
-/// ("Verification failed") and starts MokManager, where the user enrolls the
-/// stick's certificate with the keyboard alone; the next boot, Secure Boot
-/// still enforced, reaches the cube, whose keys work, and Esc powers off.
+/// The certificates' subjects in a variables file's `name` variable (KEK,
+/// db), as `virt-fw-vars --print --verbose` lists them.
+fn subjects_in(vars: &Path, name: &str) -> Vec<String> {
+    let listing = common::run_virt_fw_vars(&[
+        "--input".as_ref(),
+        vars.as_os_str(),
+        "--print".as_ref(),
+        "--verbose".as_ref(),
+    ]);
+    let header = format!("name={name} ");
+    listing
+        .lines()
+        .skip_while(|line| !line.starts_with(&header))
+        .skip(1)
+        .take_while(|line| !line.starts_with("name="))
+        .filter_map(|line| line.trim().strip_prefix("subject "))
+        .map(str::to_owned)
+        .collect()
+}
+
+/// The runner's variables for each `--secure-boot` key set hold exactly
+/// that set's KEK and `db`, with Secure Boot on (a platform key), and the
+/// user's certificate only where the set puts it.
 #[test]
-fn microsoft_keys_only_mokmanager_enrolls_the_key_then_the_cube_boots() {
+fn each_runner_key_set_holds_its_kek_and_db() {
     let scratch = tempfile::tempdir().unwrap();
     let key = test_key(&scratch.path().join("key"));
     let stick = signed_stick(scratch.path(), &key, Route::Shim);
-    let vars = microsoft_vars(scratch.path());
+    let ours = "CN=modex-cube Secure Boot key of";
+    let cases: [(KeySet, &str, &[&str], bool); 3] = [
+        (
+            KeySet::Microsoft2011,
+            "CN=Microsoft Corporation KEK CA 2011",
+            &[
+                "CN=Microsoft Windows Production PCA 2011",
+                "CN=Microsoft Corporation UEFI CA 2011",
+            ],
+            false,
+        ),
+        (
+            KeySet::Microsoft2023,
+            "CN=Microsoft Corporation KEK 2K CA 2023",
+            &["CN=Microsoft UEFI CA 2023"],
+            false,
+        ),
+        (
+            KeySet::User,
+            "CN=Microsoft Corporation KEK 2K CA 2023",
+            &["CN=Windows UEFI CA 2023", ours],
+            true,
+        ),
+    ];
+    for (keys, kek, db, in_db) in cases {
+        let dir = scratch.path().join(keys.vars_file_name());
+        let (vars, enrolled) = sb::runner_vars(&dir, keys, &stick).unwrap();
+        assert_eq!(enrolled, in_db, "{keys:?}");
+        assert_eq!(vars.file_name().unwrap(), keys.vars_file_name());
+        assert!(
+            subjects_in(&vars, "KEK").iter().any(|s| s == kek),
+            "{keys:?}: KEK {:?}",
+            subjects_in(&vars, "KEK")
+        );
+        let found = subjects_in(&vars, "db");
+        assert_eq!(found.len(), db.len(), "{keys:?}: db {found:?}");
+        for (found, wanted) in found.iter().zip(db) {
+            assert!(found.starts_with(wanted), "{keys:?}: db {found:?}");
+        }
+        assert_eq!(subjects_in(&vars, "PK").len(), 1, "{keys:?}: setup mode");
+        // Made once: a second run keeps the file (and what MokManager
+        // wrote into it).
+        let before = std::fs::metadata(&vars).unwrap().modified().unwrap();
+        sb::runner_vars(&dir, keys, &stick).unwrap();
+        let after = std::fs::metadata(&vars).unwrap().modified().unwrap();
+        assert_eq!(before, after, "{keys:?}: made again");
+    }
+    // A stick signed with another key: the user set's db is made again to
+    // hold that key, where the user set's PC would refuse the stick.
+    let other = test_key(&scratch.path().join("other"));
+    let other_stick = scratch.path().join("other");
+    let other_stick = signed_stick(&other_stick, &other, Route::Shim);
+    let dir = scratch.path().join(KeySet::User.vars_file_name());
+    let (vars, enrolled) = sb::runner_vars(&dir, KeySet::User, &other_stick).unwrap();
+    assert!(enrolled);
+    let db = std::fs::read(&vars).unwrap();
+    assert!(sb::is_enrolled(&db, &other.cert_der));
+    assert!(!sb::is_enrolled(&db, &key.cert_der));
+}
+
+/// A first boot on a PC that trusts only Microsoft's 2011 keys, the
+/// runner's plain `--secure-boot` (`2011`): shim refuses the loader
+/// ("Verification failed") and starts MokManager, where the user enrolls the
+/// stick's certificate with the keyboard alone; the next boot, Secure Boot
+/// still enforced, reaches the cube, the report says "on (shim, your key)",
+/// its keys work, and Esc powers off.
+#[test]
+fn key_set_2011_mokmanager_enrolls_the_key_then_the_cube_boots() {
+    let scratch = tempfile::tempdir().unwrap();
+    let key = test_key(&scratch.path().join("key"));
+    let stick = signed_stick(scratch.path(), &key, Route::Shim);
+    let (vars, enrolled) = sb::runner_vars(scratch.path(), KeySet::Microsoft2011, &stick)
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(!enrolled);
     assert!(!sb::is_enrolled(
         &std::fs::read(&vars).unwrap(),
         &key.cert_der
@@ -403,6 +488,14 @@ fn microsoft_keys_only_mokmanager_enrolls_the_key_then_the_cube_boots() {
     assert!(
         console.contains("loader: kernel SHA-256 matches the loader's"),
         "{console}"
+    );
+    let fact = format!(
+        "{}Secure Boot: on (shim, your key)",
+        boot::line::MACHINE_FACT
+    );
+    assert!(
+        console.lines().any(|text| text.trim_end() == fact),
+        "no {fact:?} in {console}"
     );
     save_screen(&mut qemu, "9-the-cube.png");
     common::after_each_key_on(

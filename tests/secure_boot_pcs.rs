@@ -8,17 +8,15 @@
 
 mod common;
 
-use boot::secure_boot::{self as sb, Route, SecureBootError, SigningKey};
+use boot::secure_boot::{self as sb, KeySet, Route, SecureBootError, SigningKey};
 use boot::{line, Board, Firmware, Qemu, QemuOptions};
 use demo::command::{Command, SceneCommand};
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// OVMF's Secure Boot build with SMM under TCG, on a loaded machine.
 const SECURE_BOOT_TIMEOUT: Duration = Duration::from_secs(300);
-
-/// OVMF's blank variables (no keys: setup mode).
-const OVMF_BLANK_VARS: &str = "/usr/share/OVMF/OVMF_VARS_4M.fd";
 
 fn test_key(dir: &Path) -> SigningKey {
     sb::make_or_reuse_key(dir).expect("openssl makes a key").0
@@ -42,24 +40,40 @@ fn signed_stick(dir: &Path, key: &SigningKey) -> PathBuf {
 }
 
 /// OVMF's blank variables with `args` applied by virt-fw-vars, at `path`.
-fn vars(path: &Path, args: &[&std::ffi::OsStr]) -> PathBuf {
-    common::vars_from(OVMF_BLANK_VARS, path, args)
+fn vars(path: &Path, args: &[&OsStr]) -> PathBuf {
+    common::vars_from(sb::OVMF_BLANK_VARS, path, args)
 }
 
-/// Microsoft's keys as a PC of these years ships them, Secure Boot on:
-/// `db` is "win23" (the Windows CA 2023 only: the third-party CA off) or
-/// "uefi23" (the 2023 CAs, third-party included); KEK is 2023's.
-fn microsoft_2023(path: &Path, db: &str, extra: &[&std::ffi::OsStr]) -> PathBuf {
-    let mut args: Vec<&std::ffi::OsStr> = vec![
-        "--enroll-microsoft".as_ref(),
-        "--microsoft-db".as_ref(),
-        db.as_ref(),
-        "--microsoft-kek".as_ref(),
-        "2023".as_ref(),
-        "--sb".as_ref(),
-    ];
+/// Microsoft's keys as a PC of these years ships them, Secure Boot on, as
+/// the runner's key sets enroll them: `KeySet::User`'s without the user's
+/// certificate (the Windows CA 2023 only: the third-party CA off), or
+/// `KeySet::Microsoft2023`'s (the UEFI CA 2023, third-party); KEK is 2023's.
+fn microsoft_2023(path: &Path, keys: KeySet, extra: &[&OsStr]) -> PathBuf {
+    let mut args: Vec<&OsStr> = keys
+        .microsoft_enrollment()
+        .iter()
+        .map(|arg| arg.as_ref())
+        .collect();
     args.extend_from_slice(extra);
     vars(path, &args)
+}
+
+/// The runner's variables for `keys` (`--secure-boot KEYS`), made in `dir`
+/// for `stick`, and whether the stick's certificate is enrolled in them.
+fn runner_vars(dir: &Path, keys: KeySet, stick: &Path) -> (PathBuf, bool) {
+    sb::runner_vars(dir, keys, stick).unwrap_or_else(|e| panic!("{keys:?}: {e}"))
+}
+
+/// The user's certificate added to shim's MokList in `vars`, as MokManager
+/// enrolls it (tests/secure_boot.rs walks MokManager itself).
+fn enroll_in_mok(vars: &Path, key: &SigningKey) {
+    common::run_virt_fw_vars(&[
+        "--inplace".as_ref(),
+        vars.as_os_str(),
+        "--add-mok".as_ref(),
+        sb::SHIM_LOCK_GUID.as_ref(),
+        key.cert.as_os_str(),
+    ]);
 }
 
 fn secure_boot(image: &Path, vars: &Path) -> Qemu {
@@ -152,7 +166,7 @@ fn third_party_ca_off_the_firmware_refuses_shim() {
     let scratch = tempfile::tempdir().unwrap();
     let key = test_key(&scratch.path().join("key"));
     let stick = signed_stick(scratch.path(), &key);
-    let vars = microsoft_2023(&scratch.path().join("win23.fd"), "win23", &[]);
+    let vars = microsoft_2023(&scratch.path().join("win23.fd"), KeySet::User, &[]);
     let mut qemu = secure_boot(&stick, &vars);
     let console = qemu
         .wait_for_screen_text(FIRMWARE_REFUSAL, 1, SECURE_BOOT_TIMEOUT)
@@ -180,22 +194,16 @@ fn third_party_ca_off_the_firmware_refuses_shim() {
 }
 
 /// The same PC with the user's certificate added to `db` (as the setup's
-/// key management would): the same stick boots, Secure Boot on, the keys
-/// act, the report says "on (your key in db)", and Esc powers off.
+/// key management would), the runner's `--secure-boot user`: the same
+/// stick boots, Secure Boot on, the keys act, the report says "on (your key
+/// in db)", and Esc powers off.
 #[test]
-fn third_party_ca_off_with_the_key_in_db_the_stick_boots() {
+fn key_set_user_third_party_ca_off_with_the_key_in_db_the_stick_boots() {
     let scratch = tempfile::tempdir().unwrap();
     let key = test_key(&scratch.path().join("key"));
     let stick = signed_stick(scratch.path(), &key);
-    let vars = microsoft_2023(
-        &scratch.path().join("win23-db.fd"),
-        "win23",
-        &[
-            "--add-db".as_ref(),
-            sb::KEY_OWNER_GUID.as_ref(),
-            key.cert.as_os_str(),
-        ],
-    );
+    let (vars, enrolled) = runner_vars(scratch.path(), KeySet::User, &stick);
+    assert!(enrolled, "the user set's db lacks the stick's certificate");
     let mut qemu = secure_boot(&stick, &vars);
     let console = qemu
         .wait_for_serial(boot::READY_LINE, SECURE_BOOT_TIMEOUT)
@@ -219,15 +227,7 @@ fn third_party_ca_off_with_the_key_in_db_a_changed_kernel_is_refused() {
     );
     let tampered = scratch.path().join("tampered.img");
     std::fs::write(&tampered, &disk).unwrap();
-    let vars = microsoft_2023(
-        &scratch.path().join("win23-db.fd"),
-        "win23",
-        &[
-            "--add-db".as_ref(),
-            sb::KEY_OWNER_GUID.as_ref(),
-            key.cert.as_os_str(),
-        ],
-    );
+    let (vars, _) = runner_vars(scratch.path(), KeySet::User, &tampered);
     let mut qemu = secure_boot(&tampered, &vars);
     let refused = "loader: damaged file: kernel-x86_64 (the kernel): SHA-256 expected";
     // Through the UEFI console (the screen, which OVMF copies to COM1).
@@ -237,23 +237,17 @@ fn third_party_ca_off_with_the_key_in_db_a_changed_kernel_is_refused() {
 }
 
 /// A PC that trusts only Microsoft's 2023 CAs (KEK 2023, the 2023 UEFI CA
-/// in `db`), the user's certificate in shim's MOK list: shim is started by
-/// its 2023 signature, the cube boots, and the report says "on (shim, your
-/// key)".
+/// in `db`), the runner's `--secure-boot 2023`, once the user's
+/// certificate is in shim's MOK list: shim is started by its 2023
+/// signature, the cube boots, and the report says "on (shim, your key)".
 #[test]
-fn microsoft_2023_cas_only_with_the_key_in_mok_the_stick_boots() {
+fn key_set_2023_only_with_the_key_in_mok_the_stick_boots() {
     let scratch = tempfile::tempdir().unwrap();
     let key = test_key(&scratch.path().join("key"));
     let stick = signed_stick(scratch.path(), &key);
-    let vars = microsoft_2023(
-        &scratch.path().join("uefi23-mok.fd"),
-        "uefi23",
-        &[
-            "--add-mok".as_ref(),
-            "605dab50-e046-4300-abb6-3dd810dd8b23".as_ref(),
-            key.cert.as_os_str(),
-        ],
-    );
+    let (vars, enrolled) = runner_vars(scratch.path(), KeySet::Microsoft2023, &stick);
+    assert!(!enrolled, "a fresh 2023 set already holds the key");
+    enroll_in_mok(&vars, &key);
     let mut qemu = secure_boot(&stick, &vars);
     let console = qemu
         .wait_for_serial(boot::READY_LINE, SECURE_BOOT_TIMEOUT)
@@ -275,16 +269,9 @@ fn a_db_made_from_the_sticks_esl_in_setup_mode_boots_the_stick() {
     let esl = file_on_disk(&disk, sb::DB_ESL_FILE);
     // The setup-mode store: no PK.
     let setup = vars(&scratch.path().join("setup.fd"), &[]);
-    let listed = std::process::Command::new(common::virt_fw_vars())
-        .arg("--input")
-        .arg(&setup)
-        .arg("--print")
-        .output()
-        .unwrap();
-    assert!(
-        !String::from_utf8_lossy(&listed.stdout).contains("PK "),
-        "the blank store has a PK"
-    );
+    let listed =
+        common::run_virt_fw_vars(&["--input".as_ref(), setup.as_os_str(), "--print".as_ref()]);
+    assert!(!listed.contains("PK "), "the blank store has a PK");
     let hex: String = esl.iter().map(|b| format!("{b:02x}")).collect();
     let json = serde_json::json!({
         "version": 2,
@@ -298,39 +285,29 @@ fn a_db_made_from_the_sticks_esl_in_setup_mode_boots_the_stick() {
     let json_path = scratch.path().join("db.json");
     std::fs::write(&json_path, json.to_string()).unwrap();
     let with_db = scratch.path().join("with-db.fd");
-    let output = std::process::Command::new(common::virt_fw_vars())
-        .arg("--input")
-        .arg(&setup)
-        .arg("--output")
-        .arg(&with_db)
-        .arg("--set-json")
-        .arg(&json_path)
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    common::run_virt_fw_vars(&[
+        "--input".as_ref(),
+        setup.as_os_str(),
+        "--output".as_ref(),
+        with_db.as_os_str(),
+        "--set-json".as_ref(),
+        json_path.as_os_str(),
+    ]);
     // Setup left: a platform key (the user's own) and Secure Boot on.
     let enforced = scratch.path().join("enforced.fd");
-    let output = std::process::Command::new(common::virt_fw_vars())
-        .arg("--input")
-        .arg(&with_db)
-        .arg("--output")
-        .arg(&enforced)
-        .args(["--set-pk", sb::KEY_OWNER_GUID])
-        .arg(&key.cert)
-        .args(["--add-kek", sb::KEY_OWNER_GUID])
-        .arg(&key.cert)
-        .arg("--sb")
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
+    common::run_virt_fw_vars(&[
+        "--input".as_ref(),
+        with_db.as_os_str(),
+        "--output".as_ref(),
+        enforced.as_os_str(),
+        "--set-pk".as_ref(),
+        sb::KEY_OWNER_GUID.as_ref(),
+        key.cert.as_os_str(),
+        "--add-kek".as_ref(),
+        sb::KEY_OWNER_GUID.as_ref(),
+        key.cert.as_os_str(),
+        "--sb".as_ref(),
+    ]);
     assert!(sb::is_enrolled(
         &std::fs::read(&enforced).unwrap(),
         &key.cert_der
@@ -476,10 +453,10 @@ fn with_sbat_level(dir: &Path, key: &SigningKey, level: &str) -> PathBuf {
     std::fs::write(&level_file, level).unwrap();
     microsoft_2023(
         &dir.join("uefi23-sbat.fd"),
-        "uefi23",
+        KeySet::Microsoft2023,
         &[
             "--add-mok".as_ref(),
-            "605dab50-e046-4300-abb6-3dd810dd8b23".as_ref(),
+            sb::SHIM_LOCK_GUID.as_ref(),
             key.cert.as_os_str(),
             "--set-sbat-level".as_ref(),
             level_file.as_os_str(),
@@ -542,21 +519,20 @@ fn with_secure_boot_switched_off_the_report_says_off() {
     let scratch = tempfile::tempdir().unwrap();
     let key = test_key(&scratch.path().join("key"));
     let stick = signed_stick(scratch.path(), &key);
-    let on = microsoft_2023(&scratch.path().join("uefi23.fd"), "uefi23", &[]);
-    let off = scratch.path().join("uefi23-off.fd");
-    let output = std::process::Command::new(common::virt_fw_vars())
-        .arg("--input")
-        .arg(&on)
-        .arg("--output")
-        .arg(&off)
-        .args(["--set-false", "SecureBootEnable"])
-        .output()
-        .unwrap();
-    assert!(
-        output.status.success(),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
+    let on = microsoft_2023(
+        &scratch.path().join("uefi23.fd"),
+        KeySet::Microsoft2023,
+        &[],
     );
+    let off = scratch.path().join("uefi23-off.fd");
+    common::run_virt_fw_vars(&[
+        "--input".as_ref(),
+        on.as_os_str(),
+        "--output".as_ref(),
+        off.as_os_str(),
+        "--set-false".as_ref(),
+        "SecureBootEnable".as_ref(),
+    ]);
     let mut qemu = secure_boot(&stick, &off);
     let console = qemu
         .wait_for_serial(boot::READY_LINE, SECURE_BOOT_TIMEOUT)

@@ -693,14 +693,23 @@ fn without_escapes(text: &str) -> String {
 /// virt-fw-vars, which `boot/setup.sh` installs under `target/tools`.
 #[allow(dead_code)] // used by some test files only
 pub fn virt_fw_vars() -> std::path::PathBuf {
-    let tool = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("target/tools/virt-firmware/bin/virt-fw-vars");
+    boot::secure_boot::virt_fw_vars().unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Runs virt-fw-vars with `args`: what it printed, or a panic with its
+/// message.
+#[allow(dead_code)] // used by some test files only
+pub fn run_virt_fw_vars(args: &[&std::ffi::OsStr]) -> String {
+    let result = std::process::Command::new(virt_fw_vars())
+        .args(args)
+        .output()
+        .unwrap();
     assert!(
-        tool.exists(),
-        "{} is missing: run boot/setup.sh",
-        tool.display()
+        result.status.success(),
+        "virt-fw-vars {args:?}: {}",
+        String::from_utf8_lossy(&result.stderr)
     );
-    tool
+    String::from_utf8_lossy(&result.stdout).into_owned()
 }
 
 /// The OVMF variable store `input` with `args` applied by virt-fw-vars,
@@ -711,16 +720,13 @@ pub fn vars_from(
     output: &std::path::Path,
     args: &[&std::ffi::OsStr],
 ) -> std::path::PathBuf {
-    let result = std::process::Command::new(virt_fw_vars())
-        .args(["--input", input, "--output"])
-        .arg(output)
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        result.status.success(),
-        "virt-fw-vars {args:?}: {}",
-        String::from_utf8_lossy(&result.stderr)
-    );
+    let mut all: Vec<&std::ffi::OsStr> = vec![
+        "--input".as_ref(),
+        input.as_ref(),
+        "--output".as_ref(),
+        output.as_os_str(),
+    ];
+    all.extend_from_slice(args);
+    run_virt_fw_vars(&all);
     output.to_owned()
 }
