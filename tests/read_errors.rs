@@ -324,6 +324,18 @@ fn bios_damaged(file: &str, named: &str, graphics: Graphics) -> (Qemu, String) {
     options.firmware = Firmware::Bios;
     options.graphics = graphics;
     let mut qemu = Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"));
+    // The kernel's banner ends the wait too: a kernel that starts prints on
+    // for good, and the message will never come.
+    let message = format!("{DAMAGED}{named}: SHA-256 expected ");
+    let console = qemu
+        .wait_for_console(&message, BOOT_TIMEOUT, |text| {
+            text.contains(&message) || text.contains(line::KERNEL_BANNER)
+        })
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(
+        console.contains(&message),
+        "the kernel started, unchecked:\n{console}"
+    );
     let console = damaged_said(&mut qemu, named, 1, BOOT_TIMEOUT);
     (qemu, console)
 }
