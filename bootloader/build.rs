@@ -377,6 +377,14 @@ fn build_bios_stage_3() -> PathBuf {
         // watched source directory (which would rerun this script every build).
         cmd.arg("--target-dir").arg(out_dir.join("stage-3-target"));
         println!("cargo:rerun-if-changed={}", local_path.display());
+        // Patched (issue 48): stage 3 checks the file hashes with the
+        // host-tested `loader-logic` crate.
+        println!(
+            "cargo:rerun-if-changed={}",
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("loader-logic")
+                .display() // Patched
+        );
     } else {
         cmd.arg("--version").arg(BOOTLOADER_VERSION);
     }

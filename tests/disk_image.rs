@@ -267,6 +267,20 @@ fn the_esp_holds_both_loaders_and_one_kernel() {
     ] {
         assert!(!read(loader).is_empty(), "{loader} is empty");
     }
+    // Issue 48: every loader that checks what it starts carries the hashes
+    // of these very files, written by the image build.
+    use loader_logic::file_hash::{sha256, slot_of, File};
+    let mut expected = [[0; 32]; File::COUNT];
+    expected[File::Kernel as usize] = sha256(&kernel);
+    expected[File::Stage4 as usize] = sha256(&read("boot-stage-4"));
+    for checker in [
+        "efi/boot/bootx64.efi",
+        "efi/boot/bootia32.efi",
+        "boot-stage-3",
+    ] {
+        let slot = slot_of(&read(checker)).unwrap_or_else(|e| panic!("{checker}: {e}"));
+        assert_eq!(slot.hashes, expected, "{checker}'s hashes");
+    }
     // Stage 2 sits whole in its partition, and is what the boot sector loads.
     let stage_2 = &disk[entries[0].start as usize * SECTOR..entries[0].end() as usize * SECTOR];
     assert!(stage_2.iter().any(|&b| b != 0), "stage 2 is there");

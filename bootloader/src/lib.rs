@@ -159,7 +159,8 @@ impl DiskImageBuilder {
 
         let fat_partition = NamedTempFile::new().context("failed to create temp file")?;
 
-        let stage_3 = FileDataSource::Bytes(BIOS_STAGE_3);
+        // Patched (issue 48): stage 3 checks stage 4 and the kernel.
+        let stage_3 = self.with_hashes(BIOS_STAGE_3, BIOS_STAGE_3_NAME)?;
         let stage_4 = FileDataSource::Bytes(BIOS_STAGE_4);
         let mut internal_files = BTreeMap::new();
         internal_files.insert(BIOS_STAGE_3_NAME, stage_3);
@@ -229,7 +230,7 @@ impl DiskImageBuilder {
             "efi/boot/bootia32.efi",
             self.with_hashes(UEFI_IA32_BOOTLOADER, "bootia32.efi")?, // Patched (issue 38)
         );
-        internal_files.insert("boot-stage-3", FileDataSource::Bytes(BIOS_STAGE_3));
+        internal_files.insert("boot-stage-3", self.with_hashes(BIOS_STAGE_3, "boot-stage-3")?);
         internal_files.insert("boot-stage-4", FileDataSource::Bytes(BIOS_STAGE_4));
         self.create_fat_filesystem_image(internal_files, partition_path)
             .context("failed to create FAT partition")

@@ -11,10 +11,11 @@
 //! ([`patch`]), and the Secure Boot stick's signature then covers them. A
 //! loader whose slot was never written refuses every file.
 //!
-//! The hash is this module's own [`Sha256`], the same code in every loader; its words on a mismatch are
-//! [`Mismatch`]'s.
+//! The hash is the `sha2` crate's portable code ([`sha256`]), the same in
+//! every loader; the words of a mismatch are [`Mismatch`]'s.
 
 use core::fmt;
+use sha2::Digest;
 
 /// The 16 bytes before the hashes, found by the build in a loader's file.
 /// (The loaders only read the hashes after it, so these bytes are in each
@@ -70,9 +71,9 @@ impl HashSlot {
 /// The files the loaders check, and their places in [`HashSlot::hashes`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum File {
-    /// `kernel-x86_64`, checked by both UEFI loaders.
+    /// `kernel-x86_64`, checked by both UEFI loaders and BIOS stage 3.
     Kernel = 0,
-    /// `boot-stage-4`, checked by the 32-bit UEFI loader.
+    /// `boot-stage-4`, checked by the 32-bit UEFI loader and BIOS stage 3.
     Stage4 = 1,
 }
 
@@ -186,175 +187,43 @@ pub fn patch(loader: &mut [u8], hashes: &[[u8; 32]; File::COUNT]) -> Result<(), 
     Ok(())
 }
 
-/// SHA-256 (FIPS 180-4), fed in pieces: the loaders hash a file as it is
-/// read, a buffer at a time.
-#[derive(Clone)]
-pub struct Sha256 {
-    state: [u32; 8],
-    block: [u8; 64],
-    in_block: usize,
-    bytes: u64,
-}
-
-const ROUND_CONSTANTS: [u32; 64] = [
-    0x428a2f98, 0x71374491, 0xb5c0fbcf, 0xe9b5dba5, 0x3956c25b, 0x59f111f1, 0x923f82a4, 0xab1c5ed5,
-    0xd807aa98, 0x12835b01, 0x243185be, 0x550c7dc3, 0x72be5d74, 0x80deb1fe, 0x9bdc06a7, 0xc19bf174,
-    0xe49b69c1, 0xefbe4786, 0x0fc19dc6, 0x240ca1cc, 0x2de92c6f, 0x4a7484aa, 0x5cb0a9dc, 0x76f988da,
-    0x983e5152, 0xa831c66d, 0xb00327c8, 0xbf597fc7, 0xc6e00bf3, 0xd5a79147, 0x06ca6351, 0x14292967,
-    0x27b70a85, 0x2e1b2138, 0x4d2c6dfc, 0x53380d13, 0x650a7354, 0x766a0abb, 0x81c2c92e, 0x92722c85,
-    0xa2bfe8a1, 0xa81a664b, 0xc24b8b70, 0xc76c51a3, 0xd192e819, 0xd6990624, 0xf40e3585, 0x106aa070,
-    0x19a4c116, 0x1e376c08, 0x2748774c, 0x34b0bcb5, 0x391c0cb3, 0x4ed8aa4a, 0x5b9cca4f, 0x682e6ff3,
-    0x748f82ee, 0x78a5636f, 0x84c87814, 0x8cc70208, 0x90befffa, 0xa4506ceb, 0xbef9a3f7, 0xc67178f2,
-];
-
-impl Default for Sha256 {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Sha256 {
-    /// A hash of nothing yet.
-    pub const fn new() -> Self {
-        Sha256 {
-            state: [
-                0x6a09e667, 0xbb67ae85, 0x3c6ef372, 0xa54ff53a, 0x510e527f, 0x9b05688c, 0x1f83d9ab,
-                0x5be0cd19,
-            ],
-            block: [0; 64],
-            in_block: 0,
-            bytes: 0,
-        }
-    }
-
-    /// Adds `bytes` to what is hashed.
-    pub fn update(&mut self, mut bytes: &[u8]) {
-        self.bytes = self.bytes.wrapping_add(bytes.len() as u64);
-        if self.in_block > 0 {
-            let take = (64 - self.in_block).min(bytes.len());
-            self.block[self.in_block..self.in_block + take].copy_from_slice(&bytes[..take]);
-            self.in_block += take;
-            bytes = &bytes[take..];
-            if self.in_block < 64 {
-                return;
-            }
-            let block = self.block;
-            self.compress(&block);
-            self.in_block = 0;
-        }
-        let (blocks, rest) = bytes.as_chunks::<64>();
-        for block in blocks {
-            self.compress(block);
-        }
-        self.block[..rest.len()].copy_from_slice(rest);
-        self.in_block = rest.len();
-    }
-
-    /// The hash of everything added.
-    pub fn finish(mut self) -> [u8; 32] {
-        let bits = self.bytes.wrapping_mul(8);
-        // 0x80, zeros to 56 bytes into a block, the length in bits.
-        let zeros = (55 + 64 - self.in_block) % 64;
-        let mut padding = [0u8; 72];
-        padding[0] = 0x80;
-        padding[1 + zeros..9 + zeros].copy_from_slice(&bits.to_be_bytes());
-        self.update(&padding[..9 + zeros]);
-        let mut out = [0; 32];
-        for (chunk, word) in out.as_chunks_mut::<4>().0.iter_mut().zip(self.state) {
-            *chunk = word.to_be_bytes();
-        }
-        out
-    }
-
-    fn compress(&mut self, block: &[u8; 64]) {
-        let mut schedule = [0u32; 64];
-        for (word, bytes) in schedule.iter_mut().zip(block.as_chunks::<4>().0) {
-            *word = u32::from_be_bytes(*bytes);
-        }
-        for at in 16..64 {
-            let a = schedule[at - 15];
-            let b = schedule[at - 2];
-            let s0 = a.rotate_right(7) ^ a.rotate_right(18) ^ (a >> 3);
-            let s1 = b.rotate_right(17) ^ b.rotate_right(19) ^ (b >> 10);
-            schedule[at] = schedule[at - 16]
-                .wrapping_add(s0)
-                .wrapping_add(schedule[at - 7])
-                .wrapping_add(s1);
-        }
-        let mut v = self.state;
-        for (constant, word) in ROUND_CONSTANTS.iter().zip(schedule) {
-            let s1 = v[4].rotate_right(6) ^ v[4].rotate_right(11) ^ v[4].rotate_right(25);
-            let choose = (v[4] & v[5]) ^ (!v[4] & v[6]);
-            let t1 = v[7]
-                .wrapping_add(s1)
-                .wrapping_add(choose)
-                .wrapping_add(*constant)
-                .wrapping_add(word);
-            let s0 = v[0].rotate_right(2) ^ v[0].rotate_right(13) ^ v[0].rotate_right(22);
-            let majority = (v[0] & v[1]) ^ (v[0] & v[2]) ^ (v[1] & v[2]);
-            let t2 = s0.wrapping_add(majority);
-            v = [
-                t1.wrapping_add(t2),
-                v[0],
-                v[1],
-                v[2],
-                v[3].wrapping_add(t1),
-                v[4],
-                v[5],
-                v[6],
-            ];
-        }
-        for (state, value) in self.state.iter_mut().zip(v) {
-            *state = state.wrapping_add(value);
-        }
-    }
-}
-
-/// The SHA-256 of `bytes`.
+/// The SHA-256 of `bytes`: the `sha2` crate's portable code
+/// (`force-soft`), with no CPU feature detection, which the 32-bit stages
+/// and loaders could not trust.
 pub fn sha256(bytes: &[u8]) -> [u8; 32] {
-    let mut hash = Sha256::new();
-    hash.update(bytes);
-    hash.finish()
+    sha2::Sha256::digest(bytes).into()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sha2::Digest;
     use std::{format, vec::Vec};
 
-    fn reference(bytes: &[u8]) -> [u8; 32] {
-        sha2::Sha256::digest(bytes).into()
+    fn hex(hash: [u8; 32]) -> std::string::String {
+        hash.iter().map(|b| format!("{b:02x}")).collect()
     }
 
     #[test]
-    fn the_hash_is_sha256_at_every_length_around_the_block_ends() {
-        let bytes: Vec<u8> = (0..300u32).map(|i| (i * 7 + 3) as u8).collect();
-        for len in 0..bytes.len() {
-            assert_eq!(
-                sha256(&bytes[..len]),
-                reference(&bytes[..len]),
-                "{len} bytes"
-            );
-        }
-        // FIPS 180-2's "abc".
+    fn the_hash_is_sha256_by_the_published_examples() {
+        // FIPS 180-2, appendix B: one block, two blocks, and a million a's.
         assert_eq!(
-            sha256(b"abc")[..4],
-            [0xba, 0x78, 0x16, 0xbf],
-            "the published hash of abc"
+            hex(sha256(b"abc")),
+            "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"
         );
-    }
-
-    #[test]
-    fn the_hash_fed_in_pieces_is_the_hash_of_the_whole() {
-        let bytes: Vec<u8> = (0..5000u32).map(|i| (i ^ (i >> 3)) as u8).collect();
-        for piece in [1, 3, 63, 64, 65, 512, 4096] {
-            let mut hash = Sha256::new();
-            for chunk in bytes.chunks(piece) {
-                hash.update(chunk);
-            }
-            assert_eq!(hash.finish(), reference(&bytes), "pieces of {piece}");
-        }
+        assert_eq!(
+            hex(sha256(
+                b"abcdbcdecdefdefgefghfghighijhijkijkljklmklmnlmnomnopnopq"
+            )),
+            "248d6a61d20638b8e5c026930c3e6039a33ce45964ff2167f6ecedd419db06c1"
+        );
+        assert_eq!(
+            hex(sha256(&std::vec![b'a'; 1_000_000])),
+            "cdc76e5c9914fb9281a1c7e284d73e67f1809a48a497200e046d39ccc7112cd0"
+        );
+        assert_eq!(
+            hex(sha256(b"")),
+            "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
+        );
     }
 
     fn loader_with_slot() -> Vec<u8> {

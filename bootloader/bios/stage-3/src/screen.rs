@@ -133,3 +133,87 @@ impl fmt::Write for ScreenWriter {
         Ok(())
     }
 }
+
+/// Patched (issue 48): true when stage 2 set a VESA mode, so that
+/// [`Writer`] draws on its framebuffer.
+pub fn has_framebuffer() -> bool {
+    // SAFETY: stage 3 runs on one CPU, without interrupts; read only.
+    unsafe { WRITER.get_mut() }.is_some()
+}
+
+/// Patched (issue 48): the VGA's 80x25 text screen at 0xB8000, as stage 2
+/// left it when it set no VESA mode (an adapter without VBE linear modes):
+/// the stop's message goes on the lines below stage 2's, scrolling up when
+/// the screen is full. Light grey on black, wrapped at 80 columns.
+pub struct VgaText;
+
+impl VgaText {
+    const BUFFER: *mut u16 = 0xb8000 as *mut u16;
+    const COLUMNS: usize = 80;
+    const ROWS: usize = 25;
+    const BLANK: u16 = 0x0720;
+
+    fn cell(at: usize) -> *mut u16 {
+        debug_assert!(at < Self::COLUMNS * Self::ROWS);
+        Self::BUFFER.wrapping_add(at)
+    }
+
+    fn read(at: usize) -> u16 {
+        // SAFETY: a cell of the VGA text buffer (`at` below 80x25).
+        unsafe { ptr::read_volatile(Self::cell(at)) }
+    }
+
+    fn write(at: usize, value: u16) {
+        // SAFETY: a cell of the VGA text buffer (`at` below 80x25).
+        unsafe { ptr::write_volatile(Self::cell(at), value) }
+    }
+
+    /// The first row below every row with text on it.
+    fn next_row() -> usize {
+        (0..Self::ROWS)
+            .rev()
+            .find(|row| {
+                (0..Self::COLUMNS).any(|column| {
+                    Self::read(row * Self::COLUMNS + column) & 0xff != u16::from(b' ')
+                        && Self::read(row * Self::COLUMNS + column) & 0xff != 0
+                })
+            })
+            .map_or(0, |row| row + 1)
+    }
+
+    fn scroll() {
+        for at in Self::COLUMNS..Self::COLUMNS * Self::ROWS {
+            Self::write(at - Self::COLUMNS, Self::read(at));
+        }
+        for column in 0..Self::COLUMNS {
+            Self::write((Self::ROWS - 1) * Self::COLUMNS + column, Self::BLANK);
+        }
+    }
+}
+
+impl fmt::Write for VgaText {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        let mut row = Self::next_row();
+        let mut column = 0;
+        for byte in s.bytes() {
+            if byte == b'\n' || column == Self::COLUMNS {
+                row += 1;
+                column = 0;
+            }
+            if row == Self::ROWS {
+                Self::scroll();
+                row -= 1;
+            }
+            if byte != b'\n' {
+                let shown = if byte.is_ascii_graphic() || byte == b' ' {
+                    byte
+                } else {
+                    b'?'
+                };
+                Self::write(row * Self::COLUMNS + column, 0x0700 | u16::from(shown));
+                column += 1;
+            }
+        }
+        Ok(())
+    }
+}
