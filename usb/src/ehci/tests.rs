@@ -357,6 +357,32 @@ fn a_reset_or_halt_that_never_ends_costs_bounded_time() {
     assert_eq!(ehci.hardware().configflag(), 0, "ports handed back anyway");
 }
 
+/// The SeaBIOS case: the firmware left the controller running, so starting
+/// waits for the halt, the reset and both schedules. Each wait reads its
+/// register once per `POLL_INTERVAL_MICROS`: a wait that read without a
+/// pause kept QEMU's global lock from the thread that runs the controller's
+/// frames, and on a loaded host the schedules "did not start".
+#[test]
+fn waits_read_their_register_once_per_poll_interval() {
+    let mut m = Model::new(2).left_running();
+    m.firmware_releases_after = Some(0);
+    let mut ehci = Ehci::new(m, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
+    assert!(matches!(ehci.take_ownership(), Handoff::Released { .. }));
+    let (start, reads_before) = (ehci.hardware().now, ehci.hardware().mmio_reads);
+    ehci.reset_and_start().unwrap();
+    let waited = ehci.hardware().now - start;
+    let reads = ehci.hardware().mmio_reads - reads_before;
+    // Three waits (halt, reset, start), each with a read at its start and
+    // at its end, and a few reads outside any wait.
+    let most = waited / POLL_INTERVAL_MICROS + 3 * 2 + 8;
+    assert!(
+        u64::from(reads) <= most,
+        "{reads} register reads in {waited} us (at most {most})"
+    );
+    assert!(waited >= 300, "the model's 300 us reset was waited for");
+    assert_clean(ehci.hardware());
+}
+
 #[test]
 fn halt_stops_the_controller_and_gives_every_port_to_the_companions() {
     let mut m = Model::new(4);

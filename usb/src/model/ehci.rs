@@ -199,6 +199,8 @@ pub struct Model {
     /// The root port each address answered on last.
     routes: [Option<u8>; 128],
     // What happened.
+    /// Register reads (BAR0).
+    pub mmio_reads: u32,
     /// Register writes (BAR0).
     pub mmio_writes: u32,
     /// Root ports handed to the companion, in order.
@@ -260,6 +262,7 @@ impl Model {
             periodic_unlinked: BTreeMap::new(),
             periodic_dirty: true,
             routes: [None; 128],
+            mmio_reads: 0,
             mmio_writes: 0,
             handed_to_companion: Vec::new(),
             port_resets: Vec::new(),
@@ -1415,6 +1418,7 @@ impl Hardware for Model {
             "read outside the BAR: {offset:#x}"
         );
         self.advance(MICROS_PER_READ);
+        self.mmio_reads += 1;
         let operational = CAPLENGTH;
         match offset {
             0x00 => 0x0100_0000 | CAPLENGTH,
