@@ -58,7 +58,7 @@ enum Kind {
 
 /// What hangs on root port 2.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Port2 {
+pub enum OnRootPort2 {
     /// A second keyboard (its state is `keyboard2`).
     Keyboard,
     /// A device whose control transfers never complete.
@@ -127,8 +127,9 @@ pub struct HubState {
     pub change_pending: bool,
 }
 
+/// The xHCI register model.
 #[derive(Debug)]
-pub struct Model {
+pub struct XhciModel {
     pub now: u64,
     memory: Vec<u32>,
     // Knobs.
@@ -164,7 +165,7 @@ pub struct Model {
     /// Root port 1 is empty after the controller's reset (plugged later).
     pub empty_at_start: bool,
     /// What hangs on root port 2 (None: nothing).
-    pub port_2: Option<Port2>,
+    pub port_2: Option<OnRootPort2>,
     /// The root ports are USB 3 and the hubs SuperSpeed (the keyboard
     /// behind them too).
     pub usb3: bool,
@@ -207,9 +208,9 @@ pub struct Model {
     pub errors: Vec<String>,
 }
 
-impl Model {
-    pub fn new() -> Model {
-        Model {
+impl XhciModel {
+    pub fn new() -> XhciModel {
+        XhciModel {
             now: 0,
             memory: vec![0; (DMA_BYTES / 4) as usize],
             csz: false,
@@ -411,8 +412,8 @@ impl Model {
                     let hub_tier = (0..tiers).find(|&t| route == route_of(t));
                     let kind = if root_port == 2 {
                         match (route, self.port_2) {
-                            (0, Some(Port2::Keyboard)) => Some(Kind::Keyboard2),
-                            (0, Some(Port2::Dead)) => Some(Kind::Dead),
+                            (0, Some(OnRootPort2::Keyboard)) => Some(Kind::Keyboard2),
+                            (0, Some(OnRootPort2::Dead)) => Some(Kind::Dead),
                             _ => None,
                         }
                     } else if route == route_of(tiers) {
@@ -1068,7 +1069,7 @@ impl Model {
     }
 }
 
-impl Memory for Model {
+impl Memory for XhciModel {
     fn mem_read(&mut self, address: u64) -> u32 {
         let word = self.word(address);
         self.memory[word]
@@ -1080,7 +1081,7 @@ impl Memory for Model {
     }
 }
 
-impl Hardware for Model {
+impl Hardware for XhciModel {
     fn mmio_read(&mut self, offset: u32) -> u32 {
         assert!(offset + 4 <= BAR_BYTES, "read outside the BAR: {offset:#x}");
         match offset {
