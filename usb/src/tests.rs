@@ -3,7 +3,7 @@
 //! to end, hubs, hot-plug and misbehaviour.
 
 use super::bus::{Bus, Location};
-use super::model::xhci::{OnRootPort2, XhciModel, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use super::model::xhci::{OnRootPort2, XhciModel, BAR_BYTES, DMA_BASE, DMA_BYTES, SUPERSPEED_HALF};
 use super::xhci::{
     Capabilities, Handoff, Xhci, XhciError, HANDOFF_MICROS, PAGE_BYTES, RESET_MICROS,
 };
@@ -1081,6 +1081,40 @@ fn a_keyboard_behind_two_usb_3_hubs_is_reached_and_found_again_after_an_unplug()
     assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [behind]);
     assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
     assert_eq!(poll(&mut xhci), [0x1E]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+}
+
+/// A USB 3 hub is two hubs in one box: its SuperSpeed half on a USB 3
+/// root port, its USB 2 half (a high-speed hub with a transaction
+/// translator) on a USB 2 root port, each enumerated on its own. A
+/// full-speed keyboard behind the USB 2 half types.
+#[test]
+fn a_superspeed_hub_with_a_keyboard_behind_its_usb_2_half() {
+    let mut model = XhciModel::new();
+    // The USB 2 half on root port 1 (USB 2), the keyboard on its port 2.
+    model.hub = true;
+    model.high_speed_hub = true;
+    // The SuperSpeed half on root port 2 (USB 3), nothing behind it.
+    model.port_2 = Some(OnRootPort2::SuperSpeedHalf);
+    let mut xhci = with_keyboard(model);
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [location(1, 0x2)]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    let usb_2_half = &model.hub_states[0];
+    assert!(usb_2_half.configured && usb_2_half.marked, "{usb_2_half:?}");
+    assert_eq!(usb_2_half.depth, None, "no SET_HUB_DEPTH for USB 2");
+    let superspeed_half = &model.hub_states[SUPERSPEED_HALF];
+    assert!(
+        superspeed_half.configured && superspeed_half.marked,
+        "the SuperSpeed half enumerated too: {superspeed_half:?}"
+    );
+    assert_eq!(superspeed_half.depth, Some(0), "SET_HUB_DEPTH on port 2");
+    assert_eq!(superspeed_half.powered, [true; 4]);
+    assert!(model.send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+    assert_eq!(poll(&mut xhci), [0x1E]);
+    assert!(xhci.hardware().send_report([0; 8]));
+    assert_eq!(poll(&mut xhci), [0x9E]);
     let model = xhci.hardware();
     assert!(model.errors.is_empty(), "{:?}", model.errors);
 }
