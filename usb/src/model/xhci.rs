@@ -8,7 +8,7 @@
 //! what the driver gives it (context layouts, ring ownership, memory
 //! bounds) and fails commands that get it wrong, as hardware would.
 
-use crate::ring::{trb_type, Trb, CYCLE, TOGGLE_CYCLE};
+use crate::xhci::ring::{trb_type, Trb, CYCLE, TOGGLE_CYCLE};
 use crate::{Hardware, Memory};
 use std::string::String;
 use std::vec;
