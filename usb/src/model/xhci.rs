@@ -67,8 +67,9 @@ pub enum OnRootPort2 {
     Dead,
     /// The SuperSpeed half of the USB 3 hub whose USB 2 half is the hub on
     /// root port 1 (`hub` with `high_speed_hub`): root port 2 is then a USB 3
-    /// port (its own Supported Protocol range) and port 1 a USB 2 one, as
-    /// QEMU's qemu-xhci numbers them. Nothing hangs on this half.
+    /// port (its own Supported Protocol range) and port 1 a USB 2 one. (Which
+    /// range comes first is the controller's choice: QEMU's qemu-xhci puts
+    /// its USB 3 ports first.) Nothing hangs on this half.
     SuperSpeedHalf,
 }
 
