@@ -636,7 +636,7 @@ pub(crate) mod tests {
     use std::vec::Vec;
 
     /// The boot keyboard's descriptor (HID 1.11 appendix E.6, as QEMU's usb-kbd).
-    pub const BOOT: [u8; 63] = crate::model::KEYBOARD_REPORT_DESCRIPTOR;
+    pub const BOOT: [u8; 63] = crate::model::devices::KEYBOARD_REPORT_DESCRIPTOR;
 
     /// An N-key rollover keyboard in the manner of a Corsair K70: report
     /// ID 1, eight modifier bits, then a bitmap of usages 0-151 (21 bytes

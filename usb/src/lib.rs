@@ -21,10 +21,9 @@
 //!   descriptors, the control list and the interrupt tree;
 //! - [`ehci`]: EHCI (USB 2.0): the asynchronous and periodic schedules, split
 //!   transactions through a hub's transaction translator, companions;
-//! - [`xhci`]: the xHCI controller, with its own enumeration (which also
-//!   knows SuperSpeed) and an implementation of [`host::HostController`],
-//!   using [`ring`] (the command, transfer and event rings) and [`context`]
-//!   (slot and endpoint contexts).
+//! - [`xhci`]: xHCI (USB 3, SuperSpeed too): its implementation of
+//!   [`host::HostController`], with [`xhci::ring`] (the command, transfer
+//!   and event rings) and [`xhci::context`] (slot and endpoint contexts).
 
 #![no_std]
 #![forbid(unsafe_code)]
@@ -35,14 +34,12 @@
 extern crate std;
 
 pub mod bus;
-pub mod context;
 pub mod descriptor;
 pub mod ehci;
 pub mod hid;
 pub mod host;
 pub mod ohci;
 pub mod report;
-pub mod ring;
 pub mod uhci;
 pub mod xhci;
 

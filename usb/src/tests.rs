@@ -3,7 +3,7 @@
 //! to end, hubs, hot-plug and misbehaviour.
 
 use super::bus::{Bus, Location};
-use super::model::{Model, Port2, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use super::model::xhci::{OnRootPort2, XhciModel, BAR_BYTES, DMA_BASE, DMA_BYTES, SUPERSPEED_HALF};
 use super::xhci::{
     Capabilities, Handoff, Xhci, XhciError, HANDOFF_MICROS, PAGE_BYTES, RESET_MICROS,
 };
@@ -63,13 +63,13 @@ fn location(root_port: u8, route: u32) -> Location {
 }
 
 /// A controller whose endpoint 0 halts on a stall, as on real hardware.
-fn controller(mut model: Model) -> Tested<Model> {
+fn controller(mut model: XhciModel) -> Tested<XhciModel> {
     model.ep0_halts = true;
     Tested::new(model)
 }
 
 /// A controller taken, reset and started, its keyboard set up.
-fn with_keyboard(model: Model) -> Tested<Model> {
+fn with_keyboard(model: XhciModel) -> Tested<XhciModel> {
     let mut xhci = controller(model);
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
@@ -80,7 +80,7 @@ fn with_keyboard(model: Model) -> Tested<Model> {
     xhci
 }
 
-fn poll(xhci: &mut Tested<Model>) -> Vec<u8> {
+fn poll(xhci: &mut Tested<XhciModel>) -> Vec<u8> {
     let mut bytes = Vec::new();
     xhci.poll(&mut |b| bytes.push(b));
     bytes
@@ -92,7 +92,7 @@ const POLL_MICROS_BOUND: u64 = 1_000;
 /// Polls a frame (1 ms of model time) apart, at least once and then until
 /// nothing is left to enumerate, each poll within [`POLL_MICROS_BOUND`];
 /// gives the bytes typed meanwhile and the polls it took.
-fn settle(xhci: &mut Tested<Model>) -> (Vec<u8>, u32) {
+fn settle(xhci: &mut Tested<XhciModel>) -> (Vec<u8>, u32) {
     let mut bytes = Vec::new();
     let mut polls = 0;
     while polls == 0 || !xhci.enumeration_idle() {
@@ -119,7 +119,7 @@ fn settle(xhci: &mut Tested<Model>) -> (Vec<u8>, u32) {
 
 #[test]
 fn the_firmware_that_lets_go_is_waited_for_and_its_smis_turned_off() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.firmware_releases_after = Some(3_000);
     let mut xhci = controller(model);
     let handoff = xhci.take_ownership();
@@ -141,7 +141,7 @@ fn the_firmware_that_lets_go_is_waited_for_and_its_smis_turned_off() {
 
 #[test]
 fn a_firmware_that_never_lets_go_is_overruled_after_a_second() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.firmware_releases_after = None;
     let mut xhci = controller(model);
     let start = xhci.hardware().now;
@@ -161,7 +161,7 @@ fn a_firmware_that_never_lets_go_is_overruled_after_a_second() {
 
 #[test]
 fn controller_not_ready_stuck_fails_the_reset_in_bounded_time() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.cnr_stuck = true;
     let mut xhci = controller(model);
     xhci.take_ownership();
@@ -178,7 +178,7 @@ fn controller_not_ready_stuck_fails_the_reset_in_bounded_time() {
 
 #[test]
 fn scratchpads_asked_for_are_given_page_by_page() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.scratchpads = 37; // the high and low fields of HCSPARAMS2 both used
     let mut xhci = controller(model);
     assert_eq!(xhci.capabilities().scratchpads, 37);
@@ -199,7 +199,7 @@ fn scratchpads_asked_for_are_given_page_by_page() {
 
 #[test]
 fn without_scratchpads_the_dcbaa_has_no_array() {
-    let mut xhci = controller(Model::new());
+    let mut xhci = controller(XhciModel::new());
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
     assert_eq!(xhci.hardware().scratchpad_array(), 0);
@@ -208,7 +208,7 @@ fn without_scratchpads_the_dcbaa_has_no_array() {
 #[test]
 fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
     for csz in [false, true] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.csz = csz;
         let mut xhci = with_keyboard(model);
         assert_eq!(
@@ -233,7 +233,7 @@ fn a_keyboard_is_set_up_with_32_and_with_64_byte_contexts() {
 
 #[test]
 fn reports_become_scancodes_and_a_held_key_repeats() {
-    let mut xhci = with_keyboard(Model::new());
+    let mut xhci = with_keyboard(XhciModel::new());
     assert_eq!(poll(&mut xhci), []);
     assert!(xhci.hardware().send_report([0, 0, 0x50, 0, 0, 0, 0, 0])); // Left
     assert_eq!(poll(&mut xhci), [0xE0, 0x4B]);
@@ -248,7 +248,7 @@ fn reports_become_scancodes_and_a_held_key_repeats() {
 
 #[test]
 fn normal_trbs_stay_queued_through_many_reports_and_the_rings_wrap() {
-    let mut xhci = with_keyboard(Model::new());
+    let mut xhci = with_keyboard(XhciModel::new());
     // 300 presses and releases: the 64-TRB interrupt ring wraps many times,
     // the 256-TRB event ring more than twice.
     for i in 0..300u32 {
@@ -269,7 +269,7 @@ fn normal_trbs_stay_queued_through_many_reports_and_the_rings_wrap() {
 
 #[test]
 fn the_event_ring_wraps_with_its_cycle_bit_over_many_commands() {
-    let mut xhci = controller(Model::new());
+    let mut xhci = controller(XhciModel::new());
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
     // 700 No Ops: both the command ring (255 usable TRBs) and the event
@@ -284,7 +284,7 @@ fn the_event_ring_wraps_with_its_cycle_bit_over_many_commands() {
 
 #[test]
 fn a_controller_that_never_answers_commands_costs_bounded_time() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.commands_answered = false;
     let mut xhci = controller(model);
     xhci.take_ownership();
@@ -321,30 +321,30 @@ fn nonsense_descriptors_are_refused_and_survived() {
         (
             "device length 0",
             std::vec![0; 18],
-            super::model::KEYBOARD_CONFIGURATION.to_vec(),
+            super::model::devices::KEYBOARD_CONFIGURATION.to_vec(),
         ),
         ("no descriptor at all", Vec::new(), Vec::new()),
         (
             "configuration with a zero-length descriptor",
-            super::model::KEYBOARD_DEVICE.to_vec(),
+            super::model::devices::KEYBOARD_DEVICE.to_vec(),
             {
-                let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
+                let mut c = super::model::devices::KEYBOARD_CONFIGURATION.to_vec();
                 c[9] = 0;
                 c
             },
         ),
         (
             "endpoint past the end",
-            super::model::KEYBOARD_DEVICE.to_vec(),
+            super::model::devices::KEYBOARD_DEVICE.to_vec(),
             {
-                let mut c = super::model::KEYBOARD_CONFIGURATION.to_vec();
+                let mut c = super::model::devices::KEYBOARD_CONFIGURATION.to_vec();
                 c[27] = 200;
                 c
             },
         ),
     ];
     for (what, device, configuration) in cases {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.device_descriptor = device;
         model.configuration = configuration;
         let mut xhci = controller(model);
@@ -367,14 +367,14 @@ fn nonsense_descriptors_are_refused_and_survived() {
 #[test]
 fn registers_outside_the_bar_are_refused() {
     assert_eq!(
-        Xhci::new(Model::new(), 0x100, DMA_BASE, DMA_BYTES).err(),
+        Xhci::new(XhciModel::new(), 0x100, DMA_BASE, DMA_BYTES).err(),
         Some(XhciError::RegistersOutsideBar)
     );
 }
 
 #[test]
 fn too_little_dma_memory_for_the_scratchpads_is_an_error() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.scratchpads = 200;
     let mut xhci = Xhci::new(model, BAR_BYTES, DMA_BASE, 64 * PAGE_BYTES).unwrap();
     xhci.take_ownership();
@@ -383,7 +383,7 @@ fn too_little_dma_memory_for_the_scratchpads_is_an_error() {
 
 #[test]
 fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.hub = true;
     let mut xhci = with_keyboard(model);
     assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [location(1, 2)]);
@@ -405,8 +405,8 @@ fn a_keyboard_behind_a_hub_is_reached_through_its_route_string() {
 
 /// A keyboard whose configuration announces `report_descriptor` (its HID
 /// descriptor's length fixed to match).
-fn keyboard_described_by(report_descriptor: &[u8]) -> Model {
-    let mut model = Model::new();
+fn keyboard_described_by(report_descriptor: &[u8]) -> XhciModel {
+    let mut model = XhciModel::new();
     let length = (report_descriptor.len() as u16).to_le_bytes();
     model.configuration[25..27].copy_from_slice(&length);
     model.report_descriptor = Some(report_descriptor.to_vec());
@@ -481,7 +481,7 @@ fn a_keyboard_with_report_ids_is_kept_in_the_report_protocol() {
 
 #[test]
 fn a_boot_keyboard_without_a_report_descriptor_is_put_in_the_boot_protocol() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.report_descriptor = None;
     let mut xhci = with_keyboard(model);
     assert_eq!(xhci.hardware().keyboard.protocol, 0, "boot protocol");
@@ -531,7 +531,7 @@ fn a_lying_report_descriptor_refuses_the_device_and_a_tablet_is_left_alone() {
 
 #[test]
 fn a_stall_mid_run_is_recovered_and_the_keyboard_comes_back_by_itself() {
-    let mut xhci = with_keyboard(Model::new());
+    let mut xhci = with_keyboard(XhciModel::new());
     assert!(xhci.hardware().send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
     assert_eq!(poll(&mut xhci), [0x2A, 0x1E]);
     // The keyboard stalls: what was held is let go (its releases may be
@@ -584,7 +584,7 @@ fn a_stall_mid_run_is_recovered_and_the_keyboard_comes_back_by_itself() {
 
 #[test]
 fn a_keyboard_that_fails_every_transfer_is_given_up_in_bounded_time() {
-    let mut xhci = with_keyboard(Model::new());
+    let mut xhci = with_keyboard(XhciModel::new());
     let (mut rounds, mut failures) = (0, 0);
     while xhci.keyboards().count() == 1 {
         rounds += 1;
@@ -605,7 +605,7 @@ fn a_keyboard_that_fails_every_transfer_is_given_up_in_bounded_time() {
 
 #[test]
 fn a_recovery_the_controller_never_answers_gives_the_keyboard_up() {
-    let mut xhci = with_keyboard(Model::new());
+    let mut xhci = with_keyboard(XhciModel::new());
     xhci.hardware().commands_answered = false;
     assert!(xhci.hardware().fail_transfer(4));
     let start = xhci.hardware().now;
@@ -627,7 +627,7 @@ fn a_recovery_the_controller_never_answers_gives_the_keyboard_up() {
 
 #[test]
 fn a_full_speed_device_that_needs_the_two_step_address_is_set_up() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.needs_two_step = true;
     model.device_descriptor[7] = 64; // endpoint 0 takes 64-byte packets
     let mut xhci = with_keyboard(model);
@@ -640,7 +640,7 @@ fn a_full_speed_device_that_needs_the_two_step_address_is_set_up() {
 
 /// The model, with the driver's register and DMA accesses counted.
 struct Counting {
-    model: Model,
+    model: XhciModel,
     mmio: u64,
     dma: u64,
 }
@@ -679,7 +679,7 @@ const IDLE_POLLS: u64 = 100_000;
 #[test]
 fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
     let counting = Counting {
-        model: Model::new(),
+        model: XhciModel::new(),
         mmio: 0,
         dma: 0,
     };
@@ -708,7 +708,7 @@ fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
 
 #[test]
 fn shut_down_switches_the_ports_off_then_halts_and_resets() {
-    let mut xhci = with_keyboard(Model::new());
+    let mut xhci = with_keyboard(XhciModel::new());
     assert!(xhci.hardware().send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
     poll(&mut xhci);
     assert_eq!(
@@ -733,7 +733,7 @@ fn shut_down_switches_the_ports_off_then_halts_and_resets() {
 #[test]
 fn a_keyboard_pulled_out_lets_go_of_its_keys_and_its_slot() {
     for hub in [false, true] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.hub = hub;
         let mut xhci = with_keyboard(model);
         assert!(xhci.hardware().send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
@@ -756,7 +756,7 @@ fn a_keyboard_pulled_out_lets_go_of_its_keys_and_its_slot() {
 #[test]
 fn a_keyboard_plugged_in_after_start_is_found_and_found_again_after_an_unplug() {
     for hub in [false, true] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.hub = hub;
         model.empty_at_start = true;
         let mut xhci = controller(model);
@@ -794,7 +794,7 @@ fn a_keyboard_plugged_in_after_start_is_found_and_found_again_after_an_unplug() 
 #[test]
 fn a_keyboard_behind_three_and_five_tiers_of_hubs_is_reached() {
     for (tiers, route, name) in [(3, 0x222, "1.2.2.2"), (5, 0x2_2222, "1.2.2.2.2.2")] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.hub = true;
         model.hub_tiers = tiers;
         let mut xhci = with_keyboard(model);
@@ -814,7 +814,7 @@ fn a_keyboard_behind_three_and_five_tiers_of_hubs_is_reached() {
 
 #[test]
 fn a_sixth_tier_of_hubs_is_left_alone() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.hub = true;
     model.hub_tiers = 6;
     let mut xhci = controller(model);
@@ -838,7 +838,7 @@ fn a_sixth_tier_of_hubs_is_left_alone() {
 
 #[test]
 fn a_keyboard_switched_back_and_forth_a_thousand_times_still_types() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.hub = true;
     model.empty_at_start = true;
     let mut xhci = controller(model);
@@ -863,7 +863,7 @@ fn a_keyboard_switched_back_and_forth_a_thousand_times_still_types() {
 
 /// A controller taken, reset and started, its ports to be enumerated by
 /// the polls that follow.
-fn started(model: Model) -> Tested<Model> {
+fn started(model: XhciModel) -> Tested<XhciModel> {
     let mut xhci = controller(model);
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
@@ -873,8 +873,8 @@ fn started(model: Model) -> Tested<Model> {
 
 #[test]
 fn a_device_that_never_answers_costs_its_timeouts_and_never_a_frame() {
-    let mut model = Model::new();
-    model.port_2 = Some(Port2::Dead);
+    let mut model = XhciModel::new();
+    model.port_2 = Some(OnRootPort2::Dead);
     let mut xhci = started(model);
     let start = xhci.hardware().now;
     let mut typed = Vec::new();
@@ -924,8 +924,8 @@ fn a_device_that_never_answers_costs_its_timeouts_and_never_a_frame() {
 
 #[test]
 fn a_keyboard_plugged_in_while_a_dead_device_is_probed_waits_its_turn_then_types() {
-    let mut model = Model::new();
-    model.port_2 = Some(Port2::Dead);
+    let mut model = XhciModel::new();
+    model.port_2 = Some(OnRootPort2::Dead);
     model.empty_at_start = true;
     let mut xhci = started(model);
     // The dead device's probe starts.
@@ -953,8 +953,8 @@ fn a_keyboard_plugged_in_while_a_dead_device_is_probed_waits_its_turn_then_types
 
 #[test]
 fn two_keyboards_at_boot_are_both_set_up_and_both_type() {
-    let mut model = Model::new();
-    model.port_2 = Some(Port2::Keyboard);
+    let mut model = XhciModel::new();
+    model.port_2 = Some(OnRootPort2::Keyboard);
     let mut xhci = controller(model);
     xhci.take_ownership();
     xhci.reset_and_start().unwrap();
@@ -977,7 +977,7 @@ fn two_keyboards_at_boot_are_both_set_up_and_both_type() {
 #[test]
 fn a_keyboard_behind_one_and_three_hubs_is_plugged_and_pulled_many_times() {
     for tiers in [1, 3] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.hub = true;
         model.hub_tiers = tiers;
         let mut xhci = with_keyboard(model);
@@ -1022,7 +1022,7 @@ fn a_keyboard_behind_one_and_three_hubs_is_plugged_and_pulled_many_times() {
 
 #[test]
 fn a_hub_pulled_out_takes_the_keyboard_behind_it() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.hub = true;
     model.hub_tiers = 2;
     let mut xhci = with_keyboard(model);
@@ -1053,7 +1053,7 @@ fn a_hub_pulled_out_takes_the_keyboard_behind_it() {
 
 #[test]
 fn a_keyboard_behind_two_usb_3_hubs_is_reached_and_found_again_after_an_unplug() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.usb3 = true;
     model.hub = true;
     model.hub_tiers = 2;
@@ -1085,12 +1085,46 @@ fn a_keyboard_behind_two_usb_3_hubs_is_reached_and_found_again_after_an_unplug()
     assert!(model.errors.is_empty(), "{:?}", model.errors);
 }
 
+/// A USB 3 hub is two hubs in one box: its SuperSpeed half on a USB 3
+/// root port, its USB 2 half (a high-speed hub with a transaction
+/// translator) on a USB 2 root port, each enumerated on its own. A
+/// full-speed keyboard behind the USB 2 half types.
+#[test]
+fn a_superspeed_hub_with_a_keyboard_behind_its_usb_2_half() {
+    let mut model = XhciModel::new();
+    // The USB 2 half on root port 1 (USB 2), the keyboard on its port 2.
+    model.hub = true;
+    model.high_speed_hub = true;
+    // The SuperSpeed half on root port 2 (USB 3), nothing behind it.
+    model.port_2 = Some(OnRootPort2::SuperSpeedHalf);
+    let mut xhci = with_keyboard(model);
+    assert_eq!(xhci.keyboards().collect::<Vec<_>>(), [location(1, 0x2)]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+    let usb_2_half = &model.hub_states[0];
+    assert!(usb_2_half.configured && usb_2_half.marked, "{usb_2_half:?}");
+    assert_eq!(usb_2_half.depth, None, "no SET_HUB_DEPTH for USB 2");
+    let superspeed_half = &model.hub_states[SUPERSPEED_HALF];
+    assert!(
+        superspeed_half.configured && superspeed_half.marked,
+        "the SuperSpeed half enumerated too: {superspeed_half:?}"
+    );
+    assert_eq!(superspeed_half.depth, Some(0), "SET_HUB_DEPTH on port 2");
+    assert_eq!(superspeed_half.powered, [true; 4]);
+    assert!(model.send_report([0, 0, 0x04, 0, 0, 0, 0, 0])); // A
+    assert_eq!(poll(&mut xhci), [0x1E]);
+    assert!(xhci.hardware().send_report([0; 8]));
+    assert_eq!(poll(&mut xhci), [0x9E]);
+    let model = xhci.hardware();
+    assert!(model.errors.is_empty(), "{:?}", model.errors);
+}
+
 #[test]
 fn a_keyboard_pulled_out_while_it_is_enumerated_is_let_go_of_and_found_again() {
     // Pulled after each number of steps until enumeration would have ended.
     let mut stopped = 0;
     for steps in 1..40 {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.empty_at_start = true;
         let mut xhci = controller(model);
         xhci.take_ownership();

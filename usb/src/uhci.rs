@@ -32,8 +32,16 @@ use crate::host::{
 use crate::PciHardware;
 use core::fmt;
 use layout::{
-    command, frame_skeleton, legacy, link, period_index, port, register, status, td, Layout,
-    CONTROL_SKELETON, FRAMES, MAX_CONTROL_TDS, PERIODS, SKELETONS,
+    frame_skeleton, period_index, td_actual_length, td_token, Layout, CMD_CONFIGURE,
+    CMD_GLOBAL_RESET, CMD_HOST_RESET, CMD_MAX_PACKET_64, CMD_RUN, CONTROL_SKELETON, FRAMES,
+    FRBASEADD, FRNUM, LEGACY_OFFSET, LEGACY_PIRQ_ENABLE, LEGACY_SMI_ENABLES, LEGACY_STATUS_CLEAR,
+    LINK_DEPTH_FIRST, LINK_QUEUE_HEAD, LINK_TERMINATE, MAX_CONTROL_TDS, MAX_PORT_REGISTERS,
+    PERIODS, PID_IN, PID_OUT, PID_SETUP, PORTSC1, PORT_ALWAYS_ONE, PORT_CONNECTED,
+    PORT_CONNECT_CHANGE, PORT_ENABLED, PORT_ENABLE_CHANGE, PORT_LOW_SPEED, PORT_RESET,
+    PORT_WRITE_CLEAR, PORT_WRITE_ZERO, SKELETONS, STS_CAUSES, STS_ERROR_INTERRUPT, STS_HALTED,
+    STS_HOST_SYSTEM_ERROR, STS_INTERRUPT, STS_PROCESS_ERROR, TD_ACTIVE, TD_BABBLE, TD_BITSTUFF,
+    TD_CRC_TIMEOUT, TD_DATA_BUFFER_ERROR, TD_INTERRUPT_ON_COMPLETE, TD_LOW_SPEED,
+    TD_SHORT_PACKET_DETECT, TD_STALLED, TD_THREE_ERRORS, USBCMD, USBINTR, USBSTS,
 };
 pub use layout::{DMA_BYTES_NEEDED, MAX_DEVICES, MAX_PIPES};
 
@@ -222,23 +230,23 @@ impl<H: PciHardware> Uhci<H> {
     /// and the controller stopped. A firmware that keeps its enables is
     /// logged and the controller left alone.
     pub fn take_ownership(&mut self) -> Handoff {
-        let dword = self.hw.pci_config_read(legacy::OFFSET);
+        let dword = self.hw.pci_config_read(LEGACY_OFFSET);
         let above = dword & 0xFFFF_0000;
         let found = dword as u16;
-        let owned = found & legacy::SMI_ENABLES != 0;
+        let owned = found & LEGACY_SMI_ENABLES != 0;
         let start = self.hw.now_micros();
         let mut last_write = None;
         loop {
             let now = self.hw.now_micros();
             if last_write.is_none_or(|at| now.saturating_sub(at) >= 1_000) {
                 self.hw
-                    .pci_config_write(legacy::OFFSET, above | u32::from(legacy::STATUS_CLEAR));
-                self.hw.pci_config_write(legacy::OFFSET, above);
+                    .pci_config_write(LEGACY_OFFSET, above | u32::from(LEGACY_STATUS_CLEAR));
+                self.hw.pci_config_write(LEGACY_OFFSET, above);
                 last_write = Some(now);
             }
-            let legsup = self.hw.pci_config_read(legacy::OFFSET) as u16;
+            let legsup = self.hw.pci_config_read(LEGACY_OFFSET) as u16;
             let elapsed = self.hw.now_micros().saturating_sub(start);
-            if legsup & (legacy::SMI_ENABLES | legacy::PIRQ_ENABLE) == 0 {
+            if legsup & (LEGACY_SMI_ENABLES | LEGACY_PIRQ_ENABLE) == 0 {
                 break;
             }
             if elapsed > HANDOFF_MICROS {
@@ -252,9 +260,9 @@ impl<H: PciHardware> Uhci<H> {
         let micros = self.hw.now_micros().saturating_sub(start);
         // Ours now: no interrupt line, and nothing run from the
         // firmware's schedule (its memory is not ours).
-        self.hw.write16(register::USBINTR, 0);
-        let cmd = self.hw.read16(register::USBCMD);
-        self.hw.write16(register::USBCMD, cmd & !command::RUN);
+        self.hw.write16(USBINTR, 0);
+        let cmd = self.hw.read16(USBCMD);
+        self.hw.write16(USBCMD, cmd & !CMD_RUN);
         self.state = State::Owned;
         if owned {
             self.hw.log(format_args!(
@@ -274,37 +282,32 @@ impl<H: PciHardware> Uhci<H> {
             return Err(UhciError::FirmwareOwns);
         }
         self.state = State::Stopped;
-        self.hw.write16(register::USBINTR, 0);
-        self.hw.write16(register::USBCMD, command::GLOBAL_RESET);
+        self.hw.write16(USBINTR, 0);
+        self.hw.write16(USBCMD, CMD_GLOBAL_RESET);
         self.wait_micros(GLOBAL_RESET_MICROS);
-        self.hw.write16(register::USBCMD, 0);
-        self.hw.write16(register::USBCMD, command::HOST_RESET);
-        if !self.wait_register(register::USBCMD, command::HOST_RESET, 0, HOST_RESET_MICROS) {
+        self.hw.write16(USBCMD, 0);
+        self.hw.write16(USBCMD, CMD_HOST_RESET);
+        if !self.wait_register(USBCMD, CMD_HOST_RESET, 0, HOST_RESET_MICROS) {
             self.hw.log(format_args!("uhci: HCRESET never cleared"));
             return Err(UhciError::ResetTimeout);
         }
-        if !self.wait_register(
-            register::USBSTS,
-            status::HALTED,
-            status::HALTED,
-            HALT_MICROS,
-        ) {
+        if !self.wait_register(USBSTS, STS_HALTED, STS_HALTED, HALT_MICROS) {
             self.hw.log(format_args!("uhci: not halted after HCRESET"));
             return Err(UhciError::NotHalted);
         }
-        self.hw.write16(register::USBINTR, 0);
+        self.hw.write16(USBINTR, 0);
 
         self.devices = [FREE_DEVICE; MAX_DEVICES];
         self.pipes = [FREE_PIPE; MAX_PIPES];
         self.build_schedule();
         let frame_list = self.layout.frame_list();
-        self.hw.mmio_write(register::FRBASEADD, frame_list);
-        if self.hw.mmio_read(register::FRBASEADD) & !0xFFF != frame_list {
+        self.hw.mmio_write(FRBASEADD, frame_list);
+        if self.hw.mmio_read(FRBASEADD) & !0xFFF != frame_list {
             self.hw
                 .log(format_args!("uhci: FRBASEADD did not keep {frame_list:#x}"));
             return Err(UhciError::FrameListRejected);
         }
-        self.hw.write16(register::FRNUM, 0);
+        self.hw.write16(FRNUM, 0);
         // SOFMOD keeps its reset value (64: 1 ms frames), as the BIOS may
         // have tuned it.
 
@@ -314,12 +317,10 @@ impl<H: PciHardware> Uhci<H> {
             return Err(UhciError::NoRootPorts);
         }
 
-        self.hw.write16(register::USBSTS, status::CAUSES);
-        self.hw.write16(
-            register::USBCMD,
-            command::RUN | command::CONFIGURE | command::MAX_PACKET_64,
-        );
-        if !self.wait_register(register::USBSTS, status::HALTED, 0, HALT_MICROS) {
+        self.hw.write16(USBSTS, STS_CAUSES);
+        self.hw
+            .write16(USBCMD, CMD_RUN | CMD_CONFIGURE | CMD_MAX_PACKET_64);
+        if !self.wait_register(USBSTS, STS_HALTED, 0, HALT_MICROS) {
             self.hw
                 .log(format_args!("uhci: still halted after Run/Stop"));
             return Err(UhciError::StartTimeout);
@@ -345,9 +346,9 @@ impl<H: PciHardware> Uhci<H> {
     /// guess went wrong and 2 are taken, as the specification has.
     fn count_ports(&mut self) -> u8 {
         let mut count = 0;
-        while count < register::MAX_PORT_REGISTERS {
-            let value = self.hw.read16(register::PORTSC1 + 2 * u32::from(count));
-            if value & port::ALWAYS_ONE == 0 || value == 0xFFFF {
+        while count < MAX_PORT_REGISTERS {
+            let value = self.hw.read16(PORTSC1 + 2 * u32::from(count));
+            if value & PORT_ALWAYS_ONE == 0 || value == 0xFFFF {
                 break;
             }
             count += 1;
@@ -367,24 +368,24 @@ impl<H: PciHardware> Uhci<H> {
             let qh = self.layout.skeleton(index);
             let next = self.skeleton_next(index);
             self.dma_write(qh, next);
-            self.dma_write(qh + 4, link::TERMINATE);
+            self.dma_write(qh + 4, LINK_TERMINATE);
         }
         for slot in 0..MAX_DEVICES {
             let qh = self.layout.device_qh(slot);
-            self.dma_write(qh, link::TERMINATE);
-            self.dma_write(qh + 4, link::TERMINATE);
+            self.dma_write(qh, LINK_TERMINATE);
+            self.dma_write(qh + 4, LINK_TERMINATE);
         }
         for slot in 0..MAX_PIPES {
             let qh = self.layout.pipe_qh(slot);
-            self.dma_write(qh, link::TERMINATE);
-            self.dma_write(qh + 4, link::TERMINATE);
+            self.dma_write(qh, LINK_TERMINATE);
+            self.dma_write(qh + 4, LINK_TERMINATE);
             self.dma_write(self.layout.pipe_td(slot) + 4, 0);
         }
         for frame in 0..FRAMES {
             let skeleton = self.layout.skeleton(frame_skeleton(frame));
             self.dma_write(
                 self.layout.frame_list() + 4 * frame,
-                skeleton | link::QUEUE_HEAD,
+                skeleton | LINK_QUEUE_HEAD,
             );
         }
     }
@@ -393,9 +394,9 @@ impl<H: PciHardware> Uhci<H> {
     /// period-2^k skeleton to period 1, period 1 to control, control ends.
     fn skeleton_next(&self, index: usize) -> u32 {
         match index {
-            0 => self.layout.skeleton(CONTROL_SKELETON) | link::QUEUE_HEAD,
-            CONTROL_SKELETON => link::TERMINATE,
-            _ => self.layout.skeleton(0) | link::QUEUE_HEAD,
+            0 => self.layout.skeleton(CONTROL_SKELETON) | LINK_QUEUE_HEAD,
+            CONTROL_SKELETON => LINK_TERMINATE,
+            _ => self.layout.skeleton(0) | LINK_QUEUE_HEAD,
         }
     }
 
@@ -403,12 +404,12 @@ impl<H: PciHardware> Uhci<H> {
     /// order. Written from the tail, so the controller always finds a whole
     /// chain; an unlinked queue head keeps its link into the chain.
     fn relink_devices(&mut self) {
-        let mut next = link::TERMINATE;
+        let mut next = LINK_TERMINATE;
         for slot in (0..MAX_DEVICES).rev() {
             if self.devices[slot].in_use {
                 let qh = self.layout.device_qh(slot);
                 self.dma_write(qh, next);
-                next = qh | link::QUEUE_HEAD;
+                next = qh | LINK_QUEUE_HEAD;
             }
         }
         self.dma_write(self.layout.skeleton(CONTROL_SKELETON), next);
@@ -422,7 +423,7 @@ impl<H: PciHardware> Uhci<H> {
             if pipe.in_use && pipe.period == period {
                 let qh = self.layout.pipe_qh(slot);
                 self.dma_write(qh, next);
-                next = qh | link::QUEUE_HEAD;
+                next = qh | LINK_QUEUE_HEAD;
             }
         }
         self.dma_write(self.layout.skeleton(period), next);
@@ -475,7 +476,7 @@ impl<H: PciHardware> Uhci<H> {
 
     /// The current frame number (11 bits).
     fn frame_number(&mut self) -> u16 {
-        self.hw.read16(register::FRNUM) & 0x7FF
+        self.hw.read16(FRNUM) & 0x7FF
     }
 
     /// Waits until the controller has left frame `frame` (or is halted),
@@ -488,7 +489,7 @@ impl<H: PciHardware> Uhci<H> {
             if self.frame_number() != frame {
                 return;
             }
-            if self.hw.read16(register::USBSTS) & status::HALTED != 0 {
+            if self.hw.read16(USBSTS) & STS_HALTED != 0 {
                 return;
             }
             if self.hw.now_micros().saturating_sub(start) > FRAME_WAIT_MICROS {
@@ -509,7 +510,7 @@ impl<H: PciHardware> Uhci<H> {
     fn port_offset(&self, port: u8) -> Option<u32> {
         (1..=self.ports)
             .contains(&port)
-            .then(|| register::PORTSC1 + 2 * u32::from(port - 1))
+            .then(|| PORTSC1 + 2 * u32::from(port - 1))
     }
 
     /// Reads a port register; `None` if the port does not exist or the
@@ -523,7 +524,7 @@ impl<H: PciHardware> Uhci<H> {
     /// What a port register may be written back as: no change bit cleared
     /// by accident, reserved bits zero (Linux's `CLR_RH_PORTSTAT`).
     fn port_keep(value: u16) -> u16 {
-        value & !(port::WRITE_CLEAR | port::WRITE_ZERO)
+        value & !(PORT_WRITE_CLEAR | PORT_WRITE_ZERO)
     }
 
     fn device_slot(&self, device: DeviceId) -> Result<usize, HostError> {
@@ -556,7 +557,7 @@ impl<H: PciHardware> Uhci<H> {
     /// frame: its TDs are not written again until the frame has passed.
     fn retire_control(&mut self, slot: usize) {
         let qh = self.layout.device_qh(slot);
-        self.dma_write(qh + 4, link::TERMINATE);
+        self.dma_write(qh + 4, LINK_TERMINATE);
         self.devices[slot].control = None;
         let frame = self.frame_number();
         self.devices[slot].quiet_after = Some(frame);
@@ -578,13 +579,13 @@ impl<H: PciHardware> Uhci<H> {
 
     /// Which error an inactive TD's status names, if any.
     fn td_error(status: u32) -> Option<Transfer> {
-        if status & td::BABBLE != 0 {
+        if status & TD_BABBLE != 0 {
             Some(Transfer::Failed(TransferError::Babble))
-        } else if status & td::DATA_BUFFER_ERROR != 0 {
+        } else if status & TD_DATA_BUFFER_ERROR != 0 {
             Some(Transfer::Failed(TransferError::DataBuffer))
-        } else if status & (td::CRC_TIMEOUT | td::BITSTUFF) != 0 {
+        } else if status & (TD_CRC_TIMEOUT | TD_BITSTUFF) != 0 {
             Some(Transfer::Failed(TransferError::NoResponse))
-        } else if status & td::STALLED != 0 {
+        } else if status & TD_STALLED != 0 {
             Some(Transfer::Stalled)
         } else {
             None
@@ -605,9 +606,9 @@ impl<H: PciHardware> Uhci<H> {
     fn arm_pipe(&mut self, slot: usize) {
         let pipe = self.pipes[slot];
         let device = self.devices[pipe.device];
-        let speed = if device.low_speed { td::LOW_SPEED } else { 0 };
-        let token = td::token(
-            td::PID_IN,
+        let speed = if device.low_speed { TD_LOW_SPEED } else { 0 };
+        let token = td_token(
+            PID_IN,
             device.address,
             pipe.endpoint,
             pipe.toggle,
@@ -617,8 +618,8 @@ impl<H: PciHardware> Uhci<H> {
         let buffer = self.layout.pipe_buffer(slot);
         self.write_td(
             address,
-            link::TERMINATE,
-            td::ACTIVE | td::THREE_ERRORS | td::INTERRUPT_ON_COMPLETE | speed,
+            LINK_TERMINATE,
+            TD_ACTIVE | TD_THREE_ERRORS | TD_INTERRUPT_ON_COMPLETE | speed,
             token,
             buffer,
         );
@@ -628,7 +629,7 @@ impl<H: PciHardware> Uhci<H> {
 
     /// Stops pipe `slot`'s queue after an error and notes the frame.
     fn stop_pipe(&mut self, slot: usize) {
-        self.dma_write(self.layout.pipe_qh(slot) + 4, link::TERMINATE);
+        self.dma_write(self.layout.pipe_qh(slot) + 4, LINK_TERMINATE);
         self.pipes[slot].state = PipeState::Waiting;
         let frame = self.frame_number();
         self.pipes[slot].quiet_after = Some(frame);
@@ -665,26 +666,26 @@ impl<H: PciHardware> HostController for Uhci<H> {
         let Some((_, value)) = self.read_port(port) else {
             return PortStatus::default();
         };
-        let connected = value & port::CONNECTED != 0;
+        let connected = value & PORT_CONNECTED != 0;
         PortStatus {
             connected,
-            enabled: connected && value & port::ENABLED != 0,
-            low_speed: connected && value & port::LOW_SPEED != 0,
-            connect_changed: value & port::CONNECT_CHANGE != 0,
+            enabled: connected && value & PORT_ENABLED != 0,
+            low_speed: connected && value & PORT_LOW_SPEED != 0,
+            connect_changed: value & PORT_CONNECT_CHANGE != 0,
             companion_owned: false,
         }
     }
 
     fn clear_port_change(&mut self, port: u8) {
         if let Some((offset, value)) = self.read_port(port) {
-            let clear = port::CONNECT_CHANGE | port::ENABLE_CHANGE;
+            let clear = PORT_CONNECT_CHANGE | PORT_ENABLE_CHANGE;
             self.hw.write16(offset, Self::port_keep(value) | clear);
         }
     }
 
     fn port_reset_begin(&mut self, port: u8) {
         if let Some((offset, value)) = self.read_port(port) {
-            let value = (Self::port_keep(value) | port::RESET) & !port::ENABLED;
+            let value = (Self::port_keep(value) | PORT_RESET) & !PORT_ENABLED;
             self.hw.write16(offset, value);
         }
     }
@@ -694,7 +695,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
             return ResetOutcome::Failed;
         };
         self.hw
-            .write16(offset, Self::port_keep(value) & !port::RESET);
+            .write16(offset, Self::port_keep(value) & !PORT_RESET);
         self.wait_micros(PORT_RESET_RECOVERY_MICROS);
         let start = self.hw.now_micros();
         let mut tries = 0;
@@ -702,12 +703,12 @@ impl<H: PciHardware> HostController for Uhci<H> {
             let Some((_, value)) = self.read_port(port) else {
                 return ResetOutcome::Failed;
             };
-            if value & port::CONNECTED == 0 {
+            if value & PORT_CONNECTED == 0 {
                 return ResetOutcome::Failed;
             }
-            let reset_over = value & port::RESET == 0;
-            if reset_over && value & port::ENABLED != 0 {
-                let speed = if value & port::LOW_SPEED != 0 {
+            let reset_over = value & PORT_RESET == 0;
+            if reset_over && value & PORT_ENABLED != 0 {
+                let speed = if value & PORT_LOW_SPEED != 0 {
                     Speed::Low
                 } else {
                     Speed::Full
@@ -726,9 +727,9 @@ impl<H: PciHardware> HostController for Uhci<H> {
                 // The reset's own connect and enable changes go, and the
                 // port is enabled (Linux's uhci_check_ports).
                 tries += 1;
-                let clear = value & (port::CONNECT_CHANGE | port::ENABLE_CHANGE);
+                let clear = value & (PORT_CONNECT_CHANGE | PORT_ENABLE_CHANGE);
                 self.hw
-                    .write16(offset, Self::port_keep(value) | clear | port::ENABLED);
+                    .write16(offset, Self::port_keep(value) | clear | PORT_ENABLED);
             }
             self.wait_micros(PORT_RESET_RECOVERY_MICROS);
         }
@@ -737,7 +738,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
     fn port_disable(&mut self, port: u8) {
         if let Some((offset, value)) = self.read_port(port) {
             self.hw
-                .write16(offset, Self::port_keep(value) & !port::ENABLED);
+                .write16(offset, Self::port_keep(value) & !PORT_ENABLED);
         }
     }
 
@@ -775,7 +776,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
             quiet_after: None,
         };
         let qh = self.layout.device_qh(slot);
-        self.dma_write(qh + 4, link::TERMINATE);
+        self.dma_write(qh + 4, LINK_TERMINATE);
         self.relink_devices();
         Ok(DeviceId(slot as u8))
     }
@@ -870,38 +871,34 @@ impl<H: PciHardware> HostController for Uhci<H> {
         if !is_in {
             self.write_bytes(buffer + 8, &out[..length]);
         }
-        let speed = if dev.low_speed { td::LOW_SPEED } else { 0 };
-        let active = td::ACTIVE | td::THREE_ERRORS | speed;
+        let speed = if dev.low_speed { TD_LOW_SPEED } else { 0 };
+        let active = TD_ACTIVE | TD_THREE_ERRORS | speed;
         let layout = self.layout;
         let td_at = |index: usize| layout.device_td(slot, index);
-        let next = |index: usize| td_at(index + 1) | link::DEPTH_FIRST;
+        let next = |index: usize| td_at(index + 1) | LINK_DEPTH_FIRST;
 
         // Status: the other direction (IN when there is no data), DATA1,
         // no data, interrupt on completion. Written from the last TD to
         // the first, each TD's status word last.
-        let status_pid = if is_in && length > 0 {
-            td::PID_OUT
-        } else {
-            td::PID_IN
-        };
-        let token = td::token(status_pid, dev.address, 0, true, 0);
+        let status_pid = if is_in && length > 0 { PID_OUT } else { PID_IN };
+        let token = td_token(status_pid, dev.address, 0, true, 0);
         self.write_td(
             td_at(tds - 1),
-            link::TERMINATE,
-            active | td::INTERRUPT_ON_COMPLETE,
+            LINK_TERMINATE,
+            active | TD_INTERRUPT_ON_COMPLETE,
             token,
             0,
         );
         let (data_pid, detect) = if is_in {
-            (td::PID_IN, td::SHORT_PACKET_DETECT)
+            (PID_IN, TD_SHORT_PACKET_DETECT)
         } else {
-            (td::PID_OUT, 0)
+            (PID_OUT, 0)
         };
         for packet in (0..data_tds).rev() {
             let offset = packet * max_packet;
             let bytes = max_packet.min(length - offset);
             let toggle = packet % 2 == 0;
-            let token = td::token(data_pid, dev.address, 0, toggle, bytes);
+            let token = td_token(data_pid, dev.address, 0, toggle, bytes);
             let index = packet + 1;
             self.write_td(
                 td_at(index),
@@ -911,7 +908,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
                 buffer + 8 + offset as u32,
             );
         }
-        let token = td::token(td::PID_SETUP, dev.address, 0, false, 8);
+        let token = td_token(PID_SETUP, dev.address, 0, false, 8);
         self.write_td(td_at(0), next(0), active, token, buffer);
         self.dma_write(self.layout.device_qh(slot) + 4, td_at(0));
         self.devices[slot].control = Some(Control {
@@ -940,7 +937,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
         while control.cursor < control.tds {
             let index = control.cursor;
             let status = self.dma_read(self.layout.device_td(slot, index) + 4);
-            if status & td::ACTIVE != 0 {
+            if status & TD_ACTIVE != 0 {
                 self.devices[slot].control = Some(control);
                 return Transfer::Pending;
             }
@@ -948,7 +945,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
                 self.retire_control(slot);
                 return error;
             }
-            let moved = td::actual_length(status);
+            let moved = td_actual_length(status);
             let asked = match index {
                 0 => 8,
                 i if i == status_index => 0,
@@ -1041,7 +1038,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
             quiet_after: None,
         };
         let qh = self.layout.pipe_qh(slot);
-        self.dma_write(qh + 4, link::TERMINATE);
+        self.dma_write(qh + 4, LINK_TERMINATE);
         self.arm_pipe(slot);
         self.relink_period(period);
         Ok(PipeId(slot as u8))
@@ -1059,14 +1056,14 @@ impl<H: PciHardware> HostController for Uhci<H> {
             return Transfer::Failed(TransferError::Controller);
         }
         let status = self.dma_read(self.layout.pipe_td(slot) + 4);
-        if status & td::ACTIVE != 0 {
+        if status & TD_ACTIVE != 0 {
             return Transfer::Pending;
         }
         if let Some(error) = Self::td_error(status) {
             self.stop_pipe(slot);
             return error;
         }
-        let moved = td::actual_length(status);
+        let moved = td_actual_length(status);
         if moved > usize::from(self.pipes[slot].max_packet) {
             self.stop_pipe(slot);
             return Transfer::Failed(TransferError::Babble);
@@ -1117,21 +1114,21 @@ impl<H: PciHardware> HostController for Uhci<H> {
         if self.idle_calls.is_multiple_of(PORT_CHECK_EVERY) && self.ports > 0 {
             let port = self.next_port_checked % self.ports;
             self.next_port_checked = (port + 1) % self.ports;
-            let value = self.hw.read16(register::PORTSC1 + 2 * u32::from(port));
-            return value != 0xFFFF && value & (port::CONNECT_CHANGE | port::ENABLE_CHANGE) != 0;
+            let value = self.hw.read16(PORTSC1 + 2 * u32::from(port));
+            return value != 0xFFFF && value & (PORT_CONNECT_CHANGE | PORT_ENABLE_CHANGE) != 0;
         }
-        let usbsts = self.hw.read16(register::USBSTS);
+        let usbsts = self.hw.read16(USBSTS);
         if usbsts == 0xFFFF
-            || usbsts & (status::HALTED | status::HOST_SYSTEM_ERROR | status::PROCESS_ERROR) != 0
+            || usbsts & (STS_HALTED | STS_HOST_SYSTEM_ERROR | STS_PROCESS_ERROR) != 0
         {
             self.controller_died(usbsts);
             return true;
         }
-        let causes = usbsts & status::CAUSES;
+        let causes = usbsts & STS_CAUSES;
         if causes != 0 {
-            self.hw.write16(register::USBSTS, causes);
+            self.hw.write16(USBSTS, causes);
         }
-        causes & (status::INTERRUPT | status::ERROR_INTERRUPT) != 0
+        causes & (STS_INTERRUPT | STS_ERROR_INTERRUPT) != 0
     }
 
     fn halt(&mut self) -> bool {
@@ -1140,20 +1137,15 @@ impl<H: PciHardware> HostController for Uhci<H> {
             State::Owned | State::Running | State::Stopped => {}
         }
         self.state = State::Stopped;
-        let cmd = self.hw.read16(register::USBCMD);
-        self.hw.write16(register::USBCMD, cmd & !command::RUN);
-        let halted = self.wait_register(
-            register::USBSTS,
-            status::HALTED,
-            status::HALTED,
-            HALT_MICROS,
-        );
-        self.hw.write16(register::USBINTR, 0);
+        let cmd = self.hw.read16(USBCMD);
+        self.hw.write16(USBCMD, cmd & !CMD_RUN);
+        let halted = self.wait_register(USBSTS, STS_HALTED, STS_HALTED, HALT_MICROS);
+        self.hw.write16(USBINTR, 0);
         // As Linux leaves it (uhci_reset_hc): trap status cleared, SMI and
         // PIRQ enables off.
-        let above = self.hw.pci_config_read(legacy::OFFSET) & 0xFFFF_0000;
+        let above = self.hw.pci_config_read(LEGACY_OFFSET) & 0xFFFF_0000;
         self.hw
-            .pci_config_write(legacy::OFFSET, above | u32::from(legacy::STATUS_CLEAR));
+            .pci_config_write(LEGACY_OFFSET, above | u32::from(LEGACY_STATUS_CLEAR));
         if !halted {
             self.hw
                 .log(format_args!("uhci: did not halt within {HALT_MICROS} us"));

@@ -4,16 +4,18 @@
 //! by the clock, every index the controller or a device gives is checked,
 //! and every failure is an [`XhciError`] the caller logs and survives.
 
-use super::context::ContextLayout;
-use super::ring::{trb_type, EventRing, ProducerRing, Trb};
 use super::Hardware;
+use context::ContextLayout;
+use ring::{trb_type, EventRing, ProducerRing, Trb};
 // TRBs are built with the `xhci` crate's layouts; the rings here own the
 // cycle bit.
 use xhci::ring::trb::command;
 
+pub mod context;
 mod host;
 #[cfg(test)]
 mod host_tests;
+pub mod ring;
 pub use host::HOST_DEVICES;
 
 /// Bytes in a page: DMA memory is handed out a page at a time.

@@ -4,7 +4,7 @@
 //! fail or never answer, and what an idle poll costs.
 
 use super::*;
-use crate::model::devices::{Device as Plug, UsbTree};
+use crate::model::devices::{UsbDevice, UsbTree};
 use crate::model::loopback::Loopback;
 use std::format;
 use std::string::String;
@@ -101,7 +101,7 @@ const NOTHING: [u8; 8] = [0; 8];
 #[test]
 fn a_keyboard_on_a_root_port_types_set_1_bytes_and_repeats() {
     let mut bus = bus(ControllerKind::Uhci, 2);
-    let keyboard = tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     assert_eq!(bus.enumerate(), 1, "{:#?}", log(&mut bus));
     assert_eq!(keyboards(&bus), ["1"]);
     assert_eq!(bus.kind(), ControllerKind::Uhci);
@@ -132,7 +132,7 @@ fn a_keyboard_whose_report_descriptor_cannot_be_read_is_put_in_the_boot_protocol
     // GET_DESCRIPTOR(report) goes to the interface: stalled, as some
     // keyboards do.
     bus.controller().stall_requests.push((0x81, GET_DESCRIPTOR));
-    let keyboard = tree(&mut bus).plug(&[2], Plug::Keyboard(Speed::Low));
+    let keyboard = tree(&mut bus).plug(&[2], UsbDevice::Keyboard(Speed::Low));
     assert_eq!(bus.enumerate(), 1, "{:#?}", log(&mut bus));
     assert_eq!(tree(&mut bus).keyboard_state(keyboard), (0, 1, 1));
     assert!(logged(
@@ -153,7 +153,7 @@ fn a_keyboard_whose_report_descriptor_cannot_be_read_is_put_in_the_boot_protocol
 #[test]
 fn hubs_chain_to_five_tiers_and_the_keyboard_below_them_types() {
     let mut bus = bus(ControllerKind::Ohci, 1);
-    let hub = Plug::Hub {
+    let hub = UsbDevice::Hub {
         speed: Speed::Full,
         ports: 4,
         multi_tt: false,
@@ -165,7 +165,7 @@ fn hubs_chain_to_five_tiers_and_the_keyboard_below_them_types() {
     }
     tree(&mut bus).plug(&path, hub);
     path.push(4);
-    let keyboard = tree(&mut bus).plug(&path, Plug::Keyboard(Speed::Low));
+    let keyboard = tree(&mut bus).plug(&path, UsbDevice::Keyboard(Speed::Low));
     assert_eq!(bus.enumerate(), 1, "{:#?}", log(&mut bus));
     assert_eq!(keyboards(&bus), ["1.4.3.2.1.4"]);
     assert_eq!(bus.controller().hubs().len(), 5);
@@ -183,26 +183,26 @@ fn hubs_chain_to_five_tiers_and_the_keyboard_below_them_types() {
 #[test]
 fn translators_name_the_nearest_high_speed_hub_and_the_port_below_it() {
     let mut bus = bus(ControllerKind::Ehci, 3);
-    let high_speed_hub = |multi_tt| Plug::Hub {
+    let high_speed_hub = |multi_tt| UsbDevice::Hub {
         speed: Speed::High,
         ports: 4,
         multi_tt,
     };
     let top = tree(&mut bus).plug(&[1], high_speed_hub(false));
     let middle = tree(&mut bus).plug(&[1, 2], high_speed_hub(true));
-    let full = tree(&mut bus).plug(&[1, 2, 3], Plug::Keyboard(Speed::Full));
+    let full = tree(&mut bus).plug(&[1, 2, 3], UsbDevice::Keyboard(Speed::Full));
     tree(&mut bus).plug(
         &[1, 2, 4],
-        Plug::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
         },
     );
-    let low = tree(&mut bus).plug(&[1, 2, 4, 1], Plug::Keyboard(Speed::Low));
-    let high = tree(&mut bus).plug(&[1, 1], Plug::Keyboard(Speed::High));
-    tree(&mut bus).plug(&[2], Plug::Keyboard(Speed::Full));
-    let root_high = tree(&mut bus).plug(&[3], Plug::Keyboard(Speed::High));
+    let low = tree(&mut bus).plug(&[1, 2, 4, 1], UsbDevice::Keyboard(Speed::Low));
+    let high = tree(&mut bus).plug(&[1, 1], UsbDevice::Keyboard(Speed::High));
+    tree(&mut bus).plug(&[2], UsbDevice::Keyboard(Speed::Full));
+    let root_high = tree(&mut bus).plug(&[3], UsbDevice::Keyboard(Speed::High));
     assert_eq!(bus.enumerate(), 4, "{:#?}", log(&mut bus));
     let mut found = keyboards(&bus);
     found.sort();
@@ -263,7 +263,7 @@ fn keyboards_plugged_in_and_pulled_out_at_root_and_hub_ports_come_and_go() {
     let mut bus = bus(ControllerKind::Uhci, 2);
     tree(&mut bus).plug(
         &[1],
-        Plug::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
@@ -272,7 +272,7 @@ fn keyboards_plugged_in_and_pulled_out_at_root_and_hub_ports_come_and_go() {
     assert_eq!(bus.enumerate(), 0);
     settle(&mut bus);
     // Behind the hub.
-    let keyboard = tree(&mut bus).plug(&[1, 3], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[1, 3], UsbDevice::Keyboard(Speed::Full));
     settle(&mut bus);
     assert_eq!(keyboards(&bus), ["1.3"]);
     assert!(logged(&mut bus, "usb: uhci port 1.3: device plugged in"));
@@ -287,7 +287,7 @@ fn keyboards_plugged_in_and_pulled_out_at_root_and_hub_ports_come_and_go() {
         "usb: uhci port 1.3: keyboard gone; its keys released"
     ));
     // At the root.
-    let keyboard = tree(&mut bus).plug(&[2], Plug::Keyboard(Speed::Low));
+    let keyboard = tree(&mut bus).plug(&[2], UsbDevice::Keyboard(Speed::Low));
     settle(&mut bus);
     assert_eq!(keyboards(&bus), ["2"]);
     assert!(tree(&mut bus).send_report(keyboard, LEFT));
@@ -296,7 +296,7 @@ fn keyboards_plugged_in_and_pulled_out_at_root_and_hub_ports_come_and_go() {
     assert_eq!(settle(&mut bus), [0xE0, 0xCB]);
     assert_eq!(keyboards(&bus), Vec::<String>::new());
     // The hub pulled out with a keyboard below it: both go.
-    let keyboard = tree(&mut bus).plug(&[1, 1], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[1, 1], UsbDevice::Keyboard(Speed::Full));
     settle(&mut bus);
     assert!(tree(&mut bus).send_report(keyboard, A));
     assert_eq!(poll(&mut bus), [0x1E]);
@@ -315,7 +315,7 @@ fn a_thousand_plug_cycles_leave_every_table_as_it_was() {
     let mut bus = bus(ControllerKind::Ohci, 2);
     tree(&mut bus).plug(
         &[1],
-        Plug::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
@@ -339,7 +339,7 @@ fn a_thousand_plug_cycles_leave_every_table_as_it_was() {
         } else {
             vec![2]
         };
-        let keyboard = tree(&mut bus).plug(&path, Plug::Keyboard(Speed::Full));
+        let keyboard = tree(&mut bus).plug(&path, UsbDevice::Keyboard(Speed::Full));
         settle(&mut bus);
         assert_eq!(
             keyboards(&bus).len(),
@@ -359,7 +359,7 @@ fn a_thousand_plug_cycles_leave_every_table_as_it_was() {
 #[test]
 fn a_keyboard_whose_configuration_lies_about_its_length_is_refused() {
     let mut bus = bus(ControllerKind::Uhci, 2);
-    tree(&mut bus).plug(&[1], Plug::LyingKeyboard(Speed::Full));
+    tree(&mut bus).plug(&[1], UsbDevice::LyingKeyboard(Speed::Full));
     assert_eq!(bus.enumerate(), 0);
     assert!(
         logged(&mut bus, "usb: uhci port 1: ")
@@ -384,13 +384,13 @@ fn a_lying_keyboard_behind_a_hub_has_its_hub_port_disabled() {
     let mut bus = bus(ControllerKind::Ohci, 1);
     let hub = tree(&mut bus).plug(
         &[1],
-        Plug::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
         },
     );
-    tree(&mut bus).plug(&[1, 2], Plug::LyingKeyboard(Speed::Low));
+    tree(&mut bus).plug(&[1, 2], UsbDevice::LyingKeyboard(Speed::Low));
     assert_eq!(bus.enumerate(), 0);
     settle(&mut bus);
     assert!(
@@ -414,7 +414,7 @@ fn a_lying_keyboard_behind_a_hub_has_its_hub_port_disabled() {
 #[test]
 fn a_stalled_keyboard_has_its_halt_cleared_and_types_on() {
     let mut bus = bus(ControllerKind::Ohci, 1);
-    let keyboard = tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     assert_eq!(bus.enumerate(), 1);
     assert!(tree(&mut bus).send_report(keyboard, A));
     assert_eq!(poll(&mut bus), [0x1E]);
@@ -444,7 +444,7 @@ fn a_stalled_keyboard_has_its_halt_cleared_and_types_on() {
 #[test]
 fn a_report_sent_again_with_the_old_toggle_is_dropped() {
     let mut bus = bus(ControllerKind::Uhci, 1);
-    let keyboard = tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     assert_eq!(bus.enumerate(), 1);
     assert!(tree(&mut bus).send_report(keyboard, A));
     assert_eq!(poll(&mut bus), [0x1E]);
@@ -457,7 +457,7 @@ fn a_report_sent_again_with_the_old_toggle_is_dropped() {
 #[test]
 fn errors_on_the_interrupt_pipe_are_recovered_until_they_never_stop() {
     let mut bus = bus(ControllerKind::Uhci, 1);
-    let keyboard = tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     assert_eq!(bus.enumerate(), 1);
     // Two failed transfers (three errors each): restarted, toggle kept.
     bus.controller().interrupt_errors = 6;
@@ -499,7 +499,7 @@ fn errors_on_the_interrupt_pipe_are_recovered_until_they_never_stop() {
 #[test]
 fn a_dead_device_is_given_up_and_its_port_left_alone() {
     let mut bus = bus(ControllerKind::Uhci, 2);
-    tree(&mut bus).plug(&[2], Plug::Dead(Speed::Full));
+    tree(&mut bus).plug(&[2], UsbDevice::Dead(Speed::Full));
     assert_eq!(bus.enumerate(), 0);
     assert!(
         logged(
@@ -522,7 +522,7 @@ fn a_dead_device_is_given_up_and_its_port_left_alone() {
 #[test]
 fn a_control_transfer_that_never_ends_is_cancelled_after_five_seconds() {
     let mut bus = bus(ControllerKind::Ohci, 1);
-    tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     bus.controller().wedged = true;
     assert_eq!(bus.enumerate(), 0);
     assert!(logged(&mut bus, "usb: ohci: boot enumeration cut short after 2000 ms, port 1 still reading the device descriptor's first 8 bytes"));
@@ -561,13 +561,13 @@ fn an_idle_poll_asks_the_controller_once_and_nothing_else() {
     let mut bus = bus(ControllerKind::Ehci, 2);
     tree(&mut bus).plug(
         &[1],
-        Plug::Hub {
+        UsbDevice::Hub {
             speed: Speed::High,
             ports: 4,
             multi_tt: false,
         },
     );
-    let keyboard = tree(&mut bus).plug(&[1, 4], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[1, 4], UsbDevice::Keyboard(Speed::Full));
     assert_eq!(bus.enumerate(), 1);
     settle(&mut bus);
     bus.controller().calls.clear();
@@ -592,7 +592,7 @@ fn an_idle_poll_asks_the_controller_once_and_nothing_else() {
 #[test]
 fn past_thirty_two_devices_there_is_no_room() {
     let mut bus = bus(ControllerKind::Ohci, 3);
-    let hub = Plug::Hub {
+    let hub = UsbDevice::Hub {
         speed: Speed::Full,
         ports: 15,
         multi_tt: false,
@@ -601,14 +601,14 @@ fn past_thirty_two_devices_there_is_no_room() {
     tree(&mut bus).plug(&[2], hub);
     for root in [1, 2] {
         for port in 1..=15 {
-            tree(&mut bus).plug(&[root, port], Plug::Keyboard(Speed::Low));
+            tree(&mut bus).plug(&[root, port], UsbDevice::Keyboard(Speed::Low));
         }
     }
     bus.enumerate();
     settle(&mut bus);
     assert_eq!(bus.devices(), MAX_DEVICES);
     assert_eq!(keyboards(&bus).len(), 30);
-    tree(&mut bus).plug(&[3], Plug::Keyboard(Speed::Full));
+    tree(&mut bus).plug(&[3], UsbDevice::Keyboard(Speed::Full));
     settle(&mut bus);
     assert!(
         logged(&mut bus, "usb: ohci port 3: no room: 32 devices kept already while recovering from the reset; port disabled"),
@@ -621,7 +621,7 @@ fn past_thirty_two_devices_there_is_no_room() {
     settle(&mut bus);
     tree(&mut bus).unplug(&[3]);
     settle(&mut bus);
-    let keyboard = tree(&mut bus).plug(&[3], Plug::Keyboard(Speed::Full));
+    let keyboard = tree(&mut bus).plug(&[3], UsbDevice::Keyboard(Speed::Full));
     settle(&mut bus);
     assert!(keyboards(&bus).contains(&String::from("3")));
     assert!(tree(&mut bus).send_report(keyboard, A));
@@ -647,13 +647,13 @@ fn a_connection_that_never_settles_is_dropped_after_two_seconds() {
         if plugged {
             tree(&mut bus).unplug(&[1]);
         } else {
-            tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+            tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
         }
         plugged = !plugged;
         run_for(&mut bus, 40_000);
     }
     if !plugged {
-        tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+        tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
         plugged = true;
         run_for(&mut bus, 1_000);
     }
@@ -664,7 +664,7 @@ fn a_connection_that_never_settles_is_dropped_after_two_seconds() {
     assert!(bus.enumeration_idle());
     tree(&mut bus).unplug(&[1]);
     run_for(&mut bus, 10_000);
-    tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     settle(&mut bus);
     assert_eq!(keyboards(&bus), ["1"]);
     assert_clean(&mut bus);
@@ -675,13 +675,13 @@ fn a_hub_pulled_out_during_an_enumeration_below_it_stops_it() {
     let mut bus = bus(ControllerKind::Ohci, 1);
     tree(&mut bus).plug(
         &[1],
-        Plug::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
         },
     );
-    tree(&mut bus).plug(&[1, 2], Plug::Keyboard(Speed::Full));
+    tree(&mut bus).plug(&[1, 2], UsbDevice::Keyboard(Speed::Full));
     bus.scan_at = Some(0);
     let below = Location::root(1).below(2);
     let mut polls = 0;
@@ -707,7 +707,7 @@ fn a_hub_pulled_out_during_an_enumeration_below_it_stops_it() {
 #[test]
 fn a_device_pulled_out_during_its_root_port_reset_has_the_reset_ended() {
     let mut bus = bus(ControllerKind::Uhci, 1);
-    tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     bus.scan_at = Some(0);
     while bus.job.as_ref().map(|job| job.step) != Some(enumeration::Step::ResettingRootPort) {
         poll(&mut bus);
@@ -721,7 +721,7 @@ fn a_device_pulled_out_during_its_root_port_reset_has_the_reset_ended() {
     assert_eq!((begun, ended), (1, 1));
     assert_eq!(bus.controller().devices_open(), 0);
     // Plugged in again: found.
-    tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::Full));
+    tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
     settle(&mut bus);
     assert_eq!(keyboards(&bus), ["1"]);
     assert_clean(&mut bus);
@@ -730,7 +730,7 @@ fn a_device_pulled_out_during_its_root_port_reset_has_the_reset_ended() {
 #[test]
 fn shut_down_halts_the_controller_and_touches_it_no_more() {
     let mut bus = bus(ControllerKind::Ehci, 1);
-    tree(&mut bus).plug(&[1], Plug::Keyboard(Speed::High));
+    tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::High));
     assert_eq!(bus.enumerate(), 1);
     assert!(bus.shut_down());
     assert!(bus.controller().halted);

@@ -7,8 +7,8 @@ use super::layout::{Layout, MAX_DEVICES, MAX_PIPES};
 use super::*;
 use crate::bus::Bus;
 use crate::host::TransactionTranslator;
-use crate::model::devices::Device;
-use crate::model::ehci::{Model, SplitRecord, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use crate::model::devices::UsbDevice;
+use crate::model::ehci::{EhciModel, SplitRecord, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use crate::{Hardware, Memory};
 use budget::Booking;
 use std::vec::Vec;
@@ -24,7 +24,7 @@ const B_MAKE: u8 = 0x30;
 const B_BREAK: u8 = 0xB0;
 
 /// A driver over `model`, taken from the firmware, reset and started.
-fn started(model: Model) -> Ehci<Model> {
+fn started(model: EhciModel) -> Ehci<EhciModel> {
     let mut ehci = Ehci::new(model, BAR_BYTES, DMA_BASE, DMA_BYTES).expect("new");
     assert!(matches!(
         ehci.take_ownership(),
@@ -35,18 +35,18 @@ fn started(model: Model) -> Ehci<Model> {
 }
 
 /// The device layer over a started driver, after boot enumeration.
-fn enumerated(model: Model) -> (Bus<Ehci<Model>>, usize) {
+fn enumerated(model: EhciModel) -> (Bus<Ehci<EhciModel>>, usize) {
     let mut bus = Bus::new(started(model));
     let keyboards = bus.enumerate();
     (bus, keyboards)
 }
 
-fn model(bus: &mut Bus<Ehci<Model>>) -> &mut Model {
+fn model(bus: &mut Bus<Ehci<EhciModel>>) -> &mut EhciModel {
     bus.controller().hardware()
 }
 
 /// Polls for `micros` of model time; the set-1 bytes that came.
-fn run(bus: &mut Bus<Ehci<Model>>, micros: u64) -> Vec<u8> {
+fn run(bus: &mut Bus<Ehci<EhciModel>>, micros: u64) -> Vec<u8> {
     let end = model(bus).now + micros;
     let mut bytes = Vec::new();
     while model(bus).now < end {
@@ -56,14 +56,14 @@ fn run(bus: &mut Bus<Ehci<Model>>, micros: u64) -> Vec<u8> {
 }
 
 /// Presses and releases a key on keyboard `handle`; the bytes typed.
-fn type_key(bus: &mut Bus<Ehci<Model>>, handle: usize, report: [u8; 8]) -> Vec<u8> {
+fn type_key(bus: &mut Bus<Ehci<EhciModel>>, handle: usize, report: [u8; 8]) -> Vec<u8> {
     assert!(model(bus).tree.send_report(handle, report));
     assert!(model(bus).tree.send_report(handle, NO_KEYS));
     run(bus, 20_000)
 }
 
 /// Nothing the model or the devices noted as wrong.
-fn assert_clean(model: &Model) {
+fn assert_clean(model: &EhciModel) {
     assert!(model.errors.is_empty(), "controller: {:#?}", model.errors);
     assert!(
         model.tree.errors().is_empty(),
@@ -72,15 +72,15 @@ fn assert_clean(model: &Model) {
     );
 }
 
-fn logged(model: &Model, text: &str) -> bool {
+fn logged(model: &EhciModel, text: &str) -> bool {
     model.log.iter().any(|line| line.contains(text))
 }
 
 #[test]
 fn a_high_speed_keyboard_on_a_root_port_types() {
-    let mut m = Model::new(4);
+    let mut m = EhciModel::new(4);
     m.port_power_control = true;
-    let keyboard = m.tree.plug(&[2], Device::Keyboard(Speed::High));
+    let keyboard = m.tree.plug(&[2], UsbDevice::Keyboard(Speed::High));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 1, "{:#?}", model(&mut bus).log);
     let (_, configuration, address) = model(&mut bus).tree.keyboard_state(keyboard);
@@ -101,7 +101,7 @@ fn a_high_speed_keyboard_on_a_root_port_types() {
 
 /// Checks every split the model ran for the device at `address`: the
 /// translator's hub and port, the speed, and the masks by schedule.
-fn assert_splits(m: &Model, address: u8, hub_address: u8, hub_port: u8, eps: u8) {
+fn assert_splits(m: &EhciModel, address: u8, hub_address: u8, hub_port: u8, eps: u8) {
     let splits: Vec<SplitRecord> = m
         .split_log
         .iter()
@@ -131,17 +131,17 @@ fn assert_splits(m: &Model, address: u8, hub_address: u8, hub_port: u8, eps: u8)
 
 #[test]
 fn keyboards_behind_a_high_speed_hub_go_through_its_translator() {
-    let mut m = Model::new(4);
+    let mut m = EhciModel::new(4);
     let hub = m.tree.plug(
         &[3],
-        Device::Hub {
+        UsbDevice::Hub {
             speed: Speed::High,
             ports: 4,
             multi_tt: false,
         },
     );
-    let full = m.tree.plug(&[3, 2], Device::Keyboard(Speed::Full));
-    let low = m.tree.plug(&[3, 4], Device::Keyboard(Speed::Low));
+    let full = m.tree.plug(&[3, 2], UsbDevice::Keyboard(Speed::Full));
+    let low = m.tree.plug(&[3, 4], UsbDevice::Keyboard(Speed::Low));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 2, "{:#?}", model(&mut bus).log);
     assert_eq!(type_key(&mut bus, full, KEY_A), [A_MAKE, A_BREAK]);
@@ -178,21 +178,21 @@ fn keyboards_behind_a_high_speed_hub_go_through_its_translator() {
 
 #[test]
 fn with_no_companion_the_integrated_hub_carries_full_and_low_speed() {
-    let mut m = Model::new(2);
+    let mut m = EhciModel::new(2);
     m.companions = 0;
     // Intel's rate-matching hub sits on each root port.
     let hub = m.tree.plug(
         &[1],
-        Device::Hub {
+        UsbDevice::Hub {
             speed: Speed::High,
             ports: 8,
             multi_tt: true,
         },
     );
-    let full = m.tree.plug(&[1, 5], Device::Keyboard(Speed::Full));
-    let low = m.tree.plug(&[1, 7], Device::Keyboard(Speed::Low));
+    let full = m.tree.plug(&[1, 5], UsbDevice::Keyboard(Speed::Full));
+    let low = m.tree.plug(&[1, 7], UsbDevice::Keyboard(Speed::Low));
     // A full-speed device straight on a root port has nowhere to go.
-    m.tree.plug(&[2], Device::Keyboard(Speed::Full));
+    m.tree.plug(&[2], UsbDevice::Keyboard(Speed::Full));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(bus.controller().companions(), 0);
     assert_eq!(keyboards, 2, "{:#?}", model(&mut bus).log);
@@ -209,9 +209,9 @@ fn with_no_companion_the_integrated_hub_carries_full_and_low_speed() {
 
 #[test]
 fn full_and_low_speed_keyboards_on_root_ports_go_to_the_companion() {
-    let mut m = Model::new(4);
-    m.tree.plug(&[1], Device::Keyboard(Speed::Full));
-    m.tree.plug(&[4], Device::Keyboard(Speed::Low));
+    let mut m = EhciModel::new(4);
+    m.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
+    m.tree.plug(&[4], UsbDevice::Keyboard(Speed::Low));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 0);
     let m = model(&mut bus);
@@ -236,7 +236,7 @@ fn full_and_low_speed_keyboards_on_root_ports_go_to_the_companion() {
     run(&mut bus, 1_000);
     let keyboard = model(&mut bus)
         .tree
-        .plug(&[1], Device::Keyboard(Speed::High));
+        .plug(&[1], UsbDevice::Keyboard(Speed::High));
     run(&mut bus, 1_000_000);
     assert_eq!(bus.keyboards().count(), 1, "{:#?}", model(&mut bus).log);
     assert_eq!(type_key(&mut bus, keyboard, KEY_A), [A_MAKE, A_BREAK]);
@@ -245,7 +245,7 @@ fn full_and_low_speed_keyboards_on_root_ports_go_to_the_companion() {
 
 #[test]
 fn the_firmware_that_lets_go_is_waited_for_and_its_smis_turned_off() {
-    let mut m = Model::new(2).left_running();
+    let mut m = EhciModel::new(2).left_running();
     m.firmware_releases_after = Some(30_000);
     let mut ehci = Ehci::new(m, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
     let Handoff::Released { micros } = ehci.take_ownership() else {
@@ -261,9 +261,9 @@ fn the_firmware_that_lets_go_is_waited_for_and_its_smis_turned_off() {
 
 #[test]
 fn a_firmware_that_never_lets_go_keeps_the_controller_untouched() {
-    let mut m = Model::new(2);
+    let mut m = EhciModel::new(2);
     m.firmware_releases_after = None;
-    m.tree.plug(&[1], Device::Keyboard(Speed::High));
+    m.tree.plug(&[1], UsbDevice::Keyboard(Speed::High));
     let mut ehci = Ehci::new(m, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
     let start = ehci.hardware().now;
     assert_eq!(ehci.take_ownership(), Handoff::NeverReleased);
@@ -297,7 +297,7 @@ fn a_firmware_that_never_lets_go_keeps_the_controller_untouched() {
 
 #[test]
 fn a_looping_capability_list_is_walked_a_bounded_number_of_times() {
-    let mut m = Model::new(2).firmware_not_owning();
+    let mut m = EhciModel::new(2).firmware_not_owning();
     m.eecp_loop = true;
     let mut ehci = Ehci::new(m, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
     let start = ehci.hardware().now;
@@ -311,7 +311,8 @@ fn a_looping_capability_list_is_walked_a_bounded_number_of_times() {
 
 #[test]
 fn registers_and_memory_out_of_bounds_are_refused() {
-    let new = |bar: u32, base: u64, bytes: u64| Ehci::new(Model::new(4), bar, base, bytes).err();
+    let new =
+        |bar: u32, base: u64, bytes: u64| Ehci::new(EhciModel::new(4), bar, base, bytes).err();
     // 4 ports end at 0x20 + 0x44 + 16.
     assert_eq!(
         new(0x70, DMA_BASE, DMA_BYTES),
@@ -338,7 +339,7 @@ fn registers_and_memory_out_of_bounds_are_refused() {
 
 #[test]
 fn a_reset_or_halt_that_never_ends_costs_bounded_time() {
-    let mut m = Model::new(2).firmware_not_owning();
+    let mut m = EhciModel::new(2).firmware_not_owning();
     m.reset_stuck = true;
     let mut ehci = Ehci::new(m, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
     let start = ehci.hardware().now;
@@ -349,7 +350,7 @@ fn a_reset_or_halt_that_never_ends_costs_bounded_time() {
         "{waited}"
     );
 
-    let mut ehci = started(Model::new(2).firmware_not_owning());
+    let mut ehci = started(EhciModel::new(2).firmware_not_owning());
     ehci.hardware().halt_stuck = true;
     let start = ehci.hardware().now;
     assert!(!ehci.halt());
@@ -357,10 +358,36 @@ fn a_reset_or_halt_that_never_ends_costs_bounded_time() {
     assert_eq!(ehci.hardware().configflag(), 0, "ports handed back anyway");
 }
 
+/// The SeaBIOS case: the firmware left the controller running, so starting
+/// waits for the halt, the reset and both schedules. Each wait reads its
+/// register once per `POLL_INTERVAL_MICROS`: a wait that read without a
+/// pause kept QEMU's global lock from the thread that runs the controller's
+/// frames, and on a loaded host the schedules "did not start".
+#[test]
+fn waits_read_their_register_once_per_poll_interval() {
+    let mut m = EhciModel::new(2).left_running();
+    m.firmware_releases_after = Some(0);
+    let mut ehci = Ehci::new(m, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
+    assert!(matches!(ehci.take_ownership(), Handoff::Released { .. }));
+    let (start, reads_before) = (ehci.hardware().now, ehci.hardware().mmio_reads);
+    ehci.reset_and_start().unwrap();
+    let waited = ehci.hardware().now - start;
+    let reads = ehci.hardware().mmio_reads - reads_before;
+    // Three waits (halt, reset, start), each with a read at its start and
+    // at its end, and a few reads outside any wait.
+    let most = waited / POLL_INTERVAL_MICROS + 3 * 2 + 8;
+    assert!(
+        u64::from(reads) <= most,
+        "{reads} register reads in {waited} us (at most {most})"
+    );
+    assert!(waited >= 300, "the model's 300 us reset was waited for");
+    assert_clean(ehci.hardware());
+}
+
 #[test]
 fn halt_stops_the_controller_and_gives_every_port_to_the_companions() {
-    let mut m = Model::new(4);
-    m.tree.plug(&[2], Device::Keyboard(Speed::High));
+    let mut m = EhciModel::new(4);
+    m.tree.plug(&[2], UsbDevice::Keyboard(Speed::High));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 1);
     assert_eq!(model(&mut bus).configflag(), 1);
@@ -385,10 +412,10 @@ fn halt_stops_the_controller_and_gives_every_port_to_the_companions() {
 
 #[test]
 fn port_change_bits_stay_until_acknowledged() {
-    let mut ehci = started(Model::new(2));
+    let mut ehci = started(EhciModel::new(2));
     ehci.hardware()
         .tree
-        .plug(&[1], Device::Keyboard(Speed::High));
+        .plug(&[1], UsbDevice::Keyboard(Speed::High));
     ehci.hardware().advance(1_000);
     let status = ehci.port_status(1);
     assert!(status.connected && status.connect_changed && !status.enabled);
@@ -410,7 +437,7 @@ fn port_change_bits_stay_until_acknowledged() {
 
 #[test]
 fn anything_happened_is_one_register_read() {
-    let mut ehci = started(Model::new(2));
+    let mut ehci = started(EhciModel::new(2));
     // The ports' first connections have been seen (or not): start idle.
     ehci.hardware().advance(1_000);
     while ehci.anything_happened() {}
@@ -419,7 +446,7 @@ fn anything_happened_is_one_register_read() {
     assert_eq!(ehci.hardware().now - now, 5, "one read of USBSTS");
     ehci.hardware()
         .tree
-        .plug(&[2], Device::Keyboard(Speed::High));
+        .plug(&[2], UsbDevice::Keyboard(Speed::High));
     ehci.hardware().advance(200);
     assert!(ehci.anything_happened(), "a port change");
     assert!(!ehci.anything_happened(), "and it was acknowledged");
@@ -427,19 +454,19 @@ fn anything_happened_is_one_register_read() {
 
 #[test]
 fn a_lying_keyboard_is_refused_and_its_memory_reused() {
-    let mut m = Model::new(2);
+    let mut m = EhciModel::new(2);
     // At high speed it says endpoint 0 is 8 bytes; at full speed, behind a
     // translator, its configuration's lengths lie.
-    m.tree.plug(&[1], Device::LyingKeyboard(Speed::High));
+    m.tree.plug(&[1], UsbDevice::LyingKeyboard(Speed::High));
     m.tree.plug(
         &[2],
-        Device::Hub {
+        UsbDevice::Hub {
             speed: Speed::High,
             ports: 4,
             multi_tt: false,
         },
     );
-    m.tree.plug(&[2, 1], Device::LyingKeyboard(Speed::Full));
+    m.tree.plug(&[2, 1], UsbDevice::LyingKeyboard(Speed::Full));
     let (mut bus, keyboards) = enumerated(m);
     assert_eq!(keyboards, 0, "{:#?}", model(&mut bus).log);
     let m = model(&mut bus);
@@ -548,19 +575,19 @@ fn a_lying_keyboard_is_refused_and_its_memory_reused() {
 #[test]
 fn a_repeated_report_is_dropped_and_a_stall_recovered() {
     for translated in [false, true] {
-        let mut m = Model::new(2);
+        let mut m = EhciModel::new(2);
         let keyboard = if translated {
             m.tree.plug(
                 &[1],
-                Device::Hub {
+                UsbDevice::Hub {
                     speed: Speed::High,
                     ports: 4,
                     multi_tt: false,
                 },
             );
-            m.tree.plug(&[1, 1], Device::Keyboard(Speed::Full))
+            m.tree.plug(&[1, 1], UsbDevice::Keyboard(Speed::Full))
         } else {
-            m.tree.plug(&[1], Device::Keyboard(Speed::High))
+            m.tree.plug(&[1], UsbDevice::Keyboard(Speed::High))
         };
         let (mut bus, keyboards) = enumerated(m);
         assert_eq!(keyboards, 1);
@@ -598,9 +625,9 @@ fn six_keyboards_one_with_its_data_buffer_across_a_page() {
     // read through the second buffer pointer.
     let layout = Layout::new(DMA_BASE);
     assert_eq!(layout.device_data(5) % 0x1000, 0xFE0);
-    let mut m = Model::new(6);
+    let mut m = EhciModel::new(6);
     let keyboards: Vec<usize> = (1..=6)
-        .map(|port| m.tree.plug(&[port], Device::Keyboard(Speed::High)))
+        .map(|port| m.tree.plug(&[port], UsbDevice::Keyboard(Speed::High)))
         .collect();
     let (mut bus, found) = enumerated(m);
     assert_eq!(found, 6, "{:#?}", model(&mut bus).log);
@@ -613,13 +640,13 @@ fn six_keyboards_one_with_its_data_buffer_across_a_page() {
 #[test]
 fn sixty_four_bit_controllers_get_the_long_layout_with_high_dwords_zero() {
     for sixty_four_bit in [false, true] {
-        let mut m = Model::new(2);
+        let mut m = EhciModel::new(2);
         m.sixty_four_bit = sixty_four_bit;
         // Junk everywhere: what the driver does not write stays junk.
         for word in (0..DMA_BYTES).step_by(4) {
             m.mem_write(DMA_BASE + word, 0xDEAD_BEEF);
         }
-        let keyboard = m.tree.plug(&[1], Device::Keyboard(Speed::High));
+        let keyboard = m.tree.plug(&[1], UsbDevice::Keyboard(Speed::High));
         let (mut bus, keyboards) = enumerated(m);
         assert_eq!(
             keyboards,
@@ -653,8 +680,8 @@ fn sixty_four_bit_controllers_get_the_long_layout_with_high_dwords_zero() {
 
 #[test]
 fn a_thousand_plug_cycles_never_run_the_pools_dry() {
-    let mut m = Model::new(2);
-    let hub = Device::Hub {
+    let mut m = EhciModel::new(2);
+    let hub = UsbDevice::Hub {
         speed: Speed::High,
         ports: 4,
         multi_tt: false,
@@ -670,7 +697,7 @@ fn a_thousand_plug_cycles_never_run_the_pools_dry() {
         } else {
             Speed::Full
         };
-        let keyboard = model(&mut bus).tree.plug(path, Device::Keyboard(speed));
+        let keyboard = model(&mut bus).tree.plug(path, UsbDevice::Keyboard(speed));
         let mut waited = 0;
         while bus.keyboards().count() == 0 {
             run(&mut bus, 10_000);
@@ -705,7 +732,7 @@ fn a_thousand_plug_cycles_never_run_the_pools_dry() {
 
 /// A high-speed keyboard on root `port`, reset, addressed at `address`
 /// and configured, through [`HostController`] alone.
-fn addressed_keyboard(ehci: &mut Ehci<Model>, port: u8, address: u8) -> DeviceId {
+fn addressed_keyboard(ehci: &mut Ehci<EhciModel>, port: u8, address: u8) -> DeviceId {
     ehci.hardware().advance(1_000);
     ehci.port_reset_begin(port);
     ehci.hardware().advance(50_000);
@@ -745,7 +772,7 @@ fn addressed_keyboard(ehci: &mut Ehci<Model>, port: u8, address: u8) -> DeviceId
 }
 
 /// Runs a control transfer to its end; what it ended in, and the bytes.
-fn control(ehci: &mut Ehci<Model>, device: DeviceId, setup: Setup) -> (Transfer, Vec<u8>) {
+fn control(ehci: &mut Ehci<EhciModel>, device: DeviceId, setup: Setup) -> (Transfer, Vec<u8>) {
     ehci.control_begin(device, setup, &[]).unwrap();
     let mut bytes = std::vec![0u8; usize::from(setup.length)];
     for _ in 0..1_000 {
@@ -767,10 +794,10 @@ const GET_DEVICE_DESCRIPTOR: Setup = Setup {
 
 #[test]
 fn a_control_transfer_cancelled_leaves_the_device_usable() {
-    let mut ehci = started(Model::new(2));
+    let mut ehci = started(EhciModel::new(2));
     ehci.hardware()
         .tree
-        .plug(&[1], Device::Keyboard(Speed::High));
+        .plug(&[1], UsbDevice::Keyboard(Speed::High));
     let device = addressed_keyboard(&mut ehci, 1, 7);
     let advances = ehci.hardware().async_advances;
     ehci.control_begin(device, GET_DEVICE_DESCRIPTOR, &[])
@@ -832,13 +859,13 @@ fn a_control_transfer_cancelled_leaves_the_device_usable() {
 
 #[test]
 fn a_pipe_closed_and_opened_again_at_once_waits_for_the_frames() {
-    let mut ehci = started(Model::new(2));
+    let mut ehci = started(EhciModel::new(2));
     ehci.hardware()
         .tree
-        .plug(&[1], Device::Keyboard(Speed::High));
+        .plug(&[1], UsbDevice::Keyboard(Speed::High));
     ehci.hardware()
         .tree
-        .plug(&[2], Device::Keyboard(Speed::High));
+        .plug(&[2], UsbDevice::Keyboard(Speed::High));
     let first = addressed_keyboard(&mut ehci, 1, 1);
     let second = addressed_keyboard(&mut ehci, 2, 2);
     let pipe = ehci.interrupt_open(first, 1, 8, 8).unwrap();
@@ -880,25 +907,25 @@ fn a_pipe_closed_and_opened_again_at_once_waits_for_the_frames() {
 
 /// Keyboards of `speed` on ports 1..=`count` of a high-speed hub on root
 /// port 1 (one translator, or one per port); the model and the handles.
-fn keyboards_behind_a_hub(count: u8, speed: Speed, multi_tt: bool) -> (Model, Vec<usize>) {
-    let mut m = Model::new(2);
+fn keyboards_behind_a_hub(count: u8, speed: Speed, multi_tt: bool) -> (EhciModel, Vec<usize>) {
+    let mut m = EhciModel::new(2);
     m.tree.plug(
         &[1],
-        Device::Hub {
+        UsbDevice::Hub {
             speed: Speed::High,
             ports: 8,
             multi_tt,
         },
     );
     let keyboards = (1..=count)
-        .map(|port| m.tree.plug(&[1, port], Device::Keyboard(speed)))
+        .map(|port| m.tree.plug(&[1, port], UsbDevice::Keyboard(speed)))
         .collect();
     (m, keyboards)
 }
 
 /// How many interrupt pipes start (transaction or start-split) in each
 /// micro-frame, as the queue heads the controller ran say.
-fn starts_by_micro_frame(m: &Model, addresses: &[u8]) -> [usize; 8] {
+fn starts_by_micro_frame(m: &EhciModel, addresses: &[u8]) -> [usize; 8] {
     let mut starts = [0; 8];
     for &address in addresses {
         let masks: std::collections::BTreeSet<(u8, u8)> = m
@@ -915,7 +942,7 @@ fn starts_by_micro_frame(m: &Model, addresses: &[u8]) -> [usize; 8] {
 }
 
 /// Every keyboard types, and gives its address.
-fn type_on_each(bus: &mut Bus<Ehci<Model>>, keyboards: &[usize]) -> Vec<u8> {
+fn type_on_each(bus: &mut Bus<Ehci<EhciModel>>, keyboards: &[usize]) -> Vec<u8> {
     keyboards
         .iter()
         .map(|&keyboard| {
@@ -929,7 +956,7 @@ fn type_on_each(bus: &mut Bus<Ehci<Model>>, keyboards: &[usize]) -> Vec<u8> {
 /// start-splits in each of micro-frames 0-3, none later (their
 /// complete-splits in N+2..N+4 end in micro-frame 7). Gives the bus and
 /// the hub's address.
-fn eight_keyboards_spread(multi_tt: bool) -> (Bus<Ehci<Model>>, u8) {
+fn eight_keyboards_spread(multi_tt: bool) -> (Bus<Ehci<EhciModel>>, u8) {
     let (m, keyboards) = keyboards_behind_a_hub(8, Speed::Full, multi_tt);
     let (mut bus, found) = enumerated(m);
     assert_eq!(found, 8, "{:#?}", model(&mut bus).log);
@@ -1033,7 +1060,7 @@ fn a_thousand_plug_cycles_on_a_full_translator_give_its_time_back() {
         }
         last = model(&mut bus)
             .tree
-            .plug(&[1, 6], Device::Keyboard(Speed::Low));
+            .plug(&[1, 6], UsbDevice::Keyboard(Speed::Low));
         let mut waited = 0;
         while bus.keyboards().count() != 6 {
             run(&mut bus, 10_000);
@@ -1064,12 +1091,12 @@ fn a_thousand_plug_cycles_on_a_full_translator_give_its_time_back() {
 
 #[test]
 fn pipes_polled_every_eight_frames_go_to_eight_different_frames() {
-    let mut ehci = started(Model::new(9));
+    let mut ehci = started(EhciModel::new(9));
     let mut devices = Vec::new();
     for port in 1..=9u8 {
         ehci.hardware()
             .tree
-            .plug(&[port], Device::Keyboard(Speed::High));
+            .plug(&[port], UsbDevice::Keyboard(Speed::High));
         devices.push(addressed_keyboard(&mut ehci, port, port));
     }
     let pipes: Vec<PipeId> = devices[..8]
@@ -1111,7 +1138,9 @@ fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
     use crate::model::devices::rollover_report;
     // Split through a hub's translator: three packets, three polls.
     let (mut m, _) = keyboards_behind_a_hub(0, Speed::Full, false);
-    let keyboard = m.tree.plug(&[1, 2], Device::RolloverKeyboard(Speed::Full));
+    let keyboard = m
+        .tree
+        .plug(&[1, 2], UsbDevice::RolloverKeyboard(Speed::Full));
     let (mut bus, found) = enumerated(m);
     assert_eq!(found, 1, "{:#?}", model(&mut bus).log);
     assert!(logged(model(&mut bus), "(2 key fields, 20-byte reports)"));
@@ -1137,7 +1166,7 @@ fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
 
 #[test]
 fn the_model_refuses_a_schedule_over_budget_or_with_bad_split_masks() {
-    let mut ehci = started(Model::new(1));
+    let mut ehci = started(EhciModel::new(1));
     let frame_list = Layout::new(DMA_BASE).frame_list();
     let m = ehci.hardware();
     // Queue heads the driver never wrote, past its memory: five

@@ -226,7 +226,7 @@ pub type Path = Vec<u8>;
 
 /// A device kind to plug in.
 #[derive(Clone, Debug, PartialEq, Eq)]
-pub enum Device {
+pub enum UsbDevice {
     /// QEMU's `usb-kbd`: a boot keyboard at this speed.
     Keyboard(Speed),
     /// A hub with this many ports at this speed (high speed: one
@@ -329,30 +329,30 @@ const DEFAULT_IDLE: u8 = 125;
 // ---------------------------------------------------------------------------
 // The devices.
 
-impl Device {
+impl UsbDevice {
     /// The fastest speed the device can run at (a high-speed device below a
     /// full-speed hub runs at full speed).
     pub fn speed(&self) -> Speed {
         match self {
-            Device::Keyboard(speed)
-            | Device::Dead(speed)
-            | Device::LyingKeyboard(speed)
-            | Device::RolloverKeyboard(speed) => *speed,
-            Device::Hub { speed, .. } => *speed,
+            UsbDevice::Keyboard(speed)
+            | UsbDevice::Dead(speed)
+            | UsbDevice::LyingKeyboard(speed)
+            | UsbDevice::RolloverKeyboard(speed) => *speed,
+            UsbDevice::Hub { speed, .. } => *speed,
         }
     }
 
     fn is_keyboard(&self) -> bool {
         matches!(
             self,
-            Device::Keyboard(_) | Device::LyingKeyboard(_) | Device::RolloverKeyboard(_)
+            UsbDevice::Keyboard(_) | UsbDevice::LyingKeyboard(_) | UsbDevice::RolloverKeyboard(_)
         )
     }
 
     /// A keyboard's report descriptor.
     fn report_descriptor(&self) -> &'static [u8] {
         match self {
-            Device::RolloverKeyboard(_) => &ROLLOVER_REPORT_DESCRIPTOR,
+            UsbDevice::RolloverKeyboard(_) => &ROLLOVER_REPORT_DESCRIPTOR,
             _ => &KEYBOARD_REPORT_DESCRIPTOR,
         }
     }
@@ -361,36 +361,36 @@ impl Device {
 /// The device and configuration descriptors `device` gives when running
 /// at `speed` (a high-speed hub at full speed is a plain full-speed hub,
 /// USB 2.0 11.23.1).
-fn descriptors(device: &Device, speed: Speed) -> (Vec<u8>, Vec<u8>) {
+fn descriptors(device: &UsbDevice, speed: Speed) -> (Vec<u8>, Vec<u8>) {
     match (device, speed) {
-        (Device::Keyboard(_), Speed::Low) => (
+        (UsbDevice::Keyboard(_), Speed::Low) => (
             LOW_SPEED_KEYBOARD_DEVICE.to_vec(),
             KEYBOARD_CONFIGURATION.to_vec(),
         ),
-        (Device::Keyboard(_), Speed::Full) => {
+        (UsbDevice::Keyboard(_), Speed::Full) => {
             (KEYBOARD_DEVICE.to_vec(), KEYBOARD_CONFIGURATION.to_vec())
         }
         // The USB 2 models have no SuperSpeed (the xHCI model does its own).
-        (Device::Keyboard(_), Speed::High | Speed::Super) => (
+        (UsbDevice::Keyboard(_), Speed::High | Speed::Super) => (
             HIGH_SPEED_KEYBOARD_DEVICE.to_vec(),
             HIGH_SPEED_KEYBOARD_CONFIGURATION.to_vec(),
         ),
-        (Device::RolloverKeyboard(_), speed) => {
-            let (device, mut configuration) = descriptors(&Device::Keyboard(speed), speed);
+        (UsbDevice::RolloverKeyboard(_), speed) => {
+            let (device, mut configuration) = descriptors(&UsbDevice::Keyboard(speed), speed);
             // The HID descriptor's wDescriptorLength of the report descriptor.
             configuration[25] = ROLLOVER_REPORT_DESCRIPTOR.len() as u8;
             (device, configuration)
         }
-        (Device::LyingKeyboard(_), Speed::Low) => (
+        (UsbDevice::LyingKeyboard(_), Speed::Low) => (
             LOW_SPEED_KEYBOARD_DEVICE.to_vec(),
             LYING_KEYBOARD_CONFIGURATION.to_vec(),
         ),
-        (Device::LyingKeyboard(_), _) => (
+        (UsbDevice::LyingKeyboard(_), _) => (
             KEYBOARD_DEVICE.to_vec(),
             LYING_KEYBOARD_CONFIGURATION.to_vec(),
         ),
         (
-            Device::Hub {
+            UsbDevice::Hub {
                 ports, multi_tt, ..
             },
             speed,
@@ -417,7 +417,7 @@ fn descriptors(device: &Device, speed: Speed) -> (Vec<u8>, Vec<u8>) {
             }
             (device, configuration)
         }
-        (Device::Dead(_), _) => (Vec::new(), Vec::new()),
+        (UsbDevice::Dead(_), _) => (Vec::new(), Vec::new()),
     }
 }
 
@@ -530,7 +530,7 @@ struct HubPort {
 /// One device, plugged in or (once unplugged) kept so that handles stay.
 #[derive(Debug)]
 struct Node {
-    device: Device,
+    device: UsbDevice,
     /// The hub and its port above, or none on a root port.
     parent: Option<(usize, u8)>,
     /// The root port the device is below.
@@ -555,9 +555,9 @@ struct Node {
 }
 
 impl Node {
-    fn new(device: Device, parent: Option<(usize, u8)>, root_port: u8) -> Node {
+    fn new(device: UsbDevice, parent: Option<(usize, u8)>, root_port: u8) -> Node {
         let ports = match device {
-            Device::Hub { ports, .. } => vec![HubPort::default(); usize::from(ports)],
+            UsbDevice::Hub { ports, .. } => vec![HubPort::default(); usize::from(ports)],
             _ => Vec::new(),
         };
         Node {
@@ -630,10 +630,10 @@ impl UsbTree {
     /// Panics (the test is wrong) if the place is taken or not there, if a
     /// hub would be a sixth tier, or a hub is low speed or has 0 or more
     /// than [`MAX_HUB_PORTS`] ports.
-    pub fn plug(&mut self, path: &[u8], device: Device) -> usize {
+    pub fn plug(&mut self, path: &[u8], device: UsbDevice) -> usize {
         let (&port, parent_path) = path.split_last().expect("a path names a root port");
         let hubs_above = parent_path.len();
-        if let Device::Hub { speed, ports, .. } = device {
+        if let UsbDevice::Hub { speed, ports, .. } = device {
             assert!(speed != Speed::Low, "there are no low-speed hubs");
             assert!(
                 (1..=MAX_HUB_PORTS).contains(&ports),
@@ -743,7 +743,7 @@ impl UsbTree {
             }
             let speed = self.speed_of(index);
             // A dead device drives nothing onto the wire: it cannot collide.
-            let silent = matches!(node.device, Device::Dead(_));
+            let silent = matches!(node.device, UsbDevice::Dead(_));
             if node.address == packet.address && !silent {
                 let needed = translator.map(|(hub, hub_port)| Split {
                     hub_address: self.nodes[hub].address,
@@ -916,7 +916,7 @@ impl UsbTree {
             node.attached
                 && node.reset
                 && node.address == address
-                && matches!(node.device, Device::Hub { multi_tt: true, .. })
+                && matches!(node.device, UsbDevice::Hub { multi_tt: true, .. })
                 && self.speed_of(index) == Speed::High
                 && node.alternate == 1
         })
@@ -1353,7 +1353,7 @@ impl UsbTree {
     fn request(&mut self, index: usize, setup: Setup) -> Option<Response> {
         match (setup.request_type >> 5) & 3 {
             0 => self.standard_request(index, setup),
-            1 if matches!(self.nodes[index].device, Device::Hub { .. }) => {
+            1 if matches!(self.nodes[index].device, UsbDevice::Hub { .. }) => {
                 self.hub_request(index, setup)
             }
             1 if self.nodes[index].device.is_keyboard() => self.hid_request(index, setup),
@@ -1364,8 +1364,10 @@ impl UsbTree {
     fn standard_request(&mut self, index: usize, setup: Setup) -> Option<Response> {
         let speed = self.speed_of(index);
         let (device_descriptor, configuration) = descriptors(&self.nodes[index].device, speed);
-        let multi_tt = matches!(self.nodes[index].device, Device::Hub { multi_tt: true, .. })
-            && speed == Speed::High;
+        let multi_tt = matches!(
+            self.nodes[index].device,
+            UsbDevice::Hub { multi_tt: true, .. }
+        ) && speed == Speed::High;
         let node = &mut self.nodes[index];
         let configured = node.configuration != 0;
         let attributes = configuration.get(7).copied().unwrap_or(0);
@@ -1756,7 +1758,7 @@ mod tests {
     #[test]
     fn a_keyboard_is_enumerated_by_hand_through_packets() {
         let mut tree = UsbTree::new(2);
-        let keyboard = tree.plug(&[1], Device::Keyboard(Speed::Full));
+        let keyboard = tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
         assert_eq!(tree.root_device(1), Some(Speed::Full));
         assert_eq!(tree.root_device(2), None);
         // Before its reset a device answers nothing.
@@ -1821,7 +1823,7 @@ mod tests {
     #[test]
     fn set_address_takes_effect_after_the_status_stage() {
         let mut tree = UsbTree::new(1);
-        let keyboard = tree.plug(&[1], Device::Keyboard(Speed::Full));
+        let keyboard = tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         let set_address = setup(0, SET_ADDRESS, 7, 0, 0).bytes();
         let r = FULL_ON_1;
@@ -1869,7 +1871,7 @@ mod tests {
     #[test]
     fn control_stages_keep_to_chapter_8() {
         let mut tree = UsbTree::new(1);
-        tree.plug(&[1], Device::Keyboard(Speed::Full));
+        tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         let r = FULL_ON_1;
         enumerate(&mut tree, r, 3);
@@ -2015,14 +2017,14 @@ mod tests {
         let mut tree = UsbTree::new(1);
         let hub = tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        let keyboard = tree.plug(&[1, 3], Device::Keyboard(Speed::Full));
-        tree.plug(&[1, 4], Device::Keyboard(Speed::Low));
+        let keyboard = tree.plug(&[1, 3], UsbDevice::Keyboard(Speed::Full));
+        tree.plug(&[1, 4], UsbDevice::Keyboard(Speed::Low));
         tree.reset_root_port(1);
         let r = FULL_ON_1;
         let (device, configuration) = enumerate(&mut tree, r, 1);
@@ -2157,7 +2159,7 @@ mod tests {
         let mut tree = UsbTree::new(1);
         tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 2,
                 multi_tt: false,
@@ -2205,7 +2207,7 @@ mod tests {
         };
         let hs_hub = tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::High,
                 ports: 4,
                 multi_tt: false,
@@ -2213,14 +2215,14 @@ mod tests {
         );
         let fs_hub = tree.plug(
             &[1, 2],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        let low_keyboard = tree.plug(&[1, 2, 4], Device::Keyboard(Speed::Low));
-        let full_keyboard = tree.plug(&[1, 3], Device::Keyboard(Speed::Full));
+        let low_keyboard = tree.plug(&[1, 2, 4], UsbDevice::Keyboard(Speed::Low));
+        let full_keyboard = tree.plug(&[1, 3], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         let (device, _) = enumerate(&mut tree, high, 1);
         assert_eq!(device, HIGH_SPEED_HUB_DEVICE);
@@ -2327,13 +2329,13 @@ mod tests {
         let mut tree = UsbTree::new(1);
         tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        tree.plug(&[1, 1], Device::Keyboard(Speed::Low));
+        tree.plug(&[1, 1], UsbDevice::Keyboard(Speed::Low));
         tree.reset_root_port(1);
         let get = get_descriptor(1, 8);
         let split = Route {
@@ -2382,7 +2384,7 @@ mod tests {
         let mut tree = UsbTree::new(1);
         tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
@@ -2390,13 +2392,13 @@ mod tests {
         );
         let inner = tree.plug(
             &[1, 2],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::High,
                 ports: 4,
                 multi_tt: true,
             },
         );
-        let keyboard = tree.plug(&[1, 2, 1], Device::Keyboard(Speed::High));
+        let keyboard = tree.plug(&[1, 2, 1], UsbDevice::Keyboard(Speed::High));
         tree.reset_root_port(1);
         enumerate(&mut tree, FULL_ON_1, 1);
         bring_up_port(&mut tree, FULL_ON_1, 1, 8, 2);
@@ -2431,13 +2433,13 @@ mod tests {
         };
         let hub = tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::High,
                 ports: 9,
                 multi_tt: true,
             },
         );
-        let keyboard = tree.plug(&[1, 9], Device::Keyboard(Speed::High));
+        let keyboard = tree.plug(&[1, 9], UsbDevice::Keyboard(Speed::High));
         tree.reset_root_port(1);
         let (device, configuration) = enumerate(&mut tree, high, 1);
         assert_eq!(device, HIGH_SPEED_MULTI_TT_HUB_DEVICE);
@@ -2528,7 +2530,7 @@ mod tests {
             64,
         )
         .unwrap();
-        tree.plug(&[1, 9], Device::Keyboard(Speed::Full));
+        tree.plug(&[1, 9], UsbDevice::Keyboard(Speed::Full));
         assert_eq!(
             interrupt(&mut tree, high, 1, false),
             Reply::Data {
@@ -2543,7 +2545,7 @@ mod tests {
     /// in the boot protocol.
     fn boot_keyboard(address: u8) -> (UsbTree, usize) {
         let mut tree = UsbTree::new(1);
-        let keyboard = tree.plug(&[1], Device::Keyboard(Speed::Full));
+        let keyboard = tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         enumerate(&mut tree, FULL_ON_1, address);
         control(
@@ -2609,7 +2611,7 @@ mod tests {
     #[test]
     fn the_report_queue_is_bounded_and_needs_a_configured_keyboard() {
         let mut tree = UsbTree::new(1);
-        let keyboard = tree.plug(&[1], Device::Keyboard(Speed::Full));
+        let keyboard = tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         assert!(!tree.send_report(keyboard, [0; 8]), "not configured yet");
         enumerate(&mut tree, FULL_ON_1, 1);
@@ -2690,13 +2692,13 @@ mod tests {
         let mut tree = UsbTree::new(1);
         let hub = tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        let first = tree.plug(&[1, 2], Device::Keyboard(Speed::Full));
+        let first = tree.plug(&[1, 2], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         enumerate(&mut tree, FULL_ON_1, 1);
         bring_up_port(&mut tree, FULL_ON_1, 1, 8, 2);
@@ -2732,7 +2734,7 @@ mod tests {
         .unwrap();
         assert_eq!(interrupt(&mut tree, FULL_ON_1, 1, true), Reply::Nak);
         // Plugged in again: a new device, in its power-on state.
-        let second = tree.plug(&[1, 2], Device::Keyboard(Speed::Low));
+        let second = tree.plug(&[1, 2], UsbDevice::Keyboard(Speed::Low));
         assert_ne!(first, second);
         assert_eq!(
             tree.port_status(hub, 2),
@@ -2771,13 +2773,13 @@ mod tests {
         let mut tree = UsbTree::new(1);
         tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        let keyboard = tree.plug(&[1, 1], Device::Keyboard(Speed::Full));
+        let keyboard = tree.plug(&[1, 1], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         enumerate(&mut tree, FULL_ON_1, 1);
         bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
@@ -2862,7 +2864,7 @@ mod tests {
         for _ in 0..MAX_HUB_TIERS {
             tree.plug(
                 &path,
-                Device::Hub {
+                UsbDevice::Hub {
                     speed: Speed::High,
                     ports: 4,
                     multi_tt: false,
@@ -2870,7 +2872,7 @@ mod tests {
             );
             path.push(4);
         }
-        let keyboard = tree.plug(&path, Device::Keyboard(Speed::Low));
+        let keyboard = tree.plug(&path, UsbDevice::Keyboard(Speed::Low));
         tree.reset_root_port(1);
         for tier in 1..=MAX_HUB_TIERS as u8 {
             enumerate(&mut tree, high, tier);
@@ -2906,7 +2908,7 @@ mod tests {
         for _ in 0..=MAX_HUB_TIERS {
             tree.plug(
                 &path,
-                Device::Hub {
+                UsbDevice::Hub {
                     speed: Speed::Full,
                     ports: 4,
                     multi_tt: false,
@@ -2921,14 +2923,14 @@ mod tests {
         let mut tree = UsbTree::new(1);
         tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        tree.plug(&[1, 1], Device::Keyboard(Speed::Full));
-        tree.plug(&[1, 2], Device::Keyboard(Speed::Full));
+        tree.plug(&[1, 1], UsbDevice::Keyboard(Speed::Full));
+        tree.plug(&[1, 2], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         enumerate(&mut tree, FULL_ON_1, 1);
         bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);
@@ -2949,7 +2951,7 @@ mod tests {
     #[test]
     fn a_dead_device_answers_nothing() {
         let mut tree = UsbTree::new(2);
-        tree.plug(&[2], Device::Dead(Speed::Full));
+        tree.plug(&[2], UsbDevice::Dead(Speed::Full));
         assert_eq!(tree.root_device(2), Some(Speed::Full));
         tree.reset_root_port(2);
         let route = Route {
@@ -2979,7 +2981,7 @@ mod tests {
     #[test]
     fn the_lying_keyboard_is_refused_by_the_parser() {
         let mut tree = UsbTree::new(1);
-        tree.plug(&[1], Device::LyingKeyboard(Speed::Full));
+        tree.plug(&[1], UsbDevice::LyingKeyboard(Speed::Full));
         tree.reset_root_port(1);
         let device = control(&mut tree, FULL_ON_1, 0, get_descriptor(1, 18), &[], 8).unwrap();
         assert_eq!(device, KEYBOARD_DEVICE);
@@ -3063,13 +3065,13 @@ mod tests {
         tree.set_root_ports_full_speed();
         tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::High,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        let keyboard = tree.plug(&[1, 1], Device::Keyboard(Speed::Full));
+        let keyboard = tree.plug(&[1, 1], UsbDevice::Keyboard(Speed::Full));
         assert_eq!(tree.root_device(1), Some(Speed::Full));
         tree.reset_root_port(1);
         let (device, _) = enumerate(&mut tree, FULL_ON_1, 1);
@@ -3085,14 +3087,14 @@ mod tests {
         let mut tree = UsbTree::new(1);
         tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        tree.plug(&[1, 1], Device::Dead(Speed::Full));
-        tree.plug(&[1, 2], Device::Keyboard(Speed::Full));
+        tree.plug(&[1, 1], UsbDevice::Dead(Speed::Full));
+        tree.plug(&[1, 2], UsbDevice::Keyboard(Speed::Full));
         tree.reset_root_port(1);
         enumerate(&mut tree, FULL_ON_1, 1);
         bring_up_port(&mut tree, FULL_ON_1, 1, 8, 1);

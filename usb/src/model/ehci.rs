@@ -7,7 +7,7 @@
 //! micro-frame (125 us, 8 per ms of model time).
 //!
 //! It checks what the driver gives it as the hardware would, and notes in
-//! [`Model::errors`] what real hardware would do something undefined with:
+//! [`EhciModel::errors`] what real hardware would do something undefined with:
 //! bad alignment, fields the spec reserves, H bits, S-/C-masks, a queue
 //! head rewritten before the controller let go of it (the Interrupt on
 //! Async Advance doorbell, two frame boundaries on the periodic side),
@@ -17,7 +17,7 @@
 //! periodic time, a translator with more than 900 us of full- and
 //! low-speed time in a frame, or one that cannot end a split's
 //! transaction before its last complete-split, is an error
-//! ([`Model::periodic_load`] keeps the peaks).
+//! ([`EhciModel::periodic_load`] keeps the peaks).
 //!
 //! Knobs: the firmware's hand-off, 64-bit addressing, the number of
 //! companion controllers (0: an integrated rate-matching hub, which the
@@ -149,7 +149,7 @@ type SplitWork = (u32, u8, u32);
 
 /// The EHCI register model.
 #[derive(Debug)]
-pub struct Model {
+pub struct EhciModel {
     /// The clock, in microseconds.
     pub now: u64,
     memory: Vec<u32>,
@@ -199,6 +199,8 @@ pub struct Model {
     /// The root port each address answered on last.
     routes: [Option<u8>; 128],
     // What happened.
+    /// Register reads (BAR0).
+    pub mmio_reads: u32,
     /// Register writes (BAR0).
     pub mmio_writes: u32,
     /// Root ports handed to the companion, in order.
@@ -221,12 +223,12 @@ pub struct Model {
     pub errors: Vec<String>,
 }
 
-impl Model {
+impl EhciModel {
     /// A controller with `ports` root ports, four companions, no port power
     /// switching, 32-bit, and a firmware that owns it and lets go after 3 ms.
-    pub fn new(ports: u8) -> Model {
+    pub fn new(ports: u8) -> EhciModel {
         assert!((1..=15).contains(&ports));
-        Model {
+        EhciModel {
             now: 0,
             memory: vec![0; (DMA_BYTES / 4) as usize],
             tree: UsbTree::new(ports),
@@ -260,6 +262,7 @@ impl Model {
             periodic_unlinked: BTreeMap::new(),
             periodic_dirty: true,
             routes: [None; 128],
+            mmio_reads: 0,
             mmio_writes: 0,
             handed_to_companion: Vec::new(),
             port_resets: Vec::new(),
@@ -274,14 +277,14 @@ impl Model {
     }
 
     /// The firmware does not own the controller at all.
-    pub fn firmware_not_owning(mut self) -> Model {
+    pub fn firmware_not_owning(mut self) -> EhciModel {
         self.legacy &= !(1 << 16);
         self
     }
 
     /// The firmware left the controller running, its schedules on and
     /// every port routed to it (its keyboard emulation).
-    pub fn left_running(mut self) -> Model {
+    pub fn left_running(mut self) -> EhciModel {
         self.usbcmd = 0x0008_0000 | CMD_RUN | CMD_ASE | CMD_PSE;
         self.usbsts = STS_ASS | STS_PSS;
         self.configflag = 1;
@@ -1391,7 +1394,7 @@ impl Model {
     }
 }
 
-impl Memory for Model {
+impl Memory for EhciModel {
     fn mem_read(&mut self, address: u64) -> u32 {
         let i = self
             .index(address)
@@ -1408,13 +1411,14 @@ impl Memory for Model {
     }
 }
 
-impl Hardware for Model {
+impl Hardware for EhciModel {
     fn mmio_read(&mut self, offset: u32) -> u32 {
         assert!(
             offset % 4 == 0 && offset + 4 <= BAR_BYTES,
             "read outside the BAR: {offset:#x}"
         );
         self.advance(MICROS_PER_READ);
+        self.mmio_reads += 1;
         let operational = CAPLENGTH;
         match offset {
             0x00 => 0x0100_0000 | CAPLENGTH,
@@ -1513,7 +1517,7 @@ impl Hardware for Model {
     }
 }
 
-impl PciHardware for Model {
+impl PciHardware for EhciModel {
     fn read16(&mut self, offset: u32) -> u16 {
         self.error(format!("read16({offset:#x}): EHCI has no I/O registers"));
         0

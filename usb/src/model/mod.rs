@@ -2,10 +2,9 @@
 //! them, for the host tests: each checks what its driver gives it, as the
 //! hardware would, and has knobs to make it misbehave.
 
-mod xhci;
-pub use xhci::*;
 pub mod devices;
 pub mod ehci;
 pub mod loopback;
 pub mod ohci;
 pub mod uhci;
+pub mod xhci;

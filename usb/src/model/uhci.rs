@@ -14,7 +14,7 @@
 //! controller that never halts or never ends its reset, port registers
 //! that read nonsense, ports that refuse their first enables.
 
-use super::devices::{Device, Packet, Pid, Reply, UsbTree};
+use super::devices::{Packet, Pid, Reply, UsbDevice, UsbTree};
 use crate::host::Speed;
 use crate::{Hardware, Memory, PciHardware};
 use std::collections::BTreeMap;
@@ -229,7 +229,7 @@ impl UhciModel {
 
     /// Plugs `device` at `path` (a root port's connect change if it is
     /// one); the tree's handle for it.
-    pub fn plug(&mut self, path: &[u8], device: Device) -> usize {
+    pub fn plug(&mut self, path: &[u8], device: UsbDevice) -> usize {
         let handle = self.tree.plug(path, device);
         if let [port] = path {
             self.connect_changed(*port);

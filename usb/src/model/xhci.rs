@@ -8,7 +8,7 @@
 //! what the driver gives it (context layouts, ring ownership, memory
 //! bounds) and fails commands that get it wrong, as hardware would.
 
-use crate::ring::{trb_type, Trb, CYCLE, TOGGLE_CYCLE};
+use crate::xhci::ring::{trb_type, Trb, CYCLE, TOGGLE_CYCLE};
 use crate::{Hardware, Memory};
 use std::string::String;
 use std::vec;
@@ -52,17 +52,36 @@ enum Kind {
     Hub,
     /// The keyboard on root port 2.
     Keyboard2,
+    /// The SuperSpeed half of a USB 3 hub, on root port 2.
+    SuperSpeedHalf,
     /// A device on root port 2 that answers no control transfer.
     Dead,
 }
 
 /// What hangs on root port 2.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Port2 {
+pub enum OnRootPort2 {
     /// A second keyboard (its state is `keyboard2`).
     Keyboard,
     /// A device whose control transfers never complete.
     Dead,
+    /// The SuperSpeed half of the USB 3 hub whose USB 2 half is the hub on
+    /// root port 1 (`hub` with `high_speed_hub`): root port 2 is then a USB 3
+    /// port (its own Supported Protocol range) and port 1 a USB 2 one. (Which
+    /// range comes first is the controller's choice: QEMU's qemu-xhci puts
+    /// its USB 3 ports first.) Nothing hangs on this half.
+    SuperSpeedHalf,
+}
+
+/// Where in [`XhciModel::hub_states`] the SuperSpeed half of a USB 3 hub
+/// keeps its state (after the six tiers of hubs on root port 1).
+pub const SUPERSPEED_HALF: usize = 6;
+
+/// Every hub's state after power-on: nothing behind the SuperSpeed half.
+fn fresh_hub_states() -> Vec<HubState> {
+    let mut states = vec![HubState::default(); SUPERSPEED_HALF + 1];
+    states[SUPERSPEED_HALF].port_2_empty = true;
+    states
 }
 
 #[derive(Clone, Debug, Default)]
@@ -127,8 +146,9 @@ pub struct HubState {
     pub change_pending: bool,
 }
 
+/// The xHCI register model.
 #[derive(Debug)]
-pub struct Model {
+pub struct XhciModel {
     pub now: u64,
     memory: Vec<u32>,
     // Knobs.
@@ -164,7 +184,7 @@ pub struct Model {
     /// Root port 1 is empty after the controller's reset (plugged later).
     pub empty_at_start: bool,
     /// What hangs on root port 2 (None: nothing).
-    pub port_2: Option<Port2>,
+    pub port_2: Option<OnRootPort2>,
     /// The root ports are USB 3 and the hubs SuperSpeed (the keyboard
     /// behind them too).
     pub usb3: bool,
@@ -207,9 +227,9 @@ pub struct Model {
     pub errors: Vec<String>,
 }
 
-impl Model {
-    pub fn new() -> Model {
-        Model {
+impl XhciModel {
+    pub fn new() -> XhciModel {
+        XhciModel {
             now: 0,
             memory: vec![0; (DMA_BYTES / 4) as usize],
             csz: false,
@@ -257,7 +277,7 @@ impl Model {
                 protocol: 1,
                 ..KeyboardState::default()
             },
-            hub_states: vec![HubState::default(); 6],
+            hub_states: fresh_hub_states(),
             events_dropped: 0,
             slots_disabled: Vec::new(),
             ports_disabled: Vec::new(),
@@ -411,8 +431,9 @@ impl Model {
                     let hub_tier = (0..tiers).find(|&t| route == route_of(t));
                     let kind = if root_port == 2 {
                         match (route, self.port_2) {
-                            (0, Some(Port2::Keyboard)) => Some(Kind::Keyboard2),
-                            (0, Some(Port2::Dead)) => Some(Kind::Dead),
+                            (0, Some(OnRootPort2::Keyboard)) => Some(Kind::Keyboard2),
+                            (0, Some(OnRootPort2::Dead)) => Some(Kind::Dead),
+                            (0, Some(OnRootPort2::SuperSpeedHalf)) => Some(Kind::SuperSpeedHalf),
                             _ => None,
                         }
                     } else if route == route_of(tiers) {
@@ -423,7 +444,8 @@ impl Model {
                     // SuperSpeed: speed 4, 512-byte packets on endpoint 0,
                     // and no transaction translator anywhere.
                     let high_speed = self.high_speed_hub && kind == Some(Kind::Hub);
-                    let (speed, ep0_packet) = if self.usb3 {
+                    let superspeed = self.usb3 || kind == Some(Kind::SuperSpeedHalf);
+                    let (speed, ep0_packet) = if superspeed {
                         (4, 512)
                     } else if high_speed {
                         (3, 64)
@@ -446,7 +468,7 @@ impl Model {
                         && (root_port == 1 || root_port == 2)
                         && (ep0_dw1 >> 3) & 7 == 4
                         && ep0_dw1 >> 16 == u32::from(ep0_packet)
-                        && !(self.usb3 && translator != 0)
+                        && !(superspeed && translator != 0)
                         && (!self.high_speed_hub || translator == expected_translator)
                         && ep0_dequeue != 0
                         && self.slots[usize::from(slot)].enabled;
@@ -487,12 +509,16 @@ impl Model {
                     self.mem_write(output + 12, slot_state << 27 | u32::from(slot));
                     let state = &mut self.slots[usize::from(slot)];
                     state.kind = kind_now;
-                    state.tier = hub_tier.unwrap_or(0);
+                    state.tier = match kind {
+                        Some(Kind::SuperSpeedHalf) => SUPERSPEED_HALF,
+                        _ => hub_tier.unwrap_or(0),
+                    };
                     state.output = output;
                     state.default_address = block_set_address;
                     state.ep0 = new_ep0;
                     match kind {
                         Some(Kind::Hub) => self.hub_states[hub_tier.unwrap_or(0)].slot = slot,
+                        Some(Kind::SuperSpeedHalf) => self.hub_states[SUPERSPEED_HALF].slot = slot,
                         Some(Kind::Keyboard2) => self.keyboard2.slot = slot,
                         Some(Kind::Dead) => {}
                         _ => self.keyboard.slot = slot,
@@ -584,7 +610,7 @@ impl Model {
                     let input = trb.parameter();
                     let add = self.mem_read(input + 4);
                     let mut ok = add & 1 != 0 && add & 0b10 == 0;
-                    if self.slots[usize::from(slot)].kind == Kind::Hub {
+                    if self.is_hub(slot) {
                         let slot_dw0 = self.mem_read(input + ctx);
                         let ports = self.mem_read(input + ctx + 4) >> 24;
                         let tier = self.slots[usize::from(slot)].tier;
@@ -657,7 +683,8 @@ impl Model {
                     let (request_type, request) = (setup as u8, (setup >> 8) as u8);
                     let value = (setup >> 16) as u16;
                     let length = (setup >> 48) as usize;
-                    let hub = self.slots[usize::from(slot)].kind == Kind::Hub;
+                    let hub = self.is_hub(slot);
+                    let superspeed = self.superspeed(slot);
                     let reply = match (hub, request_type, request, value >> 8) {
                         (false, 0x80, 6, 1) => {
                             let announced =
@@ -685,20 +712,20 @@ impl Model {
                         (false, 0x81, 6, 0x22) => {
                             self.report_descriptor.clone().unwrap_or_default()
                         }
-                        (true, 0x80, 6, 1) if self.high_speed_hub => {
+                        (true, 0x80, 6, 1) if self.high_speed_hub && !superspeed => {
                             super::devices::HIGH_SPEED_HUB_DEVICE.to_vec()
                         }
                         (true, 0x80, 6, 1) => {
                             let mut device = HUB_DEVICE;
-                            if self.usb3 {
+                            if superspeed {
                                 device[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
                                 device[7] = 9; // 2^9 = 512 bytes
                             }
                             device.to_vec()
                         }
                         (true, 0x80, 6, 2) => HUB_CONFIGURATION.to_vec(),
-                        (true, 0xA0, 6, 0x29) if !self.usb3 => HUB_DESCRIPTOR.to_vec(),
-                        (true, 0xA0, 6, 0x2A) if self.usb3 => SUPERSPEED_HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA0, 6, 0x29) if !superspeed => HUB_DESCRIPTOR.to_vec(),
+                        (true, 0xA0, 6, 0x2A) if superspeed => SUPERSPEED_HUB_DESCRIPTOR.to_vec(),
                         (true, 0xA3, 0, _) => {
                             let port = (setup >> 32) as u16;
                             let status = if port == 2 {
@@ -732,7 +759,7 @@ impl Model {
                 trb_type::STATUS => {
                     let (request_type, request) = (setup as u8, (setup >> 8) as u8);
                     let value = (setup >> 16) as u16;
-                    if self.slots[usize::from(slot)].kind == Kind::Hub {
+                    if self.is_hub(slot) {
                         let tier = self.slots[usize::from(slot)].tier;
                         let known = self.hub_request(tier, setup);
                         self.transfer_event(address, if known { 1 } else { 6 }, 0, slot, 1);
@@ -797,6 +824,24 @@ impl Model {
         true
     }
 
+    /// Whether `slot` is a hub (a tier on root port 1, or a SuperSpeed half).
+    fn is_hub(&self, slot: u8) -> bool {
+        matches!(
+            self.slots[usize::from(slot)].kind,
+            Kind::Hub | Kind::SuperSpeedHalf
+        )
+    }
+
+    /// Whether `slot`'s device is SuperSpeed.
+    fn superspeed(&self, slot: u8) -> bool {
+        self.usb3 || self.slots[usize::from(slot)].kind == Kind::SuperSpeedHalf
+    }
+
+    /// Root port 2 is a USB 3 port and port 1 a USB 2 one.
+    fn split_protocols(&self) -> bool {
+        self.port_2 == Some(OnRootPort2::SuperSpeedHalf)
+    }
+
     /// Root port 1's speed ID: full speed, or high with `high_speed_hub`.
     fn port_1_speed(&self) -> u32 {
         if self.hub && self.high_speed_hub {
@@ -823,7 +868,8 @@ impl Model {
         const RESET_CHANGE: u32 = 1 << 20;
         const CONNECTION_CHANGE: u32 = 1 << 16;
         // A SuperSpeed hub's power bit is bit 9 (bit 9 is low speed in USB 2.0).
-        let powered = if self.usb3 { 1 << 9 } else { POWERED };
+        let superspeed = self.usb3 || tier == SUPERSPEED_HALF;
+        let powered = if superspeed { 1 << 9 } else { POWERED };
         let (request_type, request) = (setup as u8, (setup >> 8) as u8);
         let value = (setup >> 16) as u16;
         let port = (setup >> 32) as u16;
@@ -834,7 +880,7 @@ impl Model {
                 self.hub_states[tier].configured = true;
                 true
             }
-            (0x20, 12, depth) if self.usb3 => {
+            (0x20, 12, depth) if superspeed => {
                 self.hub_states[tier].depth = Some(depth);
                 true
             }
@@ -931,7 +977,7 @@ impl Model {
             protocol: 1,
             ..KeyboardState::default()
         };
-        self.hub_states = vec![HubState::default(); 6];
+        self.hub_states = fresh_hub_states();
         self.endpoint_stopped = false;
         self.portsc[0] = 1 | 1 << 9 | self.port_1_speed() | CONNECT_CHANGE;
         self.post_event(Trb([
@@ -955,7 +1001,7 @@ impl Model {
     /// A device (the next hub, or the keyboard) in its power-on state is
     /// plugged into port 2 of hub `tier`.
     pub fn plug_behind_hub(&mut self, tier: usize) {
-        for below in &mut self.hub_states[tier + 1..] {
+        for below in &mut self.hub_states[tier + 1..SUPERSPEED_HALF] {
             *below = HubState::default();
         }
         self.keyboard = KeyboardState {
@@ -1068,7 +1114,7 @@ impl Model {
     }
 }
 
-impl Memory for Model {
+impl Memory for XhciModel {
     fn mem_read(&mut self, address: u64) -> u32 {
         let word = self.word(address);
         self.memory[word]
@@ -1080,7 +1126,7 @@ impl Memory for Model {
     }
 }
 
-impl Hardware for Model {
+impl Hardware for XhciModel {
     fn mmio_read(&mut self, offset: u32) -> u32 {
         assert!(offset + 4 <= BAR_BYTES, "read outside the BAR: {offset:#x}");
         match offset {
@@ -1113,15 +1159,28 @@ impl Hardware for Model {
                 self.legacy | 4 << 8 | 1
             }
             o if o == EXTENDED + 4 => self.legacy_control,
+            // Supported Protocol: every port USB 2 or USB 3, or (with a
+            // SuperSpeed half on port 2) port 1 USB 2 and port 2 USB 3,
+            // two capabilities, the first pointing at the second.
             o if o == EXTENDED + 0x10 => {
-                if self.usb3 {
+                if self.split_protocols() {
+                    0x0200_0000 | 4 << 8 | 2
+                } else if self.usb3 {
                     0x0300_0000 | 2
                 } else {
                     0x0200_0000 | 2
                 }
             }
-            o if o == EXTENDED + 0x14 => 0x2042_5355,
-            o if o == EXTENDED + 0x18 => (PORTS as u32) << 8 | 1,
+            o if o == EXTENDED + 0x14 || o == EXTENDED + 0x24 => 0x2042_5355,
+            o if o == EXTENDED + 0x18 => {
+                if self.split_protocols() {
+                    1 << 8 | 1
+                } else {
+                    (PORTS as u32) << 8 | 1
+                }
+            }
+            o if o == EXTENDED + 0x20 && self.split_protocols() => 0x0300_0000 | 2,
+            o if o == EXTENDED + 0x28 && self.split_protocols() => 1 << 8 | 2,
             _ => 0,
         }
     }
@@ -1150,7 +1209,10 @@ impl Hardware for Model {
                     } else {
                         1 | 1 << 9 | self.port_1_speed() // connected, powered
                     };
-                    self.portsc[1] = if self.port_2.is_some() {
+                    self.portsc[1] = if self.split_protocols() {
+                        // A USB 3 port trains and enables by itself.
+                        1 | 1 << 1 | 1 << 9 | 4 << 10
+                    } else if self.port_2.is_some() {
                         1 | 1 << 9 | 1 << 10
                     } else {
                         1 << 9

@@ -6,7 +6,7 @@
 //! device layer would.
 
 use super::*;
-use crate::model::devices::Device;
+use crate::model::devices::UsbDevice;
 use crate::model::ohci::{OhciModel, PowerSwitching, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use std::vec::Vec;
 
@@ -182,7 +182,7 @@ fn assert_clean(ohci: &mut Driver) {
 #[test]
 fn a_full_speed_keyboard_on_a_root_port_types() {
     let mut model = OhciModel::new(2);
-    let handle = model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    let handle = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     assert_eq!(ohci.root_ports(), 2);
     let status = ohci.port_status(1);
@@ -214,7 +214,7 @@ fn a_full_speed_keyboard_on_a_root_port_types() {
 #[test]
 fn a_low_speed_keyboard_on_a_root_port_types() {
     let mut model = OhciModel::new(2);
-    let handle = model.tree.plug(&[2], Device::Keyboard(Speed::Low));
+    let handle = model.tree.plug(&[2], UsbDevice::Keyboard(Speed::Low));
     let mut ohci = started(model);
     let status = ohci.port_status(2);
     assert!(status.connected && status.low_speed);
@@ -231,14 +231,14 @@ fn keyboards_behind_a_hub_type_at_full_and_low_speed() {
     let mut model = OhciModel::new(2);
     model.tree.plug(
         &[1],
-        Device::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
         },
     );
-    let low = model.tree.plug(&[1, 2], Device::Keyboard(Speed::Low));
-    let full = model.tree.plug(&[1, 3], Device::Keyboard(Speed::Full));
+    let low = model.tree.plug(&[1, 2], UsbDevice::Keyboard(Speed::Low));
+    let full = model.tree.plug(&[1, 3], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     assert_eq!(reset_root_port(&mut ohci, 1), Speed::Full);
     let hub = enumerate(&mut ohci, Speed::Full, 1, 1);
@@ -302,7 +302,7 @@ fn keyboards_behind_a_hub_type_at_full_and_low_speed() {
 #[test]
 fn a_report_repeated_with_the_old_toggle_is_dropped() {
     let mut model = OhciModel::new(1);
-    let handle = model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    let handle = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let (_, pipe) = keyboard(&mut ohci, Speed::Full, 1, 1);
@@ -323,7 +323,7 @@ fn a_report_repeated_with_the_old_toggle_is_dropped() {
 #[test]
 fn a_keyboard_asking_for_10_ms_is_polled_every_8_frames() {
     let mut model = OhciModel::new(1);
-    model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let (_, pipe) = keyboard(&mut ohci, Speed::Full, 1, 4);
@@ -362,7 +362,7 @@ fn a_keyboard_asking_for_10_ms_is_polled_every_8_frames() {
 #[test]
 fn an_idle_poll_reads_one_register_and_nothing_else() {
     let mut model = OhciModel::new(2);
-    let handle = model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    let handle = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let (_, pipe) = keyboard(&mut ohci, Speed::Full, 1, 1);
@@ -401,7 +401,7 @@ fn an_idle_poll_reads_one_register_and_nothing_else() {
 #[test]
 fn a_stalled_interrupt_endpoint_waits_for_the_restart_then_types() {
     let mut model = OhciModel::new(1);
-    let handle = model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    let handle = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let (device, pipe) = keyboard(&mut ohci, Speed::Full, 1, 1);
@@ -430,7 +430,7 @@ fn a_stalled_interrupt_endpoint_waits_for_the_restart_then_types() {
 #[test]
 fn a_refused_request_stalls_and_the_next_one_works() {
     let mut model = OhciModel::new(1);
-    model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let device = enumerate(&mut ohci, Speed::Full, 1, 3);
@@ -460,7 +460,7 @@ fn a_refused_request_stalls_and_the_next_one_works() {
 #[test]
 fn a_dead_device_fails_with_no_response_and_a_cancel_frees_endpoint_0() {
     let mut model = OhciModel::new(1);
-    model.tree.plug(&[1], Device::Dead(Speed::Full));
+    model.tree.plug(&[1], UsbDevice::Dead(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let device = ohci
@@ -509,7 +509,7 @@ fn a_thousand_plug_cycles_use_no_more_descriptors_than_one() {
         } else {
             Speed::Low
         };
-        let handle = ohci.hardware().tree.plug(&[1], Device::Keyboard(speed));
+        let handle = ohci.hardware().tree.plug(&[1], UsbDevice::Keyboard(speed));
         // The root hub says so (RHSC) at the idle poll.
         let deadline = ohci.now_micros() + 10_000;
         while !ohci.anything_happened() {
@@ -547,7 +547,7 @@ fn a_thousand_plug_cycles_use_no_more_descriptors_than_one() {
 #[test]
 fn every_device_and_pipe_slot_can_be_used_and_the_next_is_refused() {
     let mut model = OhciModel::new(1);
-    model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let info = DeviceInfo {
@@ -600,7 +600,7 @@ fn every_device_and_pipe_slot_can_be_used_and_the_next_is_refused() {
 #[test]
 fn handles_and_requests_the_driver_never_gave_are_refused() {
     let mut model = OhciModel::new(1);
-    model.tree.plug(&[1], Device::Keyboard(Speed::Low));
+    model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Low));
     let mut ohci = started(model);
     let low = DeviceInfo {
         route: Some(0),
@@ -677,7 +677,7 @@ fn handles_and_requests_the_driver_never_gave_are_refused() {
 fn smm_lets_go_after_the_ownership_change_request() {
     let mut model = OhciModel::new(1);
     model.smm_owns(Some(30_000));
-    let handle = model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    let handle = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = driver(model);
     match ohci.take_ownership() {
         Handoff::Released { micros } => assert!((30_000..40_000).contains(&micros), "{micros} us"),
@@ -728,7 +728,7 @@ fn smm_that_never_lets_go_keeps_the_controller_untouched() {
 fn a_controller_the_firmware_left_running_is_reset_and_types() {
     let mut model = OhciModel::new(1);
     model.firmware_left_running();
-    let handle = model.tree.plug(&[1], Device::Keyboard(Speed::Low));
+    let handle = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Low));
     let mut ohci = started(model);
     assert_eq!(ohci.hardware().software_resets, 1);
     reset_root_port(&mut ohci, 1);
@@ -790,7 +790,7 @@ fn ports_are_powered_as_the_root_hub_says_and_waited_for() {
         let mut model = OhciModel::new(3);
         model.power_switching = switching;
         model.power_on_to_good = 100;
-        model.tree.plug(&[3], Device::Keyboard(Speed::Full));
+        model.tree.plug(&[3], UsbDevice::Keyboard(Speed::Full));
         let start = model.now;
         let mut ohci = started(model);
         let took = ohci.hardware().now - start;
@@ -812,7 +812,7 @@ fn a_nonsense_port_count_is_bounded() {
     for (reported, expected) in [(200, 15), (0, 0), (15, 15)] {
         let mut model = OhciModel::new(2);
         model.reported_ports = reported;
-        model.tree.plug(&[2], Device::Keyboard(Speed::Full));
+        model.tree.plug(&[2], UsbDevice::Keyboard(Speed::Full));
         let mut ohci = started(model);
         assert_eq!(ohci.root_ports(), expected, "NDP {reported}");
         if expected > 0 {
@@ -833,7 +833,7 @@ fn a_nonsense_port_count_is_bounded() {
 #[test]
 fn halt_leaves_the_controller_in_usb_reset_with_the_ports_powered() {
     let mut model = OhciModel::new(1);
-    model.tree.plug(&[1], Device::Keyboard(Speed::Full));
+    model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut ohci = started(model);
     reset_root_port(&mut ohci, 1);
     let (device, _) = keyboard(&mut ohci, Speed::Full, 1, 1);
@@ -970,7 +970,7 @@ mod through_the_bus {
     #[test]
     fn a_keyboard_on_a_root_port_is_found_at_boot_and_types() {
         let mut model = OhciModel::new(2);
-        let keyboard = model.tree.plug(&[2], Device::Keyboard(Speed::Full));
+        let keyboard = model.tree.plug(&[2], UsbDevice::Keyboard(Speed::Full));
         let mut bus = bus(model);
         assert_eq!(bus.enumerate(), 1, "{:#?}", model_log(&mut bus));
         assert_eq!(keyboards(&bus), ["2"]);
@@ -988,13 +988,13 @@ mod through_the_bus {
         let mut model = OhciModel::new(2);
         model.tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
             },
         );
-        let keyboard = model.tree.plug(&[1, 3], Device::Keyboard(Speed::Low));
+        let keyboard = model.tree.plug(&[1, 3], UsbDevice::Keyboard(Speed::Low));
         let mut bus = bus(model);
         assert_eq!(bus.enumerate(), 1, "{:#?}", model_log(&mut bus));
         assert_eq!(keyboards(&bus), ["1.3"]);
@@ -1008,7 +1008,7 @@ mod through_the_bus {
         let mut model = OhciModel::new(2);
         model.tree.plug(
             &[1],
-            Device::Hub {
+            UsbDevice::Hub {
                 speed: Speed::Full,
                 ports: 4,
                 multi_tt: false,
@@ -1033,7 +1033,7 @@ mod through_the_bus {
                 2 => (vec![1, 1 + (cycle / 4 % 4) as u8], Speed::Full),
                 _ => (vec![1, 1 + (cycle / 4 % 4) as u8], Speed::Low),
             };
-            let keyboard = hw(&mut bus).tree.plug(&path, Device::Keyboard(speed));
+            let keyboard = hw(&mut bus).tree.plug(&path, UsbDevice::Keyboard(speed));
             // A hub's status change endpoint is polled every 32 ms.
             run_for(&mut bus, 50_000);
             settle(&mut bus);
@@ -1057,7 +1057,7 @@ mod through_the_bus {
     #[test]
     fn a_stall_and_a_repeated_toggle_are_recovered_and_no_key_is_lost_or_doubled() {
         let mut model = OhciModel::new(1);
-        let keyboard = model.tree.plug(&[1], Device::Keyboard(Speed::Low));
+        let keyboard = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Low));
         let mut bus = bus(model);
         assert_eq!(bus.enumerate(), 1);
         assert!(hw(&mut bus).tree.send_report(keyboard, A));
@@ -1083,7 +1083,9 @@ mod through_the_bus {
     fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
         use crate::model::devices::rollover_report;
         let mut model = OhciModel::new(1);
-        let keyboard = model.tree.plug(&[1], Device::RolloverKeyboard(Speed::Full));
+        let keyboard = model
+            .tree
+            .plug(&[1], UsbDevice::RolloverKeyboard(Speed::Full));
         let mut bus = bus(model);
         assert_eq!(bus.enumerate(), 1, "{:#?}", model_log(&mut bus));
         let logged =

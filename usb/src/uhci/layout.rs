@@ -5,152 +5,142 @@
 
 use crate::host::{MAX_CONTROL_DATA, MAX_REPORT};
 
-/// I/O registers, as offsets from the controller's I/O base (BAR4).
-pub mod register {
-    /// USBCMD: run/stop, resets, configure flag, max packet.
-    pub const USBCMD: u32 = 0x00;
-    /// USBSTS: interrupt causes (write 1 to clear) and HCHalted.
-    pub const USBSTS: u32 = 0x02;
-    /// USBINTR: which causes raise the interrupt line.
-    pub const USBINTR: u32 = 0x04;
-    /// FRNUM: the frame number (11 bits; the low 10 index the frame list).
-    pub const FRNUM: u32 = 0x06;
-    /// FRBASEADD: the frame list's physical address (32 bits, 4 KiB aligned).
-    pub const FRBASEADD: u32 = 0x08;
-    /// PORTSC1; port n (0-based) is at `PORTSC1 + 2 * n`.
-    pub const PORTSC1: u32 = 0x10;
-    /// The I/O region is 32 bytes: at most 8 port registers fit.
-    pub const MAX_PORT_REGISTERS: u8 = 8;
+// I/O registers, as offsets from the controller's I/O base (BAR4).
+/// USBCMD: run/stop, resets, configure flag, max packet.
+pub const USBCMD: u32 = 0x00;
+/// USBSTS: interrupt causes (write 1 to clear) and HCHalted.
+pub const USBSTS: u32 = 0x02;
+/// USBINTR: which causes raise the interrupt line.
+pub const USBINTR: u32 = 0x04;
+/// FRNUM: the frame number (11 bits; the low 10 index the frame list).
+pub const FRNUM: u32 = 0x06;
+/// FRBASEADD: the frame list's physical address (32 bits, 4 KiB aligned).
+pub const FRBASEADD: u32 = 0x08;
+/// PORTSC1; port n (0-based) is at `PORTSC1 + 2 * n`.
+pub const PORTSC1: u32 = 0x10;
+/// The I/O region is 32 bytes: at most 8 port registers fit.
+pub const MAX_PORT_REGISTERS: u8 = 8;
+
+// USBCMD bits.
+/// Run/Stop.
+pub const CMD_RUN: u16 = 1 << 0;
+/// Host controller reset (the controller clears it when done).
+pub const CMD_HOST_RESET: u16 = 1 << 1;
+/// Global reset: USB reset on every port, held by software.
+pub const CMD_GLOBAL_RESET: u16 = 1 << 2;
+/// Configure Flag: a semaphore for software ("configured").
+pub const CMD_CONFIGURE: u16 = 1 << 6;
+/// Max packet 64 bytes for full-speed bandwidth reclamation.
+pub const CMD_MAX_PACKET_64: u16 = 1 << 7;
+
+// USBSTS bits, all but HCHalted write-1-to-clear.
+/// A TD with IOC completed, or a short packet with SPD.
+pub const STS_INTERRUPT: u16 = 1 << 0;
+/// A transaction ended in an error (stall, babble, errors counted out).
+pub const STS_ERROR_INTERRUPT: u16 = 1 << 1;
+/// Resume detected.
+pub const STS_RESUME_DETECT: u16 = 1 << 2;
+/// Host system error (PCI): the controller halts.
+pub const STS_HOST_SYSTEM_ERROR: u16 = 1 << 3;
+/// Host controller process error (a bad schedule): it halts.
+pub const STS_PROCESS_ERROR: u16 = 1 << 4;
+/// The controller is halted (read only).
+pub const STS_HALTED: u16 = 1 << 5;
+/// Every write-1-to-clear cause.
+pub const STS_CAUSES: u16 = STS_INTERRUPT
+    | STS_ERROR_INTERRUPT
+    | STS_RESUME_DETECT
+    | STS_HOST_SYSTEM_ERROR
+    | STS_PROCESS_ERROR;
+
+// PORTSC bits.
+/// Current connect status (read only).
+pub const PORT_CONNECTED: u16 = 1 << 0;
+/// Connect status change (write 1 to clear).
+pub const PORT_CONNECT_CHANGE: u16 = 1 << 1;
+/// Port enabled.
+pub const PORT_ENABLED: u16 = 1 << 2;
+/// Port enable change (write 1 to clear).
+pub const PORT_ENABLE_CHANGE: u16 = 1 << 3;
+/// Reserved, reads as 1: how Linux counts the ports.
+pub const PORT_ALWAYS_ONE: u16 = 1 << 7;
+/// Low-speed device attached (read only).
+pub const PORT_LOW_SPEED: u16 = 1 << 8;
+/// Port reset, held by software.
+pub const PORT_RESET: u16 = 1 << 9;
+/// Over-current change on some controllers (write 1 to clear).
+pub const PORT_OVER_CURRENT_CHANGE: u16 = 1 << 11;
+/// The write-1-to-clear bits: never written back as read.
+pub const PORT_WRITE_CLEAR: u16 =
+    PORT_CONNECT_CHANGE | PORT_ENABLE_CHANGE | PORT_OVER_CURRENT_CHANGE;
+/// Reserved bits that must be written as 0.
+pub const PORT_WRITE_ZERO: u16 = 0xE000;
+
+// The PCI configuration register LEGSUP (the low 16 bits of the dword at
+// 0xC0): the BIOS's keyboard emulation through SMI traps.
+/// Its configuration space offset.
+pub const LEGACY_OFFSET: u8 = 0xC0;
+/// The trap status bits (write 1 to clear): Linux's USBLEGSUP_RWC.
+pub const LEGACY_STATUS_CLEAR: u16 = 0x8F00;
+/// The SMI enables: the four port 60h/64h traps, SMI on USB
+/// interrupt, A20 pass-through, SMI at the end of pass-through.
+pub const LEGACY_SMI_ENABLES: u16 = 0x00BF;
+/// PIRQ enable: the controller's interrupt routed to the PIC.
+pub const LEGACY_PIRQ_ENABLE: u16 = 0x2000;
+
+// Link pointer bits (frame list entries, QH and TD links).
+/// Terminate: nothing follows.
+pub const LINK_TERMINATE: u32 = 1 << 0;
+/// The pointer names a queue head (else a TD).
+pub const LINK_QUEUE_HEAD: u32 = 1 << 1;
+/// TD links only: depth first (go on with this queue's next TD).
+pub const LINK_DEPTH_FIRST: u32 = 1 << 2;
+
+// TD control and status (dword 1) bits.
+/// Short packet detect: a short IN stops the queue.
+pub const TD_SHORT_PACKET_DETECT: u32 = 1 << 29;
+/// Error counter of 3 (bits 28:27): three strikes, then retired.
+pub const TD_THREE_ERRORS: u32 = 3 << 27;
+/// Low-speed device (the controller sends PRE first through hubs).
+pub const TD_LOW_SPEED: u32 = 1 << 26;
+/// Interrupt on completion.
+pub const TD_INTERRUPT_ON_COMPLETE: u32 = 1 << 24;
+/// Active: the controller owns it.
+pub const TD_ACTIVE: u32 = 1 << 23;
+/// Stalled (also set with babble and errors counted out).
+pub const TD_STALLED: u32 = 1 << 22;
+/// Data buffer error (overrun or underrun).
+pub const TD_DATA_BUFFER_ERROR: u32 = 1 << 21;
+/// Babble.
+pub const TD_BABBLE: u32 = 1 << 20;
+/// CRC error or time-out.
+pub const TD_CRC_TIMEOUT: u32 = 1 << 18;
+/// Bit stuff error.
+pub const TD_BITSTUFF: u32 = 1 << 17;
+/// Actual length, n - 1 encoded (0x7FF: nothing).
+pub const TD_ACTUAL_LENGTH: u32 = 0x7FF;
+
+/// The td_token's PIDs.
+pub const PID_SETUP: u32 = 0x2D;
+/// IN.
+pub const PID_IN: u32 = 0x69;
+/// OUT.
+pub const PID_OUT: u32 = 0xE1;
+
+/// The td_token (dword 2): length `bytes` (n - 1 encoded, 0x7FF for 0),
+/// toggle, endpoint, address and PID.
+pub const fn td_token(pid: u32, address: u8, endpoint: u8, toggle: bool, bytes: usize) -> u32 {
+    let length = (bytes as u32).wrapping_sub(1) & 0x7FF;
+    length << 21
+        | (toggle as u32) << 19
+        | (endpoint as u32 & 0xF) << 15
+        | (address as u32 & 0x7F) << 8
+        | pid
 }
 
-/// USBCMD bits.
-pub mod command {
-    /// Run/Stop.
-    pub const RUN: u16 = 1 << 0;
-    /// Host controller reset (the controller clears it when done).
-    pub const HOST_RESET: u16 = 1 << 1;
-    /// Global reset: USB reset on every port, held by software.
-    pub const GLOBAL_RESET: u16 = 1 << 2;
-    /// Configure Flag: a semaphore for software ("configured").
-    pub const CONFIGURE: u16 = 1 << 6;
-    /// Max packet 64 bytes for full-speed bandwidth reclamation.
-    pub const MAX_PACKET_64: u16 = 1 << 7;
-}
-
-/// USBSTS bits, all but HCHalted write-1-to-clear.
-pub mod status {
-    /// A TD with IOC completed, or a short packet with SPD.
-    pub const INTERRUPT: u16 = 1 << 0;
-    /// A transaction ended in an error (stall, babble, errors counted out).
-    pub const ERROR_INTERRUPT: u16 = 1 << 1;
-    /// Resume detected.
-    pub const RESUME_DETECT: u16 = 1 << 2;
-    /// Host system error (PCI): the controller halts.
-    pub const HOST_SYSTEM_ERROR: u16 = 1 << 3;
-    /// Host controller process error (a bad schedule): it halts.
-    pub const PROCESS_ERROR: u16 = 1 << 4;
-    /// The controller is halted (read only).
-    pub const HALTED: u16 = 1 << 5;
-    /// Every write-1-to-clear cause.
-    pub const CAUSES: u16 =
-        INTERRUPT | ERROR_INTERRUPT | RESUME_DETECT | HOST_SYSTEM_ERROR | PROCESS_ERROR;
-}
-
-/// PORTSC bits.
-pub mod port {
-    /// Current connect status (read only).
-    pub const CONNECTED: u16 = 1 << 0;
-    /// Connect status change (write 1 to clear).
-    pub const CONNECT_CHANGE: u16 = 1 << 1;
-    /// Port enabled.
-    pub const ENABLED: u16 = 1 << 2;
-    /// Port enable change (write 1 to clear).
-    pub const ENABLE_CHANGE: u16 = 1 << 3;
-    /// Reserved, reads as 1: how Linux counts the ports.
-    pub const ALWAYS_ONE: u16 = 1 << 7;
-    /// Low-speed device attached (read only).
-    pub const LOW_SPEED: u16 = 1 << 8;
-    /// Port reset, held by software.
-    pub const RESET: u16 = 1 << 9;
-    /// Over-current change on some controllers (write 1 to clear).
-    pub const OVER_CURRENT_CHANGE: u16 = 1 << 11;
-    /// The write-1-to-clear bits: never written back as read.
-    pub const WRITE_CLEAR: u16 = CONNECT_CHANGE | ENABLE_CHANGE | OVER_CURRENT_CHANGE;
-    /// Reserved bits that must be written as 0.
-    pub const WRITE_ZERO: u16 = 0xE000;
-}
-
-/// The PCI configuration register LEGSUP (the low 16 bits of the dword at
-/// 0xC0): the BIOS's keyboard emulation through SMI traps.
-pub mod legacy {
-    /// Its configuration space offset.
-    pub const OFFSET: u8 = 0xC0;
-    /// The trap status bits (write 1 to clear): Linux's USBLEGSUP_RWC.
-    pub const STATUS_CLEAR: u16 = 0x8F00;
-    /// The SMI enables: the four port 60h/64h traps, SMI on USB
-    /// interrupt, A20 pass-through, SMI at the end of pass-through.
-    pub const SMI_ENABLES: u16 = 0x00BF;
-    /// PIRQ enable: the controller's interrupt routed to the PIC.
-    pub const PIRQ_ENABLE: u16 = 0x2000;
-}
-
-/// Link pointer bits (frame list entries, QH and TD links).
-pub mod link {
-    /// Terminate: nothing follows.
-    pub const TERMINATE: u32 = 1 << 0;
-    /// The pointer names a queue head (else a TD).
-    pub const QUEUE_HEAD: u32 = 1 << 1;
-    /// TD links only: depth first (go on with this queue's next TD).
-    pub const DEPTH_FIRST: u32 = 1 << 2;
-}
-
-/// TD control and status (dword 1) bits.
-pub mod td {
-    /// Short packet detect: a short IN stops the queue.
-    pub const SHORT_PACKET_DETECT: u32 = 1 << 29;
-    /// Error counter of 3 (bits 28:27): three strikes, then retired.
-    pub const THREE_ERRORS: u32 = 3 << 27;
-    /// Low-speed device (the controller sends PRE first through hubs).
-    pub const LOW_SPEED: u32 = 1 << 26;
-    /// Interrupt on completion.
-    pub const INTERRUPT_ON_COMPLETE: u32 = 1 << 24;
-    /// Active: the controller owns it.
-    pub const ACTIVE: u32 = 1 << 23;
-    /// Stalled (also set with babble and errors counted out).
-    pub const STALLED: u32 = 1 << 22;
-    /// Data buffer error (overrun or underrun).
-    pub const DATA_BUFFER_ERROR: u32 = 1 << 21;
-    /// Babble.
-    pub const BABBLE: u32 = 1 << 20;
-    /// CRC error or time-out.
-    pub const CRC_TIMEOUT: u32 = 1 << 18;
-    /// Bit stuff error.
-    pub const BITSTUFF: u32 = 1 << 17;
-    /// Actual length, n - 1 encoded (0x7FF: nothing).
-    pub const ACTUAL_LENGTH: u32 = 0x7FF;
-
-    /// The token's PIDs.
-    pub const PID_SETUP: u32 = 0x2D;
-    /// IN.
-    pub const PID_IN: u32 = 0x69;
-    /// OUT.
-    pub const PID_OUT: u32 = 0xE1;
-
-    /// The token (dword 2): length `bytes` (n - 1 encoded, 0x7FF for 0),
-    /// toggle, endpoint, address and PID.
-    pub const fn token(pid: u32, address: u8, endpoint: u8, toggle: bool, bytes: usize) -> u32 {
-        let length = (bytes as u32).wrapping_sub(1) & 0x7FF;
-        length << 21
-            | (toggle as u32) << 19
-            | (endpoint as u32 & 0xF) << 15
-            | (address as u32 & 0x7F) << 8
-            | pid
-    }
-
-    /// The bytes an inactive TD moved, from its ActLen (n - 1 encoded).
-    pub const fn actual_length(status: u32) -> usize {
-        ((status + 1) & ACTUAL_LENGTH) as usize
-    }
+/// The bytes an inactive TD moved, from its ActLen (n - 1 encoded).
+pub const fn td_actual_length(status: u32) -> usize {
+    ((status + 1) & TD_ACTUAL_LENGTH) as usize
 }
 
 /// Frames in the frame list.
@@ -311,11 +301,11 @@ mod unit {
 
     #[test]
     fn lengths_are_n_minus_one_with_0x7ff_for_nothing() {
-        assert_eq!(td::token(td::PID_IN, 0, 0, false, 0) >> 21, 0x7FF);
-        assert_eq!(td::token(td::PID_IN, 0, 0, false, 8) >> 21, 7);
-        assert_eq!(td::actual_length(0x7FF), 0);
-        assert_eq!(td::actual_length(td::ACTIVE | 7), 8);
-        let token = td::token(td::PID_OUT, 0x7F, 0xF, true, 64);
+        assert_eq!(td_token(PID_IN, 0, 0, false, 0) >> 21, 0x7FF);
+        assert_eq!(td_token(PID_IN, 0, 0, false, 8) >> 21, 7);
+        assert_eq!(td_actual_length(0x7FF), 0);
+        assert_eq!(td_actual_length(TD_ACTIVE | 7), 8);
+        let token = td_token(PID_OUT, 0x7F, 0xF, true, 64);
         assert_eq!(token & 0xFF, 0xE1);
         assert_eq!((token >> 8) & 0x7F, 0x7F);
         assert_eq!((token >> 15) & 0xF, 0xF);

@@ -13,7 +13,7 @@ use crate::host::{
     DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, ResetOutcome, Setup, Speed,
     Transfer, TransferError,
 };
-use crate::model::devices::{Device, KEYBOARD_DEVICE, LOW_SPEED_KEYBOARD_DEVICE};
+use crate::model::devices::{UsbDevice, KEYBOARD_DEVICE, LOW_SPEED_KEYBOARD_DEVICE};
 use crate::model::uhci::{UhciModel, BIOS_LEGSUP, DMA_BASE, DMA_BYTES};
 use std::vec;
 use std::vec::Vec;
@@ -185,7 +185,7 @@ fn typed(bus: &mut Bus<Uhci<UhciModel>>, frames: u32) -> Vec<u8> {
 #[test]
 fn a_keyboard_on_a_root_port_types_through_the_device_layer() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut bus = bus_with(model);
     assert_eq!(bus.enumerate(), 1, "{:?}", bus.controller().hardware().log);
     let model = bus.controller().hardware();
@@ -201,7 +201,7 @@ fn a_keyboard_on_a_root_port_types_through_the_device_layer() {
 #[test]
 fn a_low_speed_keyboard_is_reached_with_the_ls_bit() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[2], Device::Keyboard(Speed::Low));
+    let keyboard = model.plug(&[2], UsbDevice::Keyboard(Speed::Low));
     let mut bus = bus_with(model);
     assert_eq!(bus.enumerate(), 1, "{:?}", bus.controller().hardware().log);
     let model = bus.controller().hardware();
@@ -216,14 +216,14 @@ fn keyboards_behind_a_hub_type_through_the_device_layer() {
     let mut model = UhciModel::new(2);
     model.plug(
         &[1],
-        Device::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
         },
     );
-    let low = model.plug(&[1, 2], Device::Keyboard(Speed::Low));
-    let full = model.plug(&[1, 4], Device::Keyboard(Speed::Full));
+    let low = model.plug(&[1, 2], UsbDevice::Keyboard(Speed::Low));
+    let full = model.plug(&[1, 4], UsbDevice::Keyboard(Speed::Full));
     let mut bus = bus_with(model);
     assert_eq!(bus.enumerate(), 2, "{:?}", bus.controller().hardware().log);
     let model = bus.controller().hardware();
@@ -241,7 +241,7 @@ fn keyboards_behind_a_hub_type_through_the_device_layer() {
 #[test]
 fn a_keyboard_plugged_pulled_and_plugged_again_is_found_each_time() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut bus = bus_with(model);
     assert_eq!(bus.enumerate(), 1);
     for round in 0..5 {
@@ -251,7 +251,7 @@ fn a_keyboard_plugged_pulled_and_plugged_again_is_found_each_time() {
         let keyboard = bus
             .controller()
             .hardware()
-            .plug(&[1], Device::Keyboard(Speed::Full));
+            .plug(&[1], UsbDevice::Keyboard(Speed::Full));
         typed(&mut bus, 500);
         assert_eq!(
             bus.keyboards().count(),
@@ -271,7 +271,7 @@ fn a_keyboard_plugged_pulled_and_plugged_again_is_found_each_time() {
 #[test]
 fn the_device_layer_shuts_the_controller_down() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut bus = bus_with(model);
     assert_eq!(bus.enumerate(), 1);
     assert!(bus.shut_down());
@@ -287,7 +287,7 @@ fn the_device_layer_shuts_the_controller_down() {
 #[test]
 fn the_device_descriptor_is_read_whatever_the_packet_size_and_length() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     let device = uhci
@@ -325,7 +325,7 @@ fn the_device_descriptor_is_read_whatever_the_packet_size_and_length() {
 #[test]
 fn reports_arrive_each_once_and_in_order() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (_, pipe) = keyboard_by_hand(&mut uhci, 1, 1);
     let keys = [4u8, 5, 6, 7, 8, 9, 10];
@@ -341,7 +341,7 @@ fn reports_arrive_each_once_and_in_order() {
 #[test]
 fn a_low_speed_keyboard_on_a_root_port_works_by_hand() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Low));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Low));
     let mut uhci = started(model);
     let (device, pipe) = keyboard_by_hand(&mut uhci, 1, 9);
     let mut buffer = [0; 18];
@@ -365,7 +365,7 @@ fn a_low_speed_keyboard_on_a_root_port_works_by_hand() {
 #[test]
 fn a_repeated_report_with_the_old_toggle_is_dropped_and_the_toggles_stay_in_step() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (_, pipe) = keyboard_by_hand(&mut uhci, 1, 3);
     assert!(uhci.hardware().tree.send_report(keyboard, KEY_A));
@@ -383,7 +383,7 @@ fn a_repeated_report_with_the_old_toggle_is_dropped_and_the_toggles_stay_in_step
 #[test]
 fn a_stalled_pipe_waits_for_its_restart_and_starts_again_at_data0() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (device, pipe) = keyboard_by_hand(&mut uhci, 1, 4);
     assert!(uhci.hardware().tree.send_report(keyboard, KEY_A));
@@ -424,7 +424,7 @@ fn a_stalled_pipe_waits_for_its_restart_and_starts_again_at_data0() {
 #[test]
 fn a_device_that_never_answers_fails_after_three_strikes() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Dead(Speed::Full));
+    model.plug(&[1], UsbDevice::Dead(Speed::Full));
     let mut uhci = started(model);
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     let device = uhci
@@ -450,7 +450,7 @@ fn a_device_that_never_answers_fails_after_three_strikes() {
 #[test]
 fn a_cancelled_transfer_leaves_the_device_ready_for_the_next() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
     let device = uhci
@@ -480,7 +480,7 @@ fn a_cancelled_transfer_leaves_the_device_ready_for_the_next() {
 #[test]
 fn a_thousand_plug_cycles_never_run_the_pools_dry() {
     let mut model = UhciModel::new(2);
-    let mut keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let mut keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     for cycle in 0..1_000u32 {
         let address = (cycle % 127 + 1) as u8;
@@ -499,7 +499,7 @@ fn a_thousand_plug_cycles_never_run_the_pools_dry() {
         uhci.clear_port_change(1);
         uhci.device_remove(device);
         assert_eq!(uhci.slots_in_use(), (0, 0), "cycle {cycle}");
-        keyboard = uhci.hardware().plug(&[1], Device::Keyboard(Speed::Full));
+        keyboard = uhci.hardware().plug(&[1], UsbDevice::Keyboard(Speed::Full));
         uhci.clear_port_change(1);
     }
     let model = uhci.hardware();
@@ -510,7 +510,7 @@ fn a_thousand_plug_cycles_never_run_the_pools_dry() {
 #[test]
 fn every_slot_can_be_taken_and_the_next_is_refused() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let info = DeviceInfo {
         route: Some(0),
@@ -562,7 +562,7 @@ fn every_slot_can_be_taken_and_the_next_is_refused() {
 #[test]
 fn each_pipe_is_polled_at_its_interval() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (device, first) = keyboard_by_hand(&mut uhci, 1, 1);
     uhci.interrupt_close(first);
@@ -599,7 +599,7 @@ fn each_pipe_is_polled_at_its_interval() {
 #[test]
 fn an_idle_poll_reads_one_register_and_port_changes_are_seen_within_16() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (_, pipe) = keyboard_by_hand(&mut uhci, 1, 1);
     // Settle: whatever enumeration left in USBSTS is taken.
@@ -621,7 +621,7 @@ fn an_idle_poll_reads_one_register_and_port_changes_are_seen_within_16() {
     assert_eq!(next_report(&mut uhci, pipe, 1), Some(Transfer::Complete(4)));
     // A device plugged into port 2: no USBSTS bit says so; the port check
     // finds it within PORT_CHECK_EVERY calls per port.
-    uhci.hardware().plug(&[2], Device::Keyboard(Speed::Full));
+    uhci.hardware().plug(&[2], UsbDevice::Keyboard(Speed::Full));
     let seen = (0..2 * PORT_CHECK_EVERY).position(|_| uhci.anything_happened());
     assert!(seen.is_some(), "the new connection was never seen");
     assert!(uhci.port_status(2).connect_changed);
@@ -634,7 +634,7 @@ fn an_idle_poll_reads_one_register_and_port_changes_are_seen_within_16() {
 #[test]
 fn the_bios_is_relieved_of_the_controller_as_linux_does() {
     let mut model = UhciModel::owned_by_bios(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = driver(model);
     let handoff = uhci.take_ownership();
     assert!(matches!(handoff, Handoff::Released { .. }), "{handoff:?}");
@@ -685,7 +685,7 @@ fn a_bios_that_never_lets_go_is_left_alone_after_a_bounded_wait() {
 #[test]
 fn halt_stops_the_controller_and_leaves_legsup_as_linux_does() {
     let mut model = UhciModel::owned_by_bios(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (_, pipe) = keyboard_by_hand(&mut uhci, 1, 1);
     let start = uhci.hardware().now;
@@ -748,7 +748,7 @@ fn a_host_reset_that_never_ends_is_given_up_within_the_bound() {
 #[test]
 fn a_host_system_error_gives_the_controller_up() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (device, pipe) = keyboard_by_hand(&mut uhci, 1, 1);
     uhci.hardware().host_system_error();
@@ -781,7 +781,7 @@ fn the_root_ports_are_counted_as_linux_does() {
 #[test]
 fn port_registers_that_read_nonsense_cost_a_bounded_wait_and_no_device() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     // All ones: the controller is gone; nothing is there.
     uhci.hardware().port_nonsense = Some(0xFFFF);
@@ -803,7 +803,7 @@ fn port_registers_that_read_nonsense_cost_a_bounded_wait_and_no_device() {
 #[test]
 fn a_port_that_refuses_its_first_enables_is_tried_again() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Low));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Low));
     model.port_enable_refusals = 3;
     let mut uhci = started(model);
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Low));
@@ -843,7 +843,7 @@ fn an_empty_port_resets_to_nothing() {
 #[test]
 fn memory_is_reused_only_after_the_frame_has_moved_on() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let info = DeviceInfo {
         route: Some(0),
@@ -874,7 +874,7 @@ fn memory_is_reused_only_after_the_frame_has_moved_on() {
 #[test]
 fn a_late_frame_timer_costs_a_bounded_wait_and_never_the_controller() {
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::Keyboard(Speed::Full));
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let (_, pipe) = keyboard_by_hand(&mut uhci, 1, 4);
     uhci.hardware().tree.stall_interrupt(keyboard);
@@ -904,7 +904,7 @@ fn a_late_frame_timer_costs_a_bounded_wait_and_never_the_controller() {
 #[test]
 fn requests_the_driver_cannot_do_are_refused() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     let device = uhci
         .device_new(DeviceInfo {
@@ -973,7 +973,7 @@ fn requests_the_driver_cannot_do_are_refused() {
 #[test]
 fn port_writes_keep_the_change_bits_they_do_not_mean_to_clear() {
     let mut model = UhciModel::new(2);
-    model.plug(&[1], Device::Keyboard(Speed::Full));
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
     let mut uhci = started(model);
     assert!(uhci.port_status(1).connect_changed);
     assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Enabled(Speed::Full));
@@ -982,7 +982,7 @@ fn port_writes_keep_the_change_bits_they_do_not_mean_to_clear() {
     // Pulled and plugged again behind the driver's back: a disable or a
     // reset begun now must not swallow the connect change.
     uhci.hardware().unplug(&[1]);
-    uhci.hardware().plug(&[1], Device::Keyboard(Speed::Full));
+    uhci.hardware().plug(&[1], UsbDevice::Keyboard(Speed::Full));
     uhci.port_disable(1);
     assert!(uhci.port_status(1).connect_changed);
     uhci.port_reset_begin(1);
@@ -998,7 +998,7 @@ fn a_keyboard_plugged_into_a_hub_after_boot_is_found() {
     let mut model = UhciModel::new(2);
     model.plug(
         &[2],
-        Device::Hub {
+        UsbDevice::Hub {
             speed: Speed::Full,
             ports: 4,
             multi_tt: false,
@@ -1009,7 +1009,7 @@ fn a_keyboard_plugged_into_a_hub_after_boot_is_found() {
     let keyboard = bus
         .controller()
         .hardware()
-        .plug(&[2, 1], Device::Keyboard(Speed::Low));
+        .plug(&[2, 1], UsbDevice::Keyboard(Speed::Low));
     typed(&mut bus, 1_000);
     assert_eq!(
         bus.keyboards().count(),
@@ -1036,7 +1036,7 @@ fn a_keyboard_plugged_into_a_hub_after_boot_is_found() {
 fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
     use crate::model::devices::rollover_report;
     let mut model = UhciModel::new(2);
-    let keyboard = model.plug(&[1], Device::RolloverKeyboard(Speed::Low));
+    let keyboard = model.plug(&[1], UsbDevice::RolloverKeyboard(Speed::Low));
     let mut bus = bus_with(model);
     assert_eq!(bus.enumerate(), 1, "{:?}", bus.controller().hardware().log);
     let logged = |bus: &mut Bus<Uhci<UhciModel>>, text: &str| {

@@ -33,18 +33,18 @@
 //! the next device when it goes (after Disable Slot is queued: the command
 //! ring runs it before the Enable Slot of whoever gets them next).
 
+use super::context::{endpoint_type, speed, EndpointContext, SlotContext};
+use super::ring::{trb_type, ProducerRing, Trb};
 use super::{
     configure_endpoint, Xhci, COMPLETION_COMMAND_RING_STOPPED, COMPLETION_CONTEXT_STATE,
     COMPLETION_SHORT_PACKET, COMPLETION_STALL, COMPLETION_SUCCESS, CRCR, CRCR_COMMAND_ABORT,
     EVENTS_PER_POLL, MAX_SLOTS, PORT_CHANGES, PORT_CONNECTED, PORT_CONNECT_CHANGE, PORT_ENABLED,
     PORT_POWER, PORT_RESET, PORT_RESET_CHANGE,
 };
-use crate::context::{endpoint_type, speed, EndpointContext, SlotContext};
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
-use crate::ring::{trb_type, ProducerRing, Trb};
 use crate::Hardware;
 use core::fmt;
 use xhci::ring::trb::{command, transfer};

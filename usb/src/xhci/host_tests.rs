@@ -1,4 +1,4 @@
-//! xHCI under the device layer (`Bus<Xhci<Model>>`) against the register
+//! xHCI under the device layer (`Bus<Xhci<XhciModel>>`) against the register
 //! model: the keyboard on a root port typing the bytes the driver's own
 //! enumeration typed before it was deleted, behind hubs (route strings), plugged and pulled a
 //! thousand times (slots and pages reused), stalls on its report endpoint
@@ -7,7 +7,7 @@
 
 use crate::bus::Bus;
 use crate::host::HostController;
-use crate::model::{Model, Port2, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use crate::model::xhci::{OnRootPort2, XhciModel, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use crate::xhci::Xhci;
 use crate::{Hardware, Memory};
 use std::format;
@@ -19,7 +19,7 @@ const POLL_MICROS_BOUND: u64 = 1_000;
 
 /// A controller taken, reset and started; endpoint 0 halts on a stall,
 /// as on real hardware.
-fn started(mut model: Model) -> Xhci<Model> {
+fn started(mut model: XhciModel) -> Xhci<XhciModel> {
     model.ep0_halts = true;
     let mut xhci = Xhci::new(model, BAR_BYTES, DMA_BASE, DMA_BYTES).unwrap();
     xhci.take_ownership();
@@ -27,12 +27,12 @@ fn started(mut model: Model) -> Xhci<Model> {
     xhci
 }
 
-fn bus(model: Model) -> Bus<Xhci<Model>> {
+fn bus(model: XhciModel) -> Bus<Xhci<XhciModel>> {
     Bus::new(started(model))
 }
 
 /// A bus whose boot enumeration found `keyboards`.
-fn with_keyboards(model: Model, keyboards: usize) -> Bus<Xhci<Model>> {
+fn with_keyboards(model: XhciModel, keyboards: usize) -> Bus<Xhci<XhciModel>> {
     let mut bus = bus(model);
     assert_eq!(bus.enumerate(), keyboards, "{:#?}", log(&mut bus));
     // The pipes' Configure Endpoint completes after the enumeration's last
@@ -41,19 +41,19 @@ fn with_keyboards(model: Model, keyboards: usize) -> Bus<Xhci<Model>> {
     bus
 }
 
-fn hw(bus: &mut Bus<Xhci<Model>>) -> &mut Model {
+fn hw(bus: &mut Bus<Xhci<XhciModel>>) -> &mut XhciModel {
     bus.controller().hardware()
 }
 
-fn log(bus: &mut Bus<Xhci<Model>>) -> Vec<String> {
+fn log(bus: &mut Bus<Xhci<XhciModel>>) -> Vec<String> {
     hw(bus).log.clone()
 }
 
-fn logged(bus: &mut Bus<Xhci<Model>>, text: &str) -> bool {
+fn logged(bus: &mut Bus<Xhci<XhciModel>>, text: &str) -> bool {
     hw(bus).log.iter().any(|line| line.contains(text))
 }
 
-fn poll(bus: &mut Bus<Xhci<Model>>) -> Vec<u8> {
+fn poll(bus: &mut Bus<Xhci<XhciModel>>) -> Vec<u8> {
     let mut bytes = Vec::new();
     bus.poll(&mut |b| bytes.push(b));
     bytes
@@ -62,7 +62,7 @@ fn poll(bus: &mut Bus<Xhci<Model>>) -> Vec<u8> {
 /// Polls a frame (1 ms of model time) apart, at least once and then until
 /// nothing is left to enumerate, each poll within [`POLL_MICROS_BOUND`];
 /// gives the bytes typed meanwhile.
-fn settle(bus: &mut Bus<Xhci<Model>>) -> Vec<u8> {
+fn settle(bus: &mut Bus<Xhci<XhciModel>>) -> Vec<u8> {
     let mut bytes = Vec::new();
     let mut polls = 0;
     while polls == 0 || !bus.enumeration_idle() {
@@ -78,12 +78,12 @@ fn settle(bus: &mut Bus<Xhci<Model>>) -> Vec<u8> {
 }
 
 /// Nothing the model checks went wrong.
-fn assert_clean(bus: &mut Bus<Xhci<Model>>) {
+fn assert_clean(bus: &mut Bus<Xhci<XhciModel>>) {
     let errors = hw(bus).errors.clone();
     assert!(errors.is_empty(), "{errors:?}\n{:#?}", log(bus));
 }
 
-fn locations(bus: &Bus<Xhci<Model>>) -> Vec<String> {
+fn locations(bus: &Bus<Xhci<XhciModel>>) -> Vec<String> {
     bus.keyboards().map(|l| format!("{l}")).collect()
 }
 
@@ -118,7 +118,7 @@ const SESSION: [Step; 8] = [
 #[test]
 fn a_keyboard_on_a_root_port_types_what_the_drivers_own_enumeration_typed() {
     for csz in [false, true] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.csz = csz;
         let mut bus = with_keyboards(model, 1);
         assert_eq!(locations(&bus), ["1"]);
@@ -146,7 +146,7 @@ fn a_keyboard_on_a_root_port_types_what_the_drivers_own_enumeration_typed() {
 #[test]
 fn a_keyboard_behind_one_and_three_hubs_is_reached_through_its_route_string() {
     for (tiers, at) in [(1, "1.2"), (3, "1.2.2.2")] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.hub = true;
         model.hub_tiers = tiers;
         let mut bus = with_keyboards(model, 1);
@@ -169,7 +169,7 @@ fn a_keyboard_behind_one_and_three_hubs_is_reached_through_its_route_string() {
 #[test]
 fn a_keyboard_pulled_out_and_plugged_in_a_thousand_times_still_types() {
     for hub in [false, true] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.hub = hub;
         let mut bus = with_keyboards(model, 1);
         let rounds = if hub { 200 } else { 1_000 };
@@ -204,7 +204,7 @@ fn a_keyboard_pulled_out_and_plugged_in_a_thousand_times_still_types() {
 
 #[test]
 fn a_keyboard_behind_a_hub_pulled_and_plugged_again_is_found_by_the_hubs_report() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.hub = true;
     let mut bus = with_keyboards(model, 1);
     for round in 0..20 {
@@ -236,7 +236,7 @@ fn a_keyboard_behind_a_hub_pulled_and_plugged_again_is_found_by_the_hubs_report(
 
 #[test]
 fn a_stall_and_transaction_errors_on_the_report_endpoint_are_recovered() {
-    let mut bus = with_keyboards(Model::new(), 1);
+    let mut bus = with_keyboards(XhciModel::new(), 1);
     assert!(hw(&mut bus).send_report([0x02, 0, 0x04, 0, 0, 0, 0, 0])); // Shift+A
     assert_eq!(poll(&mut bus), [0x2A, 0x1E]);
     // A stall: the keys are let go, the halt cleared on the device, the
@@ -277,7 +277,7 @@ fn a_stall_and_transaction_errors_on_the_report_endpoint_are_recovered() {
 
 #[test]
 fn a_keyboard_that_fails_every_transfer_is_given_up() {
-    let mut bus = with_keyboards(Model::new(), 1);
+    let mut bus = with_keyboards(XhciModel::new(), 1);
     let mut rounds = 0;
     while bus.keyboards().count() == 1 {
         rounds += 1;
@@ -295,7 +295,7 @@ fn a_keyboard_that_fails_every_transfer_is_given_up() {
 fn a_stall_on_endpoint_0_is_cleared_in_the_controller_before_the_next_request() {
     // No report descriptor: its request stalls, and a real controller
     // halts endpoint 0 until Reset Endpoint. The boot protocol follows.
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.report_descriptor = None;
     let mut bus = with_keyboards(model, 1);
     assert_eq!(hw(&mut bus).keyboard.protocol, 0, "boot protocol");
@@ -315,7 +315,7 @@ fn a_stall_on_endpoint_0_is_cleared_in_the_controller_before_the_next_request() 
 
 #[test]
 fn endpoint_0_of_64_bytes_is_evaluated_and_the_two_step_device_addressed() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.needs_two_step = true;
     model.device_descriptor[7] = 64;
     let mut bus = with_keyboards(model, 1);
@@ -327,8 +327,8 @@ fn endpoint_0_of_64_bytes_is_evaluated_and_the_two_step_device_addressed() {
 
 #[test]
 fn two_keyboards_both_type() {
-    let mut model = Model::new();
-    model.port_2 = Some(Port2::Keyboard);
+    let mut model = XhciModel::new();
+    model.port_2 = Some(OnRootPort2::Keyboard);
     let mut bus = with_keyboards(model, 2);
     let mut at = locations(&bus);
     at.sort();
@@ -343,8 +343,8 @@ fn two_keyboards_both_type() {
 
 #[test]
 fn a_device_that_never_answers_is_given_up_after_its_timeout_and_the_keyboard_types() {
-    let mut model = Model::new();
-    model.port_2 = Some(Port2::Dead);
+    let mut model = XhciModel::new();
+    model.port_2 = Some(OnRootPort2::Dead);
     let mut bus = bus(model);
     bus.enumerate();
     let start = hw(&mut bus).now;
@@ -390,7 +390,7 @@ fn a_device_that_never_answers_is_given_up_after_its_timeout_and_the_keyboard_ty
 
 #[test]
 fn a_superspeed_device_on_a_usb_3_port_is_enumerated_with_512_byte_packets() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.usb3 = true;
     // bcdUSB 3.0, bMaxPacketSize0 9: 2^9 = 512 bytes.
     model.device_descriptor[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
@@ -401,7 +401,7 @@ fn a_superspeed_device_on_a_usb_3_port_is_enumerated_with_512_byte_packets() {
     assert_eq!(poll(&mut bus), [0x01]);
     assert_clean(&mut bus);
     // A SuperSpeed device that says 8 bytes is refused at its port.
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.usb3 = true;
     let mut bus = self::bus(model);
     assert_eq!(bus.enumerate(), 0);
@@ -417,7 +417,7 @@ fn a_superspeed_device_on_a_usb_3_port_is_enumerated_with_512_byte_packets() {
 
 #[test]
 fn halt_switches_the_ports_off_then_halts_and_resets() {
-    let mut bus = with_keyboards(Model::new(), 1);
+    let mut bus = with_keyboards(XhciModel::new(), 1);
     assert!(bus.shut_down());
     let (halted, reset_done, powered) = hw(&mut bus).shut_down_state();
     assert!(halted && reset_done);
@@ -426,7 +426,7 @@ fn halt_switches_the_ports_off_then_halts_and_resets() {
 
 /// The model, with the driver's register and DMA accesses counted.
 struct Counting {
-    model: Model,
+    model: XhciModel,
     mmio: u64,
     dma: u64,
 }
@@ -461,7 +461,7 @@ impl Hardware for Counting {
 
 #[test]
 fn an_idle_poll_reads_one_event_word_and_touches_no_register() {
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.ep0_halts = true;
     let counting = Counting {
         model,
@@ -503,7 +503,7 @@ fn a_data_stage_shorter_than_asked_says_how_many_bytes_came() {
     // The configuration says it is 40 bytes long and sends its 34: the
     // data stage's event says 6 did not come, and the device layer
     // refuses a device that sends less than it announces.
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     let announced = model.configuration.len() as u16 + 6;
     model.configuration[2..4].copy_from_slice(&announced.to_le_bytes());
     let mut bus = with_keyboards(model, 0);
@@ -518,7 +518,7 @@ fn a_data_stage_shorter_than_asked_says_how_many_bytes_came() {
 #[test]
 fn a_full_speed_keyboard_behind_high_speed_hubs_names_the_last_ones_translator() {
     for tiers in [1, 2] {
-        let mut model = Model::new();
+        let mut model = XhciModel::new();
         model.hub = true;
         model.hub_tiers = tiers;
         model.high_speed_hub = true;
@@ -535,14 +535,14 @@ fn a_full_speed_keyboard_behind_high_speed_hubs_names_the_last_ones_translator()
 #[test]
 fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
     use crate::model::devices::{rollover_report, ROLLOVER_REPORT_DESCRIPTOR};
-    let mut model = Model::new();
+    let mut model = XhciModel::new();
     model.report_descriptor = Some(ROLLOVER_REPORT_DESCRIPTOR.to_vec());
     // The HID descriptor's wDescriptorLength of the report descriptor.
     model.configuration[25] = ROLLOVER_REPORT_DESCRIPTOR.len() as u8;
     let mut bus = with_keyboards(model, 1);
     assert!(logged(&mut bus, "(2 key fields, 20-byte reports)"));
     // A packet a transfer, as the endpoint's 8 bytes allow.
-    let send = |bus: &mut Bus<Xhci<Model>>, report: &[u8]| {
+    let send = |bus: &mut Bus<Xhci<XhciModel>>, report: &[u8]| {
         let mut bytes = Vec::new();
         for packet in report.chunks(8) {
             assert!(hw(bus).send_bytes(packet));

@@ -4,7 +4,7 @@
 //! belongs to whoever's cycle state matches its cycle bit, so the driver
 //! writes a TRB's control word (with the cycle bit) last.
 
-use super::Memory;
+use crate::Memory;
 
 /// Bytes in one TRB.
 pub const TRB_BYTES: u64 = 16;

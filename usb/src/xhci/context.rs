@@ -2,7 +2,7 @@
 //! HCCPARAMS1 uses 64-byte contexts (of which the first 32 bytes mean the
 //! same as in a 32-byte one), so every offset goes through the layout.
 
-use super::Memory;
+use crate::Memory;
 use xhci::context::{EndpointHandler, SlotHandler};
 
 /// The context size the controller asks for.
