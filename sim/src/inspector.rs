@@ -13,7 +13,7 @@ use embedded_graphics::prelude::*;
 use embedded_graphics::text::{Baseline, Text};
 use modex::regs::{gc, Graphics, Sequencer};
 use modex::soft::{dac_6_to_8, BusCounts, SoftVga};
-use modex::{Page, BYTES_PER_LINE, PAGE_BYTES, PAGE_COUNT, PAGE_PIXELS, SCREEN_HEIGHT};
+use modex::{Page, BYTES_PER_LINE, PAGE_COUNT, PAGE_PIXELS, SCREEN_HEIGHT};
 
 /// What one frame cost on the bus.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -53,8 +53,12 @@ pub fn lower_bound(old_page: &[u8], new_page: &[u8]) -> u64 {
         .iter()
         .zip(new_page.as_chunks::<4>().0)
         .map(|(old, new)| {
-            // No allocation: this runs for every address of every frame
-            // (in the web page too, where an allocation costs more).
+            // Most addresses of a frame are unchanged: one comparison each.
+            if old == new {
+                return 0;
+            }
+            // No allocation: this runs for every changed address of every
+            // frame (in the web page too, where an allocation costs more).
             let mut colours = [0u8; 4];
             let mut distinct = 0;
             for plane in (0..4).filter(|&p| old[p] != new[p]) {
@@ -171,13 +175,34 @@ pub fn text_lines(state: &VgaState, history: &History) -> Vec<String> {
     ]
 }
 
-/// An RGB image, `0RGB` in each `u32` as the window takes it.
+/// How a [`Panel`] packs a colour into each `u32`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Encoding {
+    /// `0RGB` in the number, as the desktop window takes it.
+    Xrgb,
+    /// The bytes R, G, B, 255 in memory order, as a canvas's `ImageData`
+    /// takes them (the web page hands the pixels over without a copy).
+    Rgba,
+}
+
+impl Encoding {
+    fn pack(self, [r, g, b]: [u8; 3]) -> u32 {
+        match self {
+            Encoding::Xrgb => crate::screen::to_0rgb([r, g, b]),
+            Encoding::Rgba => u32::from_ne_bytes([r, g, b, 255]),
+        }
+    }
+}
+
+/// An RGB image, one colour in each `u32` as its [`Encoding`] packs it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Panel {
     /// Width in pixels.
     pub width: usize,
     /// Height in pixels.
     pub height: usize,
+    /// How each pixel is packed.
+    pub encoding: Encoding,
     /// Row by row.
     pub pixels: Vec<u32>,
 }
@@ -192,19 +217,42 @@ const TEXT: Rgb888 = Rgb888::new(230, 230, 230);
 const VRAM_COLOUR: Rgb888 = Rgb888::new(90, 160, 255);
 const BOUND_COLOUR: Rgb888 = Rgb888::new(255, 190, 60);
 const PORT_COLOUR: Rgb888 = Rgb888::new(120, 220, 120);
+const AXIS_COLOUR: Rgb888 = Rgb888::new(80, 80, 80);
 const MARGIN: i32 = 8;
 const LINE_HEIGHT: i32 = 11;
 const PLANE_GAP: i32 = 16;
 const PLANES_TOP: i32 = 26;
 const PLOT_HEIGHT: i32 = 56;
+/// The panel's rows, top down: what is drawn once and what every frame.
+const TEXT_TOP: i32 = PLANES_TOP + SCREEN_HEIGHT + 6;
+const TEXT_LINES: i32 = 5;
+const LEGEND_TOP: i32 = TEXT_TOP + TEXT_LINES * LINE_HEIGHT + 4;
+const BUS_PLOT_TOP: i32 = LEGEND_TOP + LINE_HEIGHT;
+const PORT_LEGEND_TOP: i32 = BUS_PLOT_TOP + PLOT_HEIGHT + 4;
+const PORT_PLOT_TOP: i32 = PORT_LEGEND_TOP + LINE_HEIGHT;
 
 impl Panel {
-    fn new(width: usize, height: usize) -> Self {
-        Panel {
+    /// The inspector's panel with only what never changes drawn (the
+    /// background, the title, the labels): [`redraw_panel`] draws the rest,
+    /// as often as the VGA changes, into the same pixels. At least
+    /// [`PANEL_MIN_HEIGHT`] high; `height` may ask for more.
+    pub fn inspector(height: usize, encoding: Encoding) -> Self {
+        let (width, height) = (PANEL_WIDTH, height.max(PANEL_MIN_HEIGHT));
+        let mut panel = Panel {
             width,
             height,
-            pixels: vec![to_0rgb(BACKGROUND); width * height],
+            encoding,
+            pixels: vec![encoding.pack(rgb(BACKGROUND)); width * height],
+        };
+        panel.text("VGA inspector (V hides it)", MARGIN, 2, TEXT);
+        for plane in 0..4 {
+            let left = plane_left(plane);
+            panel.text(&format!("plane {plane}"), left, PLANES_TOP - 12, TEXT);
         }
+        panel.text("video-memory writes", MARGIN, LEGEND_TOP, VRAM_COLOUR);
+        panel.text("lower bound", MARGIN + 22 * 6, LEGEND_TOP, BOUND_COLOUR);
+        panel.text("port writes", MARGIN, PORT_LEGEND_TOP, PORT_COLOUR);
+        panel
     }
 
     fn text(&mut self, text: &str, x: i32, y: i32, colour: Rgb888) {
@@ -218,10 +266,23 @@ impl Panel {
             self.pixels[y as usize * self.width + x as usize] = colour;
         }
     }
+
+    /// Paints `rows` rows from `top` with the background, for what is
+    /// drawn there anew.
+    fn clear_rows(&mut self, top: i32, rows: i32) {
+        let background = self.encoding.pack(rgb(BACKGROUND));
+        let width = self.width;
+        self.pixels[top as usize * width..][..rows as usize * width].fill(background);
+    }
 }
 
-fn to_0rgb(colour: Rgb888) -> u32 {
-    u32::from(colour.r()) << 16 | u32::from(colour.g()) << 8 | u32::from(colour.b())
+fn rgb(colour: Rgb888) -> [u8; 3] {
+    [colour.r(), colour.g(), colour.b()]
+}
+
+/// The left edge of plane `plane`'s image.
+fn plane_left(plane: usize) -> i32 {
+    MARGIN + plane as i32 * (i32::from(BYTES_PER_LINE) + PLANE_GAP)
 }
 
 impl OriginDimensions for Panel {
@@ -239,7 +300,8 @@ impl DrawTarget for Panel {
         pixels: I,
     ) -> Result<(), Infallible> {
         for Pixel(point, colour) in pixels {
-            self.put(point.x, point.y, to_0rgb(colour));
+            let colour = self.encoding.pack(rgb(colour));
+            self.put(point.x, point.y, colour);
         }
         Ok(())
     }
@@ -247,61 +309,60 @@ impl DrawTarget for Panel {
 
 /// The panel: the displayed page's bytes in each plane as an image (80
 /// bytes by 240 lines, each byte in its DAC colour), the registers, the last
-/// frame's figures and a running plot of them. At least
+/// frame's figures and a running plot of them, in `0RGB`. At least
 /// [`PANEL_MIN_HEIGHT`] high; `height` may ask for more.
 pub fn draw_panel(vga: &SoftVga, history: &History, height: usize) -> Panel {
-    let mut panel = Panel::new(PANEL_WIDTH, height.max(PANEL_MIN_HEIGHT));
-    panel.text("VGA inspector (V hides it)", MARGIN, 2, TEXT);
+    let mut panel = Panel::inspector(height, Encoding::Xrgb);
+    redraw_panel(&mut panel, vga, history);
+    panel
+}
+
+/// Draws into `panel` (made by [`Panel::inspector`]) everything that changes
+/// with the VGA and the history, over what it showed before: the result is
+/// [`draw_panel`]'s, pixel for pixel, without painting the panel afresh.
+pub fn redraw_panel(panel: &mut Panel, vga: &SoftVga, history: &History) {
     let state = vga_state(vga);
-    draw_planes(&mut panel, vga, state.start_address);
-    let mut y = PLANES_TOP + SCREEN_HEIGHT + 6;
+    draw_planes(panel, vga, state.start_address);
+    panel.clear_rows(TEXT_TOP, TEXT_LINES * LINE_HEIGHT);
+    let mut y = TEXT_TOP;
     for line in text_lines(&state, history) {
         panel.text(&line, MARGIN, y, TEXT);
         y += LINE_HEIGHT;
     }
-    y += 4;
     let vram = |cost: &FrameCost| cost.vram_writes;
     let bound = |cost: &FrameCost| cost.lower_bound;
-    panel.text("video-memory writes", MARGIN, y, VRAM_COLOUR);
-    panel.text("lower bound", MARGIN + 22 * 6, y, BOUND_COLOUR);
-    y += LINE_HEIGHT;
     draw_plot(
-        &mut panel,
+        panel,
         history,
-        y,
+        BUS_PLOT_TOP,
         &[(vram, VRAM_COLOUR), (bound, BOUND_COLOUR)],
     );
-    y += PLOT_HEIGHT + 4;
-    panel.text("port writes", MARGIN, y, PORT_COLOUR);
-    y += LINE_HEIGHT;
     draw_plot(
-        &mut panel,
+        panel,
         history,
-        y,
+        PORT_PLOT_TOP,
         &[(|cost: &FrameCost| cost.port_writes, PORT_COLOUR)],
     );
-    panel
 }
 
+/// Each plane's bytes of the page from `start`, a row of 80 at a time, every
+/// pixel of the images written (nothing else to clear).
 fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
+    let encoding = panel.encoding;
     let palette: Vec<u32> = (0..=255u8)
-        .map(|index| {
-            let [r, g, b] = vga.dac_entry(index).map(dac_6_to_8);
-            u32::from(r) << 16 | u32::from(g) << 8 | u32::from(b)
-        })
+        .map(|index| encoding.pack(vga.dac_entry(index).map(dac_6_to_8)))
         .collect();
-    let width = i32::from(BYTES_PER_LINE);
+    let row_bytes = usize::from(BYTES_PER_LINE);
     for plane in 0..4 {
-        let left = MARGIN + plane as i32 * (width + PLANE_GAP);
-        panel.text(&format!("plane {plane}"), left, PLANES_TOP - 12, TEXT);
+        let left = plane_left(plane) as usize;
         let bytes = vga.plane(plane);
-        for offset in 0..PAGE_BYTES {
-            let byte = bytes[usize::from(start.wrapping_add(offset))];
-            let (x, y) = (
-                i32::from(offset % BYTES_PER_LINE),
-                i32::from(offset / BYTES_PER_LINE),
-            );
-            panel.put(left + x, PLANES_TOP + y, palette[usize::from(byte)]);
+        for row in 0..SCREEN_HEIGHT as usize {
+            let line = (PLANES_TOP as usize + row) * panel.width + left;
+            let first = start.wrapping_add((row * row_bytes) as u16);
+            for (x, pixel) in panel.pixels[line..][..row_bytes].iter_mut().enumerate() {
+                let byte = bytes[usize::from(first.wrapping_add(x as u16))];
+                *pixel = palette[usize::from(byte)];
+            }
         }
     }
 }
@@ -318,9 +379,11 @@ fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) 
         .max()
         .unwrap_or(0)
         .max(1);
+    panel.clear_rows(top, PLOT_HEIGHT);
     let bottom = top + PLOT_HEIGHT - 1;
+    let axis = panel.encoding.pack(rgb(AXIS_COLOUR));
     for x in 0..PLOT_FRAMES as i32 {
-        panel.put(MARGIN + x, bottom, to_0rgb(Rgb888::new(80, 80, 80)));
+        panel.put(MARGIN + x, bottom, axis);
     }
     let start = PLOT_FRAMES - history.costs.len();
     for (column, cost) in history.costs().enumerate() {
@@ -329,8 +392,9 @@ fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) 
         for (index, &(value, colour)) in series.iter().enumerate() {
             let height = (value(cost) * (PLOT_HEIGHT as u64 - 1) / largest) as i32;
             let lowest = if index == 0 { 0 } else { height };
+            let colour = panel.encoding.pack(rgb(colour));
             for y in lowest..=height {
-                panel.put(x, bottom - y, to_0rgb(colour));
+                panel.put(x, bottom - y, colour);
             }
         }
     }

@@ -65,6 +65,7 @@ mod tests {
         let panel = Panel {
             width: 5,
             height: 600,
+            encoding: crate::inspector::Encoding::Xrgb,
             pixels: (0..3000).collect(),
         };
         let pixels = compose(&picture, 2, Some(&panel));

@@ -8,13 +8,16 @@
   const $ = (id) => document.getElementById(id);
   const hook = { ready: false };
   window.modexPage = hook;
-  let shownMessage = "";
-  function say(text) {
-    if (text !== shownMessage) {
-      shownMessage = text;
-      $("message").textContent = text;
+  // Text changes the document only when it changes: each change costs the
+  // browser a style pass.
+  const shownText = new Map();
+  function setText(id, value) {
+    if (shownText.get(id) !== value) {
+      shownText.set(id, value);
+      $(id).textContent = value;
     }
   }
+  const say = (text) => setText("message", text);
 
   if (typeof WebAssembly !== "object" || typeof WebAssembly.instantiate !== "function") {
     say("This page needs WebAssembly, which this browser lacks or has switched off.");
@@ -71,24 +74,41 @@
     const screen = $("screen");
     const inspector = $("inspector");
     const ops = $("ops");
-    const contexts = new Map();
+    // Each canvas keeps its context and an ImageData over the module's
+    // pixels, made again only when they move or memory grows: a frame
+    // makes no garbage here.
+    const painters = new Map();
     function paint(canvas, pointer, width, height) {
-      if (!contexts.has(canvas)) contexts.set(canvas, canvas.getContext("2d"));
-      const pixels = new Uint8ClampedArray(w.memory.buffer, pointer >>> 0, width * height * 4);
-      contexts.get(canvas).putImageData(new ImageData(pixels, width, height), 0, 0);
+      let painter = painters.get(canvas);
+      if (!painter) {
+        painter = { context: canvas.getContext("2d"), image: null, pointer: 0 };
+        painters.set(canvas, painter);
+      }
+      const image = painter.image;
+      if (!image || image.data.buffer !== w.memory.buffer || painter.pointer !== pointer ||
+          image.width !== width || image.height !== height) {
+        const pixels = new Uint8ClampedArray(w.memory.buffer, pointer >>> 0, width * height * 4);
+        painter.image = new ImageData(pixels, width, height);
+        painter.pointer = pointer;
+      }
+      painter.context.putImageData(painter.image, 0, 0);
+    }
+    // Visibility, like text, changes only when it changes.
+    function setHidden(element, hidden) {
+      if (element.hidden !== hidden) element.hidden = hidden;
     }
 
     function draw() {
       paint(screen, w.screen_ptr(), 320, 240);
       const panel = w.panel_ptr();
-      inspector.hidden = !panel;
+      setHidden(inspector, !panel);
       if (panel) paint(inspector, panel, w.panel_width(), w.panel_height());
       const slow = w.ops_ptr();
-      ops.hidden = !slow;
+      setHidden(ops, !slow);
       if (slow) paint(ops, slow, w.ops_width(), w.ops_height());
-      $("last-op").textContent = text(w.last_op());
-      $("play").textContent = w.paused() ? "Play" : "Pause";
-      $("frame-count").textContent = "frame " + w.frames();
+      setText("last-op", text(w.last_op()));
+      setText("play", w.paused() ? "Play" : "Pause");
+      setText("frame-count", "frame " + w.frames());
       say(text(w.message()));
     }
 
@@ -125,7 +145,7 @@
       const box = screen.getBoundingClientRect();
       const x = Math.floor(((event.clientX - box.left) * 320) / box.width);
       const y = Math.floor(((event.clientY - box.top) * 240) / box.height);
-      if (x >= 0 && y >= 0) $("hover").textContent = text(w.hover(x, y));
+      if (x >= 0 && y >= 0) setText("hover", text(w.hover(x, y)));
     }));
 
     $("play").addEventListener("click", guarded(() => {

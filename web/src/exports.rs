@@ -168,11 +168,11 @@ pub extern "C" fn screen_ptr() -> *const u8 {
 pub extern "C" fn panel_ptr() -> *const u8 {
     PAGE.with(|page| {
         page.borrow().as_ref().map_or(core::ptr::null(), |page| {
-            let panel = page.panel_rgba();
+            let panel = page.panel_pixels();
             if panel.is_empty() {
                 core::ptr::null()
             } else {
-                panel.as_ptr()
+                panel.as_ptr().cast()
             }
         })
     })

@@ -8,7 +8,7 @@ use std::collections::VecDeque;
 use keyboard::keys::{scancode_for_name, Scancode};
 use modex::soft::{dac_6_to_8, SoftVga};
 use modex::{SCREEN_HEIGHT, SCREEN_WIDTH};
-use sim::inspector::{draw_panel, History, PANEL_WIDTH};
+use sim::inspector::{redraw_panel, Encoding, History, Panel, PANEL_WIDTH};
 use sim::machine::Machine;
 use sim::record::{record_gif_with, RecordError};
 
@@ -56,7 +56,10 @@ pub struct Page {
     screen: Vec<u8>,
     /// The picture's DAC indices, the step before `screen`.
     indices: Vec<u8>,
-    panel: Vec<u8>,
+    /// The inspector's panel in RGBA, kept between frames: only what
+    /// changes is drawn again (`sim::inspector::redraw_panel`), and the
+    /// canvas takes its bytes where they lie.
+    panel: Panel,
     ops_panel: Vec<u8>,
 }
 
@@ -94,7 +97,7 @@ impl Page {
             // Black until the first Mode X picture.
             screen: [0, 0, 0, 255].repeat(PICTURE_WIDTH * PICTURE_HEIGHT),
             indices: vec![0; PICTURE_WIDTH * PICTURE_HEIGHT],
-            panel: Vec::new(),
+            panel: Panel::inspector(INSPECTOR_HEIGHT, Encoding::Rgba),
             ops_panel: Vec::new(),
         };
         let ops = page.replay.ops;
@@ -357,10 +360,22 @@ impl Page {
         &self.screen
     }
 
-    /// The inspector panel, RGBA, [`PANEL_WIDTH`] x [`INSPECTOR_HEIGHT`];
-    /// empty while it is hidden.
-    pub fn panel_rgba(&self) -> &[u8] {
-        &self.panel
+    /// The inspector panel, [`PANEL_WIDTH`] x [`INSPECTOR_HEIGHT`], each
+    /// `u32` the bytes R, G, B, A in memory order; empty while it is hidden.
+    pub fn panel_pixels(&self) -> &[u32] {
+        if self.inspector {
+            &self.panel.pixels
+        } else {
+            &[]
+        }
+    }
+
+    /// The inspector panel as RGBA bytes (a copy of [`Page::panel_pixels`]).
+    pub fn panel_rgba(&self) -> Vec<u8> {
+        self.panel_pixels()
+            .iter()
+            .flat_map(|pixel| pixel.to_ne_bytes())
+            .collect()
     }
 
     /// The slow-motion panel, RGBA, `slow::PANEL_WIDTH` x
@@ -400,12 +415,9 @@ impl Page {
         }
         // Any other picture (the goodbye screen's text mode) is not shown:
         // the last Mode X picture stays.
-        self.panel = if self.inspector {
-            let panel = draw_panel(vga, &self.history, INSPECTOR_HEIGHT);
-            rgba_of(&panel.pixels)
-        } else {
-            Vec::new()
-        };
+        if self.inspector {
+            redraw_panel(&mut self.panel, vga, &self.history);
+        }
         if let Some(slow) = &self.slow {
             self.ops_panel = slow.draw_panel();
         }
@@ -434,17 +446,6 @@ fn scanout_rgba(vga: &SoftVga, indices: &mut [u8], rgba: &mut [u8]) {
     for (pixel, &index) in rgba.as_chunks_mut::<4>().0.iter_mut().zip(indices.iter()) {
         *pixel = table[usize::from(index)];
     }
-}
-
-/// `0RGB` pixels as RGBA bytes.
-pub fn rgba_of(pixels: &[u32]) -> Vec<u8> {
-    pixels
-        .iter()
-        .flat_map(|&pixel| {
-            let [_, r, g, b] = pixel.to_be_bytes();
-            [r, g, b, 255]
-        })
-        .collect()
 }
 
 /// The panel's width, for the exports.

@@ -111,3 +111,49 @@ fn the_history_keeps_the_plots_frames() {
     assert_eq!(history.costs().next().unwrap().vram_writes, 10);
     assert_eq!(history.frames(), PLOT_FRAMES as u64 + 10);
 }
+
+/// A history of `frames` frames, each costing `cost` of everything.
+fn history_of(frames: u64, cost: u64) -> History {
+    let mut history = History::default();
+    for _ in 0..frames {
+        history.push(FrameCost {
+            vram_writes: cost,
+            port_writes: cost / 2,
+            lower_bound: cost / 3,
+        });
+    }
+    history
+}
+
+#[test]
+fn a_panel_redrawn_in_place_is_the_panel_drawn_afresh() {
+    let mut machine = Machine::new();
+    let mut kept = Panel::inspector(480, Encoding::Xrgb);
+    let mut kept_rgba = Panel::inspector(480, Encoding::Rgba);
+    // Long figures then short ones, longer text lines then shorter: what
+    // the last frame drew must not show through.
+    let histories = [
+        history_of(PLOT_FRAMES as u64 + 5, 9_876_543),
+        history_of(3, 7),
+        History::default(),
+        history_of(120, 40_000),
+    ];
+    for (frame, key) in ["m", "x", "l", "spc", "r", "n"].iter().enumerate() {
+        tap(&mut machine, key);
+        machine.frame();
+        let history = &histories[frame % histories.len()];
+        let fresh = draw_panel(machine.vga(), history, 480);
+        redraw_panel(&mut kept, machine.vga(), history);
+        assert!(kept == fresh, "frame {frame}: the kept panel differs");
+        redraw_panel(&mut kept_rgba, machine.vga(), history);
+        let as_rgba: Vec<u32> = fresh
+            .pixels
+            .iter()
+            .map(|&pixel| {
+                let [_, r, g, b] = pixel.to_be_bytes();
+                u32::from_ne_bytes([r, g, b, 255])
+            })
+            .collect();
+        assert!(kept_rgba.pixels == as_rgba, "frame {frame}: RGBA differs");
+    }
+}

@@ -9,6 +9,17 @@ fn key(name: &str) -> Scancode {
     scancode_for_name(name).unwrap()
 }
 
+/// `0RGB` pixels as RGBA bytes.
+fn rgba_of(pixels: &[u32]) -> Vec<u8> {
+    pixels
+        .iter()
+        .flat_map(|&pixel| {
+            let [_, r, g, b] = pixel.to_be_bytes();
+            [r, g, b, 255]
+        })
+        .collect()
+}
+
 fn rgba_of_rgb(picture: &[[u8; 3]]) -> Vec<u8> {
     picture
         .iter()
