@@ -197,6 +197,18 @@ const STD_CRATES_OPTIMISED: &[&str] = &[
     "profile.dev.package.compiler_builtins.overflow-checks=false",
 ];
 
+/// Profile settings for the kernel alone, in both profiles: one codegen unit,
+/// so LLVM sees the whole crate at once and builds each generic and inlined
+/// helper once rather than once per unit that uses it. The release kernel
+/// file went from 704,016 to 649,352 bytes with it, and the frame and USB
+/// poll benchmarks did not get slower (docs/performance.md). Given here, not
+/// in Cargo.toml, so the runner and the host crates keep their parallel
+/// builds.
+const KERNEL_PROFILE: &[&str] = &[
+    "profile.dev.codegen-units=1",
+    "profile.release.codegen-units=1",
+];
+
 /// Everything the kernel is built from: a change anywhere here runs this
 /// script again, and the second cargo decides what to rebuild.
 const KERNEL_SOURCES: &[&str] = &[
@@ -274,6 +286,7 @@ fn build_kernel(out_dir: &Path) -> PathBuf {
         .args(
             STD_CRATES_OPTIMISED
                 .iter()
+                .chain(KERNEL_PROFILE)
                 .flat_map(|setting| ["--config", setting]),
         )
         // This build's flags and wrappers (clippy's) are not the kernel's.

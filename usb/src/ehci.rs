@@ -749,7 +749,16 @@ impl<H: PciHardware> Ehci<H> {
         }
         let pipes = self.pipes;
         let booking = |i: u8| pipes[usize::from(i)].booking;
-        order[..count].sort_unstable_by_key(|&i| (core::cmp::Reverse(booking(i).period), i));
+        // Slowest first, and by index among equals: an insertion sort, as
+        // `order` starts in index order and holds a few pipes (the library's
+        // sort was 11 KB of the kernel for them).
+        for sorted in 1..count {
+            let mut at = sorted;
+            while at > 0 && booking(order[at - 1]).period < booking(order[at]).period {
+                order.swap(at - 1, at);
+                at -= 1;
+            }
+        }
         for (position, &i) in order[..count].iter().enumerate().rev() {
             let own = booking(i);
             // The next pipe due whenever this one is.
