@@ -309,8 +309,28 @@ impl Scene {
     pub fn drawing_order(&self) -> ([usize; MAX_OBJECTS], usize) {
         let count = self.object_count();
         let mut order: [usize; MAX_OBJECTS] = core::array::from_fn(|index| index);
-        let distance = |index: &usize| self.objects[*index].position().length();
-        order[..count].sort_unstable_by(|a, b| distance(b).total_cmp(&distance(a)));
+        let distance: [f64; MAX_OBJECTS] = core::array::from_fn(|index| {
+            if index < count {
+                self.objects[index].position().length()
+            } else {
+                0.0
+            }
+        });
+        // Farthest first, and by index among equals, so the order never
+        // depends on a sort's choices. An insertion sort: the scene holds at
+        // most MAX_OBJECTS objects (59), and the library's sort was 17 KB of
+        // the kernel file for them.
+        for sorted in 1..count {
+            let mut at = sorted;
+            while at > 0
+                && distance[order[at - 1]]
+                    .total_cmp(&distance[order[at]])
+                    .is_lt()
+            {
+                order.swap(at - 1, at);
+                at -= 1;
+            }
+        }
         (order, count)
     }
 
