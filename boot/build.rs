@@ -199,11 +199,10 @@ const STD_CRATES_OPTIMISED: &[&str] = &[
 
 /// Profile settings for the kernel alone, in both profiles: one codegen unit,
 /// so LLVM sees the whole crate at once and builds each generic and inlined
-/// helper once rather than once per unit that uses it. The release kernel
-/// file went from 704,016 to 649,352 bytes with it, and the frame and USB
-/// poll benchmarks did not get slower (docs/performance.md). Given here, not
-/// in Cargo.toml, so the runner and the host crates keep their parallel
-/// builds.
+/// helper once rather than once per unit that uses it: the release kernel
+/// file went from 704,016 to 649,352 bytes with it alone (docs/performance.md
+/// has the steps and the frame bench beside them). Given here, not in
+/// Cargo.toml, so the runner and the host crates keep their parallel builds.
 const KERNEL_PROFILE: &[&str] = &[
     "profile.dev.codegen-units=1",
     "profile.release.codegen-units=1",

@@ -18,17 +18,26 @@
 //! (before: kernel file 5,397,624 bytes with 1,501,464 of `.data`, image 9.4 MB.)
 //!
 //! The kernel file's budget went from 600 to 800 KiB when the kernel took
-//! on EHCI, OHCI and UHCI beside xHCI: the test profile's kernel file was
-//! 851,984 bytes with the device layer built once per driver, and is
-//! 767,632 with one device layer over all three (`kernel/src/input/usb/legacy.rs`,
-//! now `host.rs`, the four drivers under one device layer).
-//! A BIOS boot reads it in 64-sector transfers, so 150 KB more is a few
-//! more reads.
+//! on EHCI, OHCI and UHCI beside xHCI, and came back to 600 KiB (issue 46)
+//! for the release build, the one a user's stick carries: 704,016 bytes
+//! before, 607,416 after, with the kernel built as one codegen unit
+//! (`boot/build.rs`), the scene's drawing order, EHCI's relink order and the
+//! TSC calibration each built once instead of through the library's sort or
+//! once per caller, one mirror type for the software VGA and one font
+//! renderer. The test profile keeps overflow checks and debug assertions
+//! in the kernel, so its file is larger (635,416 bytes) and has a budget of
+//! its own. `cargo test --release --test size` checks the release budget.
 
 use std::path::Path;
 
-/// The kernel file's budget, in bytes: 800 KiB.
-const KERNEL_FILE_BUDGET: u64 = 800 * 1024;
+/// The kernel file's budget, in bytes: 600 KiB for the release build, 640
+/// KiB for the test profile's (the profile this test was built with is the
+/// kernel's: `boot/build.rs` passes it on).
+const KERNEL_FILE_BUDGET: u64 = if cfg!(debug_assertions) {
+    640 * 1024
+} else {
+    600 * 1024
+};
 /// Initialised data in the kernel file: a large static that is zero at boot
 /// belongs in `.bss`, one built at boot is built in place.
 const KERNEL_DATA_BUDGET: u64 = 32 * 1024;
@@ -105,7 +114,7 @@ fn the_kernel_file_fits_its_budget() {
     if bytes > KERNEL_FILE_BUDGET {
         let largest: Vec<String> = largest_functions(env!("KERNEL_DEBUG_ELF"), 12)
             .into_iter()
-            .map(|(size, name)| format!("{size:>7} {name}"))
+            .map(|(size, name)| format!("{size:>7} {:#}", rustc_demangle::demangle(&name)))
             .collect();
         panic!(
             "the kernel file is {bytes} bytes, over its budget of {KERNEL_FILE_BUDGET}: {}\n\
