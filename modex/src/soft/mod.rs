@@ -80,6 +80,11 @@ pub struct SoftVga {
     memory: VideoMemory,
     timing: CrtTiming,
     now_ns: u64,
+    /// No vertical retrace starts before this time, so the clock moves up
+    /// to it without asking the timing: the page update's writes and the
+    /// flip's status reads advance the clock thousands of times a frame.
+    /// Zero, or the present time, asks at the next step.
+    next_retrace_ns: u64,
     /// The start address the CRTC latched at the last vertical retrace.
     displayed_start: u16,
     frame_count: u64,
@@ -130,6 +135,7 @@ impl SoftVga {
             memory: VideoMemory::new(),
             timing,
             now_ns: 0,
+            next_retrace_ns: 0,
             frame_count: 0,
             retrace_stuck: None,
             register_writes: 0,
@@ -164,6 +170,7 @@ impl SoftVga {
                 retrace_lines: 0,
             },
             now_ns: 0,
+            next_retrace_ns: 0,
             displayed_start: 0,
             frame_count: 0,
             // `None` is the byte 2; power-on sets it.
@@ -189,6 +196,7 @@ impl SoftVga {
         self.registers = registers;
         self.memory.clear();
         self.now_ns = 0;
+        self.next_retrace_ns = 0;
         self.frame_count = 0;
         self.retrace_stuck = None;
         self.register_writes = 0;
@@ -261,14 +269,17 @@ impl SoftVga {
     /// Lets time pass without bus activity.
     pub fn advance_ns(&mut self, ns: u64) {
         let until = self.now_ns.saturating_add(ns);
-        let retraces =
-            self.timing.retraces_started_by(until) - self.timing.retraces_started_by(self.now_ns);
-        self.now_ns = until;
-        if retraces > 0 {
-            // The CRTC latches the start address at the start of vertical retrace.
-            self.frame_count += retraces;
-            self.displayed_start = self.registers.start_address();
+        if until >= self.next_retrace_ns {
+            let retraces = self.timing.retraces_started_by(until)
+                - self.timing.retraces_started_by(self.now_ns);
+            if retraces > 0 {
+                // The CRTC latches the start address at the start of vertical retrace.
+                self.frame_count += retraces;
+                self.displayed_start = self.registers.start_address();
+            }
+            self.next_retrace_ns = self.timing.next_retrace_ns(until);
         }
+        self.now_ns = until;
     }
 
     /// Lets a whole frame pass, so a vertical retrace latches the start
@@ -352,8 +363,13 @@ impl SoftVga {
             self.colour_writes += 1;
         }
         self.registers.write_port(port, value);
-        // Misc Output, Clocking Mode and the CRTC set the timing.
-        self.timing = CrtTiming::from_registers(&self.registers);
+        // Misc Output, Clocking Mode and the CRTC set the timing; new timing
+        // re-times the beam, so the next step asks it again.
+        let timing = CrtTiming::from_registers(&self.registers);
+        if timing != self.timing {
+            self.timing = timing;
+            self.next_retrace_ns = self.now_ns;
+        }
     }
 
     fn input_status_1(&mut self) -> u8 {

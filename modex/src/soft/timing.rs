@@ -122,6 +122,21 @@ impl CrtTiming {
 
     /// Vertical retraces started in (0, `ns`]. A retrace start line beyond
     /// the frame never comes.
+    /// The earliest time at which `retraces_started_by` passes its value at
+    /// `ns`: when the next vertical retrace starts (`u64::MAX` when these
+    /// registers never start one). `dots_at` is the product rounded down, so
+    /// the first time at a dot count is the quotient rounded up.
+    pub(super) fn next_retrace_ns(&self, ns: u64) -> u64 {
+        if self.retrace_start_line >= self.lines_per_frame {
+            return u64::MAX;
+        }
+        let first = self.retrace_start_line * self.dots_per_line();
+        let dot = u128::from(first)
+            + u128::from(self.retraces_started_by(ns)) * u128::from(self.dots_per_frame());
+        let at = (dot * u128::from(NANOS_PER_SECOND)).div_ceil(u128::from(self.dot_clock_hz));
+        u64::try_from(at).unwrap_or(u64::MAX)
+    }
+
     pub(super) fn retraces_started_by(&self, ns: u64) -> u64 {
         if self.retrace_start_line >= self.lines_per_frame {
             return 0;
