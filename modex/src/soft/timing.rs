@@ -184,4 +184,43 @@ mod tests {
             }
         }
     }
+
+    /// The next retrace's time is the first at which one more retrace has
+    /// started: a nanosecond earlier, none has. So the clock that skips to
+    /// it (`SoftVga::advance_ns`) latches the start address at the same
+    /// steps as one that asks the timing at every step.
+    #[test]
+    fn the_next_retrace_is_the_first_nanosecond_a_retrace_starts() {
+        for (&hz, retrace_start_line) in DOT_CLOCK_HZ.iter().zip([490, 0, 524, 241]) {
+            let timing = CrtTiming {
+                dot_clock_hz: hz,
+                dots_per_character: 9,
+                characters_per_line: 100,
+                display_characters: 80,
+                lines_per_frame: 525,
+                display_lines: 480,
+                retrace_start_line,
+                retrace_lines: 2,
+            };
+            let mut ns: u64 = 0;
+            while ns < u64::MAX / 1_000_000 {
+                for probe in [ns, ns + 1, ns.wrapping_mul(7) / 3] {
+                    let next = timing.next_retrace_ns(probe);
+                    let before = timing.retraces_started_by(probe);
+                    assert!(next > probe, "{probe} ns at {hz} Hz");
+                    assert_eq!(timing.retraces_started_by(next), before + 1, "{probe} ns");
+                    assert_eq!(timing.retraces_started_by(next - 1), before, "{probe} ns");
+                }
+                ns = ns * 3 + 1;
+            }
+        }
+        let never = CrtTiming {
+            retrace_start_line: 600,
+            ..CrtTiming::from_registers(&Registers::with_mode(
+                &crate::mode::TEXT_80X25,
+                &crate::palette::EGA_PALETTE,
+            ))
+        };
+        assert_eq!(never.next_retrace_ns(12_345), u64::MAX);
+    }
 }
