@@ -258,6 +258,9 @@ pub const MAX_CONTROL_DATA: usize = 1024;
 /// Largest interrupt report read.
 pub const MAX_REPORT: usize = 64;
 
+/// SET_ADDRESS's bRequest (USB 2.0 table 9-4).
+pub(crate) const SET_ADDRESS: u8 = 5;
+
 /// A polled host controller, as the device layer drives it. Ports are
 /// 1-based. A driver checks every handle and index it is given.
 pub trait HostController {
@@ -297,7 +300,39 @@ pub trait HostController {
     /// (64 bytes at high speed, the only size high speed allows).
     fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError>;
 
-    /// The device now answers at `address` (after its SET_ADDRESS completed).
+    /// Starts giving the device at the default address its `address`
+    /// (1-127): Linux's `address_device` hook. By default the standard
+    /// SET_ADDRESS request on endpoint 0 (USB 2.0 9.4.6); xHCI overrides it
+    /// with Address Device, which sends the request itself.
+    /// [`Self::control_cancel`] stops it.
+    fn address_begin(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
+        if !(1..=127).contains(&address) {
+            return Err(HostError::Invalid);
+        }
+        let setup = Setup {
+            request_type: 0x00,
+            request: SET_ADDRESS,
+            value: u16::from(address),
+            index: 0,
+            length: 0,
+        };
+        self.control_begin(device, setup, &[])
+    }
+
+    /// Where the addressing stands; once it has completed the driver
+    /// reaches the device at `address` ([`Self::device_set_address`]).
+    fn address_poll(&mut self, device: DeviceId, address: u8) -> Transfer {
+        match self.control_poll(device, &mut []) {
+            Transfer::Complete(_) => match self.device_set_address(device, address) {
+                Ok(()) => Transfer::Complete(0),
+                Err(_) => Transfer::Failed(TransferError::Controller),
+            },
+            other => other,
+        }
+    }
+
+    /// Records that the device answers at `address` now: the end of the
+    /// default [`Self::address_poll`]. The device layer never calls it.
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError>;
 
     /// The device's endpoint 0 packet size, from its device descriptor.

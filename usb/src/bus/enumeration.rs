@@ -284,7 +284,7 @@ pub(super) enum Step {
     RecoveringFromReset,
     /// The device descriptor's first 8 bytes (endpoint 0's packet size).
     ReadingDeviceHeader,
-    /// SET_ADDRESS.
+    /// The driver's addressing hook (SET_ADDRESS, or xHCI's Address Device).
     Addressing,
     /// The SET_ADDRESS recovery interval.
     RecoveringFromSetAddress,
@@ -715,11 +715,17 @@ impl<C: HostController> Bus<C> {
                 length,
                 until,
             } => {
-                let Some(id) = self.devices[device].as_ref().map(|d| d.id) else {
+                let Some((id, address)) = self.devices[device].as_ref().map(|d| (d.id, d.address))
+                else {
                     return Some(Err(BusError::Gone));
                 };
                 let length = length.min(MAX_CONTROL_DATA);
-                match self.controller.control_poll(id, &mut self.buffer[..length]) {
+                let transfer = if job.step == Step::Addressing {
+                    self.controller.address_poll(id, address)
+                } else {
+                    self.controller.control_poll(id, &mut self.buffer[..length])
+                };
+                match transfer {
                     Transfer::Pending if now >= until => {
                         self.controller.control_cancel(id);
                         Some(Err(BusError::Timeout))
@@ -858,11 +864,23 @@ impl<C: HostController> Bus<C> {
             .map(|d| d.id)
             .ok_or(BusError::Gone)?;
         self.controller.control_begin(id, setup, &[])?;
+        self.await_control(job, step, index, usize::from(setup.length))
+    }
+
+    /// The step waits for the control transfer just begun on device
+    /// `index`'s endpoint 0, `length` bytes of data stage asked for.
+    fn await_control(
+        &mut self,
+        job: &mut Job,
+        step: Step,
+        index: usize,
+        length: usize,
+    ) -> Result<Next> {
         job.step = step;
         job.received = 0;
         job.awaiting = Awaiting::Control {
             device: index,
-            length: usize::from(setup.length),
+            length,
             until: self.controller.now_micros() + TRANSFER_MICROS,
         };
         Ok(Next::Continue)
@@ -1133,12 +1151,8 @@ impl<C: HostController> Bus<C> {
         device.address = address;
         let id = device.id;
         self.controller.device_set_max_packet(id, packet)?;
-        self.request(
-            job,
-            Step::Addressing,
-            index,
-            (0x00, SET_ADDRESS, u16::from(address), 0),
-        )
+        self.controller.address_begin(id, address)?;
+        self.await_control(job, Step::Addressing, index, 0)
     }
 
     fn addressing(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
@@ -1148,12 +1162,6 @@ impl<C: HostController> Bus<C> {
     }
 
     fn recovering_from_set_address(&mut self, job: &mut Job) -> Result<Next> {
-        let index = job.device()?;
-        let (id, address) = self.devices[index]
-            .as_ref()
-            .map(|d| (d.id, d.address))
-            .ok_or(BusError::Gone)?;
-        self.controller.device_set_address(id, address)?;
         self.get_descriptor(
             job,
             Step::ReadingDeviceDescriptor,

@@ -570,7 +570,6 @@ impl HostController for Loopback {
 
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
         self.calls.push("device_set_address");
-        let now = self.now;
         let Some(index) = self.device_index(device) else {
             self.error(format!("device_set_address of unknown {device:?}"));
             return Err(HostError::UnknownHandle);
@@ -578,18 +577,10 @@ impl HostController for Loopback {
         let Some(d) = self.devices[index].as_mut() else {
             return Err(HostError::UnknownHandle);
         };
-        match d.set_address {
-            Some((at, given)) if given == address => {
-                if now - at < 2_000 {
-                    let after = now - at;
-                    self.error(format!(
-                        "address {address} used {after} us after SET_ADDRESS"
-                    ));
-                }
-            }
-            _ => self.error(format!(
+        if !d.set_address.is_some_and(|(_, given)| given == address) {
+            self.error(format!(
                 "device_set_address({address}) without its SET_ADDRESS"
-            )),
+            ));
         }
         if let Some(d) = self.devices[index].as_mut() {
             d.address = address;
@@ -677,6 +668,18 @@ impl HostController for Loopback {
             self.error(format!("control_begin on busy {device:?}"));
             return Err(HostError::Busy);
         }
+        let now = self.now;
+        if let Some((at, address)) = d.set_address.filter(|&(_, given)| given == d.address) {
+            if now - at < 2_000 {
+                let after = now - at;
+                self.error(format!(
+                    "address {address} used {after} us after SET_ADDRESS"
+                ));
+            }
+        }
+        let Some(d) = self.devices[index].as_mut() else {
+            return Err(HostError::UnknownHandle);
+        };
         let stalled = self
             .stall_requests
             .contains(&(setup.request_type, setup.request));

@@ -12,9 +12,9 @@
 //!   asked for meanwhile waits until the queue is empty, and
 //!   [`HostController::control_poll`] says [`Transfer::Pending`] until then:
 //!   nothing here waits for a command.
-//! - The controller, not the host software, sends SET_ADDRESS: a
-//!   SET_ADDRESS given to [`HostController::control_begin`] becomes Address
-//!   Device (BSR=0), and its completion is the transfer's.
+//! - The controller, not the host software, sends SET_ADDRESS: the
+//!   addressing hook ([`HostController::address_begin`]) is Address Device
+//!   (BSR=0), and its completion is the transfer's.
 //! - A slot names its place by root port and route string, both in
 //!   [`DeviceInfo`], and a full- or low-speed device behind a high-speed hub
 //!   names that hub by its slot, found by the USB address the device layer
@@ -87,8 +87,6 @@ const PORT_KEEP: u32 = (0x3 << 14) | (0x7 << 25);
 /// changes so that the next change raises a Port Status Change event again.
 const PORT_CONNECT_CHANGES: u32 = PORT_CHANGES & !PORT_RESET_CHANGE;
 const PORT_RESET_DONE_CHANGES: u32 = PORT_RESET_CHANGE | (1 << 19) | (1 << 18);
-/// SET_ADDRESS's bRequest: the controller sends it (Address Device).
-const SET_ADDRESS: u8 = 5;
 /// Completion codes mapped to the device layer's errors.
 const COMPLETION_DATA_BUFFER: u8 = 2;
 const COMPLETION_BABBLE: u8 = 3;
@@ -379,6 +377,20 @@ impl<H: Hardware> Xhci<H> {
     }
 
     /// Says something on the log, naming the controller.
+    /// The device, its endpoint 0 free for a transfer; None when the
+    /// device has failed, and the transfer with it.
+    fn idle_control(&mut self, device: DeviceId) -> Result<Option<&mut HostDevice>, HostError> {
+        let entry = self.host_device(device)?;
+        if !matches!(entry.control, Control::Idle | Control::Done(_)) {
+            return Err(HostError::Busy);
+        }
+        if let Some(why) = entry.failed {
+            entry.control = Control::Done(Transfer::Failed(why));
+            return Ok(None);
+        }
+        Ok(Some(entry))
+    }
+
     fn say(&mut self, message: fmt::Arguments<'_>) {
         self.hw.log(format_args!("usb: xhci: {message}"));
     }
@@ -1208,6 +1220,21 @@ impl<H: Hardware> HostController for Xhci<H> {
         Ok(DeviceId(index as u8))
     }
 
+    /// Address Device (BSR=0): the controller sends SET_ADDRESS itself
+    /// (xHCI 4.6.5), and the command's completion is the transfer's.
+    fn address_begin(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
+        if !(1..=127).contains(&address) {
+            return Err(HostError::Invalid);
+        }
+        let Some(entry) = self.idle_control(device)? else {
+            return Ok(());
+        };
+        entry.ops.push(Op::Address)?;
+        entry.control = Control::SettingAddress;
+        self.next_command(usize::from(device.0));
+        Ok(())
+    }
+
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
         if !(1..=127).contains(&address) {
             return Err(HostError::Invalid);
@@ -1287,28 +1314,13 @@ impl<H: Hardware> HostController for Xhci<H> {
         out: &[u8],
     ) -> Result<(), HostError> {
         let index = usize::from(device.0);
-        let entry = self.host_device(device)?;
-        if !matches!(entry.control, Control::Idle | Control::Done(_)) {
-            return Err(HostError::Busy);
-        }
         let length = usize::from(setup.length);
         if length > MAX_CONTROL_DATA || (!setup.is_in() && out.len() < length) {
             return Err(HostError::Invalid);
         }
-        if let Some(why) = entry.failed {
-            entry.control = Control::Done(Transfer::Failed(why));
+        let Some(entry) = self.idle_control(device)? else {
             return Ok(());
-        }
-        if setup.request_type == 0x00 && setup.request == SET_ADDRESS {
-            if !(1..=127).contains(&setup.value) {
-                return Err(HostError::Invalid);
-            }
-            // The controller sends SET_ADDRESS itself (xHCI 4.6.5).
-            entry.ops.push(Op::Address)?;
-            entry.control = Control::SettingAddress;
-            self.next_command(index);
-            return Ok(());
-        }
+        };
         if !setup.is_in() && length > 0 {
             let Some(buffer) = entry.slot.as_ref().map(|s| s.page + CONTROL_BUFFER_OFFSET) else {
                 return Err(HostError::Busy);

@@ -185,6 +185,14 @@ impl HostController for Host {
         each!(self, |driver| driver.device_new(info))
     }
 
+    fn address_begin(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
+        each!(self, |driver| driver.address_begin(device, address))
+    }
+
+    fn address_poll(&mut self, device: DeviceId, address: u8) -> Transfer {
+        each!(self, |driver| driver.address_poll(device, address))
+    }
+
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
         each!(self, |driver| driver.device_set_address(device, address))
     }
