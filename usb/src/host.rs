@@ -5,11 +5,13 @@
 //! Nothing here waits for a device: every call either does its register and
 //! DMA work and returns, or starts something whose end a later `*_poll` call
 //! reports. The only waits are for the controller itself, bounded to a few
-//! milliseconds: a reset, a halt, and the removal calls, which wait until
-//! the controller has let go of the memory they reuse (a frame boundary, or
-//! EHCI's doorbell).
-//! The device layer owns every timeout (Linux's, in [`crate::bus`]); a
-//! driver only says [`Transfer::Pending`] until the controller has finished.
+//! milliseconds: a controller reset, a halt, and the removal calls, which
+//! wait until the controller has let go of the memory they reuse (a frame
+//! boundary, or EHCI's doorbell).
+//! The device layer owns every timeout of a device (Linux's, in
+//! [`crate::bus`]); a driver only says [`Transfer::Pending`] until the
+//! controller has finished. A root port's reset is the driver's to time
+//! (each controller ends it its own way), by its own clock.
 //! Like Linux's `hc_driver`, the device layer never sees a queue head, an
 //! endpoint descriptor or a transfer descriptor.
 
@@ -95,6 +97,43 @@ pub struct PortStatus {
     pub connect_changed: bool,
     /// The port belongs to a companion controller (EHCI's PORT_OWNER).
     pub companion_owned: bool,
+}
+
+/// How long a root port is held in reset: TDRSTR (USB 2.0 7.1.7.5), and
+/// Linux's `PORT_RESET_MSEC` (ohci-hub.c) and root-port 50 ms.
+pub const ROOT_RESET_MICROS: u64 = 50_000;
+
+/// A root port reset as its driver times it, from
+/// [`HostController::port_reset_begin`] to the
+/// [`HostController::port_reset_poll`] that ends it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct RootReset {
+    /// The port (1-based).
+    pub(crate) port: u8,
+    /// When it began, by the driver's clock.
+    pub(crate) began: u64,
+    /// The driver's own count, 0 while the port is held in reset: OHCI's
+    /// pulses, EHCI's and UHCI's steps after it.
+    pub(crate) stage: u32,
+    /// When the port has been held in reset long enough (or the stage's
+    /// wait is over).
+    pub(crate) until: u64,
+    /// When what the driver waits for has taken too long: the reset failed.
+    pub(crate) bound: u64,
+}
+
+impl RootReset {
+    /// The reset of `port` begun at `now`, held for [`ROOT_RESET_MICROS`],
+    /// given up `bound_micros` from now.
+    pub(crate) fn begin(port: u8, now: u64, bound_micros: u64) -> RootReset {
+        RootReset {
+            port,
+            began: now,
+            stage: 0,
+            until: now + ROOT_RESET_MICROS,
+            bound: now.saturating_add(bound_micros),
+        }
+    }
 }
 
 /// What a root port reset ended in.
@@ -282,16 +321,19 @@ pub trait HostController {
     /// Acknowledges a root port's connect (and enable) change.
     fn clear_port_change(&mut self, port: u8);
 
-    /// Starts a root port reset; the device layer calls [`Self::port_reset_end`]
-    /// 50 ms later (USB 2.0 7.1.7.5, TDRSTR).
+    /// Starts a root port reset, which the driver times by its own clock
+    /// (at least [`ROOT_RESET_MICROS`]) and ends itself; the device layer
+    /// polls [`Self::port_reset_poll`] until it says what is there.
     fn port_reset_begin(&mut self, port: u8);
 
-    /// Ends the reset (drivers whose hardware ends it itself check that it
-    /// has) and enables the port; says what is there. An EHCI driver hands
-    /// a full- or low-speed device to its companion here. The driver clears
-    /// the change bits its own reset caused; the device layer also calls
-    /// [`Self::clear_port_change`] after [`ResetOutcome::Enabled`], as Linux does.
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome;
+    /// `None` while the root port's reset runs; then what is there, the
+    /// port enabled. Never blocks: the driver bounds each of its waits and
+    /// says [`ResetOutcome::Failed`] past the bound (and for a port not in
+    /// reset). An EHCI driver hands a full- or low-speed device to its
+    /// companion here. The driver clears the change bits its own reset
+    /// caused; the device layer also calls [`Self::clear_port_change`]
+    /// after [`ResetOutcome::Enabled`], as Linux does.
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome>;
 
     /// Disables a root port (a device given up, or gone).
     fn port_disable(&mut self, port: u8);

@@ -19,9 +19,8 @@ pub(crate) const CONNECT_MICROS: u64 = 200_000;
 /// from the frame loop. Five tiers of hubs take 200 ms each (power-on and
 /// connect times) after the root ports' 200 ms: 2 s holds them.
 pub const BOOT_ENUMERATION_MICROS: u64 = 2_000_000;
-/// A root port is held in reset this long: TDRSTR (USB 2.0 7.1.7.5), and
-/// Linux's `PORT_RESET_TRIES` loop's 50 ms for root ports.
-pub const ROOT_RESET_MICROS: u64 = 50_000;
+/// Between two looks at a root port's reset, which its driver times.
+const ROOT_RESET_POLL_MICROS: u64 = 1_000;
 /// How long a hub port reset may take, however many status checks: Linux's
 /// `HUB_RESET_TIMEOUT` (drivers/usb/core/hub.c, 800 ms).
 const HUB_RESET_MICROS: u64 = 800_000;
@@ -268,7 +267,7 @@ type Result<T> = core::result::Result<T, BusError>;
 /// once that has happened.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Step {
-    /// A root port in reset, for [`ROOT_RESET_MICROS`].
+    /// A root port in reset, until its driver says it is over.
     ResettingRootPort,
     /// GET_STATUS of a hub port about to be reset: is anything there?
     CheckingHubPortConnection,
@@ -441,7 +440,7 @@ pub(super) struct Job {
     /// Only a hub's changes, no enumeration.
     changes_only: bool,
     /// The device went away during its root port's reset: the reset is
-    /// ended in its time (a driver may have to end it), and that is all.
+    /// polled to its end (a driver may have to end it), and that is all.
     abandoned: bool,
 }
 
@@ -975,13 +974,16 @@ impl<C: HostController> Bus<C> {
             return Ok(Next::Done);
         }
         self.controller.port_reset_begin(port);
-        let until = self.controller.now_micros() + ROOT_RESET_MICROS;
+        let until = self.controller.now_micros() + ROOT_RESET_POLL_MICROS;
         job.wait(Step::ResettingRootPort, until)
     }
 
     fn resetting_root_port(&mut self, job: &mut Job) -> Result<Next> {
         let port = job.location.root_port();
-        let outcome = self.controller.port_reset_end(port);
+        let Some(outcome) = self.controller.port_reset_poll(port) else {
+            let until = self.controller.now_micros() + ROOT_RESET_POLL_MICROS;
+            return job.wait(Step::ResettingRootPort, until);
+        };
         if job.abandoned {
             // Whatever is there now is queued, and reset again in its turn.
             if let ResetOutcome::Enabled(_) = outcome {

@@ -188,6 +188,8 @@ pub struct XhciModel {
     /// The root ports are USB 3 and the hubs SuperSpeed (the keyboard
     /// behind them too).
     pub usb3: bool,
+    /// A USB 2 port's reset never ends: PR stays set.
+    pub port_reset_stuck: bool,
     /// The keyboard on root port 2.
     pub keyboard2: KeyboardState,
     /// Command Aborts the driver asked for (CRCR's CA).
@@ -249,6 +251,7 @@ impl XhciModel {
             empty_at_start: false,
             port_2: None,
             usb3: false,
+            port_reset_stuck: false,
             keyboard2: KeyboardState {
                 protocol: 1,
                 ..KeyboardState::default()
@@ -1255,7 +1258,11 @@ impl Hardware for XhciModel {
                     *status &= !(1 << 9 | 0b11);
                 }
                 if value & (1 << 4) != 0 && *status & 1 != 0 {
-                    *status |= 1 << 21 | 0b10;
+                    *status |= if self.port_reset_stuck {
+                        1 << 4
+                    } else {
+                        1 << 21 | 0b10
+                    };
                 }
             }
             o if o == RUNTIME + 0x28 => self.erstsz = value,

@@ -43,7 +43,7 @@ use super::{
 };
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
-    ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
+    ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use crate::Hardware;
 use core::fmt;
@@ -73,11 +73,10 @@ const PIPE_BUFFER_BYTES: u64 = MAX_REPORT as u64;
 const PIPE_QUEUED: usize = 8;
 /// Commands a device may have waiting.
 const DEVICE_COMMANDS: usize = 8;
-/// How long a USB 2 root port's reset may run past the device layer's
-/// 50 ms before it is called failed: the controller times TDRSTR itself
-/// and may end it a little after the device layer looks (Linux allows
-/// `HUB_LONG_RESET_TIME`, 200 ms, for a root port).
-const ROOT_RESET_END_MICROS: u64 = 150_000;
+/// How long a USB 2 root port's reset may run before it is called failed:
+/// the controller times TDRSTR itself and says it is over by clearing PR
+/// (Linux allows `HUB_LONG_RESET_TIME`, 200 ms, for a root port).
+pub(super) const ROOT_RESET_BOUND_MICROS: u64 = 200_000;
 /// PORTSC bits written back as read (port indicator control, wake enables);
 /// everything else written is 0 unless meant: PED and the change bits are
 /// write-1-to-clear, PR write-1-to-start.
@@ -302,6 +301,8 @@ pub(super) struct HostState {
     /// Events were taken outside [`HostController::anything_happened`]
     /// (their results wait to be polled).
     news: bool,
+    /// The root port reset running (one at a time).
+    reset: Option<RootReset>,
 }
 
 impl HostState {
@@ -309,6 +310,7 @@ impl HostState {
         HostState {
             devices: [const { None }; HOST_DEVICES],
             news: false,
+            reset: None,
         }
     }
 }
@@ -1076,6 +1078,8 @@ impl<H: Hardware> HostController for Xhci<H> {
         if !self.valid_port(port) {
             return;
         }
+        let now = self.hw.now_micros();
+        self.host.reset = Some(RootReset::begin(port, now, ROOT_RESET_BOUND_MICROS));
         if self.usb3_port(port) {
             // USB 3 ports train and enable by themselves.
             return;
@@ -1088,38 +1092,45 @@ impl<H: Hardware> HostController for Xhci<H> {
         self.write(register, PORT_POWER | (status & PORT_KEEP) | PORT_RESET);
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        if !self.valid_port(port) {
-            return ResetOutcome::Failed;
-        }
+    /// The controller ends a USB 2 port's reset itself (PR cleared); it is
+    /// looked at until [`ROOT_RESET_BOUND_MICROS`].
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        let Some(reset) = self.host.reset.take().filter(|r| r.port == port) else {
+            return Some(ResetOutcome::Failed);
+        };
         let register = self.portsc(port);
+        let status = self.read(register);
+        let both = PORT_CONNECTED | PORT_ENABLED;
         if self.usb3_port(port) {
             // The link trained by itself: enabled, or nothing there.
-            let status = self.read(register);
-            if status == u32::MAX
-                || status & (PORT_CONNECTED | PORT_ENABLED) != PORT_CONNECTED | PORT_ENABLED
-            {
-                return ResetOutcome::Failed;
+            if status == u32::MAX || status & both != both {
+                return Some(ResetOutcome::Failed);
             }
-            return ResetOutcome::Enabled(Speed::Super);
+            return Some(ResetOutcome::Enabled(Speed::Super));
         }
-        // The controller ends the reset itself; a little late is allowed.
-        self.wait_for(register, ROOT_RESET_END_MICROS, |s| {
-            s == u32::MAX || s & PORT_RESET == 0
-        });
-        let status = self.read(register);
-        if status == u32::MAX || status & PORT_RESET != 0 {
-            return ResetOutcome::Failed;
+        if status != u32::MAX && status & PORT_RESET != 0 {
+            if self.hw.now_micros() < reset.bound {
+                self.host.reset = Some(reset);
+                return None;
+            }
+            let held = (reset.bound - reset.began) / 1_000;
+            self.say(format_args!(
+                "port {port}: the reset did not end in {held} ms"
+            ));
+            return Some(ResetOutcome::Failed);
+        }
+        if status == u32::MAX {
+            return Some(ResetOutcome::Failed);
         }
         self.write(
             register,
             PORT_POWER | (status & PORT_KEEP) | (status & PORT_RESET_DONE_CHANGES),
         );
-        if status & (PORT_CONNECTED | PORT_ENABLED) != PORT_CONNECTED | PORT_ENABLED {
-            return ResetOutcome::Failed;
+        if status & both != both {
+            return Some(ResetOutcome::Failed);
         }
         // A USB 2 port's speed IDs by the protocol's defaults (xHCI 7.2.2.1.1).
-        match (status >> 10) & 0xF {
+        Some(match (status >> 10) & 0xF {
             speed::FULL => ResetOutcome::Enabled(Speed::Full),
             speed::LOW => ResetOutcome::Enabled(Speed::Low),
             speed::HIGH => ResetOutcome::Enabled(Speed::High),
@@ -1127,7 +1138,7 @@ impl<H: Hardware> HostController for Xhci<H> {
                 self.say(format_args!("port {port}: speed ID {other} unknown"));
                 ResetOutcome::Failed
             }
-        }
+        })
     }
 
     fn port_disable(&mut self, port: u8) {

@@ -173,8 +173,8 @@ impl HostController for Host {
         each!(self, |driver| driver.port_reset_begin(port))
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        each!(self, |driver| driver.port_reset_end(port))
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        each!(self, |driver| driver.port_reset_poll(port))
     }
 
     fn port_disable(&mut self, port: u8) {
