@@ -5,13 +5,11 @@
 //! Nothing here waits for a device: every call either does its register and
 //! DMA work and returns, or starts something whose end a later `*_poll` call
 //! reports. The only waits are for the controller itself, bounded to a few
-//! milliseconds: a controller reset, a halt, and the removal calls, which
-//! wait until the controller has let go of the memory they reuse (a frame
-//! boundary, or EHCI's doorbell).
-//! The device layer owns every timeout of a device (Linux's, in
-//! [`crate::bus`]); a driver only says [`Transfer::Pending`] until the
-//! controller has finished. A root port's reset is the driver's to time
-//! (each controller ends it its own way), by its own clock.
+//! milliseconds: a reset, a halt, and the removal calls, which wait until
+//! the controller has let go of the memory they reuse (a frame boundary, or
+//! EHCI's doorbell). A driver times its root ports' resets by its own clock.
+//! The device layer owns every other timeout (Linux's, in [`crate::bus`]); a
+//! driver only says [`Transfer::Pending`] until the controller has finished.
 //! Like Linux's `hc_driver`, the device layer never sees a queue head, an
 //! endpoint descriptor or a transfer descriptor.
 
@@ -104,21 +102,14 @@ pub struct PortStatus {
 pub const ROOT_RESET_MICROS: u64 = 50_000;
 
 /// A root port reset as its driver times it, from
-/// [`HostController::port_reset_begin`] to the
-/// [`HostController::port_reset_poll`] that ends it.
+/// [`HostController::port_reset_begin`] to the poll that ends it: `stage`
+/// is the driver's own count (0 while the port is held in reset), `until`
+/// when the hold (or the stage's wait) is over, `bound` when the reset fails.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct RootReset {
-    /// The port (1-based).
     pub(crate) port: u8,
-    /// When it began, by the driver's clock.
-    pub(crate) began: u64,
-    /// The driver's own count, 0 while the port is held in reset: OHCI's
-    /// pulses, EHCI's and UHCI's steps after it.
     pub(crate) stage: u32,
-    /// When the port has been held in reset long enough (or the stage's
-    /// wait is over).
     pub(crate) until: u64,
-    /// When what the driver waits for has taken too long: the reset failed.
     pub(crate) bound: u64,
 }
 
@@ -128,7 +119,6 @@ impl RootReset {
     pub(crate) fn begin(port: u8, now: u64, bound_micros: u64) -> RootReset {
         RootReset {
             port,
-            began: now,
             stage: 0,
             until: now + ROOT_RESET_MICROS,
             bound: now.saturating_add(bound_micros),
@@ -343,10 +333,8 @@ pub trait HostController {
     fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError>;
 
     /// Starts giving the device at the default address its `address`
-    /// (1-127): Linux's `address_device` hook. By default the standard
-    /// SET_ADDRESS request on endpoint 0 (USB 2.0 9.4.6); xHCI overrides it
-    /// with Address Device, which sends the request itself.
-    /// [`Self::control_cancel`] stops it.
+    /// (1-127), as Linux's `address_device` hook: by default SET_ADDRESS on
+    /// endpoint 0 (xHCI's is Address Device). [`Self::control_cancel`] stops it.
     fn address_begin(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
         if !(1..=127).contains(&address) {
             return Err(HostError::Invalid);

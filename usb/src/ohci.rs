@@ -51,10 +51,9 @@ const USB_RESET_MICROS: u64 = 50_000;
 const USB_RESUME_MICROS: u64 = 10_000;
 /// How long a frame may take to start (one is 1 ms).
 const FRAME_WAIT_MICROS: u64 = 5_000;
-/// One root port reset pulse as the controller times it (about 10 ms;
-/// Linux's `PORT_RESET_HW_MSEC`): pulses are repeated until the port has
-/// been in reset for [`ROOT_RESET_MICROS`], as Linux's `root_port_reset`
-/// does for controllers that time only 10 ms.
+/// A root port reset pulse as the controller times it (Linux's
+/// `PORT_RESET_HW_MSEC`), repeated until the port has been in reset for
+/// [`ROOT_RESET_MICROS`], as Linux's `root_port_reset` does.
 const PORT_RESET_PULSE_MICROS: u64 = 10_000;
 /// At most this many pulses, however slowly the polls come.
 const PORT_RESET_PULSES: u32 = (ROOT_RESET_MICROS / PORT_RESET_PULSE_MICROS) as u32 + 1;

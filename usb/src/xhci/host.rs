@@ -73,9 +73,8 @@ const PIPE_BUFFER_BYTES: u64 = MAX_REPORT as u64;
 const PIPE_QUEUED: usize = 8;
 /// Commands a device may have waiting.
 const DEVICE_COMMANDS: usize = 8;
-/// How long a USB 2 root port's reset may run before it is called failed:
-/// the controller times TDRSTR itself and says it is over by clearing PR
-/// (Linux allows `HUB_LONG_RESET_TIME`, 200 ms, for a root port).
+/// How long a USB 2 root port's reset, which the controller times and ends
+/// itself, may run (Linux's `HUB_LONG_RESET_TIME` for a root port).
 pub(super) const ROOT_RESET_BOUND_MICROS: u64 = 200_000;
 /// PORTSC bits written back as read (port indicator control, wake enables);
 /// everything else written is 0 unless meant: PED and the change bits are
@@ -1113,7 +1112,7 @@ impl<H: Hardware> HostController for Xhci<H> {
                 self.host.reset = Some(reset);
                 return None;
             }
-            let held = (reset.bound - reset.began) / 1_000;
+            let held = ROOT_RESET_BOUND_MICROS / 1_000;
             self.say(format_args!(
                 "port {port}: the reset did not end in {held} ms"
             ));
