@@ -958,7 +958,7 @@ impl<H: PciHardware> HostController for Ehci<H> {
     }
 
     /// Software ends the reset once TDRSTR has passed (PR written 0), and
-    /// the port has [`PORT_RESET_END_MICROS`] to finish it.
+    /// the port has `PORT_RESET_END_MICROS` to finish it.
     fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
         let running = self.state == State::Running;
         let Some(mut reset) = self.reset.filter(|r| r.port == port && running) else {

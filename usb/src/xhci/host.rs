@@ -1092,7 +1092,7 @@ impl<H: Hardware> HostController for Xhci<H> {
     }
 
     /// The controller ends a USB 2 port's reset itself (PR cleared); it is
-    /// looked at until [`ROOT_RESET_BOUND_MICROS`].
+    /// looked at until `ROOT_RESET_BOUND_MICROS`.
     fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
         let Some(reset) = self.host.reset.take().filter(|r| r.port == port) else {
             return Some(ResetOutcome::Failed);
