@@ -1100,26 +1100,31 @@ impl<H: Hardware> HostController for Xhci<H> {
         let register = self.portsc(port);
         let status = self.read(register);
         let both = PORT_CONNECTED | PORT_ENABLED;
-        if self.usb3_port(port) {
-            // The link trained by itself: enabled, or nothing there.
-            if status == u32::MAX || status & both != both {
-                return Some(ResetOutcome::Failed);
-            }
-            return Some(ResetOutcome::Enabled(Speed::Super));
-        }
-        if status != u32::MAX && status & PORT_RESET != 0 {
-            if self.hw.now_micros() < reset.bound {
+        // A USB 3 link trains and enables by itself, given the hold's time.
+        let usb3 = self.usb3_port(port);
+        let (running, deadline) = if usb3 {
+            (status & both != both, reset.until)
+        } else {
+            (status & PORT_RESET != 0, reset.bound)
+        };
+        if status != u32::MAX && running {
+            if self.hw.now_micros() < deadline {
                 self.host.reset = Some(reset);
                 return None;
             }
-            let held = ROOT_RESET_BOUND_MICROS / 1_000;
-            self.say(format_args!(
-                "port {port}: the reset did not end in {held} ms"
-            ));
+            if !usb3 {
+                let held = ROOT_RESET_BOUND_MICROS / 1_000;
+                self.say(format_args!(
+                    "port {port}: the reset did not end in {held} ms"
+                ));
+            }
             return Some(ResetOutcome::Failed);
         }
         if status == u32::MAX {
             return Some(ResetOutcome::Failed);
+        }
+        if usb3 {
+            return Some(ResetOutcome::Enabled(Speed::Super));
         }
         self.write(
             register,
