@@ -460,6 +460,24 @@ fn a_root_port_reset_that_never_ends_fails_at_its_bound_and_no_call_blocks() {
 }
 
 #[test]
+fn a_usb_3_link_still_training_at_the_reset_gets_the_reset_s_50_ms() {
+    let mut model = XhciModel::new();
+    model.usb3 = true;
+    model.device_descriptor[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
+    model.device_descriptor[7] = 9;
+    // Connected when the device layer first looks (200 ms after the
+    // start), enabled 40 ms later.
+    model.usb3_link_micros = 240_000;
+    let mut bus = with_keyboards(model, 1);
+    assert!(
+        !logged(&mut bus, "port reset failed"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert_clean(&mut bus);
+}
+
+#[test]
 fn halt_switches_the_ports_off_then_halts_and_resets() {
     let mut bus = with_keyboards(XhciModel::new(), 1);
     assert!(bus.shut_down());
