@@ -69,7 +69,6 @@ const HUB_INTERVAL_FRAMES: u8 = 32;
 const GET_STATUS: u8 = 0;
 const CLEAR_FEATURE: u8 = 1;
 const SET_FEATURE: u8 = 3;
-const SET_ADDRESS: u8 = 5;
 const GET_DESCRIPTOR: u8 = 6;
 const SET_CONFIGURATION: u8 = 9;
 const SET_INTERFACE: u8 = 11;

@@ -21,7 +21,7 @@ mod tests;
 
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
-    ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
+    ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use crate::PciHardware;
 use budget::{Booking, Translator, BUDGET_FRAMES};
@@ -62,6 +62,11 @@ const START_MICROS: u64 = 250_000;
 /// How long a port may take to end its reset after PR is written 0: the
 /// spec says 2 ms.
 const PORT_RESET_END_MICROS: u64 = 5_000;
+/// A root reset's stages after the port is held in reset (stage 0): PR
+/// written 0, waiting for the port to end it; or no reset at all, the
+/// port given to the companion at its beginning.
+const RESET_ENDING: u32 = 1;
+const RESET_HANDED: u32 = 2;
 /// How long the Interrupt on Async Advance doorbell may take (Linux's
 /// EHCI_IAA_MSECS).
 const ASYNC_ADVANCE_MICROS: u64 = 10_000;
@@ -283,8 +288,8 @@ pub struct Ehci<H: PciHardware> {
     /// Device slots on the asynchronous ring, in ring order after the head.
     async_order: [u8; MAX_DEVICES],
     async_count: usize,
-    /// Ports handed to the companion at `port_reset_begin` (low speed).
-    handed_at_reset: u16,
+    /// The root port reset running (one at a time).
+    reset: Option<RootReset>,
     /// A host system error was logged.
     system_error_logged: bool,
 }
@@ -355,7 +360,7 @@ impl<H: PciHardware> Ehci<H> {
             pipes: [Pipe::NONE; MAX_PIPES],
             async_order: [0; MAX_DEVICES],
             async_count: 0,
-            handed_at_reset: 0,
+            reset: None,
             system_error_logged: false,
         })
     }
@@ -535,7 +540,7 @@ impl<H: PciHardware> Ehci<H> {
         self.devices = [Device::NONE; MAX_DEVICES];
         self.pipes = [Pipe::NONE; MAX_PIPES];
         self.async_count = 0;
-        self.handed_at_reset = 0;
+        self.reset = None;
         if self.sixty_four_bit {
             // All of the DMA region is below 4 GiB.
             self.write(CTRLDSSEGMENT, 0);
@@ -923,12 +928,12 @@ impl<H: PciHardware> HostController for Ehci<H> {
         if !self.valid_port(port) || self.state != State::Running {
             return;
         }
-        let bit = 1u16 << port;
-        self.handed_at_reset &= !bit;
+        let mut reset = RootReset::begin(port, self.hw.now_micros(), u64::MAX);
         let register = Self::port_register(port);
         let status = self.read(register);
         if status & PORT_OWNER != 0 {
-            self.handed_at_reset |= bit;
+            reset.stage = RESET_HANDED;
+            self.reset = Some(reset);
             return;
         }
         let low_speed = status & (PORT_CONNECTED | PORT_ENABLED) == PORT_CONNECTED
@@ -937,7 +942,8 @@ impl<H: PciHardware> HostController for Ehci<H> {
             // Linux's ehci_hub_control: K-state before the reset is a
             // low-speed device, the companion's at once.
             self.write(register, status & !PORT_CHANGES | PORT_OWNER);
-            self.handed_at_reset |= bit;
+            reset.stage = RESET_HANDED;
+            self.reset = Some(reset);
             self.hw.log(format_args!(
                 "ehci: port {port}: low-speed device, handed to the companion"
             ));
@@ -948,44 +954,63 @@ impl<H: PciHardware> HostController for Ehci<H> {
             register,
             status & !(PORT_CHANGES | PORT_ENABLED) | PORT_RESET,
         );
+        self.reset = Some(reset);
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        if !self.valid_port(port) || self.state != State::Running {
-            return ResetOutcome::Failed;
-        }
-        let bit = 1u16 << port;
-        if self.handed_at_reset & bit != 0 {
-            self.handed_at_reset &= !bit;
-            return ResetOutcome::HandedToCompanion;
-        }
+    /// Software ends the reset once TDRSTR has passed (PR written 0), and
+    /// the port has `PORT_RESET_END_MICROS` to finish it.
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        let running = self.state == State::Running;
+        let Some(mut reset) = self.reset.filter(|r| r.port == port && running) else {
+            return Some(ResetOutcome::Failed);
+        };
+        let now = self.hw.now_micros();
         let register = Self::port_register(port);
+        match reset.stage {
+            RESET_HANDED => {
+                self.reset = None;
+                return Some(ResetOutcome::HandedToCompanion);
+            }
+            0 if now < reset.until => return None,
+            0 => {
+                let status = self.read(register);
+                self.write(register, status & !(PORT_CHANGES | PORT_RESET));
+                reset.stage = RESET_ENDING;
+                reset.bound = now + PORT_RESET_END_MICROS;
+                self.reset = Some(reset);
+                return None;
+            }
+            _ => {}
+        }
         let status = self.read(register);
-        self.write(register, status & !(PORT_CHANGES | PORT_RESET));
-        if !self.wait_for(register, PORT_RESET_END_MICROS, |s| s & PORT_RESET == 0) {
+        if status & PORT_RESET != 0 {
+            if now < reset.bound {
+                return None;
+            }
+            self.reset = None;
             self.hw
                 .log(format_args!("ehci: port {port}: the reset did not end"));
-            return ResetOutcome::Failed;
+            return Some(ResetOutcome::Failed);
         }
-        let status = self.read(register);
+        self.reset = None;
         if status & PORT_CONNECTED == 0 {
-            return ResetOutcome::Failed;
+            return Some(ResetOutcome::Failed);
         }
         if status & PORT_ENABLED != 0 {
-            return ResetOutcome::Enabled(Speed::High);
+            return Some(ResetOutcome::Enabled(Speed::High));
         }
         // No chirp: a full-speed device.
         if self.companions == 0 {
             self.hw.log(format_args!(
                 "ehci: port {port}: a full-speed device and no companion controller: not used"
             ));
-            return ResetOutcome::Failed;
+            return Some(ResetOutcome::Failed);
         }
         self.write(register, status & !PORT_CHANGES | PORT_OWNER);
         self.hw.log(format_args!(
             "ehci: port {port}: full-speed device, handed to the companion"
         ));
-        ResetOutcome::HandedToCompanion
+        Some(ResetOutcome::HandedToCompanion)
     }
 
     fn port_disable(&mut self, port: u8) {

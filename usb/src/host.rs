@@ -7,8 +7,8 @@
 //! reports. The only waits are for the controller itself, bounded to a few
 //! milliseconds: a reset, a halt, and the removal calls, which wait until
 //! the controller has let go of the memory they reuse (a frame boundary, or
-//! EHCI's doorbell).
-//! The device layer owns every timeout (Linux's, in [`crate::bus`]); a
+//! EHCI's doorbell). A driver times its root ports' resets by its own clock.
+//! The device layer owns every other timeout (Linux's, in [`crate::bus`]); a
 //! driver only says [`Transfer::Pending`] until the controller has finished.
 //! Like Linux's `hc_driver`, the device layer never sees a queue head, an
 //! endpoint descriptor or a transfer descriptor.
@@ -95,6 +95,35 @@ pub struct PortStatus {
     pub connect_changed: bool,
     /// The port belongs to a companion controller (EHCI's PORT_OWNER).
     pub companion_owned: bool,
+}
+
+/// How long a root port is held in reset: TDRSTR (USB 2.0 7.1.7.5), and
+/// Linux's `PORT_RESET_MSEC` (ohci-hub.c) and root-port 50 ms.
+pub const ROOT_RESET_MICROS: u64 = 50_000;
+
+/// A root port reset as its driver times it, from
+/// [`HostController::port_reset_begin`] to the poll that ends it: `stage`
+/// is the driver's own count (0 while the port is held in reset), `until`
+/// when the hold (or the stage's wait) is over, `bound` when the reset fails.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct RootReset {
+    pub(crate) port: u8,
+    pub(crate) stage: u32,
+    pub(crate) until: u64,
+    pub(crate) bound: u64,
+}
+
+impl RootReset {
+    /// The reset of `port` begun at `now`, held for [`ROOT_RESET_MICROS`],
+    /// given up `bound_micros` from now.
+    pub(crate) fn begin(port: u8, now: u64, bound_micros: u64) -> RootReset {
+        RootReset {
+            port,
+            stage: 0,
+            until: now + ROOT_RESET_MICROS,
+            bound: now.saturating_add(bound_micros),
+        }
+    }
 }
 
 /// What a root port reset ended in.
@@ -258,6 +287,9 @@ pub const MAX_CONTROL_DATA: usize = 1024;
 /// Largest interrupt report read.
 pub const MAX_REPORT: usize = 64;
 
+/// SET_ADDRESS's bRequest (USB 2.0 table 9-4).
+pub(crate) const SET_ADDRESS: u8 = 5;
+
 /// A polled host controller, as the device layer drives it. Ports are
 /// 1-based. A driver checks every handle and index it is given.
 pub trait HostController {
@@ -279,16 +311,19 @@ pub trait HostController {
     /// Acknowledges a root port's connect (and enable) change.
     fn clear_port_change(&mut self, port: u8);
 
-    /// Starts a root port reset; the device layer calls [`Self::port_reset_end`]
-    /// 50 ms later (USB 2.0 7.1.7.5, TDRSTR).
+    /// Starts a root port reset, which the driver times by its own clock
+    /// (at least [`ROOT_RESET_MICROS`]) and ends itself; the device layer
+    /// polls [`Self::port_reset_poll`] until it says what is there.
     fn port_reset_begin(&mut self, port: u8);
 
-    /// Ends the reset (drivers whose hardware ends it itself check that it
-    /// has) and enables the port; says what is there. An EHCI driver hands
-    /// a full- or low-speed device to its companion here. The driver clears
-    /// the change bits its own reset caused; the device layer also calls
-    /// [`Self::clear_port_change`] after [`ResetOutcome::Enabled`], as Linux does.
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome;
+    /// `None` while the root port's reset runs; then what is there, the
+    /// port enabled. Never blocks: the driver bounds each of its waits and
+    /// says [`ResetOutcome::Failed`] past the bound (and for a port not in
+    /// reset). An EHCI driver hands a full- or low-speed device to its
+    /// companion here. The driver clears the change bits its own reset
+    /// caused; the device layer also calls [`Self::clear_port_change`]
+    /// after [`ResetOutcome::Enabled`], as Linux does.
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome>;
 
     /// Disables a root port (a device given up, or gone).
     fn port_disable(&mut self, port: u8);
@@ -297,7 +332,37 @@ pub trait HostController {
     /// (64 bytes at high speed, the only size high speed allows).
     fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError>;
 
-    /// The device now answers at `address` (after its SET_ADDRESS completed).
+    /// Starts giving the device at the default address its `address`
+    /// (1-127), as Linux's `address_device` hook: by default SET_ADDRESS on
+    /// endpoint 0 (xHCI's is Address Device). [`Self::control_cancel`] stops it.
+    fn address_begin(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
+        if !(1..=127).contains(&address) {
+            return Err(HostError::Invalid);
+        }
+        let setup = Setup {
+            request_type: 0x00,
+            request: SET_ADDRESS,
+            value: u16::from(address),
+            index: 0,
+            length: 0,
+        };
+        self.control_begin(device, setup, &[])
+    }
+
+    /// Where the addressing stands; once it has completed the driver
+    /// reaches the device at `address` ([`Self::device_set_address`]).
+    fn address_poll(&mut self, device: DeviceId, address: u8) -> Transfer {
+        match self.control_poll(device, &mut []) {
+            Transfer::Complete(_) => match self.device_set_address(device, address) {
+                Ok(()) => Transfer::Complete(0),
+                Err(_) => Transfer::Failed(TransferError::Controller),
+            },
+            other => other,
+        }
+    }
+
+    /// Records that the device answers at `address` now: the end of the
+    /// default [`Self::address_poll`]. The device layer never calls it.
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError>;
 
     /// The device's endpoint 0 packet size, from its device descriptor.

@@ -26,7 +26,8 @@ mod tests;
 pub use crate::host::Handoff;
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
-    ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
+    ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
+    ROOT_RESET_MICROS,
 };
 use crate::PciHardware;
 use core::fmt;
@@ -50,9 +51,14 @@ const USB_RESET_MICROS: u64 = 50_000;
 const USB_RESUME_MICROS: u64 = 10_000;
 /// How long a frame may take to start (one is 1 ms).
 const FRAME_WAIT_MICROS: u64 = 5_000;
-/// How long a root port reset may still run when the device layer ends
-/// it (the controller's own reset is about 10 ms, begun 50 ms earlier).
-const PORT_RESET_END_MICROS: u64 = 10_000;
+/// A root port reset pulse as the controller times it (Linux's
+/// `PORT_RESET_HW_MSEC`), repeated until the port has been in reset for
+/// [`ROOT_RESET_MICROS`], as Linux's `root_port_reset` does.
+const PORT_RESET_PULSE_MICROS: u64 = 10_000;
+/// At most this many pulses, however slowly the polls come.
+const PORT_RESET_PULSES: u32 = (ROOT_RESET_MICROS / PORT_RESET_PULSE_MICROS) as u32 + 1;
+/// How long a pulse may run before the reset is given up.
+const PORT_RESET_PULSE_BOUND_MICROS: u64 = 2 * PORT_RESET_PULSE_MICROS;
 /// How long HcControl may take to show UsbReset after a halt.
 const HALT_MICROS: u64 = 10_000;
 /// Frame intervals (FI, bit times minus one) taken as plausible from the
@@ -174,6 +180,8 @@ pub struct Ohci<H: PciHardware> {
     done_heads: u32,
     /// A nonsense done head was logged already.
     bad_done_head_logged: bool,
+    /// The root port reset running (one at a time).
+    reset: Option<RootReset>,
 }
 
 impl<H: PciHardware> fmt::Debug for Ohci<H> {
@@ -223,6 +231,7 @@ impl<H: PciHardware> Ohci<H> {
             remote_wakeup_connected: 0,
             done_heads: 0,
             bad_done_head_logged: false,
+            reset: None,
         })
     }
 
@@ -832,37 +841,52 @@ impl<H: PciHardware> HostController for Ohci<H> {
             let register = Self::port_register(port);
             self.write(register, PORT_PRSC);
             self.write(register, PORT_PRS);
+            let now = self.hw.now_micros();
+            self.reset = Some(RootReset::begin(port, now, PORT_RESET_PULSE_BOUND_MICROS));
         }
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        if self.state != State::Running || !self.valid_port(port) {
-            return ResetOutcome::Failed;
-        }
-        // The controller times the reset itself (about 10 ms) and says
-        // it is over with PortResetStatusChange.
+    /// The controller times each pulse and says it is over with
+    /// PortResetStatusChange; another is started while the port has been
+    /// in reset less than [`ROOT_RESET_MICROS`] (stage: pulses after the first).
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        let reset = self.reset.take().filter(|r| r.port == port);
+        let (Some(mut reset), State::Running) = (reset, self.state) else {
+            return Some(ResetOutcome::Failed);
+        };
         let register = Self::port_register(port);
-        let (status, ended) = self.wait_register(register, PORT_RESET_END_MICROS, |s| {
-            s == u32::MAX || (s & PORT_PRS == 0 && s & PORT_PRSC != 0)
-        });
+        let status = self.read(register);
+        let now = self.hw.now_micros();
         if status == u32::MAX {
-            return ResetOutcome::Failed;
+            return Some(ResetOutcome::Failed);
         }
-        self.write(register, PORT_PRSC | PORT_PESC);
-        if !ended {
+        if status & PORT_PRS != 0 || status & PORT_PRSC == 0 {
+            if now < reset.bound {
+                self.reset = Some(reset);
+                return None;
+            }
+            self.write(register, PORT_PRSC | PORT_PESC);
             self.hw.log(format_args!(
                 "ohci: port {port} reset did not end: {status:#010x}"
             ));
-            return ResetOutcome::Failed;
+            return Some(ResetOutcome::Failed);
+        }
+        self.write(register, PORT_PRSC | PORT_PESC);
+        if status & PORT_CCS != 0 && now < reset.until && reset.stage + 1 < PORT_RESET_PULSES {
+            self.write(register, PORT_PRS);
+            reset.stage += 1;
+            reset.bound = now + PORT_RESET_PULSE_BOUND_MICROS;
+            self.reset = Some(reset);
+            return None;
         }
         if status & PORT_CCS == 0 || status & PORT_PES == 0 {
-            return ResetOutcome::Failed;
+            return Some(ResetOutcome::Failed);
         }
-        ResetOutcome::Enabled(if status & PORT_LSDA != 0 {
+        Some(ResetOutcome::Enabled(if status & PORT_LSDA != 0 {
             Speed::Low
         } else {
             Speed::Full
-        })
+        }))
     }
 
     fn port_disable(&mut self, port: u8) {

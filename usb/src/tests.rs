@@ -1144,7 +1144,7 @@ fn a_keyboard_pulled_out_while_it_is_enumerated_is_let_go_of_and_found_again() {
         let log = xhci.hardware().log.join("\n");
         // Said either way: stopped mid-way, or gone once set up.
         let said = if finished {
-            "device gone; its keys released"
+            "keyboard gone; its keys released"
         } else {
             stopped += 1;
             "the device went away while"

@@ -27,7 +27,7 @@ mod tests;
 
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
-    ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
+    ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use crate::PciHardware;
 use core::fmt;
@@ -197,6 +197,8 @@ pub struct Uhci<H: PciHardware> {
     idle_calls: u32,
     /// The root port (0-based) the next port check reads.
     next_port_checked: u8,
+    /// The root port reset running (one at a time).
+    reset: Option<RootReset>,
 }
 
 impl<H: PciHardware> Uhci<H> {
@@ -215,6 +217,7 @@ impl<H: PciHardware> Uhci<H> {
             pipes: [FREE_PIPE; MAX_PIPES],
             idle_calls: 0,
             next_port_checked: 0,
+            reset: None,
         })
     }
 
@@ -687,52 +690,60 @@ impl<H: PciHardware> HostController for Uhci<H> {
         if let Some((offset, value)) = self.read_port(port) {
             let value = (Self::port_keep(value) | PORT_RESET) & !PORT_ENABLED;
             self.hw.write16(offset, value);
+            self.reset = Some(RootReset::begin(port, self.hw.now_micros(), u64::MAX));
         }
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        let Some((offset, value)) = self.read_port(port) else {
-            return ResetOutcome::Failed;
+    /// Software ends the reset once TDRSTR has passed, then sets Port
+    /// Enabled, [`PORT_RESET_RECOVERY_MICROS`] apart, until it holds
+    /// (Linux's uhci_check_ports): stage n is the (n-1)th try.
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        let reset = self.reset.take().filter(|r| r.port == port);
+        let (Some(mut reset), Some((offset, value))) = (reset, self.read_port(port)) else {
+            return Some(ResetOutcome::Failed);
         };
-        self.hw
-            .write16(offset, Self::port_keep(value) & !PORT_RESET);
-        self.wait_micros(PORT_RESET_RECOVERY_MICROS);
-        let start = self.hw.now_micros();
-        let mut tries = 0;
-        loop {
-            let Some((_, value)) = self.read_port(port) else {
-                return ResetOutcome::Failed;
-            };
-            if value & PORT_CONNECTED == 0 {
-                return ResetOutcome::Failed;
-            }
-            let reset_over = value & PORT_RESET == 0;
-            if reset_over && value & PORT_ENABLED != 0 {
-                let speed = if value & PORT_LOW_SPEED != 0 {
-                    Speed::Low
-                } else {
-                    Speed::Full
-                };
-                return ResetOutcome::Enabled(speed);
-            }
-            if self.hw.now_micros().saturating_sub(start) > PORT_ENABLE_MICROS
-                || tries >= PORT_ENABLE_TRIES
-            {
-                self.hw.log(format_args!(
-                    "uhci: port {port} did not enable after its reset (PORTSC {value:#06x})"
-                ));
-                return ResetOutcome::Failed;
-            }
-            if reset_over {
-                // The reset's own connect and enable changes go, and the
-                // port is enabled (Linux's uhci_check_ports).
-                tries += 1;
-                let clear = value & (PORT_CONNECT_CHANGE | PORT_ENABLE_CHANGE);
-                self.hw
-                    .write16(offset, Self::port_keep(value) | clear | PORT_ENABLED);
-            }
-            self.wait_micros(PORT_RESET_RECOVERY_MICROS);
+        let now = self.hw.now_micros();
+        if now < reset.until {
+            self.reset = Some(reset);
+            return None;
         }
+        reset.until = now + PORT_RESET_RECOVERY_MICROS;
+        if reset.stage == 0 {
+            self.hw
+                .write16(offset, Self::port_keep(value) & !PORT_RESET);
+            reset.stage = 1;
+            reset.bound = now + PORT_ENABLE_MICROS;
+            self.reset = Some(reset);
+            return None;
+        }
+        if value & PORT_CONNECTED == 0 {
+            return Some(ResetOutcome::Failed);
+        }
+        let reset_over = value & PORT_RESET == 0;
+        if reset_over && value & PORT_ENABLED != 0 {
+            let speed = if value & PORT_LOW_SPEED != 0 {
+                Speed::Low
+            } else {
+                Speed::Full
+            };
+            return Some(ResetOutcome::Enabled(speed));
+        }
+        if now > reset.bound || reset.stage > PORT_ENABLE_TRIES {
+            self.hw.log(format_args!(
+                "uhci: port {port} did not enable after its reset (PORTSC {value:#06x})"
+            ));
+            return Some(ResetOutcome::Failed);
+        }
+        if reset_over {
+            // The reset's own connect and enable changes go, and the
+            // port is enabled.
+            reset.stage += 1;
+            let clear = value & (PORT_CONNECT_CHANGE | PORT_ENABLE_CHANGE);
+            self.hw
+                .write16(offset, Self::port_keep(value) | clear | PORT_ENABLED);
+        }
+        self.reset = Some(reset);
+        None
     }
 
     fn port_disable(&mut self, port: u8) {

@@ -19,9 +19,8 @@ pub(crate) const CONNECT_MICROS: u64 = 200_000;
 /// from the frame loop. Five tiers of hubs take 200 ms each (power-on and
 /// connect times) after the root ports' 200 ms: 2 s holds them.
 pub const BOOT_ENUMERATION_MICROS: u64 = 2_000_000;
-/// A root port is held in reset this long: TDRSTR (USB 2.0 7.1.7.5), and
-/// Linux's `PORT_RESET_TRIES` loop's 50 ms for root ports.
-pub const ROOT_RESET_MICROS: u64 = 50_000;
+/// Between two looks at a root port's reset, which its driver times.
+const ROOT_RESET_POLL_MICROS: u64 = 1_000;
 /// How long a hub port reset may take, however many status checks: Linux's
 /// `HUB_RESET_TIMEOUT` (drivers/usb/core/hub.c, 800 ms).
 const HUB_RESET_MICROS: u64 = 800_000;
@@ -268,7 +267,7 @@ type Result<T> = core::result::Result<T, BusError>;
 /// once that has happened.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Step {
-    /// A root port in reset, for [`ROOT_RESET_MICROS`].
+    /// A root port in reset, until its driver says it is over.
     ResettingRootPort,
     /// GET_STATUS of a hub port about to be reset: is anything there?
     CheckingHubPortConnection,
@@ -284,7 +283,7 @@ pub(super) enum Step {
     RecoveringFromReset,
     /// The device descriptor's first 8 bytes (endpoint 0's packet size).
     ReadingDeviceHeader,
-    /// SET_ADDRESS.
+    /// The driver's addressing hook (SET_ADDRESS, or xHCI's Address Device).
     Addressing,
     /// The SET_ADDRESS recovery interval.
     RecoveringFromSetAddress,
@@ -441,7 +440,7 @@ pub(super) struct Job {
     /// Only a hub's changes, no enumeration.
     changes_only: bool,
     /// The device went away during its root port's reset: the reset is
-    /// ended in its time (a driver may have to end it), and that is all.
+    /// polled to its end (a driver may have to end it), and that is all.
     abandoned: bool,
 }
 
@@ -715,11 +714,17 @@ impl<C: HostController> Bus<C> {
                 length,
                 until,
             } => {
-                let Some(id) = self.devices[device].as_ref().map(|d| d.id) else {
+                let Some((id, address)) = self.devices[device].as_ref().map(|d| (d.id, d.address))
+                else {
                     return Some(Err(BusError::Gone));
                 };
                 let length = length.min(MAX_CONTROL_DATA);
-                match self.controller.control_poll(id, &mut self.buffer[..length]) {
+                let transfer = if job.step == Step::Addressing {
+                    self.controller.address_poll(id, address)
+                } else {
+                    self.controller.control_poll(id, &mut self.buffer[..length])
+                };
+                match transfer {
                     Transfer::Pending if now >= until => {
                         self.controller.control_cancel(id);
                         Some(Err(BusError::Timeout))
@@ -858,11 +863,23 @@ impl<C: HostController> Bus<C> {
             .map(|d| d.id)
             .ok_or(BusError::Gone)?;
         self.controller.control_begin(id, setup, &[])?;
+        self.await_control(job, step, index, usize::from(setup.length))
+    }
+
+    /// The step waits for the control transfer just begun on device
+    /// `index`'s endpoint 0, `length` bytes of data stage asked for.
+    fn await_control(
+        &mut self,
+        job: &mut Job,
+        step: Step,
+        index: usize,
+        length: usize,
+    ) -> Result<Next> {
         job.step = step;
         job.received = 0;
         job.awaiting = Awaiting::Control {
             device: index,
-            length: usize::from(setup.length),
+            length,
             until: self.controller.now_micros() + TRANSFER_MICROS,
         };
         Ok(Next::Continue)
@@ -957,13 +974,16 @@ impl<C: HostController> Bus<C> {
             return Ok(Next::Done);
         }
         self.controller.port_reset_begin(port);
-        let until = self.controller.now_micros() + ROOT_RESET_MICROS;
+        let until = self.controller.now_micros() + ROOT_RESET_POLL_MICROS;
         job.wait(Step::ResettingRootPort, until)
     }
 
     fn resetting_root_port(&mut self, job: &mut Job) -> Result<Next> {
         let port = job.location.root_port();
-        let outcome = self.controller.port_reset_end(port);
+        let Some(outcome) = self.controller.port_reset_poll(port) else {
+            let until = self.controller.now_micros() + ROOT_RESET_POLL_MICROS;
+            return job.wait(Step::ResettingRootPort, until);
+        };
         if job.abandoned {
             // Whatever is there now is queued, and reset again in its turn.
             if let ResetOutcome::Enabled(_) = outcome {
@@ -1133,12 +1153,8 @@ impl<C: HostController> Bus<C> {
         device.address = address;
         let id = device.id;
         self.controller.device_set_max_packet(id, packet)?;
-        self.request(
-            job,
-            Step::Addressing,
-            index,
-            (0x00, SET_ADDRESS, u16::from(address), 0),
-        )
+        self.controller.address_begin(id, address)?;
+        self.await_control(job, Step::Addressing, index, 0)
     }
 
     fn addressing(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
@@ -1148,12 +1164,6 @@ impl<C: HostController> Bus<C> {
     }
 
     fn recovering_from_set_address(&mut self, job: &mut Job) -> Result<Next> {
-        let index = job.device()?;
-        let (id, address) = self.devices[index]
-            .as_ref()
-            .map(|d| (d.id, d.address))
-            .ok_or(BusError::Gone)?;
-        self.controller.device_set_address(id, address)?;
         self.get_descriptor(
             job,
             Step::ReadingDeviceDescriptor,

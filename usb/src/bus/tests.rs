@@ -717,8 +717,11 @@ fn a_device_pulled_out_during_its_root_port_reset_has_the_reset_ended() {
     settle(&mut bus);
     let calls = &bus.controller().calls;
     let begun = calls.iter().filter(|c| **c == "port_reset_begin").count();
-    let ended = calls.iter().filter(|c| **c == "port_reset_end").count();
-    assert_eq!((begun, ended), (1, 1));
+    assert_eq!(begun, 1);
+    assert!(
+        !bus.controller().resetting(1),
+        "the reset was polled to its end"
+    );
     assert_eq!(bus.controller().devices_open(), 0);
     // Plugged in again: found.
     tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));

@@ -9,6 +9,7 @@ use crate::bus::Bus;
 use crate::host::TransactionTranslator;
 use crate::model::devices::UsbDevice;
 use crate::model::ehci::{EhciModel, SplitRecord, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use crate::model::{reset_polled, reset_root_port};
 use crate::{Hardware, Memory};
 use budget::Booking;
 use std::vec::Vec;
@@ -422,8 +423,10 @@ fn port_change_bits_stay_until_acknowledged() {
     assert!(!status.low_speed);
     ehci.port_reset_begin(1);
     assert!(ehci.port_status(1).connect_changed, "the reset kept CSC");
-    ehci.hardware().advance(50_000);
-    assert_eq!(ehci.port_reset_end(1), ResetOutcome::Enabled(Speed::High));
+    assert_eq!(
+        reset_polled(&mut ehci, 1),
+        ResetOutcome::Enabled(Speed::High)
+    );
     let status = ehci.port_status(1);
     assert!(status.enabled && status.connect_changed, "{status:?}");
     ehci.clear_port_change(1);
@@ -734,10 +737,8 @@ fn a_thousand_plug_cycles_never_run_the_pools_dry() {
 /// and configured, through [`HostController`] alone.
 fn addressed_keyboard(ehci: &mut Ehci<EhciModel>, port: u8, address: u8) -> DeviceId {
     ehci.hardware().advance(1_000);
-    ehci.port_reset_begin(port);
-    ehci.hardware().advance(50_000);
     assert_eq!(
-        ehci.port_reset_end(port),
+        reset_root_port(ehci, port),
         ResetOutcome::Enabled(Speed::High)
     );
     let device = ehci

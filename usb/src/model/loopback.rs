@@ -14,6 +14,7 @@ use super::devices::{Packet, Pid, Reply, Split, UsbTree};
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
+    ROOT_RESET_MICROS,
 };
 use std::format;
 use std::string::String;
@@ -27,8 +28,6 @@ pub const MICROS_PER_CLOCK_READ: u64 = 10;
 pub const LOOPBACK_DEVICES: usize = 40;
 /// Errors in a row before a transfer fails (the controllers' CERR of 3).
 const ERRORS_BEFORE_FAILING: u32 = 3;
-/// The reset a root port needs (TDRSTR).
-const ROOT_RESET_MICROS: u64 = 50_000;
 
 /// A root port.
 #[derive(Clone, Copy, Debug, Default)]
@@ -193,6 +192,13 @@ impl Loopback {
         usize::from(port)
             .checked_sub(1)
             .and_then(|i| self.ports.get_mut(i))
+    }
+
+    /// Whether a root port's reset has begun and not been polled to its end.
+    pub fn resetting(&self, port: u8) -> bool {
+        self.ports
+            .get(usize::from(port).wrapping_sub(1))
+            .is_some_and(|state| state.reset_began.is_some())
     }
 
     /// Looks at the tree: a device attached or gone sets the change.
@@ -507,37 +513,39 @@ impl HostController for Loopback {
         }
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        self.calls.push("port_reset_end");
+    /// The reset ends [`ROOT_RESET_MICROS`] after it began, as a driver
+    /// times it.
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        self.calls.push("port_reset_poll");
         let now = self.now;
         let kind = self.kind;
         let speed = self.tree.root_device(port);
         let Some(state) = self.port(port) else {
-            self.error(format!("port_reset_end of port {port}"));
-            return ResetOutcome::Failed;
+            self.error(format!("port_reset_poll of port {port}"));
+            return Some(ResetOutcome::Failed);
         };
-        let Some(began) = state.reset_began.take() else {
-            self.error(format!("port_reset_end of port {port} without a reset"));
-            return ResetOutcome::Failed;
+        let Some(began) = state.reset_began else {
+            self.error(format!("port_reset_poll of port {port} without a reset"));
+            return Some(ResetOutcome::Failed);
         };
         if now - began < ROOT_RESET_MICROS {
-            let held = now - began;
-            self.error(format!("port {port} held in reset only {held} us"));
+            return None;
         }
+        state.reset_began = None;
         let Some(speed) = speed else {
-            return ResetOutcome::Failed;
+            return Some(ResetOutcome::Failed);
         };
         if kind == ControllerKind::Ehci && speed != Speed::High {
             if let Some(state) = self.port(port) {
                 state.companion_owned = true;
             }
-            return ResetOutcome::HandedToCompanion;
+            return Some(ResetOutcome::HandedToCompanion);
         }
         if let Some(state) = self.port(port) {
             state.enabled = true;
         }
         self.tree.reset_root_port(port);
-        ResetOutcome::Enabled(speed)
+        Some(ResetOutcome::Enabled(speed))
     }
 
     fn port_disable(&mut self, port: u8) {
@@ -570,7 +578,6 @@ impl HostController for Loopback {
 
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
         self.calls.push("device_set_address");
-        let now = self.now;
         let Some(index) = self.device_index(device) else {
             self.error(format!("device_set_address of unknown {device:?}"));
             return Err(HostError::UnknownHandle);
@@ -578,18 +585,10 @@ impl HostController for Loopback {
         let Some(d) = self.devices[index].as_mut() else {
             return Err(HostError::UnknownHandle);
         };
-        match d.set_address {
-            Some((at, given)) if given == address => {
-                if now - at < 2_000 {
-                    let after = now - at;
-                    self.error(format!(
-                        "address {address} used {after} us after SET_ADDRESS"
-                    ));
-                }
-            }
-            _ => self.error(format!(
+        if !d.set_address.is_some_and(|(_, given)| given == address) {
+            self.error(format!(
                 "device_set_address({address}) without its SET_ADDRESS"
-            )),
+            ));
         }
         if let Some(d) = self.devices[index].as_mut() {
             d.address = address;
@@ -677,6 +676,18 @@ impl HostController for Loopback {
             self.error(format!("control_begin on busy {device:?}"));
             return Err(HostError::Busy);
         }
+        let now = self.now;
+        if let Some((at, address)) = d.set_address.filter(|&(_, given)| given == d.address) {
+            if now - at < 2_000 {
+                let after = now - at;
+                self.error(format!(
+                    "address {address} used {after} us after SET_ADDRESS"
+                ));
+            }
+        }
+        let Some(d) = self.devices[index].as_mut() else {
+            return Err(HostError::UnknownHandle);
+        };
         let stalled = self
             .stall_requests
             .contains(&(setup.request_type, setup.request));

@@ -217,6 +217,8 @@ pub struct OhciModel {
     pub software_resets: u32,
     /// When each software reset was asked for.
     pub software_resets_at: Vec<u64>,
+    /// Each SetPortReset written (a reset pulse): the port and when.
+    pub port_resets_at: Vec<(u8, u64)>,
     /// Every HcControl write: when, and the value.
     pub control_writes: Vec<(u64, u32)>,
     /// Done queue heads written to the HCCA.
@@ -278,6 +280,7 @@ impl OhciModel {
             packets: 0,
             software_resets: 0,
             software_resets_at: Vec::new(),
+            port_resets_at: Vec::new(),
             control_writes: Vec::new(),
             done_queue_writes: 0,
             writes_while_owned: Vec::new(),
@@ -1083,6 +1086,12 @@ impl OhciModel {
         }
         if value & CLEAR_SUSPEND_STATUS != 0 {
             self.ports[index].suspended = false;
+        }
+        if value & SET_PORT_RESET != 0 {
+            self.port_resets_at.push((index as u8 + 1, self.now));
+            if self.ports[index].reset_until.is_some() {
+                self.error(format!("port {}: SetPortReset during a reset", index + 1));
+            }
         }
         if value & SET_PORT_RESET != 0 && attempt(self) {
             self.ports[index].reset_until = Some(self.now + RESET_PULSE_MICROS);

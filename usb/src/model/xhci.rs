@@ -188,6 +188,13 @@ pub struct XhciModel {
     /// The root ports are USB 3 and the hubs SuperSpeed (the keyboard
     /// behind them too).
     pub usb3: bool,
+    /// A USB 2 port's reset never ends: PR stays set.
+    pub port_reset_stuck: bool,
+    /// With `usb3`: root port 1's link trains this long after the
+    /// controller's reset (connected at once, enabled then; 0: at once).
+    pub usb3_link_micros: u64,
+    /// When root port 1's USB 3 link is trained and the port enabled.
+    usb3_enabled_at: Option<u64>,
     /// The keyboard on root port 2.
     pub keyboard2: KeyboardState,
     /// Command Aborts the driver asked for (CRCR's CA).
@@ -249,6 +256,9 @@ impl XhciModel {
             empty_at_start: false,
             port_2: None,
             usb3: false,
+            port_reset_stuck: false,
+            usb3_link_micros: 0,
+            usb3_enabled_at: None,
             keyboard2: KeyboardState {
                 protocol: 1,
                 ..KeyboardState::default()
@@ -1142,6 +1152,10 @@ impl Hardware for XhciModel {
             o if o == OPERATIONAL + 0x38 => self.config,
             o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * PORTS as u32).contains(&o) => {
                 let port = ((o - OPERATIONAL - 0x400) / 0x10) as usize;
+                if port == 0 && self.usb3_enabled_at.is_some_and(|at| self.now >= at) {
+                    self.usb3_enabled_at = None;
+                    self.portsc[0] |= 1 << 1;
+                }
                 if (o - OPERATIONAL - 0x400) % 0x10 == 0 {
                     self.portsc[port]
                 } else {
@@ -1205,7 +1219,8 @@ impl Hardware for XhciModel {
                         1 << 9
                     } else if self.usb3 {
                         // A USB 3 port trains and enables by itself.
-                        1 | 1 << 1 | 1 << 9 | 4 << 10
+                        self.usb3_enabled_at = Some(self.now + self.usb3_link_micros);
+                        1 | 1 << 9 | 4 << 10
                     } else {
                         1 | 1 << 9 | self.port_1_speed() // connected, powered
                     };
@@ -1255,7 +1270,11 @@ impl Hardware for XhciModel {
                     *status &= !(1 << 9 | 0b11);
                 }
                 if value & (1 << 4) != 0 && *status & 1 != 0 {
-                    *status |= 1 << 21 | 0b10;
+                    *status |= if self.port_reset_stuck {
+                        1 << 4
+                    } else {
+                        1 << 21 | 0b10
+                    };
                 }
             }
             o if o == RUNTIME + 0x28 => self.erstsz = value,

@@ -102,12 +102,9 @@ fn report_bytes(ohci: &mut Driver, pipe: PipeId) -> Vec<u8> {
     }
 }
 
-/// Resets a root port as the device layer does (the reset ends 50 ms
-/// later) and gives the speed.
+/// Resets a root port as the device layer does and gives the speed.
 fn reset_root_port(ohci: &mut Driver, port: u8) -> Speed {
-    ohci.port_reset_begin(port);
-    wait(ohci, 50_000);
-    match ohci.port_reset_end(port) {
+    match crate::model::reset_root_port(ohci, port) {
         ResetOutcome::Enabled(speed) => speed,
         other => panic!("port {port} reset: {other:?}"),
     }
@@ -669,7 +666,7 @@ fn handles_and_requests_the_driver_never_gave_are_refused() {
         Transfer::Failed(TransferError::Controller)
     );
     assert_eq!(ohci.port_status(0), PortStatus::default());
-    assert_eq!(ohci.port_reset_end(9), ResetOutcome::Failed);
+    assert_eq!(ohci.port_reset_poll(9), Some(ResetOutcome::Failed));
     assert_clean(&mut ohci);
 }
 
@@ -903,6 +900,7 @@ fn registers_and_memory_the_driver_cannot_use_are_refused() {
 mod through_the_bus {
     use super::*;
     use crate::bus::Bus;
+    use crate::host::ROOT_RESET_MICROS;
     use std::format;
     use std::string::String;
     use std::vec;
@@ -980,6 +978,37 @@ mod through_the_bus {
         assert_eq!(typed(&mut bus, 1), [0x9E]);
         assert!(bus.shut_down());
         assert_eq!(hw(&mut bus).functional_state(), 0);
+        assert_clean(&mut bus);
+    }
+
+    /// As Linux's `root_port_reset`: the controller's 10 ms pulses, each
+    /// begun once the last has ended, until the port has been in reset
+    /// 50 ms, with the device layer polling frame by frame.
+    #[test]
+    fn a_root_port_reset_is_repeated_in_pulses_until_50_ms() {
+        let mut model = OhciModel::new(2);
+        let keyboard = model.tree.plug(&[1], UsbDevice::Keyboard(Speed::Full));
+        let mut bus = bus(model);
+        bus.start_enumeration();
+        settle(&mut bus);
+        assert_eq!(keyboards(&bus), ["1"], "{:#?}", model_log(&mut bus));
+        let pulses = hw(&mut bus).port_resets_at.clone();
+        assert!(pulses.iter().all(|&(port, _)| port == 1), "{pulses:?}");
+        let times: Vec<u64> = pulses.iter().map(|&(_, at)| at).collect();
+        assert!(times.len() >= 5, "only {} pulses: {times:?}", times.len());
+        for pair in times.windows(2) {
+            assert!(pair[1] - pair[0] >= PORT_RESET_PULSE_MICROS, "{times:?}");
+            // Each pulse starts at the first poll after the last one ended.
+            assert!(
+                pair[1] - pair[0] <= PORT_RESET_PULSE_MICROS + 2_000,
+                "{times:?}"
+            );
+        }
+        let in_reset = times[times.len() - 1] + PORT_RESET_PULSE_MICROS - times[0];
+        assert!(in_reset >= ROOT_RESET_MICROS, "in reset {in_reset} us");
+        assert!(in_reset < ROOT_RESET_MICROS + PORT_RESET_PULSE_MICROS + 2_000);
+        assert!(hw(&mut bus).tree.send_report(keyboard, A));
+        assert_eq!(typed(&mut bus, 1), [0x1E]);
         assert_clean(&mut bus);
     }
 

@@ -11,7 +11,7 @@ use super::{
 use crate::bus::Bus;
 use crate::host::{
     DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, ResetOutcome, Setup, Speed,
-    Transfer, TransferError,
+    Transfer, TransferError, ROOT_RESET_MICROS,
 };
 use crate::model::devices::{UsbDevice, KEYBOARD_DEVICE, LOW_SPEED_KEYBOARD_DEVICE};
 use crate::model::uhci::{UhciModel, BIOS_LEGSUP, DMA_BASE, DMA_BYTES};
@@ -91,11 +91,9 @@ fn set_request(request: u8, value: u16) -> Setup {
     }
 }
 
-/// Resets root port `port` as the device layer does (50 ms).
+/// Resets root port `port` as the device layer does.
 fn reset_port(uhci: &mut Uhci<UhciModel>, port: u8) -> ResetOutcome {
-    uhci.port_reset_begin(port);
-    wait(uhci, 50_000);
-    uhci.port_reset_end(port)
+    crate::model::reset_root_port(uhci, port)
 }
 
 /// What the device layer does for a boot keyboard on root port `port`,
@@ -790,14 +788,16 @@ fn port_registers_that_read_nonsense_cost_a_bounded_wait_and_no_device() {
     // Connected, in reset for ever, changes that never clear.
     uhci.hardware().port_nonsense = Some(0x0F8B | 0x0200);
     let start = uhci.hardware().now;
-    uhci.port_reset_begin(1);
-    assert_eq!(uhci.port_reset_end(1), ResetOutcome::Failed);
+    assert_eq!(reset_port(&mut uhci, 1), ResetOutcome::Failed);
     let took = uhci.hardware().now - start;
-    assert!(took <= PORT_ENABLE_MICROS + 1_000, "{took} us");
+    assert!(
+        took <= ROOT_RESET_MICROS + PORT_ENABLE_MICROS + 1_000,
+        "{took} us"
+    );
     // Ports that are not there.
     assert_eq!(uhci.port_status(0), Default::default());
     assert_eq!(uhci.port_status(3), Default::default());
-    assert_eq!(uhci.port_reset_end(9), ResetOutcome::Failed);
+    assert_eq!(uhci.port_reset_poll(9), Some(ResetOutcome::Failed));
 }
 
 #[test]
@@ -987,9 +987,11 @@ fn port_writes_keep_the_change_bits_they_do_not_mean_to_clear() {
     assert!(uhci.port_status(1).connect_changed);
     uhci.port_reset_begin(1);
     assert!(uhci.port_status(1).connect_changed);
-    wait(&mut uhci, 50_000);
     // The reset's end clears what the reset itself changed.
-    assert_eq!(uhci.port_reset_end(1), ResetOutcome::Enabled(Speed::Full));
+    assert_eq!(
+        crate::model::reset_polled(&mut uhci, 1),
+        ResetOutcome::Enabled(Speed::Full)
+    );
     assert_clean(uhci.hardware());
 }
 

@@ -12,9 +12,9 @@
 //!   asked for meanwhile waits until the queue is empty, and
 //!   [`HostController::control_poll`] says [`Transfer::Pending`] until then:
 //!   nothing here waits for a command.
-//! - The controller, not the host software, sends SET_ADDRESS: a
-//!   SET_ADDRESS given to [`HostController::control_begin`] becomes Address
-//!   Device (BSR=0), and its completion is the transfer's.
+//! - The controller, not the host software, sends SET_ADDRESS: the
+//!   addressing hook ([`HostController::address_begin`]) is Address Device
+//!   (BSR=0), and its completion is the transfer's.
 //! - A slot names its place by root port and route string, both in
 //!   [`DeviceInfo`], and a full- or low-speed device behind a high-speed hub
 //!   names that hub by its slot, found by the USB address the device layer
@@ -43,7 +43,7 @@ use super::{
 };
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
-    ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
+    ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use crate::Hardware;
 use core::fmt;
@@ -73,11 +73,9 @@ const PIPE_BUFFER_BYTES: u64 = MAX_REPORT as u64;
 const PIPE_QUEUED: usize = 8;
 /// Commands a device may have waiting.
 const DEVICE_COMMANDS: usize = 8;
-/// How long a USB 2 root port's reset may run past the device layer's
-/// 50 ms before it is called failed: the controller times TDRSTR itself
-/// and may end it a little after the device layer looks (Linux allows
-/// `HUB_LONG_RESET_TIME`, 200 ms, for a root port).
-const ROOT_RESET_END_MICROS: u64 = 150_000;
+/// How long a USB 2 root port's reset, which the controller times and ends
+/// itself, may run (Linux's `HUB_LONG_RESET_TIME` for a root port).
+pub(super) const ROOT_RESET_BOUND_MICROS: u64 = 200_000;
 /// PORTSC bits written back as read (port indicator control, wake enables);
 /// everything else written is 0 unless meant: PED and the change bits are
 /// write-1-to-clear, PR write-1-to-start.
@@ -87,8 +85,6 @@ const PORT_KEEP: u32 = (0x3 << 14) | (0x7 << 25);
 /// changes so that the next change raises a Port Status Change event again.
 const PORT_CONNECT_CHANGES: u32 = PORT_CHANGES & !PORT_RESET_CHANGE;
 const PORT_RESET_DONE_CHANGES: u32 = PORT_RESET_CHANGE | (1 << 19) | (1 << 18);
-/// SET_ADDRESS's bRequest: the controller sends it (Address Device).
-const SET_ADDRESS: u8 = 5;
 /// Completion codes mapped to the device layer's errors.
 const COMPLETION_DATA_BUFFER: u8 = 2;
 const COMPLETION_BABBLE: u8 = 3;
@@ -304,6 +300,8 @@ pub(super) struct HostState {
     /// Events were taken outside [`HostController::anything_happened`]
     /// (their results wait to be polled).
     news: bool,
+    /// The root port reset running (one at a time).
+    reset: Option<RootReset>,
 }
 
 impl HostState {
@@ -311,6 +309,7 @@ impl HostState {
         HostState {
             devices: [const { None }; HOST_DEVICES],
             news: false,
+            reset: None,
         }
     }
 }
@@ -379,6 +378,20 @@ impl<H: Hardware> Xhci<H> {
     }
 
     /// Says something on the log, naming the controller.
+    /// The device, its endpoint 0 free for a transfer; None when the
+    /// device has failed, and the transfer with it.
+    fn idle_control(&mut self, device: DeviceId) -> Result<Option<&mut HostDevice>, HostError> {
+        let entry = self.host_device(device)?;
+        if !matches!(entry.control, Control::Idle | Control::Done(_)) {
+            return Err(HostError::Busy);
+        }
+        if let Some(why) = entry.failed {
+            entry.control = Control::Done(Transfer::Failed(why));
+            return Ok(None);
+        }
+        Ok(Some(entry))
+    }
+
     fn say(&mut self, message: fmt::Arguments<'_>) {
         self.hw.log(format_args!("usb: xhci: {message}"));
     }
@@ -1064,6 +1077,8 @@ impl<H: Hardware> HostController for Xhci<H> {
         if !self.valid_port(port) {
             return;
         }
+        let now = self.hw.now_micros();
+        self.host.reset = Some(RootReset::begin(port, now, ROOT_RESET_BOUND_MICROS));
         if self.usb3_port(port) {
             // USB 3 ports train and enable by themselves.
             return;
@@ -1076,38 +1091,50 @@ impl<H: Hardware> HostController for Xhci<H> {
         self.write(register, PORT_POWER | (status & PORT_KEEP) | PORT_RESET);
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        if !self.valid_port(port) {
-            return ResetOutcome::Failed;
-        }
+    /// The controller ends a USB 2 port's reset itself (PR cleared); it is
+    /// looked at until `ROOT_RESET_BOUND_MICROS`.
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        let Some(reset) = self.host.reset.take().filter(|r| r.port == port) else {
+            return Some(ResetOutcome::Failed);
+        };
         let register = self.portsc(port);
-        if self.usb3_port(port) {
-            // The link trained by itself: enabled, or nothing there.
-            let status = self.read(register);
-            if status == u32::MAX
-                || status & (PORT_CONNECTED | PORT_ENABLED) != PORT_CONNECTED | PORT_ENABLED
-            {
-                return ResetOutcome::Failed;
-            }
-            return ResetOutcome::Enabled(Speed::Super);
-        }
-        // The controller ends the reset itself; a little late is allowed.
-        self.wait_for(register, ROOT_RESET_END_MICROS, |s| {
-            s == u32::MAX || s & PORT_RESET == 0
-        });
         let status = self.read(register);
-        if status == u32::MAX || status & PORT_RESET != 0 {
-            return ResetOutcome::Failed;
+        let both = PORT_CONNECTED | PORT_ENABLED;
+        // A USB 3 link trains and enables by itself, given the hold's time.
+        let usb3 = self.usb3_port(port);
+        let (running, deadline) = if usb3 {
+            (status & both != both, reset.until)
+        } else {
+            (status & PORT_RESET != 0, reset.bound)
+        };
+        if status != u32::MAX && running {
+            if self.hw.now_micros() < deadline {
+                self.host.reset = Some(reset);
+                return None;
+            }
+            if !usb3 {
+                let held = ROOT_RESET_BOUND_MICROS / 1_000;
+                self.say(format_args!(
+                    "port {port}: the reset did not end in {held} ms"
+                ));
+            }
+            return Some(ResetOutcome::Failed);
+        }
+        if status == u32::MAX {
+            return Some(ResetOutcome::Failed);
+        }
+        if usb3 {
+            return Some(ResetOutcome::Enabled(Speed::Super));
         }
         self.write(
             register,
             PORT_POWER | (status & PORT_KEEP) | (status & PORT_RESET_DONE_CHANGES),
         );
-        if status & (PORT_CONNECTED | PORT_ENABLED) != PORT_CONNECTED | PORT_ENABLED {
-            return ResetOutcome::Failed;
+        if status & both != both {
+            return Some(ResetOutcome::Failed);
         }
         // A USB 2 port's speed IDs by the protocol's defaults (xHCI 7.2.2.1.1).
-        match (status >> 10) & 0xF {
+        Some(match (status >> 10) & 0xF {
             speed::FULL => ResetOutcome::Enabled(Speed::Full),
             speed::LOW => ResetOutcome::Enabled(Speed::Low),
             speed::HIGH => ResetOutcome::Enabled(Speed::High),
@@ -1115,7 +1142,7 @@ impl<H: Hardware> HostController for Xhci<H> {
                 self.say(format_args!("port {port}: speed ID {other} unknown"));
                 ResetOutcome::Failed
             }
-        }
+        })
     }
 
     fn port_disable(&mut self, port: u8) {
@@ -1208,6 +1235,21 @@ impl<H: Hardware> HostController for Xhci<H> {
         Ok(DeviceId(index as u8))
     }
 
+    /// Address Device (BSR=0): the controller sends SET_ADDRESS itself
+    /// (xHCI 4.6.5), and the command's completion is the transfer's.
+    fn address_begin(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
+        if !(1..=127).contains(&address) {
+            return Err(HostError::Invalid);
+        }
+        let Some(entry) = self.idle_control(device)? else {
+            return Ok(());
+        };
+        entry.ops.push(Op::Address)?;
+        entry.control = Control::SettingAddress;
+        self.next_command(usize::from(device.0));
+        Ok(())
+    }
+
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
         if !(1..=127).contains(&address) {
             return Err(HostError::Invalid);
@@ -1287,28 +1329,13 @@ impl<H: Hardware> HostController for Xhci<H> {
         out: &[u8],
     ) -> Result<(), HostError> {
         let index = usize::from(device.0);
-        let entry = self.host_device(device)?;
-        if !matches!(entry.control, Control::Idle | Control::Done(_)) {
-            return Err(HostError::Busy);
-        }
         let length = usize::from(setup.length);
         if length > MAX_CONTROL_DATA || (!setup.is_in() && out.len() < length) {
             return Err(HostError::Invalid);
         }
-        if let Some(why) = entry.failed {
-            entry.control = Control::Done(Transfer::Failed(why));
+        let Some(entry) = self.idle_control(device)? else {
             return Ok(());
-        }
-        if setup.request_type == 0x00 && setup.request == SET_ADDRESS {
-            if !(1..=127).contains(&setup.value) {
-                return Err(HostError::Invalid);
-            }
-            // The controller sends SET_ADDRESS itself (xHCI 4.6.5).
-            entry.ops.push(Op::Address)?;
-            entry.control = Control::SettingAddress;
-            self.next_command(index);
-            return Ok(());
-        }
+        };
         if !setup.is_in() && length > 0 {
             let Some(buffer) = entry.slot.as_ref().map(|s| s.page + CONTROL_BUFFER_OFFSET) else {
                 return Err(HostError::Busy);

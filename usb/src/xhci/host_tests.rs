@@ -6,8 +6,9 @@
 //! idle poll costs.
 
 use crate::bus::Bus;
-use crate::host::HostController;
+use crate::host::{HostController, ResetOutcome};
 use crate::model::xhci::{OnRootPort2, XhciModel, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use crate::xhci::host::ROOT_RESET_BOUND_MICROS;
 use crate::xhci::Xhci;
 use crate::{Hardware, Memory};
 use std::format;
@@ -413,6 +414,67 @@ fn a_superspeed_device_on_a_usb_3_port_is_enumerated_with_512_byte_packets() {
         "{:#?}",
         log(&mut bus)
     );
+}
+
+#[test]
+fn a_root_port_reset_that_never_ends_fails_at_its_bound_and_no_call_blocks() {
+    let mut model = XhciModel::new();
+    model.port_reset_stuck = true;
+    let mut bus = bus(model);
+    // Each poll within its bound: settle checks it.
+    bus.start_enumeration();
+    settle(&mut bus);
+    assert!(
+        logged(&mut bus, "port 1: the reset did not end in 200 ms"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert!(
+        logged(&mut bus, "port reset failed"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert_eq!(bus.keyboards().count(), 0);
+    // Called by hand, the driver says the same at the same bound.
+    let xhci = bus.controller();
+    xhci.port_reset_begin(1);
+    let began = xhci.now_micros();
+    loop {
+        let before = xhci.now_micros();
+        let outcome = xhci.port_reset_poll(1);
+        let now = xhci.now_micros();
+        assert!(
+            now - before <= POLL_MICROS_BOUND,
+            "a poll took {} us",
+            now - before
+        );
+        if let Some(outcome) = outcome {
+            assert_eq!(outcome, ResetOutcome::Failed);
+            assert!(now - began >= ROOT_RESET_BOUND_MICROS);
+            assert!(now - began < ROOT_RESET_BOUND_MICROS + POLL_MICROS_BOUND);
+            break;
+        }
+        assert!(now - began < 2 * ROOT_RESET_BOUND_MICROS, "never given up");
+        xhci.hardware().now += 100;
+    }
+}
+
+#[test]
+fn a_usb_3_link_still_training_at_the_reset_gets_the_reset_s_50_ms() {
+    let mut model = XhciModel::new();
+    model.usb3 = true;
+    model.device_descriptor[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
+    model.device_descriptor[7] = 9;
+    // Connected when the device layer first looks (200 ms after the
+    // start), enabled 40 ms later.
+    model.usb3_link_micros = 240_000;
+    let mut bus = with_keyboards(model, 1);
+    assert!(
+        !logged(&mut bus, "port reset failed"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert_clean(&mut bus);
 }
 
 #[test]

@@ -173,8 +173,8 @@ impl HostController for Host {
         each!(self, |driver| driver.port_reset_begin(port))
     }
 
-    fn port_reset_end(&mut self, port: u8) -> ResetOutcome {
-        each!(self, |driver| driver.port_reset_end(port))
+    fn port_reset_poll(&mut self, port: u8) -> Option<ResetOutcome> {
+        each!(self, |driver| driver.port_reset_poll(port))
     }
 
     fn port_disable(&mut self, port: u8) {
@@ -183,6 +183,14 @@ impl HostController for Host {
 
     fn device_new(&mut self, info: DeviceInfo) -> Result<DeviceId, HostError> {
         each!(self, |driver| driver.device_new(info))
+    }
+
+    fn address_begin(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
+        each!(self, |driver| driver.address_begin(device, address))
+    }
+
+    fn address_poll(&mut self, device: DeviceId, address: u8) -> Transfer {
+        each!(self, |driver| driver.address_poll(device, address))
     }
 
     fn device_set_address(&mut self, device: DeviceId, address: u8) -> Result<(), HostError> {
