@@ -171,12 +171,6 @@ impl ContextLayout {
     pub fn slot_state(&self, memory: &mut impl Memory, device: u64) -> u32 {
         memory.mem_read(self.output_context(device, 0) + 12) >> 27
     }
-
-    /// Endpoint `dci`'s state (1 running, 2 halted, 3 stopped, 4 error) in
-    /// the output device context.
-    pub fn endpoint_state(&self, memory: &mut impl Memory, device: u64, dci: u8) -> u32 {
-        memory.mem_read(self.output_context(device, dci)) & 7
-    }
 }
 
 fn write_words(memory: &mut impl Memory, at: u64, words: &[u32]) {

@@ -45,12 +45,6 @@ pub mod trb_type {
 pub const CYCLE: u32 = 1 << 0;
 /// Link TRB: toggle the consumer's cycle state when following it.
 pub const TOGGLE_CYCLE: u32 = 1 << 1;
-/// Transfer TRB: interrupt (post an event) on a short packet.
-pub const INTERRUPT_ON_SHORT: u32 = 1 << 2;
-/// Transfer TRB: post an event when done.
-pub const INTERRUPT_ON_COMPLETION: u32 = 1 << 5;
-/// Setup TRB: the parameter holds the data itself.
-pub const IMMEDIATE_DATA: u32 = 1 << 6;
 
 /// One TRB's four words.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
