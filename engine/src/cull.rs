@@ -39,12 +39,14 @@ pub fn twice_signed_area(polygon: &[Point]) -> i128 {
 fn cross(origin: Point, a: Point, b: Point) -> i128 {
     let d = |p: Point| {
         (
-            i128::from(p.x) - i128::from(origin.x),
-            i128::from(p.y) - i128::from(origin.y),
+            i64::from(p.x) - i64::from(origin.x),
+            i64::from(p.y) - i64::from(origin.y),
         )
     };
     let ((ax, ay), (bx, by)) = (d(a), d(b));
-    ax * by - ay * bx
+    // Differences of i32s fit i64, and the product of two sign-extended
+    // i64s is one widening multiplication, not an i128 one.
+    i128::from(ax) * i128::from(by) - i128::from(ay) * i128::from(bx)
 }
 
 #[cfg(test)]

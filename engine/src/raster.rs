@@ -122,14 +122,21 @@ impl EdgeStep {
         let dx = i64::from(lower.x) - i64::from(upper.x);
         let dy = i64::from(lower.y) - i64::from(upper.y);
         let down = i64::from(first) - i64::from(upper.y);
-        // Once per edge, so in i128 whatever the size.
-        let n = i128::from(down) * i128::from(dx);
-        let d = i128::from(dy);
+        // Once per edge: in i64 when the product fits (every edge of a
+        // projected face, whose corners lie within a few million pixels),
+        // else in i128, a library call a division, whatever the size.
+        let (quotient, remainder) = match down.checked_mul(dx) {
+            Some(n) => (n.div_euclid(dy), n.rem_euclid(dy)),
+            None => {
+                let (n, d) = (i128::from(down) * i128::from(dx), i128::from(dy));
+                (n.div_euclid(d) as i64, n.rem_euclid(d) as i64)
+            }
+        };
         EdgeStep {
             next_row: first,
             end_row: end,
-            quotient: i64::from(upper.x) + n.div_euclid(d) as i64,
-            remainder: n.rem_euclid(d) as i64,
+            quotient: i64::from(upper.x) + quotient,
+            remainder,
             step_quotient: dx.div_euclid(dy),
             step_remainder: dx.rem_euclid(dy),
             dy,
