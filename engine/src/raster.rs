@@ -54,15 +54,19 @@ fn fill(points: &[Point], clip: ClipRect, span: &mut dyn FnMut(i32, i32, i32)) {
     // afresh on every row.
     let corners = points.len();
     let edge = |i: usize, from: i32, to: i32| {
-        EdgeStep::new(points[i], points[(i + 1) % corners], from, to)
+        // The corner after corner i, the last closing on the first: a
+        // compare, not a division by `corners`.
+        let next = if i + 1 == corners { 0 } else { i + 1 };
+        EdgeStep::new(points[i], points[next], from, to)
     };
-    let mut edges = [EdgeStep::default(); STEPPED_EDGES];
     let stepped = corners <= STEPPED_EDGES;
-    if stepped {
-        for (i, step) in edges.iter_mut().enumerate().take(corners) {
-            *step = edge(i, top, bottom);
+    let mut edges: [EdgeStep; STEPPED_EDGES] = core::array::from_fn(|i| {
+        if stepped && i < corners {
+            edge(i, top, bottom)
+        } else {
+            EdgeStep::default()
         }
-    }
+    });
     for y in top..bottom {
         let mut left = i64::MAX;
         let mut right = i64::MIN;
