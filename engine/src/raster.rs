@@ -92,6 +92,19 @@ fn fill(points: &[Point], clip: ClipRect, span: &mut dyn FnMut(i32, i32, i32)) {
     }
 }
 
+/// ⌊n/d⌋ and n mod d (0 ≤ remainder < d) for d > 0: one truncating
+/// division and a step down for a negative remainder, where `div_euclid`
+/// and `rem_euclid` divide twice and handle a negative divisor too.
+#[inline(always)]
+fn floor_div_rem(n: i64, d: i64) -> (i64, i64) {
+    let (quotient, remainder) = (n / d, n % d);
+    if remainder < 0 {
+        (quotient - 1, remainder + d)
+    } else {
+        (quotient, remainder)
+    }
+}
+
 /// Edges a polygon may have for its crossings to be stepped.
 const STEPPED_EDGES: usize = 8;
 
@@ -130,19 +143,20 @@ impl EdgeStep {
         // projected face, whose corners lie within a few million pixels),
         // else in i128, a library call a division, whatever the size.
         let (quotient, remainder) = match down.checked_mul(dx) {
-            Some(n) => (n.div_euclid(dy), n.rem_euclid(dy)),
+            Some(n) => floor_div_rem(n, dy),
             None => {
                 let (n, d) = (i128::from(down) * i128::from(dx), i128::from(dy));
                 (n.div_euclid(d) as i64, n.rem_euclid(d) as i64)
             }
         };
+        let (step_quotient, step_remainder) = floor_div_rem(dx, dy);
         EdgeStep {
             next_row: first,
             end_row: end,
             quotient: i64::from(upper.x) + quotient,
             remainder,
-            step_quotient: dx.div_euclid(dy),
-            step_remainder: dx.rem_euclid(dy),
+            step_quotient,
+            step_remainder,
             dy,
         }
     }
@@ -284,6 +298,19 @@ mod tests {
             },
         ] {
             assert!(spans_to_pixels(&square, clip).is_empty());
+        }
+    }
+
+    #[test]
+    fn floor_div_rem_is_euclids_for_a_positive_divisor() {
+        for n in (-40..=40).chain([i64::MIN + 1, i64::MAX, -(1 << 40) - 3, 1 << 40]) {
+            for d in [1, 2, 3, 7, 39, 1 << 33, i64::MAX] {
+                assert_eq!(
+                    floor_div_rem(n, d),
+                    (n.div_euclid(d), n.rem_euclid(d)),
+                    "{n} / {d}"
+                );
+            }
         }
     }
 
