@@ -8,8 +8,9 @@
 //!
 //! Any `i32` vertices are accepted (huge, negative, duplicated, collinear,
 //! either winding) without overflow or panic: each edge's first crossing is
-//! computed exactly in `i128`, and the next rows' are stepped from it by the
-//! quotient and remainder of its slope, with no division. Work is bounded by
+//! computed exactly from the quotient and remainder of its slope (in 64-bit
+//! integers, for any corners), and the next rows' are stepped from it by the
+//! same quotient and remainder, with no division. Work is bounded by
 //! the clip rectangle's rows, not the polygon's.
 
 use crate::math::Point;
@@ -59,14 +60,13 @@ fn fill(points: &[Point], clip: ClipRect, span: &mut dyn FnMut(i32, i32, i32)) {
         let next = if i + 1 == corners { 0 } else { i + 1 };
         EdgeStep::new(points[i], points[next], from, to)
     };
+    let mut edges = [EdgeStep::default(); STEPPED_EDGES];
     let stepped = corners <= STEPPED_EDGES;
-    let mut edges: [EdgeStep; STEPPED_EDGES] = core::array::from_fn(|i| {
-        if stepped && i < corners {
-            edge(i, top, bottom)
-        } else {
-            EdgeStep::default()
+    if stepped {
+        for (i, step) in edges.iter_mut().enumerate().take(corners) {
+            *step = edge(i, top, bottom);
         }
-    });
+    }
     for y in top..bottom {
         let mut left = i64::MAX;
         let mut right = i64::MIN;
@@ -139,22 +139,18 @@ impl EdgeStep {
         let dx = i64::from(lower.x) - i64::from(upper.x);
         let dy = i64::from(lower.y) - i64::from(upper.y);
         let down = i64::from(first) - i64::from(upper.y);
-        // Once per edge: in i64 when the product fits (every edge of a
-        // projected face, whose corners lie within a few million pixels),
-        // else in i128, a library call a division, whatever the size.
-        let (quotient, remainder) = match down.checked_mul(dx) {
-            Some(n) => floor_div_rem(n, dy),
-            None => {
-                let (n, d) = (i128::from(down) * i128::from(dx), i128::from(dy));
-                (n.div_euclid(d) as i64, n.rem_euclid(d) as i64)
-            }
-        };
+        // ⌊n/dy⌋ with n = down·dx, from dx = q·dy + r (the per-row step):
+        // n = down·q·dy + down·r, so ⌊n/dy⌋ = down·q + ⌊down·r/dy⌋ and
+        // n mod dy = down·r mod dy. As down < dy, |down·q| < |dx| + dy <
+        // 2^33, and 0 ≤ down·r < dy² < 2^64 fits a u64: exact for any
+        // corners, with one more division and no i128.
         let (step_quotient, step_remainder) = floor_div_rem(dx, dy);
+        let (dy_unsigned, below) = (dy as u64, down as u64 * step_remainder as u64);
         EdgeStep {
             next_row: first,
             end_row: end,
-            quotient: i64::from(upper.x) + quotient,
-            remainder,
+            quotient: i64::from(upper.x) + down * step_quotient + (below / dy_unsigned) as i64,
+            remainder: (below % dy_unsigned) as i64,
             step_quotient,
             step_remainder,
             dy,
