@@ -144,7 +144,7 @@ fn main() {
         drawers.run(workload, frames);
         return;
     }
-    println!("CPU time per frame of Renderer::draw on this host, no bus ({RUNS} runs of {FRAMES} frames, the grid's of {GRID_FRAMES}):");
+    println!("CPU time per frame of Renderer::draw (the grid: Grid::render) on this host, no bus ({RUNS} runs of {FRAMES} frames, the grid's of {GRID_FRAMES}):");
     println!("{:<20} {:>12} {:>12}", "scene", "fastest µs", "median µs");
     let mut summary = Vec::new();
     for (name, key, workload) in scenes {
