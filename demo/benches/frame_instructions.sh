@@ -19,7 +19,7 @@ instructions() {
         --cachegrind-out-file=/dev/null "$bench" 2>&1 |
         sed -n 's/.*I *refs: *\([0-9,]*\).*/\1/p' | tr -d ,
 }
-[ $# -gt 0 ] || set -- cube three letter_l crowd
+[ $# -gt 0 ] || set -- cube three letter_l crowd grid
 for scene in "$@"; do
     idle=$(instructions "$scene" 0)
     busy=$(instructions "$scene" "$FRAMES")

@@ -49,6 +49,9 @@ const TURNS_PER_REORTHONORMALIZATION: u32 = 64;
 pub struct Grid<const N: usize> {
     /// The first `count` hold solids.
     objects: [Place; N],
+    /// The rows each solid's vertices span this frame, top to bottom
+    /// inclusive, found in the frame's first band and used by the others.
+    rows: [(i32, i32); N],
     count: usize,
     turns: u32,
 }
@@ -64,6 +67,7 @@ impl<const N: usize> Grid<N> {
     pub const fn new() -> Self {
         Grid {
             objects: [const { Place::Empty }; N],
+            rows: [(0, 0); N],
             count: 0,
             turns: 0,
         }
@@ -135,10 +139,13 @@ impl<const N: usize> Grid<N> {
         band: &mut DepthBand,
     ) -> FaceCounts {
         let objects = &mut self.objects[..self.count];
+        let object_rows = &mut self.rows[..self.count];
         render_faces_with_depth(image, drawn, band, |clip, draw| {
-            each_visible_face_in_rows(solids(objects), clip.y0..clip.y1, |visible| {
-                draw(visible, visible.face.colour)
-            })
+            each_visible_face_in_rows(
+                solids(objects).zip(object_rows.iter_mut()),
+                clip.y0..clip.y1,
+                |visible| draw(visible, visible.face.colour),
+            )
         })
     }
 }
@@ -146,23 +153,26 @@ impl<const N: usize> Grid<N> {
 /// Every face of `objects` that survives backface removal, object by object,
 /// leaving out (while still counting) the faces whose corners all lie above
 /// or all below `rows`: a band's faces, without paying for the depth plane of
-/// a face that misses the band.
+/// a face that misses the band. Each object comes with the rows its vertices
+/// span, found in the first band (`rows` from 0) and read in the others.
 fn each_visible_face_in_rows<'a>(
-    objects: impl IntoIterator<Item = &'a mut Object>,
+    objects: impl IntoIterator<Item = (&'a mut Object, &'a mut (i32, i32))>,
     rows: Range<i32>,
     mut draw: impl FnMut(&VisibleFace),
 ) -> FaceCounts {
     let mut counts = FaceCounts::default();
-    for object in objects {
+    for (object, object_rows) in objects {
         // The frame's counts are the first band's (`render_faces_with_depth`),
         // so there every object is culled and counted; in the others one
         // whose corners all lie above or below the band is passed over
         // without culling its faces again.
-        if rows.start > 0 {
+        if rows.start == 0 {
             let corners = object.screen_vertices().iter().map(|p| p.y);
-            let (top, bottom) = corners.fold((i32::MAX, i32::MIN), |(top, bottom), y| {
+            *object_rows = corners.fold((i32::MAX, i32::MIN), |(top, bottom), y| {
                 (top.min(y), bottom.max(y))
             });
+        } else {
+            let (top, bottom) = *object_rows;
             if top >= rows.end || bottom <= rows.start {
                 continue;
             }
@@ -268,6 +278,40 @@ mod tests {
                 // Wide or tall enough to reach near one pair of edges.
                 let (wide, tall) = (x1 - x0, y1 - y0);
                 assert!(wide > 250 || tall > 180, "{count}: {wide}x{tall}");
+            }
+        }
+    }
+
+    /// Passing over, in each band after the first, the solids whose rows
+    /// found in the first miss it draws the picture of every solid's every
+    /// face in every band.
+    #[test]
+    fn the_rows_found_in_the_first_band_lose_no_face() {
+        let mut grid: Box<Grid<300>> = Box::default();
+        let mut image = Box::new([0u8; PAGE_PIXELS]);
+        let mut every_face = Box::new([0u8; PAGE_PIXELS]);
+        let mut band = Box::new(DepthBand::new());
+        for count in [7, 59, 300] {
+            grid.reset(count);
+            for _ in 0..4 {
+                grid.tick();
+                let counts = grid.render(&mut image, &mut PageSpans::all(), &mut band);
+                let objects = &mut grid.objects[..count];
+                let expected = render_faces_with_depth(
+                    &mut every_face,
+                    &mut PageSpans::all(),
+                    &mut band,
+                    |_, draw| {
+                        let mut counts = FaceCounts::default();
+                        for object in solids(objects) {
+                            counts += object
+                                .each_visible_face(|visible| draw(visible, visible.face.colour));
+                        }
+                        counts
+                    },
+                );
+                assert_eq!(counts, expected);
+                assert!(image == every_face, "{count} solids");
             }
         }
     }

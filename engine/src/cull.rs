@@ -26,25 +26,34 @@ pub fn is_front_facing(polygon: &[Point]) -> bool {
 /// Twice the area, positive for clockwise on a y-down screen (the shoelace sum
 /// with the sign chosen to agree with the cross-product test).
 pub fn twice_signed_area(polygon: &[Point]) -> i128 {
-    let n = polygon.len();
-    (0..n)
-        .map(|i| {
-            let (a, b) = (polygon[i], polygon[(i + 1) % n]);
-            i128::from(a.x) * i128::from(b.y) - i128::from(b.x) * i128::from(a.y)
-        })
-        .sum::<i128>()
+    // Each edge a → b, starting with the closing one (exact integers: the
+    // order does not matter). A product of two i32s lies within ±2^62, so
+    // the difference of two within ±(2^63 − 2^31): i64; only the sum needs
+    // i128.
+    let Some(&last) = polygon.last() else {
+        return 0;
+    };
+    let mut a = last;
+    let mut sum = 0i128;
+    for &b in polygon {
+        sum += i128::from(i64::from(a.x) * i64::from(b.y) - i64::from(b.x) * i64::from(a.y));
+        a = b;
+    }
+    sum
 }
 
 /// z of (a − origin) × (b − origin), exact for any i32 coordinates.
 fn cross(origin: Point, a: Point, b: Point) -> i128 {
     let d = |p: Point| {
         (
-            i128::from(p.x) - i128::from(origin.x),
-            i128::from(p.y) - i128::from(origin.y),
+            i64::from(p.x) - i64::from(origin.x),
+            i64::from(p.y) - i64::from(origin.y),
         )
     };
     let ((ax, ay), (bx, by)) = (d(a), d(b));
-    ax * by - ay * bx
+    // Differences of i32s fit i64, and the product of two sign-extended
+    // i64s is one widening multiplication, not an i128 one.
+    i128::from(ax) * i128::from(by) - i128::from(ay) * i128::from(bx)
 }
 
 #[cfg(test)]

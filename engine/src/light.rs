@@ -8,7 +8,7 @@ use crate::math::Vec3;
 /// from outside, as every face here does. Newell's method sums over all
 /// edges, so a degenerate first edge or a slightly non-planar face still gives
 /// the right direction; a face with no area gives the zero vector.
-pub fn outward_normal(corners: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
+pub fn outward_normal(corners: impl Iterator<Item = Vec3>) -> Vec3 {
     let newell = newell_normal(corners);
     // Newell's normal follows the right-hand rule: it points towards the side
     // from which the corners run counter-clockwise, i.e. inward here.
@@ -22,14 +22,24 @@ pub fn outward_normal(corners: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
 
 /// Newell's normal, not scaled to unit length (no square root: the depth
 /// test needs only the plane, and the kernel computes without an FPU).
-pub fn newell_normal(corners: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
-    let next = corners.clone().cycle().skip(1);
+pub fn newell_normal(mut corners: impl Iterator<Item = Vec3>) -> Vec3 {
     let mut newell = Vec3::default();
-    for (a, b) in corners.zip(next) {
+    let Some(first) = corners.next() else {
+        return newell;
+    };
+    // Each edge a → b in turn, the closing one last: one pass over the
+    // corners rather than a second, cycled, iterator beside the first.
+    let mut add_edge = |a: Vec3, b: Vec3| {
         newell.x += (a.y - b.y) * (a.z + b.z);
         newell.y += (a.z - b.z) * (a.x + b.x);
         newell.z += (a.x - b.x) * (a.y + b.y);
+    };
+    let mut a = first;
+    for b in corners {
+        add_edge(a, b);
+        a = b;
     }
+    add_edge(a, first);
     newell
 }
 
@@ -155,6 +165,36 @@ mod tests {
         ));
         let line = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(1.0, 1.0, 1.0)];
         assert_eq!(outward_normal(line.iter().copied()), Vec3::default());
+    }
+
+    /// The depth test's planes, and so the pictures, rest on these bits:
+    /// the edges summed in order, c0→c1 … the closing edge last.
+    #[test]
+    fn newells_normal_sums_the_edges_in_order_to_the_bit() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % 20_000) as f64 / 7.0 - 1_400.0
+        };
+        for corners in 0..=8 {
+            for _ in 0..50 {
+                let points: std::vec::Vec<Vec3> = (0..corners)
+                    .map(|_| Vec3::new(next(), next(), next()))
+                    .collect();
+                let mut expected = Vec3::default();
+                for i in 0..corners {
+                    let (a, b) = (points[i], points[(i + 1) % corners]);
+                    expected.x += (a.y - b.y) * (a.z + b.z);
+                    expected.y += (a.z - b.z) * (a.x + b.x);
+                    expected.z += (a.x - b.x) * (a.y + b.y);
+                }
+                let newell = newell_normal(points.iter().copied());
+                let bits = |v: Vec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits()];
+                assert_eq!(bits(newell), bits(expected), "{points:?}");
+            }
+        }
     }
 
     #[test]

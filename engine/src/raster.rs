@@ -8,8 +8,9 @@
 //!
 //! Any `i32` vertices are accepted (huge, negative, duplicated, collinear,
 //! either winding) without overflow or panic: each edge's first crossing is
-//! computed exactly in `i128`, and the next rows' are stepped from it by the
-//! quotient and remainder of its slope, with no division. Work is bounded by
+//! computed exactly from the quotient and remainder of its slope (in 64-bit
+//! integers, for any corners), and the next rows' are stepped from it by the
+//! same quotient and remainder, with no division. Work is bounded by
 //! the clip rectangle's rows, not the polygon's.
 
 use crate::math::Point;
@@ -54,7 +55,10 @@ fn fill(points: &[Point], clip: ClipRect, span: &mut dyn FnMut(i32, i32, i32)) {
     // afresh on every row.
     let corners = points.len();
     let edge = |i: usize, from: i32, to: i32| {
-        EdgeStep::new(points[i], points[(i + 1) % corners], from, to)
+        // The corner after corner i, the last closing on the first: a
+        // compare, not a division by `corners`.
+        let next = if i + 1 == corners { 0 } else { i + 1 };
+        EdgeStep::new(points[i], points[next], from, to)
     };
     let mut edges = [EdgeStep::default(); STEPPED_EDGES];
     let stepped = corners <= STEPPED_EDGES;
@@ -85,6 +89,19 @@ fn fill(points: &[Point], clip: ClipRect, span: &mut dyn FnMut(i32, i32, i32)) {
             // Both lie within the clip rectangle's i32 range.
             span(y, x_start as i32, x_end as i32);
         }
+    }
+}
+
+/// ⌊n/d⌋ and n mod d (0 ≤ remainder < d) for d > 0: one truncating
+/// division and a step down for a negative remainder, where `div_euclid`
+/// and `rem_euclid` divide twice and handle a negative divisor too.
+#[inline(always)]
+fn floor_div_rem(n: i64, d: i64) -> (i64, i64) {
+    let (quotient, remainder) = (n / d, n % d);
+    if remainder < 0 {
+        (quotient - 1, remainder + d)
+    } else {
+        (quotient, remainder)
     }
 }
 
@@ -122,16 +139,20 @@ impl EdgeStep {
         let dx = i64::from(lower.x) - i64::from(upper.x);
         let dy = i64::from(lower.y) - i64::from(upper.y);
         let down = i64::from(first) - i64::from(upper.y);
-        // Once per edge, so in i128 whatever the size.
-        let n = i128::from(down) * i128::from(dx);
-        let d = i128::from(dy);
+        // ⌊n/dy⌋ with n = down·dx, from dx = q·dy + r (the per-row step):
+        // n = down·q·dy + down·r, so ⌊n/dy⌋ = down·q + ⌊down·r/dy⌋ and
+        // n mod dy = down·r mod dy. As down < dy, |down·q| < |dx| + dy <
+        // 2^33, and 0 ≤ down·r < dy² < 2^64 fits a u64: exact for any
+        // corners, with one more division and no i128.
+        let (step_quotient, step_remainder) = floor_div_rem(dx, dy);
+        let (dy_unsigned, below) = (dy as u64, down as u64 * step_remainder as u64);
         EdgeStep {
             next_row: first,
             end_row: end,
-            quotient: i64::from(upper.x) + n.div_euclid(d) as i64,
-            remainder: n.rem_euclid(d) as i64,
-            step_quotient: dx.div_euclid(dy),
-            step_remainder: dx.rem_euclid(dy),
+            quotient: i64::from(upper.x) + down * step_quotient + (below / dy_unsigned) as i64,
+            remainder: (below % dy_unsigned) as i64,
+            step_quotient,
+            step_remainder,
             dy,
         }
     }
@@ -273,6 +294,19 @@ mod tests {
             },
         ] {
             assert!(spans_to_pixels(&square, clip).is_empty());
+        }
+    }
+
+    #[test]
+    fn floor_div_rem_is_euclids_for_a_positive_divisor() {
+        for n in (-40..=40).chain([i64::MIN + 1, i64::MAX, -(1 << 40) - 3, 1 << 40]) {
+            for d in [1, 2, 3, 7, 39, 1 << 33, i64::MAX] {
+                assert_eq!(
+                    floor_div_rem(n, d),
+                    (n.div_euclid(d), n.rem_euclid(d)),
+                    "{n} / {d}"
+                );
+            }
         }
     }
 
