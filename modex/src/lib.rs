@@ -43,6 +43,8 @@
 #![deny(missing_docs)]
 #![warn(missing_debug_implementations)]
 
+#[cfg(any(test, feature = "test-support"))]
+extern crate alloc;
 #[cfg(test)]
 extern crate std;
 
@@ -58,6 +60,8 @@ pub mod mode;
 mod page;
 pub mod palette;
 pub mod present;
+#[cfg(any(test, feature = "test-support"))]
+pub mod record;
 pub mod regs;
 pub mod soft;
 mod spans;

@@ -413,7 +413,7 @@ fn solid_run(old_line: &[u8], new_line: &[u8], start: usize, end: usize) -> usiz
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::regs::Port;
+    use crate::record::Recorder;
     use crate::soft::SoftVga;
     use std::boxed::Box;
     use std::vec;
@@ -509,31 +509,6 @@ mod tests {
         let after = vga.bus().counts();
         assert!(after.port_writes - before.port_writes <= 2);
         assert_eq!(indices(vga.bus()), target.to_vec());
-    }
-
-    /// Every bus operation, in order.
-    #[derive(Default)]
-    struct Recorder(std::vec::Vec<(char, u16, u16)>);
-
-    impl VgaBus for Recorder {
-        fn write_port8(&mut self, port: Port, value: u8) {
-            self.0.push(('o', port.number(), u16::from(value)));
-        }
-        fn write_port16(&mut self, port: Port, value: u16) {
-            self.0.push(('w', port.number(), value));
-        }
-        fn read_port8(&mut self, _port: Port) -> u8 {
-            0
-        }
-        fn write_vram8(&mut self, offset: u16, value: u8) {
-            self.0.push(('m', offset, u16::from(value)));
-        }
-        fn read_vram8(&mut self, _offset: u16) -> u8 {
-            0
-        }
-        fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
-            self.0.push(('f', offset, count << 8 | u16::from(value)));
-        }
     }
 
     /// The list of writes, bounded by the changed bytes, makes exactly the
