@@ -77,7 +77,7 @@ pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
 pub use palette::Rgb6;
 pub use spans::{LineSpans, PageSpans};
 pub use text::{TEXT_COLUMNS, TEXT_ROWS};
-pub use update::{PageImage, PAGE_PIXELS};
+pub use update::{PageImage, PageWrites, PAGE_PIXELS};
 
 /// Visible width of a Mode X page, in pixels.
 pub const SCREEN_WIDTH: i32 = 320;

@@ -47,10 +47,24 @@ impl<B: VgaBus> ModeX<B> {
         target: &PageImage,
         spans: &PageSpans,
     ) -> u32 {
+        self.update_page_with(page, shadow, target, spans, &mut PageWrites::new())
+    }
+
+    /// [`ModeX::update_page`] with the room for the frame's writes kept by
+    /// the caller: a renderer that keeps one saves clearing 128 KiB every
+    /// frame (what `update_page` costs the cube's frame most after the
+    /// comparison itself).
+    pub fn update_page_with(
+        &mut self,
+        page: Page,
+        shadow: &mut PageImage,
+        target: &PageImage,
+        spans: &PageSpans,
+        writes: &mut PageWrites,
+    ) -> u32 {
         self.issued_by("ModeX::update_page", |vga| {
-            let mut writes = Writes::new();
             let written = if writes.collect(spans, shadow, target) {
-                vga.write_by_mask(page, &writes)
+                vga.write_by_mask(page, writes)
             } else {
                 // More writes than the list holds (a whole new picture): the
                 // same writes in the same order, found again for each mask.
@@ -96,7 +110,7 @@ impl<B: VgaBus> ModeX<B> {
 
     /// Makes the collected writes mask by mask, each mask's in the order
     /// they were found, following the list's links.
-    fn write_by_mask(&mut self, page: Page, writes: &Writes) -> u32 {
+    fn write_by_mask(&mut self, page: Page, writes: &PageWrites) -> u32 {
         let mut written = 0;
         for mask in self.mask_order(writes.masks) {
             self.io.set_map_mask(mask);
@@ -178,13 +192,15 @@ const WRITE_LIST_CAPACITY: usize = 16_384;
 const NO_WRITE: u16 = u16::MAX;
 const _: () = assert!(WRITE_LIST_CAPACITY < NO_WRITE as usize);
 
-/// A frame's writes in the order they are found (line by line, address by
-/// address), each mask's chained in that order, and the set of masks among
-/// them: making them mask by mask is then one step per write, not one pass
-/// over the whole list per mask.
-struct Writes {
+/// Room for a frame's writes in the order they are found (line by line,
+/// address by address), each mask's chained in that order, and the set of
+/// masks among them: making them mask by mask is then one step per write,
+/// not one pass over the whole list per mask. All zero when new, so a
+/// renderer in static memory keeps one in `.bss`; each update starts it
+/// afresh by resetting the chains' ends, not the 128 KiB.
+pub struct PageWrites {
     list: [Write; WRITE_LIST_CAPACITY],
-    /// For each write, the next with the same mask, or `NO_WRITE`.
+    /// For each write but its mask's last, the next with the same mask.
     next_with_mask: [u16; WRITE_LIST_CAPACITY],
     /// Each mask's first and last write, or `NO_WRITE`.
     first_with_mask: [u16; 16],
@@ -193,13 +209,34 @@ struct Writes {
     masks: u16,
 }
 
-impl Writes {
-    fn new() -> Self {
-        Writes {
-            list: [Write::default(); WRITE_LIST_CAPACITY],
-            next_with_mask: [NO_WRITE; WRITE_LIST_CAPACITY],
-            first_with_mask: [NO_WRITE; 16],
-            last_with_mask: [NO_WRITE; 16],
+/// Not the 16,384 writes.
+impl core::fmt::Debug for PageWrites {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("PageWrites")
+            .field("len", &self.len)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Default for PageWrites {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl PageWrites {
+    /// Empty room, all zero.
+    pub const fn new() -> Self {
+        PageWrites {
+            list: [Write {
+                address: 0,
+                count: 0,
+                colour: 0,
+                mask: PlaneMask::NONE,
+            }; WRITE_LIST_CAPACITY],
+            next_with_mask: [0; WRITE_LIST_CAPACITY],
+            first_with_mask: [0; 16],
+            last_with_mask: [0; 16],
             len: 0,
             masks: 0,
         }
@@ -208,6 +245,9 @@ impl Writes {
     /// Collects every write the marked addresses need; false if there are
     /// more than the list holds (what was collected is then of no use).
     fn collect(&mut self, spans: &PageSpans, shadow: &PageImage, target: &PageImage) -> bool {
+        self.first_with_mask = [NO_WRITE; 16];
+        self.last_with_mask = [NO_WRITE; 16];
+        (self.len, self.masks) = (0, 0);
         let mut line = LineWrites::new();
         for y in 0..SCREEN_HEIGHT as usize {
             let line_base = y as u16 * BYTES_PER_LINE;
@@ -243,10 +283,15 @@ impl Writes {
 
     /// The writes with `mask`, in the order they were found.
     fn with_mask(&self, mask: PlaneMask) -> impl Iterator<Item = &Write> {
-        let mut next = self.first_with_mask[usize::from(mask.bits())];
+        let mask = usize::from(mask.bits());
+        let (mut next, last) = (self.first_with_mask[mask], self.last_with_mask[mask]);
         core::iter::from_fn(move || {
             let write = self.list.get(usize::from(next))?;
-            next = self.next_with_mask[usize::from(next)];
+            next = if next == last {
+                NO_WRITE
+            } else {
+                self.next_with_mask[usize::from(next)]
+            };
             Some(write)
         })
     }
@@ -529,7 +574,7 @@ mod tests {
                 target[at..at + len].fill(9 + (seed % 7) as u8);
             }
             let changed = PageSpans::all();
-            let mut writes = Box::new(Writes::new());
+            let mut writes = Box::new(PageWrites::new());
             assert!(
                 writes.collect(&changed, &shadow, &target),
                 "a small change fits"
@@ -557,7 +602,7 @@ mod tests {
         let target: Box<PageImage> =
             Box::new(core::array::from_fn(|i| if i % 4 < 2 { 9 } else { 10 }));
         let changed = PageSpans::all();
-        assert!(!Writes::new().collect(&changed, &shadow, &target));
+        assert!(!PageWrites::new().collect(&changed, &shadow, &target));
         assert_eq!(
             vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
             38_400
@@ -593,6 +638,7 @@ mod tests {
             (state >> 16) as usize % below
         };
         let (mut compared, mut overflowed) = (0, 0);
+        let mut writes = Box::new(PageWrites::new());
         for round in 0..400 {
             drawn.fill(&mut frame[..], BACKGROUND);
             drawn.clear();
@@ -636,7 +682,10 @@ mod tests {
             let which = if page == 0 { Page::Zero } else { Page::One };
             by_spans.bus_mut().0.clear();
             by_pixels.bus_mut().0.clear();
-            let written = by_spans.update_page(which, &mut shadows[page], &frame, &compare);
+            // One room for the writes, kept from frame to frame as the
+            // renderer keeps it, through frames too large for it.
+            let written =
+                by_spans.update_page_with(which, &mut shadows[page], &frame, &compare, &mut writes);
             let expected =
                 by_pixels.update_page(which, &mut full_shadows[page], &frame, &PageSpans::all());
             assert_eq!(by_spans.bus().0, by_pixels.bus().0, "round {round}");
