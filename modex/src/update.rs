@@ -186,7 +186,7 @@ struct Write {
 /// Writes a frame's update can collect before it falls back to finding them
 /// again mask by mask: far more than a spinning scene needs (the crowd of 59
 /// solids averages 3,600; a screen-filling grid of 256 turning solids about
-/// 5,000), 128 KiB of stack with the links.
+/// 5,000), 128 KiB with the links, in a [`PageWrites`].
 const WRITE_LIST_CAPACITY: usize = 16_384;
 /// The end of a mask's chain of writes.
 const NO_WRITE: u16 = u16::MAX;
