@@ -404,10 +404,10 @@ fn quad(line: &[u8], address: usize) -> u32 {
 
 /// The first address of `quads` whose pixels differ between the lines, or
 /// `quads.end` if none does. Four addresses (sixteen pixels) are compared
-/// at a time, one 128-bit compare (two 64-bit ones without SSE2), and a
-/// differing four is searched a 64-bit half at a time; the range's last
-/// one to three addresses, which a 16-byte load would reach past, are
-/// compared a quad at a time.
+/// at a time, one 128-bit compare (which the compiler may make of two
+/// 64-bit ones), and the lowest differing byte of a differing four names
+/// its address; the range's last one to three addresses, which a 16-byte
+/// load would reach past, are compared a quad at a time.
 fn first_change(old_line: &[u8], new_line: &[u8], quads: Range<usize>) -> usize {
     let pixels = 4 * quads.start..4 * quads.end;
     let (Some(old), Some(new)) = (old_line.get(pixels.clone()), new_line.get(pixels)) else {
