@@ -20,7 +20,7 @@
 use crate::depth;
 use crate::scene::{Scene, SceneFaces};
 use engine::{DepthBand, FaceCounts};
-use modex::{ModeX, Page, PageImage, PageSpans, VgaBus, PAGE_PIXELS};
+use modex::{ModeX, Page, PageImage, PageSpans, PageWrites, VgaBus, PAGE_PIXELS};
 
 pub use crate::depth::render_faces_with_depth;
 pub use crate::screen::{BACKGROUND, SCREEN_CLIP};
@@ -78,6 +78,8 @@ pub struct Renderer {
     depth: DepthBand,
     /// The scene's faces this frame.
     faces: SceneFaces,
+    /// Room for a page update's writes, kept so it is not cleared each frame.
+    writes: PageWrites,
     /// Compare every pixel, not the spans (a check on the spans for tests).
     compare_every_pixel: bool,
 }
@@ -110,6 +112,7 @@ impl Renderer {
             drawn: PageSpans::none(),
             depth: DepthBand::new(),
             faces: SceneFaces::new(),
+            writes: PageWrites::new(),
             compare_every_pixel: false,
         }
     }
@@ -174,7 +177,13 @@ impl Renderer {
         } else {
             held.add(&self.drawn);
         }
-        vga.update_page(page, &mut self.shadows[index], &self.next, held);
+        vga.update_page_with(
+            page,
+            &mut self.shadows[index],
+            &self.next,
+            held,
+            &mut self.writes,
+        );
         held.clone_from(&self.drawn);
         self.shown = page;
         (page, faces)

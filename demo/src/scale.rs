@@ -1,8 +1,13 @@
 //! Where a frame stops fitting a refresh: the search the kernel's `bench`
 //! runs over a scene that grows (`demo::grid`), measuring as few sizes as
-//! it can. Sizes double from a start until one misses the budget, then the
-//! gap between the last fit and the first miss is halved until it is within
-//! a 32nd of the fit (or one).
+//! it can, and as few large ones: a large size costs the bench the most
+//! time. Sizes double from a start, but once two have been measured the
+//! next is no larger than where the line through the last two meets the
+//! budget, a 32nd beyond it, so the first miss lands just past the answer
+//! rather than up to twice it. The gap between the last fit and the first
+//! miss is then closed the same way, the line's guess kept a 32nd of the
+//! fit inside the gap (so that a good guess leaves a small gap on one side
+//! or the other), until the gap is within a 32nd of the fit (or one).
 //!
 //! The search assumes that cost grows with size; a measurement that breaks
 //! that (host noise under emulation) can only move the answer within the
@@ -29,7 +34,8 @@ pub struct Largest {
 
 /// Finds the largest size in `start..=limit` whose cost is within `budget`,
 /// calling `measure` for each size it tries. At most about 2·log2(limit)
-/// measurements.
+/// measurements, and for a cost that grows about linearly, two or three
+/// after the first miss.
 pub fn largest_that_fits(
     start: usize,
     limit: usize,
@@ -42,7 +48,8 @@ pub fn largest_that_fits(
     };
     let mut found = Largest::default();
     let mut count = start.clamp(1, limit.max(1));
-    // Doubling until a miss or the limit.
+    let mut before: Option<Trial> = None;
+    // Growing until a miss or the limit.
     loop {
         let result = trial(count);
         if result.micros > budget {
@@ -53,15 +60,26 @@ pub fn largest_that_fits(
         if count >= limit {
             return found;
         }
-        count = (count * 2).min(limit);
+        let doubled = (count * 2).min(limit);
+        count = match before.and_then(|before| crossing(before, result, budget)) {
+            Some(guess) => (guess + guess / 32).clamp(count + 1, doubled),
+            None => doubled,
+        };
+        before = Some(result);
     }
-    // Halving the gap between the last fit and the first miss.
+    // Closing the gap between the last fit and the first miss.
     while let (Some(fit), Some(miss)) = (found.fits, found.misses) {
         let gap = miss.count - fit.count;
-        if gap <= (fit.count / 32).max(1) {
+        let tolerance = (fit.count / 32).max(1);
+        if gap <= tolerance {
             break;
         }
-        let result = trial(fit.count + gap / 2);
+        let (low, high) = (fit.count + tolerance, miss.count - tolerance);
+        let next = match crossing(fit, miss, budget) {
+            Some(guess) if low <= high => guess.clamp(low, high),
+            _ => fit.count + gap / 2,
+        };
+        let result = trial(next);
         if result.micros > budget {
             found.misses = Some(result);
         } else {
@@ -69,6 +87,20 @@ pub fn largest_that_fits(
         }
     }
     found
+}
+
+/// Where the line through two trials reaches `budget`: the size whose cost
+/// it predicts to be the budget (rounded down), if the cost grew between
+/// them.
+fn crossing(a: Trial, b: Trial, budget: u64) -> Option<usize> {
+    let (a, b) = if a.count <= b.count { (a, b) } else { (b, a) };
+    let (sizes, costs) = (b.count - a.count, b.micros.checked_sub(a.micros)?);
+    if sizes == 0 || costs == 0 {
+        return None;
+    }
+    // Sizes and costs are far below 2^32, so the products fit.
+    let beyond_a = (budget as i128 - a.micros as i128) * sizes as i128 / costs as i128;
+    usize::try_from(a.count as i128 + beyond_a).ok()
 }
 
 #[cfg(test)]
@@ -95,6 +127,25 @@ mod tests {
         assert!(332 - fit.count <= 332 / 32);
         assert_eq!(&tried[..5], &[16, 32, 64, 128, 256]);
         assert!(tried.len() <= 2 * 10, "{tried:?}");
+    }
+
+    /// A large size costs the bench the most: the first miss lands a little
+    /// past the answer, not at twice the last fit, and the gap closes in
+    /// two trials.
+    #[test]
+    fn the_first_miss_lands_near_the_answer_not_at_twice_it() {
+        let mut tried = Vec::new();
+        // 100 + 14 n <= 16_747: n <= 1189.
+        let mut cost = linear(14);
+        let found = largest_that_fits(16, 2048, 16_747, |count| {
+            tried.push(count);
+            cost(count)
+        });
+        let (fit, miss) = (found.fits.unwrap(), found.misses.unwrap());
+        assert!(fit.count <= 1189 && miss.count > 1189, "{found:?}");
+        assert!(miss.count - fit.count <= fit.count / 32, "{found:?}");
+        assert!(tried.iter().all(|&n| n <= 1189 + 1189 / 16), "{tried:?}");
+        assert_eq!(tried.len(), 9, "{tried:?}");
     }
 
     #[test]

@@ -9,35 +9,8 @@ use demo::app::App;
 use demo::command::Command;
 use demo::frame::Renderer;
 use demo::scene::{Axis, LightTurn, SceneCommand, Sense};
-use modex::regs::Port;
-use modex::{ModeX, VgaBus};
-
-/// Every bus operation, in order.
-#[derive(Default)]
-struct Recorder(Vec<(char, u16, u16)>);
-
-impl VgaBus for Recorder {
-    fn write_port8(&mut self, port: Port, value: u8) {
-        self.0.push(('o', port.number(), u16::from(value)));
-    }
-    fn write_port16(&mut self, port: Port, value: u16) {
-        self.0.push(('w', port.number(), value));
-    }
-    fn read_port8(&mut self, _port: Port) -> u8 {
-        // Retrace always reported, so a flip's wait ends at once.
-        0x09
-    }
-    fn write_vram8(&mut self, offset: u16, value: u8) {
-        self.0.push(('m', offset, u16::from(value)));
-    }
-    fn read_vram8(&mut self, _offset: u16) -> u8 {
-        0
-    }
-    fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
-        self.0.push(('f', offset, count));
-        self.0.push(('v', offset, u16::from(value)));
-    }
-}
+use modex::record::Recorder;
+use modex::ModeX;
 
 const COMMANDS: [Command; 20] = [
     Command::Scene(SceneCommand::MoveLeft),

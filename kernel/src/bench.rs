@@ -16,17 +16,19 @@ use demo::grid::Grid;
 use demo::scene::{Scene, SceneCommand, SceneFaces};
 use engine::DepthBand;
 use modex::regs::Port;
-use modex::{ModeX, Page, PageImage, PageSpans, VgaBus, PAGE_PIXELS};
+use modex::{ModeX, Page, PageImage, PageSpans, PageWrites, VgaBus, PAGE_PIXELS};
 use spin::Mutex;
 
 const FRAMES: u64 = 120;
 /// Frames drawn for each size of the grid.
 const GRID_FRAMES: u64 = 30;
-/// The grid's sizes: from 16 solids up to this many.
+/// The grid's sizes: from 16 solids up to this many, well past the 1,400
+/// that issue 47 asks to fit a refresh (the search's guesses keep it from
+/// timing sizes far beyond the answer).
 const GRID_START: usize = 16;
-const GRID_LIMIT: usize = 1024;
+const GRID_LIMIT: usize = 2048;
 
-/// The grid's solids (about 1.1 KiB each: 1.1 MiB, so a static; empty, it
+/// The grid's solids (about 1.1 KiB each: 2.2 MiB, so a static; empty, it
 /// is all zero, so in .bss and not in the kernel file).
 static GRID: Mutex<Grid<GRID_LIMIT>> = Mutex::new(Grid::new());
 
@@ -257,15 +259,16 @@ struct Phases {
 }
 
 /// The frame, the two pages' shadows, a copy of a shadow for the dry run,
-/// the spans drawn into the frame and held by each page (as `Renderer`
-/// keeps them), the depth band and the scene's faces: ~440 KiB, kept off
-/// the stack.
+/// the spans drawn into the frame and held by each page and the room for a
+/// page update's writes (as `Renderer` keeps them), the depth band and the
+/// scene's faces: ~570 KiB, kept off the stack.
 struct Images {
     next: PageImage,
     drawn: PageSpans,
     shadows: [PageImage; 2],
     held: [PageSpans; 2],
     dry_run_shadow: PageImage,
+    writes: PageWrites,
     band: DepthBand,
     faces: SceneFaces,
 }
@@ -276,6 +279,7 @@ static IMAGES: Mutex<Images> = Mutex::new(Images {
     shadows: [[BACKGROUND; PAGE_PIXELS]; 2],
     held: [PageSpans::none(), PageSpans::none()],
     dry_run_shadow: [BACKGROUND; PAGE_PIXELS],
+    writes: PageWrites::new(),
     band: DepthBand::new(),
     faces: SceneFaces::new(),
 });
@@ -301,11 +305,12 @@ impl Images {
     fn update_page<B: VgaBus>(&mut self, vga: &mut ModeX<B>, page: Page) -> u32 {
         let index = usize::from(page.index());
         self.spans_to_compare(page);
-        let written = vga.update_page(
+        let written = vga.update_page_with(
             page,
             &mut self.shadows[index],
             &self.next,
             &self.held[index],
+            &mut self.writes,
         );
         self.held[index].clone_from(&self.drawn);
         written
@@ -358,7 +363,13 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
         let t3 = time::tsc::rdtsc();
         images.spans_to_compare(page);
         let spans = &images.held[index];
-        dry_run.update_page(page, &mut images.dry_run_shadow, &images.next, spans);
+        dry_run.update_page_with(
+            page,
+            &mut images.dry_run_shadow,
+            &images.next,
+            spans,
+            &mut images.writes,
+        );
         let t4 = time::tsc::rdtsc();
         images.update_page(vga, page);
         let t5 = time::tsc::rdtsc();

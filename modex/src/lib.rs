@@ -43,6 +43,8 @@
 #![deny(missing_docs)]
 #![warn(missing_debug_implementations)]
 
+#[cfg(any(test, feature = "test-support"))]
+extern crate alloc;
 #[cfg(test)]
 extern crate std;
 
@@ -58,6 +60,8 @@ pub mod mode;
 mod page;
 pub mod palette;
 pub mod present;
+#[cfg(any(test, feature = "test-support"))]
+pub mod record;
 pub mod regs;
 pub mod soft;
 mod spans;
@@ -73,7 +77,7 @@ pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
 pub use palette::Rgb6;
 pub use spans::{LineSpans, PageSpans};
 pub use text::{TEXT_COLUMNS, TEXT_ROWS};
-pub use update::{PageImage, PAGE_PIXELS};
+pub use update::{PageImage, PageWrites, PAGE_PIXELS};
 
 /// Visible width of a Mode X page, in pixels.
 pub const SCREEN_WIDTH: i32 = 320;

@@ -88,19 +88,17 @@ impl<const LINES: usize> LineSpans<LINES> {
     /// addresses, left to right; runs that touch are one run.
     pub fn runs(&self, line: usize) -> impl Iterator<Item = Range<usize>> {
         let mut bits = self.lines.get(line).copied().unwrap_or(0);
-        let mut at = 0;
         core::iter::from_fn(move || {
             if bits == 0 {
                 return None;
             }
-            // At most 80 bits are set, so neither shift reaches 128.
-            let skip = bits.trailing_zeros();
-            bits >>= skip;
-            let run = (!bits).trailing_zeros();
-            bits >>= run;
-            let start = at + skip as usize;
-            at = start + run as usize;
-            Some(start..at)
+            // Adding the lowest set bit carries through the lowest run and
+            // stops on the bit past it; at most 80 bits are set, so the sum
+            // fits.
+            let start = bits.trailing_zeros();
+            let past = bits + bits.isolate_lowest_one();
+            bits &= past;
+            Some(start as usize..past.trailing_zeros() as usize)
         })
     }
 

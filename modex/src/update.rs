@@ -47,10 +47,24 @@ impl<B: VgaBus> ModeX<B> {
         target: &PageImage,
         spans: &PageSpans,
     ) -> u32 {
+        self.update_page_with(page, shadow, target, spans, &mut PageWrites::new())
+    }
+
+    /// [`ModeX::update_page`] with the room for the frame's writes kept by
+    /// the caller: a renderer that keeps one saves clearing 128 KiB every
+    /// frame (what `update_page` costs the cube's frame most after the
+    /// comparison itself).
+    pub fn update_page_with(
+        &mut self,
+        page: Page,
+        shadow: &mut PageImage,
+        target: &PageImage,
+        spans: &PageSpans,
+        writes: &mut PageWrites,
+    ) -> u32 {
         self.issued_by("ModeX::update_page", |vga| {
-            let mut writes = Writes::new();
             let written = if writes.collect(spans, shadow, target) {
-                vga.write_by_mask(page, &writes)
+                vga.write_by_mask(page, writes)
             } else {
                 // More writes than the list holds (a whole new picture): the
                 // same writes in the same order, found again for each mask.
@@ -96,7 +110,7 @@ impl<B: VgaBus> ModeX<B> {
 
     /// Makes the collected writes mask by mask, each mask's in the order
     /// they were found, following the list's links.
-    fn write_by_mask(&mut self, page: Page, writes: &Writes) -> u32 {
+    fn write_by_mask(&mut self, page: Page, writes: &PageWrites) -> u32 {
         let mut written = 0;
         for mask in self.mask_order(writes.masks) {
             self.io.set_map_mask(mask);
@@ -122,12 +136,13 @@ impl<B: VgaBus> ModeX<B> {
         shadow: &PageImage,
         target: &PageImage,
     ) -> u32 {
+        let mut line = LineWrites::new();
         let mut line_masks = [0u16; SCREEN_HEIGHT as usize];
         let mut frame_masks = 0u16;
         for (y, masks) in line_masks.iter_mut().enumerate() {
-            each_write_on_line(spans, shadow, target, y, &mut |write| {
+            for write in line.find(spans, shadow, target, y) {
                 *masks |= mask_bit(write.mask);
-            });
+            }
             frame_masks |= *masks;
         }
         let mut written = 0;
@@ -138,9 +153,9 @@ impl<B: VgaBus> ModeX<B> {
                     continue;
                 }
                 let line_base = page.base() + y as u16 * BYTES_PER_LINE;
-                each_write_on_line(spans, shadow, target, y, &mut |write| {
+                for write in line.find(spans, shadow, target, y) {
                     if write.mask != mask {
-                        return;
+                        continue;
                     }
                     if write.count == 1 {
                         self.io.write_vram8(line_base + write.address, write.colour);
@@ -149,7 +164,7 @@ impl<B: VgaBus> ModeX<B> {
                             .fill_vram(line_base + write.address, write.count, write.colour);
                     }
                     written += u32::from(write.count);
-                });
+                }
             }
         }
         written
@@ -171,19 +186,21 @@ struct Write {
 /// Writes a frame's update can collect before it falls back to finding them
 /// again mask by mask: far more than a spinning scene needs (the crowd of 59
 /// solids averages 3,600; a screen-filling grid of 256 turning solids about
-/// 5,000), 128 KiB of stack with the links.
+/// 5,000), 128 KiB with the links, in a [`PageWrites`].
 const WRITE_LIST_CAPACITY: usize = 16_384;
 /// The end of a mask's chain of writes.
 const NO_WRITE: u16 = u16::MAX;
 const _: () = assert!(WRITE_LIST_CAPACITY < NO_WRITE as usize);
 
-/// A frame's writes in the order they are found (line by line, address by
-/// address), each mask's chained in that order, and the set of masks among
-/// them: making them mask by mask is then one step per write, not one pass
-/// over the whole list per mask.
-struct Writes {
+/// Room for a frame's writes in the order they are found (line by line,
+/// address by address), each mask's chained in that order, and the set of
+/// masks among them: making them mask by mask is then one step per write,
+/// not one pass over the whole list per mask. All zero when new, so a
+/// renderer in static memory keeps one in `.bss`; each update starts it
+/// afresh by resetting the chains' ends, not the 128 KiB.
+pub struct PageWrites {
     list: [Write; WRITE_LIST_CAPACITY],
-    /// For each write, the next with the same mask, or `NO_WRITE`.
+    /// For each write but its mask's last, the next with the same mask.
     next_with_mask: [u16; WRITE_LIST_CAPACITY],
     /// Each mask's first and last write, or `NO_WRITE`.
     first_with_mask: [u16; 16],
@@ -192,13 +209,34 @@ struct Writes {
     masks: u16,
 }
 
-impl Writes {
-    fn new() -> Self {
-        Writes {
-            list: [Write::default(); WRITE_LIST_CAPACITY],
-            next_with_mask: [NO_WRITE; WRITE_LIST_CAPACITY],
-            first_with_mask: [NO_WRITE; 16],
-            last_with_mask: [NO_WRITE; 16],
+/// Not the 16,384 writes.
+impl core::fmt::Debug for PageWrites {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("PageWrites")
+            .field("len", &self.len)
+            .finish_non_exhaustive()
+    }
+}
+
+impl Default for PageWrites {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl PageWrites {
+    /// Empty room, all zero.
+    pub const fn new() -> Self {
+        PageWrites {
+            list: [Write {
+                address: 0,
+                count: 0,
+                colour: 0,
+                mask: PlaneMask::NONE,
+            }; WRITE_LIST_CAPACITY],
+            next_with_mask: [0; WRITE_LIST_CAPACITY],
+            first_with_mask: [0; 16],
+            last_with_mask: [0; 16],
             len: 0,
             masks: 0,
         }
@@ -207,21 +245,19 @@ impl Writes {
     /// Collects every write the marked addresses need; false if there are
     /// more than the list holds (what was collected is then of no use).
     fn collect(&mut self, spans: &PageSpans, shadow: &PageImage, target: &PageImage) -> bool {
-        let mut overflow = false;
+        self.first_with_mask = [NO_WRITE; 16];
+        self.last_with_mask = [NO_WRITE; 16];
+        (self.len, self.masks) = (0, 0);
+        let mut line = LineWrites::new();
         for y in 0..SCREEN_HEIGHT as usize {
             let line_base = y as u16 * BYTES_PER_LINE;
-            each_write_on_line(spans, shadow, target, y, &mut |write| {
-                if overflow
-                    || !self.push(Write {
-                        address: line_base + write.address,
-                        ..write
-                    })
-                {
-                    overflow = true;
+            for &write in line.find(spans, shadow, target, y) {
+                if !self.push(Write {
+                    address: line_base + write.address,
+                    ..write
+                }) {
+                    return false;
                 }
-            });
-            if overflow {
-                return false;
             }
         }
         true
@@ -247,90 +283,111 @@ impl Writes {
 
     /// The writes with `mask`, in the order they were found.
     fn with_mask(&self, mask: PlaneMask) -> impl Iterator<Item = &Write> {
-        let mut next = self.first_with_mask[usize::from(mask.bits())];
+        let mask = usize::from(mask.bits());
+        let (mut next, last) = (self.first_with_mask[mask], self.last_with_mask[mask]);
         core::iter::from_fn(move || {
             let write = self.list.get(usize::from(next))?;
-            next = self.next_with_mask[usize::from(next)];
+            next = if next == last {
+                NO_WRITE
+            } else {
+                self.next_with_mask[usize::from(next)]
+            };
             Some(write)
         })
     }
 }
 
-/// Calls `write` for each write line `y` needs, over the addresses
-/// `spans` marks on it, in address order (addresses relative to the line).
-/// One indirect call a write keeps the search compiled once, not once for
-/// each bus and caller.
-fn each_write_on_line(
-    spans: &PageSpans,
-    shadow: &PageImage,
-    target: &PageImage,
-    y: usize,
-    write: &mut dyn FnMut(Write),
-) {
-    let width = SCREEN_WIDTH as usize;
-    let (old_line, new_line) = (&shadow[y * width..][..width], &target[y * width..][..width]);
-    for run in spans.runs(y) {
-        each_write(old_line, new_line, run, write);
-    }
+/// The most writes one line can need: one per pixel.
+const LINE_WRITE_CAPACITY: usize = SCREEN_WIDTH as usize;
+
+/// The writes one line needs, found into a buffer that is reused line after
+/// line: no call per write, and the search is compiled once for every bus
+/// and caller.
+struct LineWrites {
+    list: [Write; LINE_WRITE_CAPACITY],
+    len: usize,
 }
 
-/// Calls `write` for each write that brings `old_line` to `new_line` at the
-/// addresses in `quads`, in address order, addresses relative to the line:
-/// a run of addresses whose four pixels all become one colour is one write
-/// with all planes (a fill); any other changed address gets one write per
-/// distinct new colour among its changed pixels.
-fn each_write(old_line: &[u8], new_line: &[u8], quads: Range<usize>, write: &mut dyn FnMut(Write)) {
-    let mut i = quads.start;
-    while i < quads.end {
-        // Most addresses inside a changed range keep their pixels: one
-        // compare, and on. (An unchanged address never starts a run.)
-        if quad_bits(old_line, i) == quad_bits(new_line, i) {
-            i += 1;
-            continue;
+impl LineWrites {
+    fn new() -> Self {
+        LineWrites {
+            list: [Write::default(); LINE_WRITE_CAPACITY],
+            len: 0,
         }
-        let run = solid_run(old_line, new_line, i, quads.end);
-        if run > 0 {
-            write(Write {
-                address: i as u16,
-                count: run as u16,
-                colour: new_line[4 * i],
-                mask: PlaneMask::ALL,
-            });
-            i += run;
-            continue;
+    }
+
+    /// The writes line `y` needs over the addresses `spans` marks on it, in
+    /// address order (addresses relative to the line).
+    fn find(
+        &mut self,
+        spans: &PageSpans,
+        shadow: &PageImage,
+        target: &PageImage,
+        y: usize,
+    ) -> &[Write] {
+        let width = SCREEN_WIDTH as usize;
+        let (old_line, new_line) = (&shadow[y * width..][..width], &target[y * width..][..width]);
+        self.len = 0;
+        for run in spans.runs(y) {
+            self.add_run(old_line, new_line, run);
         }
-        let (old, new) = (quad(old_line, i), quad(new_line, i));
-        if old != new {
-            for (planes, colour) in address_writes(old, new) {
-                write(Write {
+        &self.list[..self.len]
+    }
+
+    fn push(&mut self, write: Write) {
+        // At most one write a pixel, so the list never fills; were it ever
+        // to, the extra write would be dropped, never written out of bounds.
+        if let Some(slot) = self.list.get_mut(self.len) {
+            *slot = write;
+            self.len += 1;
+        }
+    }
+
+    /// Adds the writes that bring `old_line` to `new_line` at the addresses
+    /// in `quads`, in address order: a run of addresses whose four pixels
+    /// all become one colour is one write with all planes (a fill); any
+    /// other changed address gets one write per distinct new colour among
+    /// its changed pixels.
+    ///
+    /// Most marked addresses keep their pixels: [`first_change`] passes
+    /// over them two at a time.
+    fn add_run(&mut self, old_line: &[u8], new_line: &[u8], quads: Range<usize>) {
+        let mut i = quads.start;
+        loop {
+            i = first_change(old_line, new_line, i..quads.end);
+            if i >= quads.end {
+                break;
+            }
+            // Address i changes. (An unchanged address never starts a run.)
+            let (old, new) = (quad(old_line, i), quad(new_line, i));
+            let run = solid_run(old_line, new_line, i, quads.end);
+            if run > 0 {
+                self.push(Write {
+                    address: i as u16,
+                    count: run as u16,
+                    colour: new as u8,
+                    mask: PlaneMask::ALL,
+                });
+                i += run;
+                continue;
+            }
+            let mut pending = differing_bytes(old, new);
+            while pending != 0 {
+                // The first changed pixel's colour, and every changed pixel
+                // of that colour: one write.
+                let colour = (new >> (8 * pending.trailing_zeros())) as u8;
+                let planes = pending & !differing_bytes(new, splat(colour));
+                pending &= !planes;
+                self.push(Write {
                     address: i as u16,
                     count: 1,
                     colour,
-                    mask: planes,
+                    mask: PlaneMask::from_bits_truncate(planes),
                 });
             }
+            i += 1;
         }
-        i += 1;
     }
-}
-
-/// The writes that bring one address from `old` to `new`: one per distinct
-/// new colour among the changed pixels, as (planes, colour).
-fn address_writes(old: [u8; 4], new: [u8; 4]) -> impl Iterator<Item = (PlaneMask, u8)> {
-    let mut pending = (0..4)
-        .filter(|&p| old[p] != new[p])
-        .fold(0u8, |mask, p| mask | 1 << p);
-    core::iter::from_fn(move || {
-        if pending == 0 {
-            return None;
-        }
-        let colour = new[pending.trailing_zeros() as usize];
-        let planes = (0..4)
-            .filter(|&p| pending & 1 << p != 0 && new[p] == colour)
-            .fold(0u8, |m, p| m | 1 << p);
-        pending &= !planes;
-        Some((PlaneMask::from_bits_truncate(planes), colour))
-    })
 }
 
 /// A mask's bit in a set of masks (one bit per mask value, 0 to 15).
@@ -338,30 +395,62 @@ fn mask_bit(planes: PlaneMask) -> u16 {
     1 << planes.bits()
 }
 
-/// The four pixels at `address` as one word: one load and one compare.
-fn quad_bits(line: &[u8], address: usize) -> u32 {
+/// The four pixels at `address`, pixel 4·address in the low byte (plane 0).
+fn quad(line: &[u8], address: usize) -> u32 {
     line.get(4 * address..4 * address + 4)
         .and_then(|quad| quad.try_into().ok())
-        .map_or(0, u32::from_ne_bytes)
+        .map_or(0, u32::from_le_bytes)
 }
 
-fn quad(line: &[u8], address: usize) -> [u8; 4] {
-    [
-        line[4 * address],
-        line[4 * address + 1],
-        line[4 * address + 2],
-        line[4 * address + 3],
-    ]
+/// The first address of `quads` whose pixels differ between the lines, or
+/// `quads.end` if none does. Four addresses (sixteen pixels) are compared
+/// at a time, one 128-bit compare (which the compiler may make of two
+/// 64-bit ones), and the lowest differing byte of a differing four names
+/// its address; the range's last one to three addresses, which a 16-byte
+/// load would reach past, are compared a quad at a time.
+fn first_change(old_line: &[u8], new_line: &[u8], quads: Range<usize>) -> usize {
+    let pixels = 4 * quads.start..4 * quads.end;
+    let (Some(old), Some(new)) = (old_line.get(pixels.clone()), new_line.get(pixels)) else {
+        return quads.end;
+    };
+    let fours = old.as_chunks::<16>().0.iter().zip(new.as_chunks::<16>().0);
+    for (k, (&old, &new)) in fours.enumerate() {
+        let changed = u128::from_le_bytes(old) ^ u128::from_le_bytes(new);
+        if changed != 0 {
+            // Little-endian: the lowest byte is the first address's plane 0.
+            return quads.start + 4 * k + changed.trailing_zeros() as usize / 32;
+        }
+    }
+    let left_over = quads.start + old.len() / 16 * 4;
+    (left_over..quads.end)
+        .find(|&i| quad(old_line, i) != quad(new_line, i))
+        .unwrap_or(quads.end)
+}
+
+/// `colour` in all four bytes of a quad.
+fn splat(colour: u8) -> u32 {
+    u32::from(colour) * 0x0101_0101
+}
+
+/// Which of the four bytes (planes) differ between `a` and `b`, as a plane
+/// mask (bit n for byte n), without a branch a byte: a byte's top bit is set
+/// if its low seven bits, plus 0x7F, carry into it, or if it was set; the
+/// four top bits are then gathered into bits 24 to 27 by one multiply (the
+/// other products fall on bits no two share, so nothing carries).
+fn differing_bytes(a: u32, b: u32) -> u8 {
+    let x = a ^ b;
+    let tops = (((x & 0x7F7F_7F7F) + 0x7F7F_7F7F) | x) & 0x8080_8080;
+    ((tops >> 7).wrapping_mul(0x0102_0408) >> 24) as u8
 }
 
 /// How many addresses from `start` on (before `end`) have all four pixels
-/// changing to one and the same colour (0 if the first does not).
+/// changing to one and the same colour, the new colour at `start` (0 if the
+/// first does not).
 fn solid_run(old_line: &[u8], new_line: &[u8], start: usize, end: usize) -> usize {
-    let colour = new_line[4 * start];
+    let colour = splat(new_line[4 * start]);
     (start..end)
         .take_while(|&i| {
-            let (old, new) = (quad(old_line, i), quad(new_line, i));
-            new == [colour; 4] && old.iter().all(|&o| o != colour)
+            quad(new_line, i) == colour && differing_bytes(quad(old_line, i), colour) == 0x0F
         })
         .count()
 }
@@ -369,10 +458,11 @@ fn solid_run(old_line: &[u8], new_line: &[u8], start: usize, end: usize) -> usiz
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::regs::Port;
+    use crate::record::Recorder;
     use crate::soft::SoftVga;
     use std::boxed::Box;
     use std::vec;
+    use std::vec::Vec;
 
     fn indices(soft: &SoftVga) -> std::vec::Vec<u8> {
         let mut out = vec![0u8; PAGE_PIXELS];
@@ -466,31 +556,6 @@ mod tests {
         assert_eq!(indices(vga.bus()), target.to_vec());
     }
 
-    /// Every bus operation, in order.
-    #[derive(Default)]
-    struct Recorder(std::vec::Vec<(char, u16, u16)>);
-
-    impl VgaBus for Recorder {
-        fn write_port8(&mut self, port: Port, value: u8) {
-            self.0.push(('o', port.number(), u16::from(value)));
-        }
-        fn write_port16(&mut self, port: Port, value: u16) {
-            self.0.push(('w', port.number(), value));
-        }
-        fn read_port8(&mut self, _port: Port) -> u8 {
-            0
-        }
-        fn write_vram8(&mut self, offset: u16, value: u8) {
-            self.0.push(('m', offset, u16::from(value)));
-        }
-        fn read_vram8(&mut self, _offset: u16) -> u8 {
-            0
-        }
-        fn fill_vram(&mut self, offset: u16, count: u16, value: u8) {
-            self.0.push(('f', offset, count << 8 | u16::from(value)));
-        }
-    }
-
     /// The list of writes, bounded by the changed bytes, makes exactly the
     /// bus operations of the mask-by-mask passes over every changed line, in
     /// the same order: only the work to find them differs.
@@ -509,7 +574,7 @@ mod tests {
                 target[at..at + len].fill(9 + (seed % 7) as u8);
             }
             let changed = PageSpans::all();
-            let mut writes = Box::new(Writes::new());
+            let mut writes = Box::new(PageWrites::new());
             assert!(
                 writes.collect(&changed, &shadow, &target),
                 "a small change fits"
@@ -537,7 +602,7 @@ mod tests {
         let target: Box<PageImage> =
             Box::new(core::array::from_fn(|i| if i % 4 < 2 { 9 } else { 10 }));
         let changed = PageSpans::all();
-        assert!(!Writes::new().collect(&changed, &shadow, &target));
+        assert!(!PageWrites::new().collect(&changed, &shadow, &target));
         assert_eq!(
             vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
             38_400
@@ -573,6 +638,7 @@ mod tests {
             (state >> 16) as usize % below
         };
         let (mut compared, mut overflowed) = (0, 0);
+        let mut writes = Box::new(PageWrites::new());
         for round in 0..400 {
             drawn.fill(&mut frame[..], BACKGROUND);
             drawn.clear();
@@ -616,7 +682,10 @@ mod tests {
             let which = if page == 0 { Page::Zero } else { Page::One };
             by_spans.bus_mut().0.clear();
             by_pixels.bus_mut().0.clear();
-            let written = by_spans.update_page(which, &mut shadows[page], &frame, &compare);
+            // One room for the writes, kept from frame to frame as the
+            // renderer keeps it, through frames too large for it.
+            let written =
+                by_spans.update_page_with(which, &mut shadows[page], &frame, &compare, &mut writes);
             let expected =
                 by_pixels.update_page(which, &mut full_shadows[page], &frame, &PageSpans::all());
             assert_eq!(by_spans.bus().0, by_pixels.bus().0, "round {round}");
@@ -628,6 +697,141 @@ mod tests {
             held[page].clone_from(&drawn);
         }
         assert!(compared > 350 && overflowed > 0, "{compared}, {overflowed}");
+    }
+
+    /// The writes for one address range found the plain way, a pixel at a
+    /// time: what the word-at-a-time search must find, in the same order.
+    fn writes_pixel_by_pixel(old: &[u8], new: &[u8], quads: Range<usize>) -> Vec<Write> {
+        let quad = |line: &[u8], i: usize| {
+            [
+                line[4 * i],
+                line[4 * i + 1],
+                line[4 * i + 2],
+                line[4 * i + 3],
+            ]
+        };
+        let mut writes = Vec::new();
+        let mut i = quads.start;
+        while i < quads.end {
+            let (o, n) = (quad(old, i), quad(new, i));
+            if o == n {
+                i += 1;
+                continue;
+            }
+            let colour = n[0];
+            let run = (i..quads.end)
+                .take_while(|&j| {
+                    quad(new, j) == [colour; 4] && quad(old, j).iter().all(|&p| p != colour)
+                })
+                .count();
+            if run > 0 {
+                writes.push(Write {
+                    address: i as u16,
+                    count: run as u16,
+                    colour,
+                    mask: PlaneMask::ALL,
+                });
+                i += run;
+                continue;
+            }
+            let mut done = [false; 4];
+            for p in 0..4 {
+                if o[p] == n[p] || done[p] {
+                    continue;
+                }
+                let mut planes = 0u8;
+                for q in p..4 {
+                    if o[q] != n[q] && n[q] == n[p] {
+                        planes |= 1 << q;
+                        done[q] = true;
+                    }
+                }
+                writes.push(Write {
+                    address: i as u16,
+                    count: 1,
+                    colour: n[p],
+                    mask: PlaneMask::from_bits_truncate(planes),
+                });
+            }
+            i += 1;
+        }
+        writes
+    }
+
+    /// The word-at-a-time search finds the writes of the pixel-by-pixel
+    /// one, in the same order, over random lines and every shape of run:
+    /// odd and even lengths, odd and even starts, the line's last address.
+    #[test]
+    fn the_word_search_finds_the_writes_of_the_pixel_by_pixel_search() {
+        let mut shadow = Box::new([0u8; PAGE_PIXELS]);
+        let mut target = Box::new([0u8; PAGE_PIXELS]);
+        let mut seed = 0x1234_5678u32;
+        let mut random = move |below: u32| {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) % below
+        };
+        let mut line = LineWrites::new();
+        let mut found = 0;
+        for y in 0..SCREEN_HEIGHT as usize {
+            // Few colours, so runs, repeats and unchanged pixels are common.
+            for x in 0..320 {
+                shadow[y * 320 + x] = random(3) as u8;
+                target[y * 320 + x] = if random(4) == 0 {
+                    random(3) as u8
+                } else {
+                    shadow[y * 320 + x]
+                };
+            }
+            if y % 3 == 0 {
+                // Solid stretches over changed pixels: fills.
+                let (x0, len) = (random(300) as usize, random(20) as usize);
+                target[y * 320 + x0..][..len].fill(7);
+            }
+            let start = random(80) as usize;
+            let end = (start + random(12) as usize).min(80);
+            let mut spans = PageSpans::none();
+            spans.mark(y, 4 * start..4 * end);
+            let (old, new) = (&shadow[y * 320..][..320], &target[y * 320..][..320]);
+            let expected = writes_pixel_by_pixel(old, new, start..end);
+            assert_eq!(
+                line.find(&spans, &shadow, &target, y),
+                &expected[..],
+                "line {y}, {start}..{end}"
+            );
+            found += expected.len();
+        }
+        assert!(found > 500, "{found}");
+    }
+
+    /// A change in the last address of a run, which a 64-bit compare from
+    /// the address before it (odd lengths) would have to reach past the run
+    /// for, reaches the page: it is compared on its own.
+    #[test]
+    fn a_change_in_the_last_address_of_a_run_is_written() {
+        let mut soft = Box::new(SoftVga::new());
+        let mut vga = ModeX::new(&mut *soft);
+        vga.set_mode();
+        let mut shadow = Box::new([0u8; PAGE_PIXELS]);
+        let mut target = Box::new([0u8; PAGE_PIXELS]);
+        for (y, length) in (1..=9usize).enumerate() {
+            for start in [0usize, 1, 80 - length] {
+                let line = y * 10 + start % 2 + 2 * usize::from(start > 1);
+                let spans = {
+                    let mut spans = PageSpans::none();
+                    spans.mark(line, 4 * start..4 * (start + length));
+                    spans
+                };
+                // One pixel of the run's last address, plane 3.
+                let pixel = line * 320 + 4 * (start + length - 1) + 3;
+                target[pixel] = 9;
+                assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target, &spans), 1);
+                assert_eq!(
+                    indices(vga.bus())[pixel],
+                    9,
+                    "{length} addresses from {start}"
+                );
+            }
+        }
     }
 
     #[test]

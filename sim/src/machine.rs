@@ -9,6 +9,7 @@ use std::cell::Cell;
 use std::rc::Rc;
 
 use demo::app::App;
+use demo::frame::Renderer;
 use modex::regs::Port;
 use modex::soft::{SoftVga, PLANE_BYTES};
 use modex::{ModeX, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
@@ -119,7 +120,10 @@ pub struct Machine {
     /// One driver for the whole run, as on the kernel, so its register cache
     /// saves the same port writes there and here.
     vga: ModeX<ClockedVga>,
-    app: App,
+    /// The renderer boxed: its page images and the page update's room for
+    /// writes are about 600 KiB, too much to build and move on a test
+    /// thread's stack.
+    app: App<Box<Renderer>>,
     micros: Rc<Cell<u64>>,
     frames: u64,
     /// Video memory before the frame being drawn, for the lower bound.
@@ -165,7 +169,7 @@ impl Machine {
         vga.set_mode();
         Machine {
             vga,
-            app: App::new(),
+            app: App::with_renderer(Box::new(Renderer::new())),
             micros,
             frames: 0,
             planes_before: vec![0; PLANE_COUNT * PLANE_BYTES],
@@ -274,7 +278,7 @@ impl Machine {
     }
 
     /// The demo.
-    pub fn app(&self) -> &App {
+    pub fn app(&self) -> &App<Box<Renderer>> {
         &self.app
     }
 
