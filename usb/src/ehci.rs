@@ -360,11 +360,6 @@ impl<H: PciHardware> Ehci<H> {
         })
     }
 
-    /// The hardware, for the kernel (and the tests).
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
     /// Whether descriptors use the 64-bit layout (HCCPARAMS bit 0).
     pub fn sixty_four_bit(&self) -> bool {
         self.sixty_four_bit
@@ -882,12 +877,10 @@ impl<H: PciHardware> HostController for Ehci<H> {
         ControllerKind::Ehci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
-    }
+    type Hardware = H;
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
     fn root_ports(&self) -> u8 {

@@ -264,11 +264,13 @@ pub trait HostController {
     /// Which kind this is.
     fn kind(&self) -> ControllerKind;
 
-    /// The clock every wait of the device layer is bounded by, in microseconds.
-    fn now_micros(&mut self) -> u64;
+    /// The machine the driver runs on: its registers and DMA memory,
+    /// and the platform's clock and log, which the device layer uses too.
+    type Hardware: crate::Platform;
 
-    /// Says something on the kernel's log (one line, no newline).
-    fn log(&mut self, message: fmt::Arguments<'_>);
+    /// The driver's hardware (for the clock and the log; the kernel's and
+    /// the host tests' checks).
+    fn hardware(&mut self) -> &mut Self::Hardware;
 
     /// The number of root ports.
     fn root_ports(&self) -> u8;

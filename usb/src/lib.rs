@@ -58,17 +58,23 @@ pub trait Memory {
     fn mem_write(&mut self, address: u64, value: u32);
 }
 
+/// The machine's services to every driver and to the device layer: the
+/// clock every bound is measured on, and the kernel's log. They reach the
+/// device layer through [`host::HostController::hardware`].
+pub trait Platform {
+    /// A clock for every wait's bound, in microseconds.
+    fn now_micros(&mut self) -> u64;
+    /// Says something on the kernel's log (one line, no newline).
+    fn log(&mut self, message: core::fmt::Arguments<'_>);
+}
+
 /// Everything the driver needs from the machine.
-pub trait Hardware: Memory {
+pub trait Hardware: Memory + Platform {
     /// Reads the controller's register at `offset` in BAR0 (4-byte aligned,
     /// inside the BAR: the driver checks).
     fn mmio_read(&mut self, offset: u32) -> u32;
     /// Writes the controller's register at `offset` in BAR0.
     fn mmio_write(&mut self, offset: u32, value: u32);
-    /// A clock for every wait's bound, in microseconds.
-    fn now_micros(&mut self) -> u64;
-    /// Says something on the kernel's log (one line, no newline).
-    fn log(&mut self, message: core::fmt::Arguments<'_>);
 }
 
 /// What an EHCI, OHCI or UHCI driver needs beyond [`Hardware`]: UHCI's

@@ -226,11 +226,6 @@ impl<H: PciHardware> Ohci<H> {
         })
     }
 
-    /// The hardware the driver runs on.
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
     /// Devices in the driver's table (the tests check none leak).
     pub fn devices_in_use(&self) -> usize {
         self.devices.iter().filter(|d| d.in_use).count()
@@ -787,12 +782,10 @@ impl<H: PciHardware> HostController for Ohci<H> {
         ControllerKind::Ohci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
-    }
+    type Hardware = H;
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
     fn root_ports(&self) -> u8 {

@@ -3,6 +3,7 @@
 //! to end, hubs, hot-plug and misbehaviour.
 
 use super::bus::{Bus, Location};
+use super::host::HostController;
 use super::model::xhci::{OnRootPort2, XhciModel, BAR_BYTES, DMA_BASE, DMA_BYTES, SUPERSPEED_HALF};
 use super::xhci::{
     Capabilities, Handoff, Xhci, XhciError, HANDOFF_MICROS, PAGE_BYTES, RESET_MICROS,
@@ -665,6 +666,9 @@ impl super::Hardware for Counting {
         self.mmio += 1;
         self.model.mmio_write(offset, value)
     }
+}
+
+impl super::Platform for Counting {
     fn now_micros(&mut self) -> u64 {
         self.model.now_micros()
     }

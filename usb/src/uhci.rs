@@ -218,11 +218,6 @@ impl<H: PciHardware> Uhci<H> {
         })
     }
 
-    /// The hardware the driver runs on.
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
     /// Takes the controller from the BIOS: the SMI enables in LEGSUP are
     /// cleared and its trap status bits written back (Linux's
     /// `USBLEGSUP_RWC`, then 0: no PIRQ, the driver polls), re-tried until
@@ -650,12 +645,10 @@ impl<H: PciHardware> HostController for Uhci<H> {
         ControllerKind::Uhci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
-    }
+    type Hardware = H;
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
     fn root_ports(&self) -> u8 {

@@ -277,11 +277,6 @@ impl<H: Hardware> Xhci<H> {
         self.capabilities
     }
 
-    /// The hardware, for the caller's checks (the host tests' model).
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
     fn read(&mut self, offset: u32) -> u32 {
         if offset
             .checked_add(4)

@@ -449,11 +449,7 @@ impl Loopback {
     }
 }
 
-impl HostController for Loopback {
-    fn kind(&self) -> ControllerKind {
-        self.kind
-    }
-
+impl crate::Platform for Loopback {
     fn now_micros(&mut self) -> u64 {
         self.calls.push("now_micros");
         self.now += MICROS_PER_CLOCK_READ;
@@ -462,6 +458,18 @@ impl HostController for Loopback {
 
     fn log(&mut self, message: core::fmt::Arguments<'_>) {
         self.log.push(format!("{message}"));
+    }
+}
+
+impl HostController for Loopback {
+    fn kind(&self) -> ControllerKind {
+        self.kind
+    }
+
+    type Hardware = Loopback;
+
+    fn hardware(&mut self) -> &mut Loopback {
+        self
     }
 
     fn root_ports(&self) -> u8 {

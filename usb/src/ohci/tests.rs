@@ -8,6 +8,7 @@
 use super::*;
 use crate::model::devices::UsbDevice;
 use crate::model::ohci::{OhciModel, PowerSwitching, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use crate::Platform;
 use std::vec::Vec;
 
 const GET_STATUS: u8 = 0;
@@ -47,8 +48,8 @@ fn started(model: OhciModel) -> Driver {
 
 /// Lets `micros` of model time pass through the driver's clock.
 fn wait(ohci: &mut Driver, micros: u64) {
-    let start = ohci.now_micros();
-    while ohci.now_micros() - start < micros {}
+    let start = ohci.hardware().now_micros();
+    while ohci.hardware().now_micros() - start < micros {}
 }
 
 /// Runs a control transfer to its end, as the device layer would poll it
@@ -61,13 +62,13 @@ fn control(
 ) -> core::result::Result<Vec<u8>, Transfer> {
     ohci.control_begin(device, request, out)
         .expect("the transfer starts");
-    let deadline = ohci.now_micros() + 1_000_000;
+    let deadline = ohci.hardware().now_micros() + 1_000_000;
     let mut buffer = [0u8; MAX_CONTROL_DATA];
     loop {
         ohci.anything_happened();
         match ohci.control_poll(device, &mut buffer) {
             Transfer::Pending => assert!(
-                ohci.now_micros() < deadline,
+                ohci.hardware().now_micros() < deadline,
                 "a control transfer never ended"
             ),
             Transfer::Complete(length) => return Ok(buffer[..length].to_vec()),
@@ -78,25 +79,25 @@ fn control(
 
 /// Polls the pipe for up to `micros`: the report, or how it ended.
 fn report(ohci: &mut Driver, pipe: PipeId, micros: u64) -> Transfer {
-    let deadline = ohci.now_micros() + micros;
+    let deadline = ohci.hardware().now_micros() + micros;
     let mut buffer = [0u8; MAX_REPORT];
     loop {
         ohci.anything_happened();
         let result = ohci.interrupt_poll(pipe, &mut buffer);
-        if result != Transfer::Pending || ohci.now_micros() > deadline {
+        if result != Transfer::Pending || ohci.hardware().now_micros() > deadline {
             return result;
         }
     }
 }
 
 fn report_bytes(ohci: &mut Driver, pipe: PipeId) -> Vec<u8> {
-    let deadline = ohci.now_micros() + 200_000;
+    let deadline = ohci.hardware().now_micros() + 200_000;
     let mut buffer = [0u8; MAX_REPORT];
     loop {
         ohci.anything_happened();
         match ohci.interrupt_poll(pipe, &mut buffer) {
             Transfer::Complete(length) => return buffer[..length].to_vec(),
-            Transfer::Pending => assert!(ohci.now_micros() < deadline, "no report came"),
+            Transfer::Pending => assert!(ohci.hardware().now_micros() < deadline, "no report came"),
             other => panic!("the report ended in {other:?}"),
         }
     }
@@ -390,9 +391,12 @@ fn an_idle_poll_reads_one_register_and_nothing_else() {
     }
     // A key: the done queue comes back (WDH) and the poll says so.
     assert!(ohci.hardware().tree.send_report(handle, key(5)));
-    let deadline = ohci.now_micros() + 50_000;
+    let deadline = ohci.hardware().now_micros() + 50_000;
     while !ohci.anything_happened() {
-        assert!(ohci.now_micros() < deadline, "the report never showed");
+        assert!(
+            ohci.hardware().now_micros() < deadline,
+            "the report never showed"
+        );
     }
     assert_eq!(report_bytes(&mut ohci, pipe), key(5));
     assert_clean(&mut ohci);
@@ -511,10 +515,10 @@ fn a_thousand_plug_cycles_use_no_more_descriptors_than_one() {
         };
         let handle = ohci.hardware().tree.plug(&[1], UsbDevice::Keyboard(speed));
         // The root hub says so (RHSC) at the idle poll.
-        let deadline = ohci.now_micros() + 10_000;
+        let deadline = ohci.hardware().now_micros() + 10_000;
         while !ohci.anything_happened() {
             assert!(
-                ohci.now_micros() < deadline,
+                ohci.hardware().now_micros() < deadline,
                 "cycle {cycle}: no root hub change"
             );
         }

@@ -1014,12 +1014,10 @@ impl<H: Hardware> HostController for Xhci<H> {
         ControllerKind::Xhci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
-    }
+    type Hardware = H;
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
     fn root_ports(&self) -> u8 {

@@ -9,7 +9,7 @@ use crate::bus::Bus;
 use crate::host::HostController;
 use crate::model::xhci::{OnRootPort2, XhciModel, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use crate::xhci::Xhci;
-use crate::{Hardware, Memory};
+use crate::{Hardware, Memory, Platform};
 use std::format;
 use std::string::String;
 use std::vec::Vec;
@@ -451,6 +451,9 @@ impl Hardware for Counting {
         self.mmio += 1;
         self.model.mmio_write(offset, value)
     }
+}
+
+impl Platform for Counting {
     fn now_micros(&mut self) -> u64 {
         self.model.now_micros()
     }

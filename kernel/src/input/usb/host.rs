@@ -137,11 +137,6 @@ impl Host {
             );
         }
     }
-
-    /// The registers the driver runs on.
-    pub fn hardware(&mut self) -> &mut Registers {
-        each!(self, |driver| driver.hardware())
-    }
 }
 
 impl HostController for Host {
@@ -149,12 +144,10 @@ impl HostController for Host {
         each!(self, |driver| driver.kind())
     }
 
-    fn now_micros(&mut self) -> u64 {
-        each!(self, |driver| driver.now_micros())
-    }
+    type Hardware = Registers;
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        each!(self, |driver| driver.log(message))
+    fn hardware(&mut self) -> &mut Registers {
+        each!(self, |driver| driver.hardware())
     }
 
     fn root_ports(&self) -> u8 {
