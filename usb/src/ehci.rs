@@ -19,6 +19,7 @@ mod layout;
 #[cfg(test)]
 mod tests;
 
+use crate::host::wait_until;
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
@@ -36,16 +37,6 @@ use layout::{
 };
 pub use layout::{DMA_BYTES_USED, MAX_DEVICES, MAX_PIPES};
 
-/// How often a bounded wait reads its register. QEMU serves each register
-/// read under its one global lock, and runs the controller's frames (which
-/// halt it and start its schedules) on its main thread, which needs that
-/// lock too: a wait that read with no pause held the lock nearly all the
-/// time, so on a loaded host that thread, once scheduled, mostly found it
-/// taken and slept again, and the controller's frames fell behind the
-/// clock by more than a whole bound ("schedules did not start" beside busy
-/// loops). Between reads the wait watches only the clock, leaving the lock
-/// free. Under half a micro-frame, so no wait ends later than that.
-const POLL_INTERVAL_MICROS: u64 = 50;
 /// How long the firmware gets to let go (Linux's ehci_bios_handoff: 1 s).
 pub const HANDOFF_MICROS: u64 = 1_000_000;
 /// How long halting may take: the spec says 16 micro-frames (2 ms), but an
@@ -406,27 +397,10 @@ impl<H: PciHardware> Ehci<H> {
         (1..=self.ports).contains(&port)
     }
 
-    /// Waits, at most `micros`, for `register` to satisfy `done`, reading
-    /// it once every [`POLL_INTERVAL_MICROS`] and watching only the clock
-    /// in between.
+    /// Waits, at most `micros`, for `register` to satisfy `done`
+    /// ([`wait_until`]'s pace).
     fn wait_for(&mut self, register: u32, micros: u64, done: impl Fn(u32) -> bool) -> bool {
-        let start = self.hw.now_micros();
-        loop {
-            if done(self.read(register)) {
-                return true;
-            }
-            let read_at = self.hw.now_micros();
-            loop {
-                let now = self.hw.now_micros();
-                if now.saturating_sub(start) >= micros {
-                    return done(self.read(register));
-                }
-                if now.saturating_sub(read_at) >= POLL_INTERVAL_MICROS {
-                    break;
-                }
-                core::hint::spin_loop();
-            }
-        }
+        wait_until(self, micros, |ehci| done(ehci.read(register)))
     }
 
     // The firmware hand-off.
@@ -484,25 +458,25 @@ impl<H: PciHardware> Ehci<H> {
             return Handoff::NotOwned;
         }
         let start = self.hw.now_micros();
-        loop {
-            let support = self.hw.pci_config_read(legacy);
-            let waited = self.hw.now_micros().saturating_sub(start);
-            if support & LEGACY_BIOS_OWNED == 0 {
-                self.hw
-                    .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
-                return Handoff::Released { micros: waited };
-            }
-            if waited >= HANDOFF_MICROS {
-                // Its keyboard emulation is then all there is: leave it be.
-                self.hw.pci_config_write(legacy, support & !LEGACY_OS_OWNED);
-                self.state = State::FirmwareOwns;
-                self.hw.log(format_args!(
-                    "ehci: the firmware kept the controller for {} ms (USBLEGSUP {support:#010x}): left alone",
-                    waited / 1000
-                ));
-                return Handoff::NeverReleased;
-            }
+        let mut support = support;
+        let released = wait_until(self, HANDOFF_MICROS, |ehci| {
+            support = ehci.hw.pci_config_read(legacy);
+            support & LEGACY_BIOS_OWNED == 0
+        });
+        let waited = self.hw.now_micros().saturating_sub(start);
+        if released {
+            self.hw
+                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
+            return Handoff::Released { micros: waited };
         }
+        // Its keyboard emulation is then all there is: leave it be.
+        self.hw.pci_config_write(legacy, support & !LEGACY_OS_OWNED);
+        self.state = State::FirmwareOwns;
+        self.hw.log(format_args!(
+            "ehci: the firmware kept the controller for {} ms (USBLEGSUP {support:#010x}): left alone",
+            waited / 1000
+        ));
+        Handoff::NeverReleased
     }
 
     // Reset and start.

@@ -13,6 +13,7 @@
 //! Like Linux's `hc_driver`, the device layer never sees a queue head, an
 //! endpoint descriptor or a transfer descriptor.
 
+use crate::Platform;
 use core::fmt;
 
 /// Which kind of controller, for the log and the facts record.
@@ -366,6 +367,46 @@ pub trait HostController {
     /// Halts the controller, bounded, and hands shared ports back (EHCI
     /// clears CONFIGFLAG), before power-off or reset. Says whether it halted.
     fn halt(&mut self) -> bool;
+}
+
+/// How often a controller's bounded wait looks at the controller. QEMU
+/// serves each register read under its one global lock, and runs the
+/// controller's frames (which halt it and start its schedules) on its main
+/// thread, which needs that lock too: a wait that read with no pause held
+/// the lock nearly all the time, so on a loaded host that thread, once
+/// scheduled, mostly found it taken and slept again, and the controller's
+/// frames fell behind the clock by more than a whole bound ("schedules did
+/// not start" beside busy loops). Between reads the wait watches only the
+/// clock, leaving the lock free. Under half a micro-frame, so no wait ends
+/// later than that.
+pub const POLL_INTERVAL_MICROS: u64 = 50;
+
+/// Every driver's bounded wait: asks `done` (which reads the controller)
+/// once every [`POLL_INTERVAL_MICROS`], watching only the platform's clock
+/// in between, for at most `micros`, and once more at the bound. Says
+/// whether `done` held.
+pub(crate) fn wait_until<C: HostController + ?Sized>(
+    controller: &mut C,
+    micros: u64,
+    mut done: impl FnMut(&mut C) -> bool,
+) -> bool {
+    let start = controller.hardware().now_micros();
+    loop {
+        if done(controller) {
+            return true;
+        }
+        let read_at = controller.hardware().now_micros();
+        loop {
+            let now = controller.hardware().now_micros();
+            if now.saturating_sub(start) >= micros {
+                return done(controller);
+            }
+            if now.saturating_sub(read_at) >= POLL_INTERVAL_MICROS {
+                break;
+            }
+            core::hint::spin_loop();
+        }
+    }
 }
 
 /// How a controller was taken from the firmware (BIOS legacy support or SMM).

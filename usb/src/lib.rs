@@ -66,6 +66,15 @@ pub trait Platform {
     fn now_micros(&mut self) -> u64;
     /// Says something on the kernel's log (one line, no newline).
     fn log(&mut self, message: core::fmt::Arguments<'_>);
+
+    /// Waits `micros` by the clock, touching no device (a reset's hold
+    /// time, a power-on delay).
+    fn pause(&mut self, micros: u64) {
+        let start = self.now_micros();
+        while self.now_micros().saturating_sub(start) < micros {
+            core::hint::spin_loop();
+        }
+    }
 }
 
 /// Everything the driver needs from the machine.

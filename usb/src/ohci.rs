@@ -23,6 +23,7 @@ mod registers;
 #[cfg(test)]
 mod tests;
 
+use crate::host::wait_until;
 pub use crate::host::Handoff;
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
@@ -268,34 +269,21 @@ impl<H: PciHardware> Ohci<H> {
         (1..=self.ports).contains(&port)
     }
 
-    fn now(&mut self) -> u64 {
-        self.hw.now_micros()
-    }
-
-    /// Waits `micros` by the clock.
-    fn delay(&mut self, micros: u64) {
-        let start = self.now();
-        while self.now().saturating_sub(start) < micros {}
-    }
-
-    /// Reads `offset` until `done` says so or `micros` pass; gives the
-    /// last value read and whether `done` held.
+    /// Reads `offset` until `done` says so or `micros` pass
+    /// ([`wait_until`]'s pace); gives the last value read and whether
+    /// `done` held.
     fn wait_register(
         &mut self,
         offset: u32,
         micros: u64,
         done: impl Fn(u32) -> bool,
     ) -> (u32, bool) {
-        let start = self.now();
-        loop {
-            let value = self.read(offset);
-            if done(value) {
-                return (value, true);
-            }
-            if self.now().saturating_sub(start) >= micros {
-                return (value, false);
-            }
-        }
+        let mut value = 0;
+        let held = wait_until(self, micros, |ohci| {
+            value = ohci.read(offset);
+            done(value)
+        });
+        (value, held)
     }
 
     /// Waits until the controller starts a new frame (HcFmNumber moves):
@@ -327,14 +315,14 @@ impl<H: PciHardware> Ohci<H> {
         if control == u32::MAX || control & CONTROL_IR == 0 {
             return Handoff::NotOwned;
         }
-        let start = self.now();
+        let start = self.hw.now_micros();
         // The ownership change interrupt is what SMM waits for.
         self.write(HC_INTERRUPT_ENABLE, INTERRUPT_OC);
         self.write(HC_COMMAND_STATUS, COMMAND_OCR);
         let (control, released) =
             self.wait_register(HC_CONTROL, HANDOFF_MICROS, |c| c & CONTROL_IR == 0);
         if released {
-            let micros = self.now().saturating_sub(start);
+            let micros = self.hw.now_micros().saturating_sub(start);
             Handoff::Released { micros }
         } else {
             self.hw.log(format_args!(
@@ -380,7 +368,7 @@ impl<H: PciHardware> Ohci<H> {
         };
         self.write(HC_CONTROL, self.remote_wakeup_connected | next_state);
         self.read(HC_CONTROL);
-        self.delay(wait);
+        self.hw.pause(wait);
 
         let saved = self.read(HC_FM_INTERVAL);
         let mut interval = saved & FM_INTERVAL_FI_MASK;
@@ -511,7 +499,7 @@ impl<H: PciHardware> Ohci<H> {
             }
         }
         let power_on = u64::from(descriptor >> RH_A_POTPGT_SHIFT) * 2_000;
-        self.delay(power_on.min(MAX_POWER_ON_MICROS));
+        self.hw.pause(power_on.min(MAX_POWER_ON_MICROS));
     }
 
     fn device(&self, device: DeviceId) -> core::result::Result<usize, HostError> {

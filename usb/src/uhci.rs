@@ -25,6 +25,7 @@ mod layout;
 #[cfg(test)]
 mod tests;
 
+use crate::host::wait_until;
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
@@ -230,29 +231,26 @@ impl<H: PciHardware> Uhci<H> {
         let found = dword as u16;
         let owned = found & LEGACY_SMI_ENABLES != 0;
         let start = self.hw.now_micros();
-        let mut last_write = None;
-        loop {
-            let now = self.hw.now_micros();
+        let (mut last_write, mut legsup) = (None, found);
+        let released = wait_until(self, HANDOFF_MICROS, |uhci| {
+            let now = uhci.hw.now_micros();
             if last_write.is_none_or(|at| now.saturating_sub(at) >= 1_000) {
-                self.hw
+                uhci.hw
                     .pci_config_write(LEGACY_OFFSET, above | u32::from(LEGACY_STATUS_CLEAR));
-                self.hw.pci_config_write(LEGACY_OFFSET, above);
+                uhci.hw.pci_config_write(LEGACY_OFFSET, above);
                 last_write = Some(now);
             }
-            let legsup = self.hw.pci_config_read(LEGACY_OFFSET) as u16;
-            let elapsed = self.hw.now_micros().saturating_sub(start);
-            if legsup & (LEGACY_SMI_ENABLES | LEGACY_PIRQ_ENABLE) == 0 {
-                break;
-            }
-            if elapsed > HANDOFF_MICROS {
-                self.hw.log(format_args!(
-                    "uhci: the firmware keeps LEGSUP {legsup:#06x} (found {found:#06x}) after {elapsed} us; controller left alone"
-                ));
-                self.state = State::FirmwareOwned;
-                return Handoff::NeverReleased;
-            }
-        }
+            legsup = uhci.hw.pci_config_read(LEGACY_OFFSET) as u16;
+            legsup & (LEGACY_SMI_ENABLES | LEGACY_PIRQ_ENABLE) == 0
+        });
         let micros = self.hw.now_micros().saturating_sub(start);
+        if !released {
+            self.hw.log(format_args!(
+                "uhci: the firmware keeps LEGSUP {legsup:#06x} (found {found:#06x}) after {micros} us; controller left alone"
+            ));
+            self.state = State::FirmwareOwned;
+            return Handoff::NeverReleased;
+        }
         // Ours now: no interrupt line, and nothing run from the
         // firmware's schedule (its memory is not ours).
         self.hw.write16(USBINTR, 0);
@@ -452,21 +450,13 @@ impl<H: PciHardware> Uhci<H> {
 
     /// Busy-waits `micros` on the hardware clock.
     fn wait_micros(&mut self, micros: u64) {
-        let start = self.hw.now_micros();
-        while self.hw.now_micros().saturating_sub(start) < micros {}
+        self.hw.pause(micros);
     }
 
-    /// Waits until `(register & mask) == want`, at most `micros`.
+    /// Waits until `(register & mask) == want`, at most `micros`
+    /// ([`wait_until`]'s pace).
     fn wait_register(&mut self, offset: u32, mask: u16, want: u16, micros: u64) -> bool {
-        let start = self.hw.now_micros();
-        loop {
-            if self.hw.read16(offset) & mask == want {
-                return true;
-            }
-            if self.hw.now_micros().saturating_sub(start) > micros {
-                return false;
-            }
-        }
+        wait_until(self, micros, |uhci| uhci.hw.read16(offset) & mask == want)
     }
 
     /// The current frame number (11 bits).
@@ -479,26 +469,19 @@ impl<H: PciHardware> Uhci<H> {
     /// looking at what was unlinked during that frame. A frame that does
     /// not end in time is logged and the wait ends anyway.
     fn wait_frame_after(&mut self, frame: u16) {
-        let start = self.hw.now_micros();
-        loop {
-            if self.frame_number() != frame {
-                return;
-            }
-            if self.hw.read16(USBSTS) & STS_HALTED != 0 {
-                return;
-            }
-            if self.hw.now_micros().saturating_sub(start) > FRAME_WAIT_MICROS {
-                // Real controllers move on every millisecond; an emulated
-                // one moves on its host's timer, which a busy host runs
-                // late. Giving up the controller would lose every keyboard
-                // on it for a slow frame: the memory is reused, and at
-                // worst one transfer fails and is recovered. A controller
-                // that has really stopped is caught by USBSTS in `poll`.
-                self.hw.log(format_args!(
-                    "uhci: frame number stuck at {frame} for {FRAME_WAIT_MICROS} us; going on"
-                ));
-                return;
-            }
+        let left = wait_until(self, FRAME_WAIT_MICROS, |uhci| {
+            uhci.frame_number() != frame || uhci.hw.read16(USBSTS) & STS_HALTED != 0
+        });
+        if !left {
+            // Real controllers move on every millisecond; an emulated one
+            // moves on its host's timer, which a busy host runs late.
+            // Giving up the controller would lose every keyboard on it for
+            // a slow frame: the memory is reused, and at worst one transfer
+            // fails and is recovered. A controller that has really stopped
+            // is caught by USBSTS in `poll`.
+            self.hw.log(format_args!(
+                "uhci: frame number stuck at {frame} for {FRAME_WAIT_MICROS} us; going on"
+            ));
         }
     }
 

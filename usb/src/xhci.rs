@@ -5,6 +5,7 @@
 //! and every failure is an [`XhciError`] the caller logs and survives.
 
 use super::Hardware;
+use crate::host::wait_until;
 use context::ContextLayout;
 use ring::{trb_type, EventRing, ProducerRing, Trb};
 // TRBs are built with the `xhci` crate's layouts; the rings here own the
@@ -314,23 +315,10 @@ impl<H: Hardware> Xhci<H> {
         self.operational + PORTSC + 0x10 * (u32::from(port) - 1)
     }
 
-    /// Waits until `done` holds for USBSTS-style reads of `register` or
-    /// `micros` pass; returns whether it held.
+    /// Waits until `done` holds for reads of `register` or `micros` pass
+    /// ([`wait_until`]'s pace); returns whether it held.
     fn wait_for(&mut self, register: u32, micros: u64, done: impl Fn(u32) -> bool) -> bool {
-        let start = self.hw.now_micros();
-        loop {
-            if done(self.read(register)) {
-                return true;
-            }
-            if self.hw.now_micros().saturating_sub(start) >= micros {
-                return false;
-            }
-        }
-    }
-
-    fn pause(&mut self, micros: u64) {
-        let start = self.hw.now_micros();
-        while self.hw.now_micros().saturating_sub(start) < micros {}
+        wait_until(self, micros, |xhci| done(xhci.read(register)))
     }
 
     fn page(&mut self) -> Result<u64> {
@@ -441,7 +429,7 @@ impl<H: Hardware> Xhci<H> {
         self.op_write(USBCMD, CMD_RESET);
         // Some Intel controllers hang if read too soon after HCRST (Linux
         // waits 1 ms there too).
-        self.pause(1_000);
+        self.hw.pause(1_000);
         let usbcmd = self.operational + USBCMD;
         let start = self.hw.now_micros();
         if !self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0) {
@@ -519,17 +507,17 @@ impl<H: Hardware> Xhci<H> {
     /// Waits for the event `wanted` picks (the No Op at start, before any
     /// device: the others are dropped).
     fn wait_event(&mut self, micros: u64, wanted: impl Fn(&Trb) -> bool) -> Option<Trb> {
-        let start = self.hw.now_micros();
-        loop {
-            while let Some(event) = self.next_event() {
+        let mut found = None;
+        wait_until(self, micros, |xhci| {
+            while let Some(event) = xhci.next_event() {
                 if wanted(&event) {
-                    return Some(event);
+                    found = Some(event);
+                    return true;
                 }
             }
-            if self.hw.now_micros().saturating_sub(start) >= micros {
-                return None;
-            }
-        }
+            false
+        });
+        found
     }
 
     fn command(&mut self, trb: Trb) -> Result<Trb> {
@@ -596,7 +584,7 @@ impl<H: Hardware> Xhci<H> {
         self.host = host::HostState::new();
         let reset = halted && {
             self.op_write(USBCMD, CMD_RESET);
-            self.pause(1_000);
+            self.hw.pause(1_000);
             let usbcmd = self.operational + USBCMD;
             self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0)
                 && self.wait_for(usbsts, RESET_MICROS, |s| s & STS_NOT_READY == 0)

@@ -6,6 +6,7 @@
 //! device layer would.
 
 use super::*;
+use crate::host::POLL_INTERVAL_MICROS;
 use crate::model::devices::UsbDevice;
 use crate::model::ohci::{OhciModel, PowerSwitching, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use crate::Platform;
@@ -725,6 +726,31 @@ fn smm_that_never_lets_go_keeps_the_controller_untouched() {
         model.writes_while_owned.is_empty(),
         "{:?}",
         model.writes_while_owned
+    );
+}
+
+/// OHCI's waits are paced as every driver's are (`host::wait_until`): SMM
+/// that never lets go is asked once per `POLL_INTERVAL_MICROS` for the
+/// whole 500 ms, not read back to back (which under QEMU keeps its global
+/// lock from the thread that runs the controller).
+#[test]
+fn waits_read_their_register_once_per_poll_interval() {
+    let mut model = OhciModel::new(1);
+    model.smm_owns(None);
+    let mut ohci = driver(model);
+    let (start, reads_before) = (ohci.hardware().now, ohci.hardware().register_reads);
+    assert_eq!(ohci.take_ownership(), Handoff::NeverReleased);
+    let waited = ohci.hardware().now - start;
+    let reads = ohci.hardware().register_reads - reads_before;
+    // A read at the wait's start and at its end, and a few outside it.
+    let most = waited / POLL_INTERVAL_MICROS + 2 + 4;
+    assert!(
+        reads <= most,
+        "{reads} register reads in {waited} us (at most {most})"
+    );
+    assert!(
+        reads >= most / 2,
+        "{reads} register reads: the wait stopped asking"
     );
 }
 
