@@ -439,120 +439,7 @@ impl<H: PciHardware> Ehci<H> {
         None
     }
 
-    /// Takes the controller from the firmware (Linux's ehci_bios_handoff):
-    /// sets OS-owned, waits at most [`HANDOFF_MICROS`] for BIOS-owned to
-    /// clear, then turns the firmware's SMIs off. A firmware that never
-    /// lets go keeps the controller: the request is withdrawn, it is
-    /// logged, and the driver writes nothing to the controller after.
-    pub fn take_ownership(&mut self) -> Handoff {
-        let Some(legacy) = self.legacy_capability() else {
-            return Handoff::NotOwned;
-        };
-        let support = self.hw.pci_config_read(legacy);
-        // USBLEGSUP is written as a dword: BIOS-owned is written back as it
-        // was read, which leaves it as the firmware has it.
-        self.hw.pci_config_write(legacy, support | LEGACY_OS_OWNED);
-        if support & LEGACY_BIOS_OWNED == 0 {
-            self.hw
-                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
-            return Handoff::NotOwned;
-        }
-        let start = self.hw.now_micros();
-        let mut support = support;
-        let released = wait_until(self, HANDOFF_MICROS, |ehci| {
-            support = ehci.hw.pci_config_read(legacy);
-            support & LEGACY_BIOS_OWNED == 0
-        });
-        let waited = self.hw.now_micros().saturating_sub(start);
-        if released {
-            self.hw
-                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
-            return Handoff::Released { micros: waited };
-        }
-        // Its keyboard emulation is then all there is: leave it be.
-        self.hw.pci_config_write(legacy, support & !LEGACY_OS_OWNED);
-        self.state = State::FirmwareOwns;
-        self.hw.log(format_args!(
-            "ehci: the firmware kept the controller for {} ms (USBLEGSUP {support:#010x}): left alone",
-            waited / 1000
-        ));
-        Handoff::NeverReleased
-    }
-
     // Reset and start.
-
-    /// Halts and resets the controller, builds both schedules, starts it,
-    /// routes every port to it (CONFIGFLAG) and powers the ports. Every
-    /// wait is bounded.
-    pub fn reset_and_start(&mut self) -> Result<(), EhciError> {
-        if self.state == State::FirmwareOwns {
-            return Err(EhciError::FirmwareOwns);
-        }
-        self.state = State::Stopped;
-        self.write(USBINTR, 0);
-        if self.read(USBSTS) & STS_HALTED == 0 {
-            let command = self.read(USBCMD);
-            self.write(USBCMD, command & !(CMD_RUN | CMD_HCRESET));
-            if !self.wait_for(USBSTS, HALT_MICROS, |s| s & STS_HALTED != 0) {
-                return Err(EhciError::NotHalted);
-            }
-        }
-        self.write(USBCMD, CMD_HCRESET);
-        if !self.wait_for(USBCMD, RESET_MICROS, |c| c & CMD_HCRESET == 0) {
-            return Err(EhciError::ResetStuck);
-        }
-        self.devices = [Device::NONE; MAX_DEVICES];
-        self.pipes = [Pipe::NONE; MAX_PIPES];
-        self.async_count = 0;
-        self.handed_at_reset = 0;
-        if self.sixty_four_bit {
-            // All of the DMA region is below 4 GiB.
-            self.write(CTRLDSSEGMENT, 0);
-        }
-        let frame_list = self.layout.frame_list();
-        for entry in 0..FRAME_LIST_ENTRIES as u64 {
-            self.hw.mem_write(frame_list + 4 * entry, LINK_TERMINATE);
-        }
-        // The reclamation head: points to itself, halted so it never runs
-        // a transfer (as Linux's ehci->async).
-        let head = self.layout.async_head();
-        self.clear_qh(head);
-        self.hw.mem_write(head + QH_HORIZONTAL, qh_link(head));
-        self.hw.mem_write(
-            head + QH_CHARACTERISTICS,
-            HEAD_OF_RECLAMATION | characteristics(0, 0, Speed::High, 64, false),
-        );
-        self.hw.mem_write(head + QH_OVERLAY_TOKEN, TOKEN_HALTED);
-        self.write(PERIODICLISTBASE, frame_list as u32);
-        self.write(ASYNCLISTADDR, head as u32);
-        self.write(USBINTR, 0);
-        self.write(
-            USBCMD,
-            CMD_THRESHOLD_8
-                | CMD_FRAME_LIST_1024
-                | CMD_PERIODIC_ENABLE
-                | CMD_ASYNC_ENABLE
-                | CMD_RUN,
-        );
-        let running = STS_PERIODIC_RUNNING | STS_ASYNC_RUNNING;
-        if !self.wait_for(USBSTS, START_MICROS, |s| {
-            s & STS_HALTED == 0 && s & running == running
-        }) {
-            return Err(EhciError::NotRunning);
-        }
-        // Every port to this controller; read back so the write is posted.
-        self.write(CONFIGFLAG, 1);
-        let _ = self.read(CONFIGFLAG);
-        if self.port_power_control {
-            for port in 1..=self.ports {
-                let register = Self::port_register(port);
-                let status = self.read(register);
-                self.write(register, status & !PORT_CHANGES | PORT_POWER);
-            }
-        }
-        self.state = State::Running;
-        Ok(())
-    }
 
     // DMA helpers.
 
@@ -855,6 +742,121 @@ impl<H: PciHardware> HostController for Ehci<H> {
 
     fn hardware(&mut self) -> &mut H {
         &mut self.hw
+    }
+
+    type StartError = EhciError;
+
+    /// Takes the controller from the firmware (Linux's ehci_bios_handoff):
+    /// sets OS-owned, waits at most [`HANDOFF_MICROS`] for BIOS-owned to
+    /// clear, then turns the firmware's SMIs off. A firmware that never
+    /// lets go keeps the controller: the request is withdrawn, it is
+    /// logged, and the driver writes nothing to the controller after.
+    fn take_ownership(&mut self) -> Handoff {
+        let Some(legacy) = self.legacy_capability() else {
+            return Handoff::NotOwned;
+        };
+        let support = self.hw.pci_config_read(legacy);
+        // USBLEGSUP is written as a dword: BIOS-owned is written back as it
+        // was read, which leaves it as the firmware has it.
+        self.hw.pci_config_write(legacy, support | LEGACY_OS_OWNED);
+        if support & LEGACY_BIOS_OWNED == 0 {
+            self.hw
+                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
+            return Handoff::NotOwned;
+        }
+        let start = self.hw.now_micros();
+        let mut support = support;
+        let released = wait_until(self, HANDOFF_MICROS, |ehci| {
+            support = ehci.hw.pci_config_read(legacy);
+            support & LEGACY_BIOS_OWNED == 0
+        });
+        let waited = self.hw.now_micros().saturating_sub(start);
+        if released {
+            self.hw
+                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
+            return Handoff::Released { micros: waited };
+        }
+        // Its keyboard emulation is then all there is: leave it be.
+        self.hw.pci_config_write(legacy, support & !LEGACY_OS_OWNED);
+        self.state = State::FirmwareOwns;
+        self.hw.log(format_args!(
+            "ehci: the firmware kept the controller for {} ms (USBLEGSUP {support:#010x}): left alone",
+            waited / 1000
+        ));
+        Handoff::NeverReleased
+    }
+
+    /// Halts and resets the controller, builds both schedules, starts it,
+    /// routes every port to it (CONFIGFLAG) and powers the ports. Every
+    /// wait is bounded.
+    fn reset_and_start(&mut self) -> Result<(), EhciError> {
+        if self.state == State::FirmwareOwns {
+            return Err(EhciError::FirmwareOwns);
+        }
+        self.state = State::Stopped;
+        self.write(USBINTR, 0);
+        if self.read(USBSTS) & STS_HALTED == 0 {
+            let command = self.read(USBCMD);
+            self.write(USBCMD, command & !(CMD_RUN | CMD_HCRESET));
+            if !self.wait_for(USBSTS, HALT_MICROS, |s| s & STS_HALTED != 0) {
+                return Err(EhciError::NotHalted);
+            }
+        }
+        self.write(USBCMD, CMD_HCRESET);
+        if !self.wait_for(USBCMD, RESET_MICROS, |c| c & CMD_HCRESET == 0) {
+            return Err(EhciError::ResetStuck);
+        }
+        self.devices = [Device::NONE; MAX_DEVICES];
+        self.pipes = [Pipe::NONE; MAX_PIPES];
+        self.async_count = 0;
+        self.handed_at_reset = 0;
+        if self.sixty_four_bit {
+            // All of the DMA region is below 4 GiB.
+            self.write(CTRLDSSEGMENT, 0);
+        }
+        let frame_list = self.layout.frame_list();
+        for entry in 0..FRAME_LIST_ENTRIES as u64 {
+            self.hw.mem_write(frame_list + 4 * entry, LINK_TERMINATE);
+        }
+        // The reclamation head: points to itself, halted so it never runs
+        // a transfer (as Linux's ehci->async).
+        let head = self.layout.async_head();
+        self.clear_qh(head);
+        self.hw.mem_write(head + QH_HORIZONTAL, qh_link(head));
+        self.hw.mem_write(
+            head + QH_CHARACTERISTICS,
+            HEAD_OF_RECLAMATION | characteristics(0, 0, Speed::High, 64, false),
+        );
+        self.hw.mem_write(head + QH_OVERLAY_TOKEN, TOKEN_HALTED);
+        self.write(PERIODICLISTBASE, frame_list as u32);
+        self.write(ASYNCLISTADDR, head as u32);
+        self.write(USBINTR, 0);
+        self.write(
+            USBCMD,
+            CMD_THRESHOLD_8
+                | CMD_FRAME_LIST_1024
+                | CMD_PERIODIC_ENABLE
+                | CMD_ASYNC_ENABLE
+                | CMD_RUN,
+        );
+        let running = STS_PERIODIC_RUNNING | STS_ASYNC_RUNNING;
+        if !self.wait_for(USBSTS, START_MICROS, |s| {
+            s & STS_HALTED == 0 && s & running == running
+        }) {
+            return Err(EhciError::NotRunning);
+        }
+        // Every port to this controller; read back so the write is posted.
+        self.write(CONFIGFLAG, 1);
+        let _ = self.read(CONFIGFLAG);
+        if self.port_power_control {
+            for port in 1..=self.ports {
+                let register = Self::port_register(port);
+                let status = self.read(register);
+                self.write(register, status & !PORT_CHANGES | PORT_POWER);
+            }
+        }
+        self.state = State::Running;
+        Ok(())
     }
 
     fn root_ports(&self) -> u8 {

@@ -273,6 +273,19 @@ pub trait HostController {
     /// the host tests' checks).
     fn hardware(&mut self) -> &mut Self::Hardware;
 
+    /// Why the controller would not start.
+    type StartError: fmt::Display;
+
+    /// Start-up, first: takes the controller from the firmware (BIOS
+    /// legacy support or SMM), bounded. The kernel takes every controller
+    /// before it starts any.
+    fn take_ownership(&mut self) -> Handoff;
+
+    /// Start-up, then: resets the controller, builds its schedules, starts
+    /// it and powers its ports, every wait bounded. A controller the
+    /// firmware kept ([`Handoff::NeverReleased`]) is refused untouched.
+    fn reset_and_start(&mut self) -> Result<(), Self::StartError>;
+
     /// The number of root ports.
     fn root_ports(&self) -> u8;
 
@@ -419,6 +432,9 @@ pub enum Handoff {
         /// How long it took.
         micros: u64,
     },
+    /// The firmware never let go within the bound, and the driver took the
+    /// controller anyway (xHCI, as Linux does).
+    Forced,
     /// The firmware never let go within the bound: the driver logged it
     /// and leaves the controller alone (no reset, no schedule).
     NeverReleased,

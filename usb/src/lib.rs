@@ -5,7 +5,9 @@
 //! runs on the machine and on the host against register models.
 //!
 //! The device layer and the interface below it:
-//! - [`host`]: the one polled host-controller trait the device layer drives;
+//! - [`host`]: the one polled host-controller trait the device layer drives,
+//!   start-up (firmware hand-off, reset, start) included;
+//! - [`driver`]: the four drivers as one type under one device layer;
 //! - [`bus`]: the device layer over it: debounce, resets, addresses,
 //!   descriptors, hubs and their transaction translators, keyboards, stalls
 //!   and errors, hot-plug, a step per poll;
@@ -35,6 +37,7 @@ extern crate std;
 
 pub mod bus;
 pub mod descriptor;
+pub mod driver;
 pub mod ehci;
 pub mod hid;
 pub mod host;

@@ -12,7 +12,7 @@
 
 use super::devices::{Packet, Pid, Reply, Split, UsbTree};
 use crate::host::{
-    ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
+    ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use std::format;
@@ -470,6 +470,17 @@ impl HostController for Loopback {
 
     fn hardware(&mut self) -> &mut Loopback {
         self
+    }
+
+    type StartError = HostError;
+
+    /// The device layer's tests start with the controller running.
+    fn take_ownership(&mut self) -> Handoff {
+        Handoff::NotOwned
+    }
+
+    fn reset_and_start(&mut self) -> Result<(), HostError> {
+        Ok(())
     }
 
     fn root_ports(&self) -> u8 {
