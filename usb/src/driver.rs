@@ -55,27 +55,14 @@ impl fmt::Display for DriverError {
     }
 }
 
-/// Runs `$body` with `$driver` bound to the driver inside `$host`, and
-/// `$wrap` naming the [`DriverError`] variant of its kind.
+/// Runs `$body` with `$driver` bound to the driver inside `$host`.
 macro_rules! each {
-    ($host:expr, |$driver:ident, $wrap:ident| $body:expr) => {
+    ($host:expr, |$driver:ident| $body:expr) => {
         match $host {
-            Driver::Ehci($driver) => {
-                let $wrap = DriverError::Ehci;
-                $body
-            }
-            Driver::Ohci($driver) => {
-                let $wrap = DriverError::Ohci;
-                $body
-            }
-            Driver::Uhci($driver) => {
-                let $wrap = DriverError::Uhci;
-                $body
-            }
-            Driver::Xhci($driver) => {
-                let $wrap = DriverError::Xhci;
-                $body
-            }
+            Driver::Ehci($driver) => $body,
+            Driver::Ohci($driver) => $body,
+            Driver::Uhci($driver) => $body,
+            Driver::Xhci($driver) => $body,
         }
     };
 }
@@ -84,7 +71,7 @@ macro_rules! each {
 macro_rules! pass_on {
     ($($(#[$attribute:meta])* fn $name:ident(&mut self $(, $argument:ident: $type:ty)*) $(-> $result:ty)?;)*) => {
         $($(#[$attribute])* fn $name(&mut self $(, $argument: $type)*) $(-> $result)? {
-            each!(self, |driver, _kind| driver.$name($($argument),*))
+            each!(self, |driver| driver.$name($($argument),*))
         })*
     };
 }
@@ -122,15 +109,20 @@ impl<H: PciHardware> HostController for Driver<H> {
     type StartError = DriverError;
 
     fn reset_and_start(&mut self) -> Result<(), DriverError> {
-        each!(self, |driver, kind| driver.reset_and_start().map_err(kind))
+        match self {
+            Driver::Ehci(ehci) => ehci.reset_and_start().map_err(DriverError::Ehci),
+            Driver::Ohci(ohci) => ohci.reset_and_start().map_err(DriverError::Ohci),
+            Driver::Uhci(uhci) => uhci.reset_and_start().map_err(DriverError::Uhci),
+            Driver::Xhci(xhci) => xhci.reset_and_start().map_err(DriverError::Xhci),
+        }
     }
 
     fn kind(&self) -> ControllerKind {
-        each!(self, |driver, _kind| driver.kind())
+        each!(self, |driver| driver.kind())
     }
 
     fn root_ports(&self) -> u8 {
-        each!(self, |driver, _kind| driver.root_ports())
+        each!(self, |driver| driver.root_ports())
     }
 
     pass_on! {
