@@ -1026,8 +1026,8 @@ impl<H: Hardware> HostController for Xhci<H> {
     type StartError = XhciError;
 
     /// Takes the controller from the firmware (USB Legacy Support): asks for
-    /// it, waits up to [`HANDOFF_MICROS`](super::HANDOFF_MICROS), takes it if
-    /// the firmware never lets go, and turns the firmware's SMIs off.
+    /// it, waits up to [`HANDOFF_MICROS`], takes it if the firmware never
+    /// lets go, and turns the firmware's SMIs off.
     fn take_ownership(&mut self) -> Handoff {
         let mut legacy = None;
         self.extended_capabilities(|_, offset, id| {
