@@ -25,6 +25,7 @@ use crate::host::{
     Transfer, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use crate::report::{self, BootKeyboard};
+use crate::Platform;
 use core::fmt;
 
 mod enumeration;
@@ -476,10 +477,10 @@ impl<C: HostController> Bus<C> {
                 "{reported} root ports; the first {MAX_ROOT_PORTS} are used"
             ));
         }
-        let start = self.controller.now_micros();
+        let start = self.now_micros();
         self.scan_at = Some(start + enumeration::CONNECT_MICROS);
         while !self.enumeration_idle() && !self.stopped {
-            if self.controller.now_micros().saturating_sub(start) >= BOOT_ENUMERATION_MICROS {
+            if self.now_micros().saturating_sub(start) >= BOOT_ENUMERATION_MICROS {
                 match self.job.as_ref().map(|job| (job.location, job.step)) {
                     Some((location, step)) => self.say(format_args!(
                         "boot enumeration cut short after {} ms, port {location} still {step}; it carries on from the frame loop",
@@ -501,7 +502,7 @@ impl<C: HostController> Bus<C> {
     /// to the polls that follow (the host tests' frame-by-frame view).
     #[cfg(test)]
     pub(crate) fn start_enumeration(&mut self) {
-        self.scan_at = Some(self.controller.now_micros() + enumeration::CONNECT_MICROS);
+        self.scan_at = Some(self.now_micros() + enumeration::CONNECT_MICROS);
     }
 
     /// Whether nothing is being enumerated or waits to be.
@@ -535,7 +536,7 @@ impl<C: HostController> Bus<C> {
             self.advance_enumeration(out);
         }
         if self.holding != 0 {
-            let now = self.controller.now_micros();
+            let now = self.now_micros();
             for device in self.devices.iter_mut().flatten() {
                 if let Role::Keyboard(keyboard) = &mut device.role {
                     keyboard.state.tick(now, out);
@@ -591,16 +592,24 @@ impl<C: HostController> Bus<C> {
         self.controller.halt()
     }
 
+    /// The platform's clock, which bounds every wait.
+    fn now_micros(&mut self) -> u64 {
+        self.controller.hardware().now_micros()
+    }
+
     /// Says something on the log, naming the controller.
     fn say(&mut self, message: fmt::Arguments<'_>) {
         let kind = self.kind;
-        self.controller.log(format_args!("usb: {kind}: {message}"));
+        self.controller
+            .hardware()
+            .log(format_args!("usb: {kind}: {message}"));
     }
 
     /// Says something about the device or port at `location`.
     fn say_at(&mut self, location: Location, message: fmt::Arguments<'_>) {
         let kind = self.kind;
         self.controller
+            .hardware()
             .log(format_args!("usb: {kind} port {location}: {message}"));
     }
 
@@ -686,7 +695,7 @@ impl<C: HostController> Bus<C> {
                 };
                 match keyboard.keys(report) {
                     Ok(keys) => {
-                        let now = self.controller.now_micros();
+                        let now = self.controller.hardware().now_micros();
                         keyboard.state.keys(&keys, now, out);
                         // Its repeat needs the clock while anything is down.
                         if keys == KeySet::default() {
@@ -793,7 +802,7 @@ impl<C: HostController> Bus<C> {
     /// free gets its CLEAR_FEATURE(ENDPOINT_HALT); one that ended restarts
     /// its pipe with the data toggle reset (the device reset its own).
     fn recover_pipes(&mut self) {
-        let now = self.controller.now_micros();
+        let now = self.now_micros();
         for index in 0..MAX_DEVICES {
             if self.recovering & (1 << index) == 0 {
                 continue;

@@ -19,6 +19,7 @@ mod layout;
 #[cfg(test)]
 mod tests;
 
+use crate::host::wait_until;
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
@@ -36,16 +37,6 @@ use layout::{
 };
 pub use layout::{DMA_BYTES_USED, MAX_DEVICES, MAX_PIPES};
 
-/// How often a bounded wait reads its register. QEMU serves each register
-/// read under its one global lock, and runs the controller's frames (which
-/// halt it and start its schedules) on its main thread, which needs that
-/// lock too: a wait that read with no pause held the lock nearly all the
-/// time, so on a loaded host that thread, once scheduled, mostly found it
-/// taken and slept again, and the controller's frames fell behind the
-/// clock by more than a whole bound ("schedules did not start" beside busy
-/// loops). Between reads the wait watches only the clock, leaving the lock
-/// free. Under half a micro-frame, so no wait ends later than that.
-const POLL_INTERVAL_MICROS: u64 = 50;
 /// How long the firmware gets to let go (Linux's ehci_bios_handoff: 1 s).
 pub const HANDOFF_MICROS: u64 = 1_000_000;
 /// How long halting may take: the spec says 16 micro-frames (2 ms), but an
@@ -365,11 +356,6 @@ impl<H: PciHardware> Ehci<H> {
         })
     }
 
-    /// The hardware, for the kernel (and the tests).
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
     /// Whether descriptors use the 64-bit layout (HCCPARAMS bit 0).
     pub fn sixty_four_bit(&self) -> bool {
         self.sixty_four_bit
@@ -416,27 +402,10 @@ impl<H: PciHardware> Ehci<H> {
         (1..=self.ports).contains(&port)
     }
 
-    /// Waits, at most `micros`, for `register` to satisfy `done`, reading
-    /// it once every [`POLL_INTERVAL_MICROS`] and watching only the clock
-    /// in between.
+    /// Waits, at most `micros`, for `register` to satisfy `done`
+    /// ([`wait_until`]'s pace).
     fn wait_for(&mut self, register: u32, micros: u64, done: impl Fn(u32) -> bool) -> bool {
-        let start = self.hw.now_micros();
-        loop {
-            if done(self.read(register)) {
-                return true;
-            }
-            let read_at = self.hw.now_micros();
-            loop {
-                let now = self.hw.now_micros();
-                if now.saturating_sub(start) >= micros {
-                    return done(self.read(register));
-                }
-                if now.saturating_sub(read_at) >= POLL_INTERVAL_MICROS {
-                    break;
-                }
-                core::hint::spin_loop();
-            }
-        }
+        wait_until(self, micros, |ehci| done(ehci.read(register)))
     }
 
     // The firmware hand-off.
@@ -475,120 +444,7 @@ impl<H: PciHardware> Ehci<H> {
         None
     }
 
-    /// Takes the controller from the firmware (Linux's ehci_bios_handoff):
-    /// sets OS-owned, waits at most [`HANDOFF_MICROS`] for BIOS-owned to
-    /// clear, then turns the firmware's SMIs off. A firmware that never
-    /// lets go keeps the controller: the request is withdrawn, it is
-    /// logged, and the driver writes nothing to the controller after.
-    pub fn take_ownership(&mut self) -> Handoff {
-        let Some(legacy) = self.legacy_capability() else {
-            return Handoff::NotOwned;
-        };
-        let support = self.hw.pci_config_read(legacy);
-        // USBLEGSUP is written as a dword: BIOS-owned is written back as it
-        // was read, which leaves it as the firmware has it.
-        self.hw.pci_config_write(legacy, support | LEGACY_OS_OWNED);
-        if support & LEGACY_BIOS_OWNED == 0 {
-            self.hw
-                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
-            return Handoff::NotOwned;
-        }
-        let start = self.hw.now_micros();
-        loop {
-            let support = self.hw.pci_config_read(legacy);
-            let waited = self.hw.now_micros().saturating_sub(start);
-            if support & LEGACY_BIOS_OWNED == 0 {
-                self.hw
-                    .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
-                return Handoff::Released { micros: waited };
-            }
-            if waited >= HANDOFF_MICROS {
-                // Its keyboard emulation is then all there is: leave it be.
-                self.hw.pci_config_write(legacy, support & !LEGACY_OS_OWNED);
-                self.state = State::FirmwareOwns;
-                self.hw.log(format_args!(
-                    "ehci: the firmware kept the controller for {} ms (USBLEGSUP {support:#010x}): left alone",
-                    waited / 1000
-                ));
-                return Handoff::NeverReleased;
-            }
-        }
-    }
-
     // Reset and start.
-
-    /// Halts and resets the controller, builds both schedules, starts it,
-    /// routes every port to it (CONFIGFLAG) and powers the ports. Every
-    /// wait is bounded.
-    pub fn reset_and_start(&mut self) -> Result<(), EhciError> {
-        if self.state == State::FirmwareOwns {
-            return Err(EhciError::FirmwareOwns);
-        }
-        self.state = State::Stopped;
-        self.write(USBINTR, 0);
-        if self.read(USBSTS) & STS_HALTED == 0 {
-            let command = self.read(USBCMD);
-            self.write(USBCMD, command & !(CMD_RUN | CMD_HCRESET));
-            if !self.wait_for(USBSTS, HALT_MICROS, |s| s & STS_HALTED != 0) {
-                return Err(EhciError::NotHalted);
-            }
-        }
-        self.write(USBCMD, CMD_HCRESET);
-        if !self.wait_for(USBCMD, RESET_MICROS, |c| c & CMD_HCRESET == 0) {
-            return Err(EhciError::ResetStuck);
-        }
-        self.devices = [Device::NONE; MAX_DEVICES];
-        self.pipes = [Pipe::NONE; MAX_PIPES];
-        self.async_count = 0;
-        self.reset = None;
-        if self.sixty_four_bit {
-            // All of the DMA region is below 4 GiB.
-            self.write(CTRLDSSEGMENT, 0);
-        }
-        let frame_list = self.layout.frame_list();
-        for entry in 0..FRAME_LIST_ENTRIES as u64 {
-            self.hw.mem_write(frame_list + 4 * entry, LINK_TERMINATE);
-        }
-        // The reclamation head: points to itself, halted so it never runs
-        // a transfer (as Linux's ehci->async).
-        let head = self.layout.async_head();
-        self.clear_qh(head);
-        self.hw.mem_write(head + QH_HORIZONTAL, qh_link(head));
-        self.hw.mem_write(
-            head + QH_CHARACTERISTICS,
-            HEAD_OF_RECLAMATION | characteristics(0, 0, Speed::High, 64, false),
-        );
-        self.hw.mem_write(head + QH_OVERLAY_TOKEN, TOKEN_HALTED);
-        self.write(PERIODICLISTBASE, frame_list as u32);
-        self.write(ASYNCLISTADDR, head as u32);
-        self.write(USBINTR, 0);
-        self.write(
-            USBCMD,
-            CMD_THRESHOLD_8
-                | CMD_FRAME_LIST_1024
-                | CMD_PERIODIC_ENABLE
-                | CMD_ASYNC_ENABLE
-                | CMD_RUN,
-        );
-        let running = STS_PERIODIC_RUNNING | STS_ASYNC_RUNNING;
-        if !self.wait_for(USBSTS, START_MICROS, |s| {
-            s & STS_HALTED == 0 && s & running == running
-        }) {
-            return Err(EhciError::NotRunning);
-        }
-        // Every port to this controller; read back so the write is posted.
-        self.write(CONFIGFLAG, 1);
-        let _ = self.read(CONFIGFLAG);
-        if self.port_power_control {
-            for port in 1..=self.ports {
-                let register = Self::port_register(port);
-                let status = self.read(register);
-                self.write(register, status & !PORT_CHANGES | PORT_POWER);
-            }
-        }
-        self.state = State::Running;
-        Ok(())
-    }
 
     // DMA helpers.
 
@@ -887,12 +743,125 @@ impl<H: PciHardware> HostController for Ehci<H> {
         ControllerKind::Ehci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
+    type Hardware = H;
+
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    type StartError = EhciError;
+
+    /// Takes the controller from the firmware (Linux's ehci_bios_handoff):
+    /// sets OS-owned, waits at most [`HANDOFF_MICROS`] for BIOS-owned to
+    /// clear, then turns the firmware's SMIs off. A firmware that never
+    /// lets go keeps the controller: the request is withdrawn, it is
+    /// logged, and the driver writes nothing to the controller after.
+    fn take_ownership(&mut self) -> Handoff {
+        let Some(legacy) = self.legacy_capability() else {
+            return Handoff::NotOwned;
+        };
+        let support = self.hw.pci_config_read(legacy);
+        // USBLEGSUP is written as a dword: BIOS-owned is written back as it
+        // was read, which leaves it as the firmware has it.
+        self.hw.pci_config_write(legacy, support | LEGACY_OS_OWNED);
+        if support & LEGACY_BIOS_OWNED == 0 {
+            self.hw
+                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
+            return Handoff::NotOwned;
+        }
+        let start = self.hw.now_micros();
+        let mut support = support;
+        let released = wait_until(self, HANDOFF_MICROS, |ehci| {
+            support = ehci.hw.pci_config_read(legacy);
+            support & LEGACY_BIOS_OWNED == 0
+        });
+        let waited = self.hw.now_micros().saturating_sub(start);
+        if released {
+            self.hw
+                .pci_config_write(legacy + LEGACY_CONTROL, LEGACY_CONTROL_SILENT);
+            return Handoff::Released { micros: waited };
+        }
+        // Its keyboard emulation is then all there is: leave it be.
+        self.hw.pci_config_write(legacy, support & !LEGACY_OS_OWNED);
+        self.state = State::FirmwareOwns;
+        self.hw.log(format_args!(
+            "ehci: the firmware kept the controller for {} ms (USBLEGSUP {support:#010x}): left alone",
+            waited / 1000
+        ));
+        Handoff::NeverReleased
+    }
+
+    /// Halts and resets the controller, builds both schedules, starts it,
+    /// routes every port to it (CONFIGFLAG) and powers the ports. Every
+    /// wait is bounded.
+    fn reset_and_start(&mut self) -> Result<(), EhciError> {
+        if self.state == State::FirmwareOwns {
+            return Err(EhciError::FirmwareOwns);
+        }
+        self.state = State::Stopped;
+        self.write(USBINTR, 0);
+        if self.read(USBSTS) & STS_HALTED == 0 {
+            let command = self.read(USBCMD);
+            self.write(USBCMD, command & !(CMD_RUN | CMD_HCRESET));
+            if !self.wait_for(USBSTS, HALT_MICROS, |s| s & STS_HALTED != 0) {
+                return Err(EhciError::NotHalted);
+            }
+        }
+        self.write(USBCMD, CMD_HCRESET);
+        if !self.wait_for(USBCMD, RESET_MICROS, |c| c & CMD_HCRESET == 0) {
+            return Err(EhciError::ResetStuck);
+        }
+        self.devices = [Device::NONE; MAX_DEVICES];
+        self.pipes = [Pipe::NONE; MAX_PIPES];
+        self.async_count = 0;
+        self.reset = None;
+        if self.sixty_four_bit {
+            // All of the DMA region is below 4 GiB.
+            self.write(CTRLDSSEGMENT, 0);
+        }
+        let frame_list = self.layout.frame_list();
+        for entry in 0..FRAME_LIST_ENTRIES as u64 {
+            self.hw.mem_write(frame_list + 4 * entry, LINK_TERMINATE);
+        }
+        // The reclamation head: points to itself, halted so it never runs
+        // a transfer (as Linux's ehci->async).
+        let head = self.layout.async_head();
+        self.clear_qh(head);
+        self.hw.mem_write(head + QH_HORIZONTAL, qh_link(head));
+        self.hw.mem_write(
+            head + QH_CHARACTERISTICS,
+            HEAD_OF_RECLAMATION | characteristics(0, 0, Speed::High, 64, false),
+        );
+        self.hw.mem_write(head + QH_OVERLAY_TOKEN, TOKEN_HALTED);
+        self.write(PERIODICLISTBASE, frame_list as u32);
+        self.write(ASYNCLISTADDR, head as u32);
+        self.write(USBINTR, 0);
+        self.write(
+            USBCMD,
+            CMD_THRESHOLD_8
+                | CMD_FRAME_LIST_1024
+                | CMD_PERIODIC_ENABLE
+                | CMD_ASYNC_ENABLE
+                | CMD_RUN,
+        );
+        let running = STS_PERIODIC_RUNNING | STS_ASYNC_RUNNING;
+        if !self.wait_for(USBSTS, START_MICROS, |s| {
+            s & STS_HALTED == 0 && s & running == running
+        }) {
+            return Err(EhciError::NotRunning);
+        }
+        // Every port to this controller; read back so the write is posted.
+        self.write(CONFIGFLAG, 1);
+        let _ = self.read(CONFIGFLAG);
+        if self.port_power_control {
+            for port in 1..=self.ports {
+                let register = Self::port_register(port);
+                let status = self.read(register);
+                self.write(register, status & !PORT_CHANGES | PORT_POWER);
+            }
+        }
+        self.state = State::Running;
+        Ok(())
     }
 
     fn root_ports(&self) -> u8 {

@@ -13,6 +13,7 @@
 //! Like Linux's `hc_driver`, the device layer never sees a queue head, an
 //! endpoint descriptor or a transfer descriptor.
 
+use crate::Platform;
 use core::fmt;
 
 /// Which kind of controller, for the log and the facts record.
@@ -296,11 +297,26 @@ pub trait HostController {
     /// Which kind this is.
     fn kind(&self) -> ControllerKind;
 
-    /// The clock every wait of the device layer is bounded by, in microseconds.
-    fn now_micros(&mut self) -> u64;
+    /// The machine the driver runs on: its registers and DMA memory,
+    /// and the platform's clock and log, which the device layer uses too.
+    type Hardware: crate::Platform;
 
-    /// Says something on the kernel's log (one line, no newline).
-    fn log(&mut self, message: fmt::Arguments<'_>);
+    /// The driver's hardware (for the clock and the log; the kernel's and
+    /// the host tests' checks).
+    fn hardware(&mut self) -> &mut Self::Hardware;
+
+    /// Why the controller would not start.
+    type StartError: fmt::Display;
+
+    /// Start-up, first: takes the controller from the firmware (BIOS
+    /// legacy support or SMM), bounded. The kernel takes every controller
+    /// before it starts any.
+    fn take_ownership(&mut self) -> Handoff;
+
+    /// Start-up, then: resets the controller, builds its schedules, starts
+    /// it and powers its ports, every wait bounded. A controller the
+    /// firmware kept ([`Handoff::NeverReleased`]) is refused untouched.
+    fn reset_and_start(&mut self) -> Result<(), Self::StartError>;
 
     /// The number of root ports.
     fn root_ports(&self) -> u8;
@@ -431,6 +447,46 @@ pub trait HostController {
     fn halt(&mut self) -> bool;
 }
 
+/// How often a controller's bounded wait looks at the controller. QEMU
+/// serves each register read under its one global lock, and runs the
+/// controller's frames (which halt it and start its schedules) on its main
+/// thread, which needs that lock too: a wait that read with no pause held
+/// the lock nearly all the time, so on a loaded host that thread, once
+/// scheduled, mostly found it taken and slept again, and the controller's
+/// frames fell behind the clock by more than a whole bound ("schedules did
+/// not start" beside busy loops). Between reads the wait watches only the
+/// clock, leaving the lock free. Under half a micro-frame, so no wait ends
+/// later than that.
+pub const POLL_INTERVAL_MICROS: u64 = 50;
+
+/// Every driver's bounded wait: asks `done` (which reads the controller)
+/// once every [`POLL_INTERVAL_MICROS`], watching only the platform's clock
+/// in between, for at most `micros`, and once more at the bound. Says
+/// whether `done` held.
+pub(crate) fn wait_until<C: HostController + ?Sized>(
+    controller: &mut C,
+    micros: u64,
+    mut done: impl FnMut(&mut C) -> bool,
+) -> bool {
+    let start = controller.hardware().now_micros();
+    loop {
+        if done(controller) {
+            return true;
+        }
+        let read_at = controller.hardware().now_micros();
+        loop {
+            let now = controller.hardware().now_micros();
+            if now.saturating_sub(start) >= micros {
+                return done(controller);
+            }
+            if now.saturating_sub(read_at) >= POLL_INTERVAL_MICROS {
+                break;
+            }
+            core::hint::spin_loop();
+        }
+    }
+}
+
 /// How a controller was taken from the firmware (BIOS legacy support or SMM).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Handoff {
@@ -441,6 +497,9 @@ pub enum Handoff {
         /// How long it took.
         micros: u64,
     },
+    /// The firmware never let go within the bound, and the driver took the
+    /// controller anyway (xHCI, as Linux does).
+    Forced,
     /// The firmware never let go within the bound: the driver logged it
     /// and leaves the controller alone (no reset, no schedule).
     NeverReleased,

@@ -5,7 +5,9 @@
 //! runs on the machine and on the host against register models.
 //!
 //! The device layer and the interface below it:
-//! - [`host`]: the one polled host-controller trait the device layer drives;
+//! - [`host`]: the one polled host-controller trait the device layer drives,
+//!   start-up (firmware hand-off, reset, start) included;
+//! - [`driver`]: the four drivers as one type under one device layer;
 //! - [`bus`]: the device layer over it: debounce, resets, addresses,
 //!   descriptors, hubs and their transaction translators, keyboards, stalls
 //!   and errors, hot-plug, a step per poll;
@@ -35,6 +37,7 @@ extern crate std;
 
 pub mod bus;
 pub mod descriptor;
+pub mod driver;
 pub mod ehci;
 pub mod hid;
 pub mod host;
@@ -58,17 +61,32 @@ pub trait Memory {
     fn mem_write(&mut self, address: u64, value: u32);
 }
 
+/// The machine's services to every driver and to the device layer: the
+/// clock every bound is measured on, and the kernel's log. They reach the
+/// device layer through [`host::HostController::hardware`].
+pub trait Platform {
+    /// A clock for every wait's bound, in microseconds.
+    fn now_micros(&mut self) -> u64;
+    /// Says something on the kernel's log (one line, no newline).
+    fn log(&mut self, message: core::fmt::Arguments<'_>);
+
+    /// Waits `micros` by the clock, touching no device (a reset's hold
+    /// time, a power-on delay).
+    fn pause(&mut self, micros: u64) {
+        let start = self.now_micros();
+        while self.now_micros().saturating_sub(start) < micros {
+            core::hint::spin_loop();
+        }
+    }
+}
+
 /// Everything the driver needs from the machine.
-pub trait Hardware: Memory {
+pub trait Hardware: Memory + Platform {
     /// Reads the controller's register at `offset` in BAR0 (4-byte aligned,
     /// inside the BAR: the driver checks).
     fn mmio_read(&mut self, offset: u32) -> u32;
     /// Writes the controller's register at `offset` in BAR0.
     fn mmio_write(&mut self, offset: u32, value: u32);
-    /// A clock for every wait's bound, in microseconds.
-    fn now_micros(&mut self) -> u64;
-    /// Says something on the kernel's log (one line, no newline).
-    fn log(&mut self, message: core::fmt::Arguments<'_>);
 }
 
 /// What an EHCI, OHCI or UHCI driver needs beyond [`Hardware`]: UHCI's

@@ -23,6 +23,7 @@ mod registers;
 #[cfg(test)]
 mod tests;
 
+use crate::host::wait_until;
 pub use crate::host::Handoff;
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
@@ -235,11 +236,6 @@ impl<H: PciHardware> Ohci<H> {
         })
     }
 
-    /// The hardware the driver runs on.
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
     /// Devices in the driver's table (the tests check none leak).
     pub fn devices_in_use(&self) -> usize {
         self.devices.iter().filter(|d| d.in_use).count()
@@ -282,34 +278,21 @@ impl<H: PciHardware> Ohci<H> {
         (1..=self.ports).contains(&port)
     }
 
-    fn now(&mut self) -> u64 {
-        self.hw.now_micros()
-    }
-
-    /// Waits `micros` by the clock.
-    fn delay(&mut self, micros: u64) {
-        let start = self.now();
-        while self.now().saturating_sub(start) < micros {}
-    }
-
-    /// Reads `offset` until `done` says so or `micros` pass; gives the
-    /// last value read and whether `done` held.
+    /// Reads `offset` until `done` says so or `micros` pass
+    /// ([`wait_until`]'s pace); gives the last value read and whether
+    /// `done` held.
     fn wait_register(
         &mut self,
         offset: u32,
         micros: u64,
         done: impl Fn(u32) -> bool,
     ) -> (u32, bool) {
-        let start = self.now();
-        loop {
-            let value = self.read(offset);
-            if done(value) {
-                return (value, true);
-            }
-            if self.now().saturating_sub(start) >= micros {
-                return (value, false);
-            }
-        }
+        let mut value = 0;
+        let held = wait_until(self, micros, |ohci| {
+            value = ohci.read(offset);
+            done(value)
+        });
+        (value, held)
     }
 
     /// Waits until the controller starts a new frame (HcFmNumber moves):
@@ -327,145 +310,6 @@ impl<H: PciHardware> Ohci<H> {
                 .log(format_args!("ohci: the frame counter stopped at {before}"));
         }
         moved
-    }
-
-    /// Takes the controller from the firmware. SMM owns it while
-    /// HcControl.InterruptRouting is set: an OwnershipChangeRequest asks
-    /// it to let go, and the driver waits up to 500 ms (Linux). If it never
-    /// does, the controller is left alone: no reset, no schedule.
-    pub fn take_ownership(&mut self) -> Handoff {
-        if self.state != State::New {
-            return Handoff::NotOwned;
-        }
-        let control = self.read(HC_CONTROL);
-        if control == u32::MAX || control & CONTROL_IR == 0 {
-            return Handoff::NotOwned;
-        }
-        let start = self.now();
-        // The ownership change interrupt is what SMM waits for.
-        self.write(HC_INTERRUPT_ENABLE, INTERRUPT_OC);
-        self.write(HC_COMMAND_STATUS, COMMAND_OCR);
-        let (control, released) =
-            self.wait_register(HC_CONTROL, HANDOFF_MICROS, |c| c & CONTROL_IR == 0);
-        if released {
-            let micros = self.now().saturating_sub(start);
-            Handoff::Released { micros }
-        } else {
-            self.hw.log(format_args!(
-                "ohci: SMM kept the controller for {} ms (HcControl {control:#010x}): left alone",
-                HANDOFF_MICROS / 1000
-            ));
-            self.state = State::LeftToFirmware;
-            Handoff::NeverReleased
-        }
-    }
-
-    /// Resets the controller, builds the HCCA and the interrupt tree,
-    /// makes it operational with the control and periodic lists on and
-    /// every interrupt off, and powers the root ports. Bounded throughout.
-    pub fn reset_and_start(&mut self) -> Result<()> {
-        match self.state {
-            State::LeftToFirmware => return Err(OhciError::OwnedByFirmware),
-            State::New | State::Stopped => {}
-            State::Running => return Ok(()),
-        }
-        let revision = self.read(HC_REVISION);
-        let control = self.read(HC_CONTROL);
-        if revision == u32::MAX || control == u32::MAX {
-            return Err(OhciError::Absent);
-        }
-        if revision & 0xFF != 0x10 {
-            self.hw.log(format_args!(
-                "ohci: revision {:#04x}, not 1.0; trying",
-                revision & 0xFF
-            ));
-        }
-        self.remote_wakeup_connected = control & CONTROL_RWC;
-        self.write(HC_INTERRUPT_DISABLE, INTERRUPT_ALL);
-
-        // What the firmware left running is stopped as Linux's ohci_run
-        // does: an operational controller is reset at once, a suspended
-        // one resumed first, anything else held in UsbReset for 50 ms so
-        // the devices see a bus reset.
-        let (next_state, wait) = match control & CONTROL_HCFS_MASK {
-            HCFS_OPERATIONAL => (HCFS_OPERATIONAL, 0),
-            HCFS_SUSPEND | HCFS_RESUME => (HCFS_RESUME, USB_RESUME_MICROS),
-            _ => (HCFS_RESET, USB_RESET_MICROS),
-        };
-        self.write(HC_CONTROL, self.remote_wakeup_connected | next_state);
-        self.read(HC_CONTROL);
-        self.delay(wait);
-
-        let saved = self.read(HC_FM_INTERVAL);
-        let mut interval = saved & FM_INTERVAL_FI_MASK;
-        if !FRAME_INTERVALS.contains(&interval) {
-            self.hw.log(format_args!(
-                "ohci: frame interval {interval} from the firmware is implausible; using {FRAME_INTERVAL_DEFAULT}"
-            ));
-            interval = FRAME_INTERVAL_DEFAULT;
-        }
-        // FSLargestDataPacket as the specification computes it (5.4):
-        // the frame less the maximum bit-stuffing and SOF overhead.
-        let largest_packet = (6 * (interval - 210) / 7) & FM_INTERVAL_FSMPS_MASK;
-        self.frame_interval = largest_packet << FM_INTERVAL_FSMPS_SHIFT | interval;
-
-        // Everything in memory is ready before the reset: after it the
-        // controller must be made operational within 2 ms.
-        self.build_schedule();
-
-        self.write(HC_COMMAND_STATUS, COMMAND_HCR);
-        let (_, reset_done) =
-            self.wait_register(HC_COMMAND_STATUS, RESET_MICROS, |s| s & COMMAND_HCR == 0);
-        if !reset_done {
-            self.hw
-                .log(format_args!("ohci: HostControllerReset did not clear"));
-            self.state = State::Stopped;
-            return Err(OhciError::ResetTimedOut);
-        }
-        // Now in UsbSuspend.
-        self.write(HC_CONTROL_HEAD_ED, 0);
-        self.write(HC_BULK_HEAD_ED, 0);
-        let hcca = self.layout.hcca as u32;
-        self.write(HC_HCCA, hcca);
-        let toggle = self.read(HC_FM_INTERVAL) & FM_INTERVAL_FIT;
-        self.write(
-            HC_FM_INTERVAL,
-            (toggle ^ FM_INTERVAL_FIT) | self.frame_interval,
-        );
-        self.write(HC_PERIODIC_START, (9 * interval / 10) & FM_INTERVAL_FI_MASK);
-        let frame_interval = self.read(HC_FM_INTERVAL);
-        let periodic_start = self.read(HC_PERIODIC_START);
-        let hcca_back = self.read(HC_HCCA);
-        if frame_interval >> FM_INTERVAL_FSMPS_SHIFT & FM_INTERVAL_FSMPS_MASK == 0
-            || periodic_start == 0
-            || hcca_back != hcca
-        {
-            self.hw.log(format_args!(
-                "ohci: init failed: HcFmInterval {frame_interval:#010x}, HcPeriodicStart {periodic_start:#x}, HcHCCA {hcca_back:#x}"
-            ));
-            self.state = State::Stopped;
-            return Err(OhciError::BadInitialisation);
-        }
-        self.write(HC_INTERRUPT_STATUS, INTERRUPT_ALL & !INTERRUPT_MIE);
-        self.write(
-            HC_CONTROL,
-            self.remote_wakeup_connected
-                | CONTROL_CBSR_4_TO_1
-                | CONTROL_PLE
-                | CONTROL_CLE
-                | HCFS_OPERATIONAL,
-        );
-        let control = self.read(HC_CONTROL);
-        if control & CONTROL_HCFS_MASK != HCFS_OPERATIONAL {
-            self.hw.log(format_args!(
-                "ohci: not operational: HcControl {control:#010x}"
-            ));
-            self.state = State::Stopped;
-            return Err(OhciError::NotOperational);
-        }
-        self.state = State::Running;
-        self.power_ports();
-        Ok(())
     }
 
     /// Clears the HCCA, builds the static interrupt tree (every ED
@@ -525,7 +369,7 @@ impl<H: PciHardware> Ohci<H> {
             }
         }
         let power_on = u64::from(descriptor >> RH_A_POTPGT_SHIFT) * 2_000;
-        self.delay(power_on.min(MAX_POWER_ON_MICROS));
+        self.hw.pause(power_on.min(MAX_POWER_ON_MICROS));
     }
 
     fn device(&self, device: DeviceId) -> core::result::Result<usize, HostError> {
@@ -796,12 +640,151 @@ impl<H: PciHardware> HostController for Ohci<H> {
         ControllerKind::Ohci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
+    type Hardware = H;
+
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    type StartError = OhciError;
+
+    /// Takes the controller from the firmware. SMM owns it while
+    /// HcControl.InterruptRouting is set: an OwnershipChangeRequest asks
+    /// it to let go, and the driver waits up to 500 ms (Linux). If it never
+    /// does, the controller is left alone: no reset, no schedule.
+    fn take_ownership(&mut self) -> Handoff {
+        if self.state != State::New {
+            return Handoff::NotOwned;
+        }
+        let control = self.read(HC_CONTROL);
+        if control == u32::MAX || control & CONTROL_IR == 0 {
+            return Handoff::NotOwned;
+        }
+        let start = self.hw.now_micros();
+        // The ownership change interrupt is what SMM waits for.
+        self.write(HC_INTERRUPT_ENABLE, INTERRUPT_OC);
+        self.write(HC_COMMAND_STATUS, COMMAND_OCR);
+        let (control, released) =
+            self.wait_register(HC_CONTROL, HANDOFF_MICROS, |c| c & CONTROL_IR == 0);
+        if released {
+            let micros = self.hw.now_micros().saturating_sub(start);
+            Handoff::Released { micros }
+        } else {
+            self.hw.log(format_args!(
+                "ohci: SMM kept the controller for {} ms (HcControl {control:#010x}): left alone",
+                HANDOFF_MICROS / 1000
+            ));
+            self.state = State::LeftToFirmware;
+            Handoff::NeverReleased
+        }
+    }
+
+    /// Resets the controller, builds the HCCA and the interrupt tree,
+    /// makes it operational with the control and periodic lists on and
+    /// every interrupt off, and powers the root ports. Bounded throughout.
+    fn reset_and_start(&mut self) -> Result<()> {
+        match self.state {
+            State::LeftToFirmware => return Err(OhciError::OwnedByFirmware),
+            State::New | State::Stopped => {}
+            State::Running => return Ok(()),
+        }
+        let revision = self.read(HC_REVISION);
+        let control = self.read(HC_CONTROL);
+        if revision == u32::MAX || control == u32::MAX {
+            return Err(OhciError::Absent);
+        }
+        if revision & 0xFF != 0x10 {
+            self.hw.log(format_args!(
+                "ohci: revision {:#04x}, not 1.0; trying",
+                revision & 0xFF
+            ));
+        }
+        self.remote_wakeup_connected = control & CONTROL_RWC;
+        self.write(HC_INTERRUPT_DISABLE, INTERRUPT_ALL);
+
+        // What the firmware left running is stopped as Linux's ohci_run
+        // does: an operational controller is reset at once, a suspended
+        // one resumed first, anything else held in UsbReset for 50 ms so
+        // the devices see a bus reset.
+        let (next_state, wait) = match control & CONTROL_HCFS_MASK {
+            HCFS_OPERATIONAL => (HCFS_OPERATIONAL, 0),
+            HCFS_SUSPEND | HCFS_RESUME => (HCFS_RESUME, USB_RESUME_MICROS),
+            _ => (HCFS_RESET, USB_RESET_MICROS),
+        };
+        self.write(HC_CONTROL, self.remote_wakeup_connected | next_state);
+        self.read(HC_CONTROL);
+        self.hw.pause(wait);
+
+        let saved = self.read(HC_FM_INTERVAL);
+        let mut interval = saved & FM_INTERVAL_FI_MASK;
+        if !FRAME_INTERVALS.contains(&interval) {
+            self.hw.log(format_args!(
+                "ohci: frame interval {interval} from the firmware is implausible; using {FRAME_INTERVAL_DEFAULT}"
+            ));
+            interval = FRAME_INTERVAL_DEFAULT;
+        }
+        // FSLargestDataPacket as the specification computes it (5.4):
+        // the frame less the maximum bit-stuffing and SOF overhead.
+        let largest_packet = (6 * (interval - 210) / 7) & FM_INTERVAL_FSMPS_MASK;
+        self.frame_interval = largest_packet << FM_INTERVAL_FSMPS_SHIFT | interval;
+
+        // Everything in memory is ready before the reset: after it the
+        // controller must be made operational within 2 ms.
+        self.build_schedule();
+
+        self.write(HC_COMMAND_STATUS, COMMAND_HCR);
+        let (_, reset_done) =
+            self.wait_register(HC_COMMAND_STATUS, RESET_MICROS, |s| s & COMMAND_HCR == 0);
+        if !reset_done {
+            self.hw
+                .log(format_args!("ohci: HostControllerReset did not clear"));
+            self.state = State::Stopped;
+            return Err(OhciError::ResetTimedOut);
+        }
+        // Now in UsbSuspend.
+        self.write(HC_CONTROL_HEAD_ED, 0);
+        self.write(HC_BULK_HEAD_ED, 0);
+        let hcca = self.layout.hcca as u32;
+        self.write(HC_HCCA, hcca);
+        let toggle = self.read(HC_FM_INTERVAL) & FM_INTERVAL_FIT;
+        self.write(
+            HC_FM_INTERVAL,
+            (toggle ^ FM_INTERVAL_FIT) | self.frame_interval,
+        );
+        self.write(HC_PERIODIC_START, (9 * interval / 10) & FM_INTERVAL_FI_MASK);
+        let frame_interval = self.read(HC_FM_INTERVAL);
+        let periodic_start = self.read(HC_PERIODIC_START);
+        let hcca_back = self.read(HC_HCCA);
+        if frame_interval >> FM_INTERVAL_FSMPS_SHIFT & FM_INTERVAL_FSMPS_MASK == 0
+            || periodic_start == 0
+            || hcca_back != hcca
+        {
+            self.hw.log(format_args!(
+                "ohci: init failed: HcFmInterval {frame_interval:#010x}, HcPeriodicStart {periodic_start:#x}, HcHCCA {hcca_back:#x}"
+            ));
+            self.state = State::Stopped;
+            return Err(OhciError::BadInitialisation);
+        }
+        self.write(HC_INTERRUPT_STATUS, INTERRUPT_ALL & !INTERRUPT_MIE);
+        self.write(
+            HC_CONTROL,
+            self.remote_wakeup_connected
+                | CONTROL_CBSR_4_TO_1
+                | CONTROL_PLE
+                | CONTROL_CLE
+                | HCFS_OPERATIONAL,
+        );
+        let control = self.read(HC_CONTROL);
+        if control & CONTROL_HCFS_MASK != HCFS_OPERATIONAL {
+            self.hw.log(format_args!(
+                "ohci: not operational: HcControl {control:#010x}"
+            ));
+            self.state = State::Stopped;
+            return Err(OhciError::NotOperational);
+        }
+        self.state = State::Running;
+        self.power_ports();
+        Ok(())
     }
 
     fn root_ports(&self) -> u8 {

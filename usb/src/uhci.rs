@@ -25,6 +25,7 @@ mod layout;
 #[cfg(test)]
 mod tests;
 
+use crate::host::wait_until;
 use crate::host::{
     ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
@@ -221,121 +222,6 @@ impl<H: PciHardware> Uhci<H> {
         })
     }
 
-    /// The hardware the driver runs on.
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
-    /// Takes the controller from the BIOS: the SMI enables in LEGSUP are
-    /// cleared and its trap status bits written back (Linux's
-    /// `USBLEGSUP_RWC`, then 0: no PIRQ, the driver polls), re-tried until
-    /// they read clear or [`HANDOFF_MICROS`] passed. Then USBINTR is zeroed
-    /// and the controller stopped. A firmware that keeps its enables is
-    /// logged and the controller left alone.
-    pub fn take_ownership(&mut self) -> Handoff {
-        let dword = self.hw.pci_config_read(LEGACY_OFFSET);
-        let above = dword & 0xFFFF_0000;
-        let found = dword as u16;
-        let owned = found & LEGACY_SMI_ENABLES != 0;
-        let start = self.hw.now_micros();
-        let mut last_write = None;
-        loop {
-            let now = self.hw.now_micros();
-            if last_write.is_none_or(|at| now.saturating_sub(at) >= 1_000) {
-                self.hw
-                    .pci_config_write(LEGACY_OFFSET, above | u32::from(LEGACY_STATUS_CLEAR));
-                self.hw.pci_config_write(LEGACY_OFFSET, above);
-                last_write = Some(now);
-            }
-            let legsup = self.hw.pci_config_read(LEGACY_OFFSET) as u16;
-            let elapsed = self.hw.now_micros().saturating_sub(start);
-            if legsup & (LEGACY_SMI_ENABLES | LEGACY_PIRQ_ENABLE) == 0 {
-                break;
-            }
-            if elapsed > HANDOFF_MICROS {
-                self.hw.log(format_args!(
-                    "uhci: the firmware keeps LEGSUP {legsup:#06x} (found {found:#06x}) after {elapsed} us; controller left alone"
-                ));
-                self.state = State::FirmwareOwned;
-                return Handoff::NeverReleased;
-            }
-        }
-        let micros = self.hw.now_micros().saturating_sub(start);
-        // Ours now: no interrupt line, and nothing run from the
-        // firmware's schedule (its memory is not ours).
-        self.hw.write16(USBINTR, 0);
-        let cmd = self.hw.read16(USBCMD);
-        self.hw.write16(USBCMD, cmd & !CMD_RUN);
-        self.state = State::Owned;
-        if owned {
-            self.hw.log(format_args!(
-                "uhci: LEGSUP {found:#06x}: SMI enables cleared in {micros} us"
-            ));
-            Handoff::Released { micros }
-        } else {
-            Handoff::NotOwned
-        }
-    }
-
-    /// Resets the controller (global reset, then host controller reset),
-    /// builds the schedule, counts the root ports and starts it. Every wait
-    /// is bounded.
-    pub fn reset_and_start(&mut self) -> Result<(), UhciError> {
-        if self.state == State::FirmwareOwned {
-            return Err(UhciError::FirmwareOwns);
-        }
-        self.state = State::Stopped;
-        self.hw.write16(USBINTR, 0);
-        self.hw.write16(USBCMD, CMD_GLOBAL_RESET);
-        self.wait_micros(GLOBAL_RESET_MICROS);
-        self.hw.write16(USBCMD, 0);
-        self.hw.write16(USBCMD, CMD_HOST_RESET);
-        if !self.wait_register(USBCMD, CMD_HOST_RESET, 0, HOST_RESET_MICROS) {
-            self.hw.log(format_args!("uhci: HCRESET never cleared"));
-            return Err(UhciError::ResetTimeout);
-        }
-        if !self.wait_register(USBSTS, STS_HALTED, STS_HALTED, HALT_MICROS) {
-            self.hw.log(format_args!("uhci: not halted after HCRESET"));
-            return Err(UhciError::NotHalted);
-        }
-        self.hw.write16(USBINTR, 0);
-
-        self.devices = [FREE_DEVICE; MAX_DEVICES];
-        self.pipes = [FREE_PIPE; MAX_PIPES];
-        self.build_schedule();
-        let frame_list = self.layout.frame_list();
-        self.hw.mmio_write(FRBASEADD, frame_list);
-        if self.hw.mmio_read(FRBASEADD) & !0xFFF != frame_list {
-            self.hw
-                .log(format_args!("uhci: FRBASEADD did not keep {frame_list:#x}"));
-            return Err(UhciError::FrameListRejected);
-        }
-        self.hw.write16(FRNUM, 0);
-        // SOFMOD keeps its reset value (64: 1 ms frames), as the BIOS may
-        // have tuned it.
-
-        self.ports = self.count_ports();
-        if self.ports == 0 {
-            self.hw.log(format_args!("uhci: no root port reads as one"));
-            return Err(UhciError::NoRootPorts);
-        }
-
-        self.hw.write16(USBSTS, STS_CAUSES);
-        self.hw
-            .write16(USBCMD, CMD_RUN | CMD_CONFIGURE | CMD_MAX_PACKET_64);
-        if !self.wait_register(USBSTS, STS_HALTED, 0, HALT_MICROS) {
-            self.hw
-                .log(format_args!("uhci: still halted after Run/Stop"));
-            return Err(UhciError::StartTimeout);
-        }
-        self.state = State::Running;
-        self.hw.log(format_args!(
-            "uhci: running, {} root ports, frame list at {frame_list:#x}",
-            self.ports
-        ));
-        Ok(())
-    }
-
     /// Devices and pipes in use, for the tests.
     #[cfg(test)]
     fn slots_in_use(&self) -> (usize, usize) {
@@ -460,21 +346,13 @@ impl<H: PciHardware> Uhci<H> {
 
     /// Busy-waits `micros` on the hardware clock.
     fn wait_micros(&mut self, micros: u64) {
-        let start = self.hw.now_micros();
-        while self.hw.now_micros().saturating_sub(start) < micros {}
+        self.hw.pause(micros);
     }
 
-    /// Waits until `(register & mask) == want`, at most `micros`.
+    /// Waits until `(register & mask) == want`, at most `micros`
+    /// ([`wait_until`]'s pace).
     fn wait_register(&mut self, offset: u32, mask: u16, want: u16, micros: u64) -> bool {
-        let start = self.hw.now_micros();
-        loop {
-            if self.hw.read16(offset) & mask == want {
-                return true;
-            }
-            if self.hw.now_micros().saturating_sub(start) > micros {
-                return false;
-            }
-        }
+        wait_until(self, micros, |uhci| uhci.hw.read16(offset) & mask == want)
     }
 
     /// The current frame number (11 bits).
@@ -487,26 +365,19 @@ impl<H: PciHardware> Uhci<H> {
     /// looking at what was unlinked during that frame. A frame that does
     /// not end in time is logged and the wait ends anyway.
     fn wait_frame_after(&mut self, frame: u16) {
-        let start = self.hw.now_micros();
-        loop {
-            if self.frame_number() != frame {
-                return;
-            }
-            if self.hw.read16(USBSTS) & STS_HALTED != 0 {
-                return;
-            }
-            if self.hw.now_micros().saturating_sub(start) > FRAME_WAIT_MICROS {
-                // Real controllers move on every millisecond; an emulated
-                // one moves on its host's timer, which a busy host runs
-                // late. Giving up the controller would lose every keyboard
-                // on it for a slow frame: the memory is reused, and at
-                // worst one transfer fails and is recovered. A controller
-                // that has really stopped is caught by USBSTS in `poll`.
-                self.hw.log(format_args!(
-                    "uhci: frame number stuck at {frame} for {FRAME_WAIT_MICROS} us; going on"
-                ));
-                return;
-            }
+        let left = wait_until(self, FRAME_WAIT_MICROS, |uhci| {
+            uhci.frame_number() != frame || uhci.hw.read16(USBSTS) & STS_HALTED != 0
+        });
+        if !left {
+            // Real controllers move on every millisecond; an emulated one
+            // moves on its host's timer, which a busy host runs late.
+            // Giving up the controller would lose every keyboard on it for
+            // a slow frame: the memory is reused, and at worst one transfer
+            // fails and is recovered. A controller that has really stopped
+            // is caught by USBSTS in `poll`.
+            self.hw.log(format_args!(
+                "uhci: frame number stuck at {frame} for {FRAME_WAIT_MICROS} us; going on"
+            ));
         }
     }
 
@@ -653,12 +524,119 @@ impl<H: PciHardware> HostController for Uhci<H> {
         ControllerKind::Uhci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
+    type Hardware = H;
+
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    type StartError = UhciError;
+
+    /// Takes the controller from the BIOS: the SMI enables in LEGSUP are
+    /// cleared and its trap status bits written back (Linux's
+    /// `USBLEGSUP_RWC`, then 0: no PIRQ, the driver polls), re-tried until
+    /// they read clear or [`HANDOFF_MICROS`] passed. Then USBINTR is zeroed
+    /// and the controller stopped. A firmware that keeps its enables is
+    /// logged and the controller left alone.
+    fn take_ownership(&mut self) -> Handoff {
+        let dword = self.hw.pci_config_read(LEGACY_OFFSET);
+        let above = dword & 0xFFFF_0000;
+        let found = dword as u16;
+        let owned = found & LEGACY_SMI_ENABLES != 0;
+        let start = self.hw.now_micros();
+        let (mut last_write, mut legsup) = (None, found);
+        let released = wait_until(self, HANDOFF_MICROS, |uhci| {
+            let now = uhci.hw.now_micros();
+            if last_write.is_none_or(|at| now.saturating_sub(at) >= 1_000) {
+                uhci.hw
+                    .pci_config_write(LEGACY_OFFSET, above | u32::from(LEGACY_STATUS_CLEAR));
+                uhci.hw.pci_config_write(LEGACY_OFFSET, above);
+                last_write = Some(now);
+            }
+            legsup = uhci.hw.pci_config_read(LEGACY_OFFSET) as u16;
+            legsup & (LEGACY_SMI_ENABLES | LEGACY_PIRQ_ENABLE) == 0
+        });
+        let micros = self.hw.now_micros().saturating_sub(start);
+        if !released {
+            self.hw.log(format_args!(
+                "uhci: the firmware keeps LEGSUP {legsup:#06x} (found {found:#06x}) after {micros} us; controller left alone"
+            ));
+            self.state = State::FirmwareOwned;
+            return Handoff::NeverReleased;
+        }
+        // Ours now: no interrupt line, and nothing run from the
+        // firmware's schedule (its memory is not ours).
+        self.hw.write16(USBINTR, 0);
+        let cmd = self.hw.read16(USBCMD);
+        self.hw.write16(USBCMD, cmd & !CMD_RUN);
+        self.state = State::Owned;
+        if owned {
+            self.hw.log(format_args!(
+                "uhci: LEGSUP {found:#06x}: SMI enables cleared in {micros} us"
+            ));
+            Handoff::Released { micros }
+        } else {
+            Handoff::NotOwned
+        }
+    }
+
+    /// Resets the controller (global reset, then host controller reset),
+    /// builds the schedule, counts the root ports and starts it. Every wait
+    /// is bounded.
+    fn reset_and_start(&mut self) -> Result<(), UhciError> {
+        if self.state == State::FirmwareOwned {
+            return Err(UhciError::FirmwareOwns);
+        }
+        self.state = State::Stopped;
+        self.hw.write16(USBINTR, 0);
+        self.hw.write16(USBCMD, CMD_GLOBAL_RESET);
+        self.wait_micros(GLOBAL_RESET_MICROS);
+        self.hw.write16(USBCMD, 0);
+        self.hw.write16(USBCMD, CMD_HOST_RESET);
+        if !self.wait_register(USBCMD, CMD_HOST_RESET, 0, HOST_RESET_MICROS) {
+            self.hw.log(format_args!("uhci: HCRESET never cleared"));
+            return Err(UhciError::ResetTimeout);
+        }
+        if !self.wait_register(USBSTS, STS_HALTED, STS_HALTED, HALT_MICROS) {
+            self.hw.log(format_args!("uhci: not halted after HCRESET"));
+            return Err(UhciError::NotHalted);
+        }
+        self.hw.write16(USBINTR, 0);
+
+        self.devices = [FREE_DEVICE; MAX_DEVICES];
+        self.pipes = [FREE_PIPE; MAX_PIPES];
+        self.build_schedule();
+        let frame_list = self.layout.frame_list();
+        self.hw.mmio_write(FRBASEADD, frame_list);
+        if self.hw.mmio_read(FRBASEADD) & !0xFFF != frame_list {
+            self.hw
+                .log(format_args!("uhci: FRBASEADD did not keep {frame_list:#x}"));
+            return Err(UhciError::FrameListRejected);
+        }
+        self.hw.write16(FRNUM, 0);
+        // SOFMOD keeps its reset value (64: 1 ms frames), as the BIOS may
+        // have tuned it.
+
+        self.ports = self.count_ports();
+        if self.ports == 0 {
+            self.hw.log(format_args!("uhci: no root port reads as one"));
+            return Err(UhciError::NoRootPorts);
+        }
+
+        self.hw.write16(USBSTS, STS_CAUSES);
+        self.hw
+            .write16(USBCMD, CMD_RUN | CMD_CONFIGURE | CMD_MAX_PACKET_64);
+        if !self.wait_register(USBSTS, STS_HALTED, 0, HALT_MICROS) {
+            self.hw
+                .log(format_args!("uhci: still halted after Run/Stop"));
+            return Err(UhciError::StartTimeout);
+        }
+        self.state = State::Running;
+        self.hw.log(format_args!(
+            "uhci: running, {} root ports, frame list at {frame_list:#x}",
+            self.ports
+        ));
+        Ok(())
     }
 
     fn root_ports(&self) -> u8 {

@@ -5,6 +5,7 @@
 //! and every failure is an [`XhciError`] the caller logs and survives.
 
 use super::Hardware;
+use crate::host::wait_until;
 use context::ContextLayout;
 use ring::{trb_type, EventRing, ProducerRing, Trb};
 // TRBs are built with the `xhci` crate's layouts; the rings here own the
@@ -131,19 +132,6 @@ impl core::fmt::Display for XhciError {
 
 type Result<T> = core::result::Result<T, XhciError>;
 
-/// How the firmware let go of the controller.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Handoff {
-    /// No USB Legacy Support capability: the firmware never had it.
-    NoLegacyCapability,
-    /// BIOS-owned was already clear.
-    NotOwned,
-    /// The firmware cleared BIOS-owned after this many microseconds.
-    Released(u64),
-    /// The firmware never let go within [`HANDOFF_MICROS`]: BIOS-owned was
-    /// cleared by the driver.
-    Forced,
-}
 /// A bump allocator of zeroed pages in the DMA region, with the pages of
 /// devices pulled out kept for the next ones (a KVM switched back and
 /// forth all day must not run the region dry).
@@ -277,11 +265,6 @@ impl<H: Hardware> Xhci<H> {
         self.capabilities
     }
 
-    /// The hardware, for the caller's checks (the host tests' model).
-    pub fn hardware(&mut self) -> &mut H {
-        &mut self.hw
-    }
-
     fn read(&mut self, offset: u32) -> u32 {
         if offset
             .checked_add(4)
@@ -319,23 +302,10 @@ impl<H: Hardware> Xhci<H> {
         self.operational + PORTSC + 0x10 * (u32::from(port) - 1)
     }
 
-    /// Waits until `done` holds for USBSTS-style reads of `register` or
-    /// `micros` pass; returns whether it held.
+    /// Waits until `done` holds for reads of `register` or `micros` pass
+    /// ([`wait_until`]'s pace); returns whether it held.
     fn wait_for(&mut self, register: u32, micros: u64, done: impl Fn(u32) -> bool) -> bool {
-        let start = self.hw.now_micros();
-        loop {
-            if done(self.read(register)) {
-                return true;
-            }
-            if self.hw.now_micros().saturating_sub(start) >= micros {
-                return false;
-            }
-        }
-    }
-
-    fn pause(&mut self, micros: u64) {
-        let start = self.hw.now_micros();
-        while self.hw.now_micros().saturating_sub(start) < micros {}
+        wait_until(self, micros, |xhci| done(xhci.read(register)))
     }
 
     fn page(&mut self) -> Result<u64> {
@@ -385,42 +355,6 @@ impl<H: Hardware> Xhci<H> {
         }
     }
 
-    /// Takes the controller from the firmware (USB Legacy Support): asks for
-    /// it, waits up to [`HANDOFF_MICROS`], takes it if the firmware never
-    /// lets go, and turns the firmware's SMIs off.
-    pub fn take_ownership(&mut self) -> Handoff {
-        let mut legacy = None;
-        self.extended_capabilities(|_, offset, id| {
-            if id == CAP_LEGACY && legacy.is_none() {
-                legacy = Some(offset);
-            }
-        });
-        let Some(legacy) = legacy else {
-            return Handoff::NoLegacyCapability;
-        };
-        let before = self.read(legacy);
-        let handoff = if before & LEGACY_BIOS_OWNED == 0 {
-            self.write(legacy, before | LEGACY_OS_OWNED);
-            Handoff::NotOwned
-        } else {
-            self.write(legacy, before | LEGACY_OS_OWNED);
-            let start = self.hw.now_micros();
-            if self.wait_for(legacy, HANDOFF_MICROS, |v| v & LEGACY_BIOS_OWNED == 0) {
-                Handoff::Released(self.hw.now_micros().saturating_sub(start))
-            } else {
-                let now = self.read(legacy);
-                self.write(legacy, (now & !LEGACY_BIOS_OWNED) | LEGACY_OS_OWNED);
-                Handoff::Forced
-            }
-        };
-        let control = self.read(legacy + 4);
-        self.write(
-            legacy + 4,
-            (control & !LEGACY_SMI_ENABLES) | LEGACY_SMI_STATUS,
-        );
-        handoff
-    }
-
     fn read_port_protocols(&mut self) {
         let mut protocols = PortProtocols::default();
         self.extended_capabilities(|xhci, offset, id| {
@@ -432,84 +366,6 @@ impl<H: Hardware> Xhci<H> {
             }
         });
         self.protocols = protocols;
-    }
-
-    /// Halts and resets the controller, builds the DCBAA (with scratchpads
-    /// if it asks), the command ring and the event ring, and starts it.
-    pub fn reset_and_start(&mut self) -> Result<()> {
-        let command = self.op_read(USBCMD);
-        self.op_write(USBCMD, command & !CMD_RUN);
-        let usbsts = self.operational + USBSTS;
-        if !self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED != 0) {
-            return Err(XhciError::NotHalted);
-        }
-        self.op_write(USBCMD, CMD_RESET);
-        // Some Intel controllers hang if read too soon after HCRST (Linux
-        // waits 1 ms there too).
-        self.pause(1_000);
-        let usbcmd = self.operational + USBCMD;
-        let start = self.hw.now_micros();
-        if !self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0) {
-            return Err(XhciError::NotReady);
-        }
-        let left = RESET_MICROS.saturating_sub(self.hw.now_micros().saturating_sub(start));
-        if !self.wait_for(usbsts, left, |s| s & STS_NOT_READY == 0) {
-            return Err(XhciError::NotReady);
-        }
-        let page_size = self.op_read(PAGESIZE);
-        if page_size & 1 == 0 {
-            return Err(XhciError::PageSize(page_size));
-        }
-        self.read_port_protocols();
-
-        let slots = self.capabilities.slots.min(MAX_SLOTS);
-        self.op_write(CONFIG, u32::from(slots));
-        self.dcbaa = self.page()?;
-        let scratchpads = self.capabilities.scratchpads;
-        if scratchpads > 0 {
-            if u64::from(scratchpads) > PAGE_BYTES / 8 {
-                return Err(XhciError::OutOfDmaMemory);
-            }
-            let array = self.page()?;
-            for index in 0..u64::from(scratchpads) {
-                let buffer = self.page()?;
-                self.hw.mem_write(array + index * 8, buffer as u32);
-                self.hw
-                    .mem_write(array + index * 8 + 4, (buffer >> 32) as u32);
-            }
-            self.hw.mem_write(self.dcbaa, array as u32);
-            self.hw.mem_write(self.dcbaa + 4, (array >> 32) as u32);
-        }
-        self.write64(self.operational + DCBAAP, self.dcbaa);
-
-        let commands = ProducerRing::new(self.page()?, RING_TRBS);
-        self.write64(self.operational + CRCR, commands.dequeue_pointer());
-        self.commands = Some(commands);
-
-        let events = EventRing::new(self.page()?, RING_TRBS);
-        let table = self.page()?;
-        self.hw.mem_write(table, events.base() as u32);
-        self.hw.mem_write(table + 4, (events.base() >> 32) as u32);
-        self.hw.mem_write(table + 8, u32::from(events.size()));
-        self.write(self.runtime + ERSTSZ, 1);
-        self.write64(self.runtime + ERDP, events.base());
-        // ERSTBA last: writing it makes the controller read the table.
-        self.write64(self.runtime + ERSTBA, table);
-        self.events = Some(events);
-
-        self.op_write(USBCMD, CMD_RUN);
-        if !self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED == 0) {
-            return Err(XhciError::NotRunning);
-        }
-        // Ports without power (port power control) get it now.
-        for port in 1..=self.capabilities.ports {
-            let register = self.portsc(port);
-            let status = self.read(register);
-            if status & PORT_POWER == 0 {
-                self.write(register, PORT_POWER);
-            }
-        }
-        Ok(())
     }
 
     /// The next event, moving the dequeue pointer on.
@@ -524,17 +380,17 @@ impl<H: Hardware> Xhci<H> {
     /// Waits for the event `wanted` picks (the No Op at start, before any
     /// device: the others are dropped).
     fn wait_event(&mut self, micros: u64, wanted: impl Fn(&Trb) -> bool) -> Option<Trb> {
-        let start = self.hw.now_micros();
-        loop {
-            while let Some(event) = self.next_event() {
+        let mut found = None;
+        wait_until(self, micros, |xhci| {
+            while let Some(event) = xhci.next_event() {
                 if wanted(&event) {
-                    return Some(event);
+                    found = Some(event);
+                    return true;
                 }
             }
-            if self.hw.now_micros().saturating_sub(start) >= micros {
-                return None;
-            }
-        }
+            false
+        });
+        found
     }
 
     fn command(&mut self, trb: Trb) -> Result<Trb> {
@@ -601,7 +457,7 @@ impl<H: Hardware> Xhci<H> {
         self.host = host::HostState::new();
         let reset = halted && {
             self.op_write(USBCMD, CMD_RESET);
-            self.pause(1_000);
+            self.hw.pause(1_000);
             let usbcmd = self.operational + USBCMD;
             self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0)
                 && self.wait_for(usbsts, RESET_MICROS, |s| s & STS_NOT_READY == 0)

@@ -576,7 +576,7 @@ impl<C: HostController> Bus<C> {
         settled: bool,
         first_change: Option<u64>,
     ) {
-        let now = self.controller.now_micros();
+        let now = self.now_micros();
         let changed = if settled {
             now.saturating_sub(DEBOUNCE_MICROS)
         } else {
@@ -675,7 +675,7 @@ impl<C: HostController> Bus<C> {
 
     /// Runs at most one enumeration step.
     pub(super) fn advance_enumeration(&mut self, out: &mut impl FnMut(u8)) {
-        let now = self.controller.now_micros();
+        let now = self.now_micros();
         if self.scan_at.is_some_and(|at| now >= at) {
             self.scan_at = None;
             self.scan_root_ports();
@@ -695,7 +695,7 @@ impl<C: HostController> Bus<C> {
             Some(done) => done,
         };
         let result = self.run_step(&mut job, done, out);
-        let took = self.controller.now_micros().saturating_sub(now);
+        let took = self.now_micros().saturating_sub(now);
         job.longest_step = job.longest_step.max(took);
         match result {
             Ok(Next::Continue) => self.job = Some(job),
@@ -847,7 +847,7 @@ impl<C: HostController> Bus<C> {
                 (job, result)
             }
         };
-        job.longest_step = self.controller.now_micros().saturating_sub(now);
+        job.longest_step = self.now_micros().saturating_sub(now);
         match result {
             Ok(Next::Continue) => self.job = Some(job),
             Ok(Next::Done) => self.finish(job),
@@ -880,7 +880,7 @@ impl<C: HostController> Bus<C> {
         job.awaiting = Awaiting::Control {
             device: index,
             length,
-            until: self.controller.now_micros() + TRANSFER_MICROS,
+            until: self.now_micros() + TRANSFER_MICROS,
         };
         Ok(Next::Continue)
     }
@@ -974,14 +974,14 @@ impl<C: HostController> Bus<C> {
             return Ok(Next::Done);
         }
         self.controller.port_reset_begin(port);
-        let until = self.controller.now_micros() + ROOT_RESET_POLL_MICROS;
+        let until = self.now_micros() + ROOT_RESET_POLL_MICROS;
         job.wait(Step::ResettingRootPort, until)
     }
 
     fn resetting_root_port(&mut self, job: &mut Job) -> Result<Next> {
         let port = job.location.root_port();
         let Some(outcome) = self.controller.port_reset_poll(port) else {
-            let until = self.controller.now_micros() + ROOT_RESET_POLL_MICROS;
+            let until = self.now_micros() + ROOT_RESET_POLL_MICROS;
             return job.wait(Step::ResettingRootPort, until);
         };
         if job.abandoned {
@@ -997,7 +997,7 @@ impl<C: HostController> Bus<C> {
                 // Linux clears C_PORT_CONNECTION after a reset).
                 self.controller.clear_port_change(port);
                 job.speed = speed;
-                let until = self.controller.now_micros() + RESET_RECOVERY_MICROS;
+                let until = self.now_micros() + RESET_RECOVERY_MICROS;
                 job.wait(Step::RecoveringFromReset, until)
             }
             ResetOutcome::HandedToCompanion => {
@@ -1030,7 +1030,7 @@ impl<C: HostController> Bus<C> {
         if self.received_status(job)? & HUB_PORT_CONNECTION == 0 {
             return Ok(Next::Done);
         }
-        job.reset_deadline = self.controller.now_micros() + HUB_RESET_MICROS;
+        job.reset_deadline = self.now_micros() + HUB_RESET_MICROS;
         let port = u16::from(job.location.port());
         self.request(
             job,
@@ -1042,7 +1042,7 @@ impl<C: HostController> Bus<C> {
 
     fn starting_hub_port_reset(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
         done?;
-        let until = self.controller.now_micros() + HUB_RESET_CHECK_MICROS;
+        let until = self.now_micros() + HUB_RESET_CHECK_MICROS;
         job.wait(Step::WaitingForHubPortReset, until)
     }
 
@@ -1056,7 +1056,7 @@ impl<C: HostController> Bus<C> {
         done?;
         let hub = job.hub()?;
         let status = self.received_status(job)?;
-        let now = self.controller.now_micros();
+        let now = self.now_micros();
         if status & HUB_C_PORT_RESET == 0 {
             if now >= job.reset_deadline {
                 return Err(BusError::PortReset);
@@ -1103,7 +1103,7 @@ impl<C: HostController> Bus<C> {
         } else {
             parent.translator
         };
-        let until = self.controller.now_micros() + RESET_RECOVERY_MICROS;
+        let until = self.now_micros() + RESET_RECOVERY_MICROS;
         job.wait(Step::RecoveringFromReset, until)
     }
 
@@ -1159,7 +1159,7 @@ impl<C: HostController> Bus<C> {
 
     fn addressing(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
         done?;
-        let until = self.controller.now_micros() + SET_ADDRESS_RECOVERY_MICROS;
+        let until = self.now_micros() + SET_ADDRESS_RECOVERY_MICROS;
         job.wait(Step::RecoveringFromSetAddress, until)
     }
 
@@ -1441,10 +1441,10 @@ impl<C: HostController> Bus<C> {
         }
         let kind = self.kind;
         match format {
-            ReportFormat::Boot => self.controller.log(format_args!(
+            ReportFormat::Boot => self.controller.hardware().log(format_args!(
                 "keyboard: USB keyboard, boot protocol, on {kind} port {location}"
             )),
-            ReportFormat::Described(layout) => self.controller.log(format_args!(
+            ReportFormat::Described(layout) => self.controller.hardware().log(format_args!(
                 "keyboard: USB keyboard, read by its report descriptor ({} key fields, {}-byte reports{}), on {kind} port {location}",
                 layout.fields().count(),
                 layout.longest_key_report(),
@@ -1542,8 +1542,7 @@ impl<C: HostController> Bus<C> {
     fn power_hub_port(&mut self, job: &mut Job, port: u8) -> Result<Next> {
         let index = job.device()?;
         if port > job.hub_setup.ports {
-            let until =
-                self.controller.now_micros() + job.hub_setup.power_good + HUB_CONNECT_MICROS;
+            let until = self.now_micros() + job.hub_setup.power_good + HUB_CONNECT_MICROS;
             return job.wait(Step::WaitingForHubPower, until);
         }
         self.request(
@@ -1746,7 +1745,7 @@ impl<C: HostController> Bus<C> {
         let Some(index) = job.device else {
             return;
         };
-        let took = self.controller.now_micros().saturating_sub(job.started);
+        let took = self.now_micros().saturating_sub(job.started);
         let (location, longest) = (job.location, job.longest_step);
         if let Some(Role::Hub(hub)) = self.devices[index].as_ref().map(|d| &d.role) {
             let ports = hub.ports;
@@ -1762,7 +1761,7 @@ impl<C: HostController> Bus<C> {
     /// given back, its port disabled (a hub port through the hub, a step
     /// more), and the port left until it changes again.
     fn fail(&mut self, mut job: Job, e: BusError) {
-        let took = self.controller.now_micros().saturating_sub(job.started);
+        let took = self.now_micros().saturating_sub(job.started);
         let (location, step) = (job.location, job.step);
         if job.changes_only {
             // The changes are still set: the hub reports them again.

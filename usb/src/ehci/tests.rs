@@ -6,7 +6,7 @@
 use super::layout::{Layout, MAX_DEVICES, MAX_PIPES};
 use super::*;
 use crate::bus::Bus;
-use crate::host::TransactionTranslator;
+use crate::host::{TransactionTranslator, POLL_INTERVAL_MICROS};
 use crate::model::devices::UsbDevice;
 use crate::model::ehci::{EhciModel, SplitRecord, BAR_BYTES, DMA_BASE, DMA_BYTES};
 use crate::model::{reset_polled, reset_root_port};

@@ -30,7 +30,7 @@ use crate::ehci::budget::{
     TT_MICRO_FRAME_MICROS,
 };
 use crate::host::Speed;
-use crate::{Hardware, Memory, PciHardware};
+use crate::{Hardware, Memory, PciHardware, Platform};
 use std::collections::{BTreeMap, BTreeSet};
 use std::format;
 use std::string::String;
@@ -1506,7 +1506,9 @@ impl Hardware for EhciModel {
             o => self.error(format!("write to {o:#x}, no register there")),
         }
     }
+}
 
+impl Platform for EhciModel {
     fn now_micros(&mut self) -> u64 {
         self.advance(MICROS_PER_READ);
         self.now

@@ -12,7 +12,7 @@
 
 use super::devices::{Packet, Pid, Reply, Split, UsbTree};
 use crate::host::{
-    ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
+    ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
     ROOT_RESET_MICROS,
 };
@@ -455,11 +455,7 @@ impl Loopback {
     }
 }
 
-impl HostController for Loopback {
-    fn kind(&self) -> ControllerKind {
-        self.kind
-    }
-
+impl crate::Platform for Loopback {
     fn now_micros(&mut self) -> u64 {
         self.calls.push("now_micros");
         self.now += MICROS_PER_CLOCK_READ;
@@ -468,6 +464,29 @@ impl HostController for Loopback {
 
     fn log(&mut self, message: core::fmt::Arguments<'_>) {
         self.log.push(format!("{message}"));
+    }
+}
+
+impl HostController for Loopback {
+    fn kind(&self) -> ControllerKind {
+        self.kind
+    }
+
+    type Hardware = Loopback;
+
+    fn hardware(&mut self) -> &mut Loopback {
+        self
+    }
+
+    type StartError = HostError;
+
+    /// The device layer's tests start with the controller running.
+    fn take_ownership(&mut self) -> Handoff {
+        Handoff::NotOwned
+    }
+
+    fn reset_and_start(&mut self) -> Result<(), HostError> {
+        Ok(())
     }
 
     fn root_ports(&self) -> u8 {

@@ -10,6 +10,7 @@ pub mod uhci;
 pub mod xhci;
 
 use crate::host::{HostController, ResetOutcome};
+use crate::Platform;
 
 /// Model time one call may take: its own work, never a wait.
 pub const CALL_MICROS_BOUND: u64 = 1_000;
@@ -25,11 +26,11 @@ pub fn reset_root_port(driver: &mut impl HostController, port: u8) -> ResetOutco
 /// each poll within [`CALL_MICROS_BOUND`] (none blocks), bounded by 1 s
 /// of model time.
 pub fn reset_polled(driver: &mut impl HostController, port: u8) -> ResetOutcome {
-    let deadline = driver.now_micros() + 1_000_000;
+    let deadline = driver.hardware().now_micros() + 1_000_000;
     loop {
-        let before = driver.now_micros();
+        let before = driver.hardware().now_micros();
         let outcome = driver.port_reset_poll(port);
-        let took = driver.now_micros() - before;
+        let took = driver.hardware().now_micros() - before;
         assert!(took <= CALL_MICROS_BOUND, "a reset poll took {took} us");
         if let Some(outcome) = outcome {
             return outcome;

@@ -19,7 +19,7 @@
 
 use super::devices::{Packet, Pid, Reply, UsbTree};
 use crate::host::Speed;
-use crate::{Hardware, Memory, PciHardware};
+use crate::{Hardware, Memory, PciHardware, Platform};
 use std::collections::{BTreeMap, BTreeSet};
 use std::format;
 use std::string::String;
@@ -1338,7 +1338,9 @@ impl Hardware for OhciModel {
         self.catch_up();
         self.register_write(offset, value);
     }
+}
 
+impl Platform for OhciModel {
     fn now_micros(&mut self) -> u64 {
         self.now += MICROS_PER_CLOCK_READ;
         self.catch_up();

@@ -16,7 +16,7 @@
 
 use super::devices::{Packet, Pid, Reply, UsbDevice, UsbTree};
 use crate::host::Speed;
-use crate::{Hardware, Memory, PciHardware};
+use crate::{Hardware, Memory, PciHardware, Platform};
 use std::collections::BTreeMap;
 use std::format;
 use std::string::String;
@@ -898,7 +898,9 @@ impl Hardware for UhciModel {
         self.frbaseadd = value & !0xFFF;
         self.bios_schedule = false;
     }
+}
 
+impl Platform for UhciModel {
     fn now_micros(&mut self) -> u64 {
         self.tick(MICROS_PER_READ);
         self.now

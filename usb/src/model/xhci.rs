@@ -9,7 +9,7 @@
 //! bounds) and fails commands that get it wrong, as hardware would.
 
 use crate::xhci::ring::{trb_type, Trb, CYCLE, TOGGLE_CYCLE};
-use crate::{Hardware, Memory};
+use crate::{Hardware, Memory, Platform};
 use std::string::String;
 use std::vec;
 use std::vec::Vec;
@@ -1326,7 +1326,9 @@ impl Hardware for XhciModel {
             _ => {}
         }
     }
+}
 
+impl Platform for XhciModel {
     fn now_micros(&mut self) -> u64 {
         self.now += MICROS_PER_CLOCK_READ;
         self.now

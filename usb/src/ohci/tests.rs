@@ -6,8 +6,10 @@
 //! device layer would.
 
 use super::*;
+use crate::host::POLL_INTERVAL_MICROS;
 use crate::model::devices::UsbDevice;
 use crate::model::ohci::{OhciModel, PowerSwitching, BAR_BYTES, DMA_BASE, DMA_BYTES};
+use crate::Platform;
 use std::vec::Vec;
 
 const GET_STATUS: u8 = 0;
@@ -47,8 +49,8 @@ fn started(model: OhciModel) -> Driver {
 
 /// Lets `micros` of model time pass through the driver's clock.
 fn wait(ohci: &mut Driver, micros: u64) {
-    let start = ohci.now_micros();
-    while ohci.now_micros() - start < micros {}
+    let start = ohci.hardware().now_micros();
+    while ohci.hardware().now_micros() - start < micros {}
 }
 
 /// Runs a control transfer to its end, as the device layer would poll it
@@ -61,13 +63,13 @@ fn control(
 ) -> core::result::Result<Vec<u8>, Transfer> {
     ohci.control_begin(device, request, out)
         .expect("the transfer starts");
-    let deadline = ohci.now_micros() + 1_000_000;
+    let deadline = ohci.hardware().now_micros() + 1_000_000;
     let mut buffer = [0u8; MAX_CONTROL_DATA];
     loop {
         ohci.anything_happened();
         match ohci.control_poll(device, &mut buffer) {
             Transfer::Pending => assert!(
-                ohci.now_micros() < deadline,
+                ohci.hardware().now_micros() < deadline,
                 "a control transfer never ended"
             ),
             Transfer::Complete(length) => return Ok(buffer[..length].to_vec()),
@@ -78,25 +80,25 @@ fn control(
 
 /// Polls the pipe for up to `micros`: the report, or how it ended.
 fn report(ohci: &mut Driver, pipe: PipeId, micros: u64) -> Transfer {
-    let deadline = ohci.now_micros() + micros;
+    let deadline = ohci.hardware().now_micros() + micros;
     let mut buffer = [0u8; MAX_REPORT];
     loop {
         ohci.anything_happened();
         let result = ohci.interrupt_poll(pipe, &mut buffer);
-        if result != Transfer::Pending || ohci.now_micros() > deadline {
+        if result != Transfer::Pending || ohci.hardware().now_micros() > deadline {
             return result;
         }
     }
 }
 
 fn report_bytes(ohci: &mut Driver, pipe: PipeId) -> Vec<u8> {
-    let deadline = ohci.now_micros() + 200_000;
+    let deadline = ohci.hardware().now_micros() + 200_000;
     let mut buffer = [0u8; MAX_REPORT];
     loop {
         ohci.anything_happened();
         match ohci.interrupt_poll(pipe, &mut buffer) {
             Transfer::Complete(length) => return buffer[..length].to_vec(),
-            Transfer::Pending => assert!(ohci.now_micros() < deadline, "no report came"),
+            Transfer::Pending => assert!(ohci.hardware().now_micros() < deadline, "no report came"),
             other => panic!("the report ended in {other:?}"),
         }
     }
@@ -387,9 +389,12 @@ fn an_idle_poll_reads_one_register_and_nothing_else() {
     }
     // A key: the done queue comes back (WDH) and the poll says so.
     assert!(ohci.hardware().tree.send_report(handle, key(5)));
-    let deadline = ohci.now_micros() + 50_000;
+    let deadline = ohci.hardware().now_micros() + 50_000;
     while !ohci.anything_happened() {
-        assert!(ohci.now_micros() < deadline, "the report never showed");
+        assert!(
+            ohci.hardware().now_micros() < deadline,
+            "the report never showed"
+        );
     }
     assert_eq!(report_bytes(&mut ohci, pipe), key(5));
     assert_clean(&mut ohci);
@@ -508,10 +513,10 @@ fn a_thousand_plug_cycles_use_no_more_descriptors_than_one() {
         };
         let handle = ohci.hardware().tree.plug(&[1], UsbDevice::Keyboard(speed));
         // The root hub says so (RHSC) at the idle poll.
-        let deadline = ohci.now_micros() + 10_000;
+        let deadline = ohci.hardware().now_micros() + 10_000;
         while !ohci.anything_happened() {
             assert!(
-                ohci.now_micros() < deadline,
+                ohci.hardware().now_micros() < deadline,
                 "cycle {cycle}: no root hub change"
             );
         }
@@ -718,6 +723,31 @@ fn smm_that_never_lets_go_keeps_the_controller_untouched() {
         model.writes_while_owned.is_empty(),
         "{:?}",
         model.writes_while_owned
+    );
+}
+
+/// OHCI's waits are paced as every driver's are (`host::wait_until`): SMM
+/// that never lets go is asked once per `POLL_INTERVAL_MICROS` for the
+/// whole 500 ms, not read back to back (which under QEMU keeps its global
+/// lock from the thread that runs the controller).
+#[test]
+fn waits_read_their_register_once_per_poll_interval() {
+    let mut model = OhciModel::new(1);
+    model.smm_owns(None);
+    let mut ohci = driver(model);
+    let (start, reads_before) = (ohci.hardware().now, ohci.hardware().register_reads);
+    assert_eq!(ohci.take_ownership(), Handoff::NeverReleased);
+    let waited = ohci.hardware().now - start;
+    let reads = ohci.hardware().register_reads - reads_before;
+    // A read at the wait's start and at its end, and a few outside it.
+    let most = waited / POLL_INTERVAL_MICROS + 2 + 4;
+    assert!(
+        reads <= most,
+        "{reads} register reads in {waited} us (at most {most})"
+    );
+    assert!(
+        reads >= most / 2,
+        "{reads} register reads: the wait stopped asking"
     );
 }
 

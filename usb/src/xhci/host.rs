@@ -36,13 +36,16 @@
 use super::context::{endpoint_type, speed, EndpointContext, SlotContext};
 use super::ring::{trb_type, ProducerRing, Trb};
 use super::{
-    configure_endpoint, Xhci, COMPLETION_COMMAND_RING_STOPPED, COMPLETION_CONTEXT_STATE,
-    COMPLETION_SHORT_PACKET, COMPLETION_STALL, COMPLETION_SUCCESS, CRCR, CRCR_COMMAND_ABORT,
-    EVENTS_PER_POLL, MAX_SLOTS, PORT_CHANGES, PORT_CONNECTED, PORT_CONNECT_CHANGE, PORT_ENABLED,
-    PORT_POWER, PORT_RESET, PORT_RESET_CHANGE,
+    configure_endpoint, EventRing, Xhci, XhciError, CAP_LEGACY, CMD_RESET, CMD_RUN,
+    COMPLETION_COMMAND_RING_STOPPED, COMPLETION_CONTEXT_STATE, COMPLETION_SHORT_PACKET,
+    COMPLETION_STALL, COMPLETION_SUCCESS, CONFIG, CRCR, CRCR_COMMAND_ABORT, DCBAAP, ERDP, ERSTBA,
+    ERSTSZ, EVENTS_PER_POLL, HALT_MICROS, HANDOFF_MICROS, LEGACY_BIOS_OWNED, LEGACY_OS_OWNED,
+    LEGACY_SMI_ENABLES, LEGACY_SMI_STATUS, MAX_SLOTS, PAGESIZE, PAGE_BYTES, PORT_CHANGES,
+    PORT_CONNECTED, PORT_CONNECT_CHANGE, PORT_ENABLED, PORT_POWER, PORT_RESET, PORT_RESET_CHANGE,
+    RESET_MICROS, RING_TRBS, STS_HALTED, STS_NOT_READY, USBCMD, USBSTS,
 };
 use crate::host::{
-    ControllerKind, DeviceId, DeviceInfo, HostController, HostError, PipeId, PortStatus,
+    ControllerKind, DeviceId, DeviceInfo, Handoff, HostController, HostError, PipeId, PortStatus,
     ResetOutcome, RootReset, Setup, Speed, Transfer, TransferError, MAX_CONTROL_DATA, MAX_REPORT,
 };
 use crate::Hardware;
@@ -1027,12 +1030,130 @@ impl<H: Hardware> HostController for Xhci<H> {
         ControllerKind::Xhci
     }
 
-    fn now_micros(&mut self) -> u64 {
-        self.hw.now_micros()
+    type Hardware = H;
+
+    fn hardware(&mut self) -> &mut H {
+        &mut self.hw
     }
 
-    fn log(&mut self, message: fmt::Arguments<'_>) {
-        self.hw.log(message);
+    type StartError = XhciError;
+
+    /// Takes the controller from the firmware (USB Legacy Support): asks for
+    /// it, waits up to [`HANDOFF_MICROS`], takes it if the firmware never
+    /// lets go, and turns the firmware's SMIs off.
+    fn take_ownership(&mut self) -> Handoff {
+        let mut legacy = None;
+        self.extended_capabilities(|_, offset, id| {
+            if id == CAP_LEGACY && legacy.is_none() {
+                legacy = Some(offset);
+            }
+        });
+        let Some(legacy) = legacy else {
+            return Handoff::NotOwned;
+        };
+        let before = self.read(legacy);
+        let handoff = if before & LEGACY_BIOS_OWNED == 0 {
+            self.write(legacy, before | LEGACY_OS_OWNED);
+            Handoff::NotOwned
+        } else {
+            self.write(legacy, before | LEGACY_OS_OWNED);
+            let start = self.hw.now_micros();
+            if self.wait_for(legacy, HANDOFF_MICROS, |v| v & LEGACY_BIOS_OWNED == 0) {
+                Handoff::Released {
+                    micros: self.hw.now_micros().saturating_sub(start),
+                }
+            } else {
+                let now = self.read(legacy);
+                self.write(legacy, (now & !LEGACY_BIOS_OWNED) | LEGACY_OS_OWNED);
+                Handoff::Forced
+            }
+        };
+        let control = self.read(legacy + 4);
+        self.write(
+            legacy + 4,
+            (control & !LEGACY_SMI_ENABLES) | LEGACY_SMI_STATUS,
+        );
+        handoff
+    }
+
+    /// Halts and resets the controller, builds the DCBAA (with scratchpads
+    /// if it asks), the command ring and the event ring, starts it, powers
+    /// its ports and sends a No Op.
+    fn reset_and_start(&mut self) -> Result<(), XhciError> {
+        let command = self.op_read(USBCMD);
+        self.op_write(USBCMD, command & !CMD_RUN);
+        let usbsts = self.operational + USBSTS;
+        if !self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED != 0) {
+            return Err(XhciError::NotHalted);
+        }
+        self.op_write(USBCMD, CMD_RESET);
+        // Some Intel controllers hang if read too soon after HCRST (Linux
+        // waits 1 ms there too).
+        self.hw.pause(1_000);
+        let usbcmd = self.operational + USBCMD;
+        let start = self.hw.now_micros();
+        if !self.wait_for(usbcmd, RESET_MICROS, |c| c & CMD_RESET == 0) {
+            return Err(XhciError::NotReady);
+        }
+        let left = RESET_MICROS.saturating_sub(self.hw.now_micros().saturating_sub(start));
+        if !self.wait_for(usbsts, left, |s| s & STS_NOT_READY == 0) {
+            return Err(XhciError::NotReady);
+        }
+        let page_size = self.op_read(PAGESIZE);
+        if page_size & 1 == 0 {
+            return Err(XhciError::PageSize(page_size));
+        }
+        self.read_port_protocols();
+
+        let slots = self.capabilities.slots.min(MAX_SLOTS);
+        self.op_write(CONFIG, u32::from(slots));
+        self.dcbaa = self.page()?;
+        let scratchpads = self.capabilities.scratchpads;
+        if scratchpads > 0 {
+            if u64::from(scratchpads) > PAGE_BYTES / 8 {
+                return Err(XhciError::OutOfDmaMemory);
+            }
+            let array = self.page()?;
+            for index in 0..u64::from(scratchpads) {
+                let buffer = self.page()?;
+                self.hw.mem_write(array + index * 8, buffer as u32);
+                self.hw
+                    .mem_write(array + index * 8 + 4, (buffer >> 32) as u32);
+            }
+            self.hw.mem_write(self.dcbaa, array as u32);
+            self.hw.mem_write(self.dcbaa + 4, (array >> 32) as u32);
+        }
+        self.write64(self.operational + DCBAAP, self.dcbaa);
+
+        let commands = ProducerRing::new(self.page()?, RING_TRBS);
+        self.write64(self.operational + CRCR, commands.dequeue_pointer());
+        self.commands = Some(commands);
+
+        let events = EventRing::new(self.page()?, RING_TRBS);
+        let table = self.page()?;
+        self.hw.mem_write(table, events.base() as u32);
+        self.hw.mem_write(table + 4, (events.base() >> 32) as u32);
+        self.hw.mem_write(table + 8, u32::from(events.size()));
+        self.write(self.runtime + ERSTSZ, 1);
+        self.write64(self.runtime + ERDP, events.base());
+        // ERSTBA last: writing it makes the controller read the table.
+        self.write64(self.runtime + ERSTBA, table);
+        self.events = Some(events);
+
+        self.op_write(USBCMD, CMD_RUN);
+        if !self.wait_for(usbsts, HALT_MICROS, |s| s & STS_HALTED == 0) {
+            return Err(XhciError::NotRunning);
+        }
+        // Ports without power (port power control) get it now.
+        for port in 1..=self.capabilities.ports {
+            let register = self.portsc(port);
+            let status = self.read(register);
+            if status & PORT_POWER == 0 {
+                self.write(register, PORT_POWER);
+            }
+        }
+        // The No Op proves the command and event rings work.
+        self.no_op()
     }
 
     fn root_ports(&self) -> u8 {

@@ -5,7 +5,7 @@
 //! and every read is counted, for the bench's reads per idle poll.
 
 use crate::{dma, pci, serial_println, time};
-use usb::{Hardware, Memory, PciHardware};
+use usb::{Hardware, Memory, PciHardware, Platform};
 use x86_64::instructions::port::Port;
 
 /// Where a controller's registers are.
@@ -129,7 +129,9 @@ impl Hardware for Registers {
             },
         }
     }
+}
 
+impl Platform for Registers {
     fn now_micros(&mut self) -> u64 {
         time::micros()
     }

@@ -23,11 +23,8 @@ use host::Host;
 use protocol::line::{self, UsbKeyboards};
 use spin::Mutex;
 use usb::bus::Bus;
-use usb::ehci::Ehci;
+use usb::driver::Driver;
 use usb::host::{ControllerKind, Handoff, HostController};
-use usb::ohci::Ohci;
-use usb::uhci::Uhci;
-use usb::xhci::Xhci;
 
 /// Controllers driven; more are named and left alone. ICH9 has two EHCIs
 /// and six UHCIs.
@@ -314,39 +311,23 @@ fn open(
         Window::Memory { bytes, .. } => bytes as u32,
         Window::Io { ports, .. } => ports,
     };
-    let refused = |problem: &dyn fmt::Display| {
-        serial_println!("usb: {} {}: {}", label(kind), function, problem);
+    let host = match Driver::new(kind, registers, window_bytes, base, bytes) {
+        Ok(host) => host,
+        Err(problem) => {
+            serial_println!("usb: {} {}: {}", label(kind), function, problem);
+            return None;
+        }
     };
-    let host = match kind {
-        ControllerKind::Xhci => match Xhci::new(registers, window_bytes, base, bytes) {
-            Ok(xhci) => Host::Xhci(xhci),
-            Err(problem) => {
-                refused(&problem);
-                return None;
-            }
-        },
-        ControllerKind::Ehci => match Ehci::new(registers, window_bytes, base, bytes) {
-            Ok(ehci) => Host::Ehci(ehci),
-            Err(problem) => {
-                refused(&problem);
-                return None;
-            }
-        },
-        ControllerKind::Ohci => match Ohci::new(registers, window_bytes, base, bytes) {
-            Ok(ohci) => Host::Ohci(ohci),
-            Err(problem) => {
-                refused(&problem);
-                return None;
-            }
-        },
-        ControllerKind::Uhci => match Uhci::new(registers, base, bytes) {
-            Ok(uhci) => Host::Uhci(uhci),
-            Err(problem) => {
-                refused(&problem);
-                return None;
-            }
-        },
-    };
+    if let Driver::Xhci(xhci) = &host {
+        let capabilities = xhci.capabilities();
+        serial_println!(
+            "usb: xHCI {}, {} ports, {}-byte contexts, {} scratchpad pages",
+            function,
+            capabilities.ports,
+            capabilities.layout.context_bytes,
+            capabilities.scratchpads
+        );
+    }
     take_from_firmware(host, kind, function)
 }
 
@@ -369,6 +350,13 @@ fn take_from_firmware(
                 name,
                 function,
                 micros
+            );
+        }
+        Handoff::Forced => {
+            serial_println!(
+                "usb: {} {}: the firmware did not let go of it within 1 s; taken anyway",
+                name,
+                function
             );
         }
         Handoff::NeverReleased => {
@@ -458,6 +446,7 @@ fn memory_window(
 /// device layer over it; `Absent` (logged, and halted again) if it would
 /// not start.
 fn start(mut host: Host) -> Controller {
+    host::route_ports_to_xhci(&mut host);
     match host.reset_and_start() {
         Ok(()) => Controller::Running(Bus::new(host)),
         Err(problem) => {
@@ -556,7 +545,7 @@ pub fn shut_down() {
                 (true, _) => serial_println!("{}", said),
                 (false, _) => serial_println!("{}still running after the bounded wait", said),
             }
-            bus.controller().hand_ports_back();
+            host::hand_ports_back(bus.controller());
         }
     }
 }
