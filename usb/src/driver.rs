@@ -80,6 +80,7 @@ impl<H: PciHardware> Driver<H> {
     /// The driver of `kind` over `hardware`: `mmio_bytes` of registers (an
     /// EHCI's, OHCI's or xHCI's BAR0; a UHCI's registers are I/O ports) and
     /// the DMA memory `dma_base` to `dma_base + dma_bytes`.
+    #[optimize(size)] // run once at start-up: small beats fast
     pub fn new(
         kind: ControllerKind,
         hardware: H,
@@ -108,6 +109,7 @@ impl<H: PciHardware> HostController for Driver<H> {
     type Hardware = H;
     type StartError = DriverError;
 
+    #[optimize(size)] // run once at start-up: small beats fast
     fn reset_and_start(&mut self) -> Result<(), DriverError> {
         match self {
             Driver::Ehci(ehci) => ehci.reset_and_start().map_err(DriverError::Ehci),

@@ -289,6 +289,7 @@ impl<H: PciHardware> Ehci<H> {
     /// Reads the capability registers and checks every register offset
     /// against `mmio_bytes` (BAR0's size) and the DMA region
     /// `[dma_base, dma_base + dma_bytes)`. Writes nothing.
+    #[optimize(size)] // run once at start-up: small beats fast
     pub fn new(
         mut hw: H,
         mmio_bytes: u32,
@@ -756,6 +757,7 @@ impl<H: PciHardware> HostController for Ehci<H> {
     /// clear, then turns the firmware's SMIs off. A firmware that never
     /// lets go keeps the controller: the request is withdrawn, it is
     /// logged, and the driver writes nothing to the controller after.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn take_ownership(&mut self) -> Handoff {
         let Some(legacy) = self.legacy_capability() else {
             return Handoff::NotOwned;
@@ -794,6 +796,7 @@ impl<H: PciHardware> HostController for Ehci<H> {
     /// Halts and resets the controller, builds both schedules, starts it,
     /// routes every port to it (CONFIGFLAG) and powers the ports. Every
     /// wait is bounded.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn reset_and_start(&mut self) -> Result<(), EhciError> {
         if self.state == State::FirmwareOwns {
             return Err(EhciError::FirmwareOwns);

@@ -202,6 +202,7 @@ impl<H: PciHardware> Ohci<H> {
     /// Takes the controller whose registers are BAR0 (`mmio_bytes` long)
     /// with the DMA region `[dma_base, dma_base + dma_bytes)`, physically
     /// contiguous and below 4 GiB. Touches no register yet.
+    #[optimize(size)] // run once at start-up: small beats fast
     pub fn new(hw: H, mmio_bytes: u32, dma_base: u64, dma_bytes: u64) -> Result<Self> {
         if mmio_bytes < HC_RH_PORT_STATUS + 4 {
             return Err(OhciError::RegistersTooSmall);
@@ -652,6 +653,7 @@ impl<H: PciHardware> HostController for Ohci<H> {
     /// HcControl.InterruptRouting is set: an OwnershipChangeRequest asks
     /// it to let go, and the driver waits up to 500 ms (Linux). If it never
     /// does, the controller is left alone: no reset, no schedule.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn take_ownership(&mut self) -> Handoff {
         if self.state != State::New {
             return Handoff::NotOwned;
@@ -682,6 +684,7 @@ impl<H: PciHardware> HostController for Ohci<H> {
     /// Resets the controller, builds the HCCA and the interrupt tree,
     /// makes it operational with the control and periodic lists on and
     /// every interrupt off, and powers the root ports. Bounded throughout.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn reset_and_start(&mut self) -> Result<()> {
         match self.state {
             State::LeftToFirmware => return Err(OhciError::OwnedByFirmware),

@@ -207,6 +207,7 @@ impl<H: PciHardware> Uhci<H> {
     /// [dma_base, dma_base + dma_bytes) (physically contiguous, below
     /// 4 GiB, at least [`DMA_BYTES_NEEDED`] from its first 4 KiB boundary).
     /// Touches nothing yet.
+    #[optimize(size)] // run once at start-up: small beats fast
     pub fn new(hw: H, dma_base: u64, dma_bytes: u64) -> Result<Self, UhciError> {
         let layout = Layout::new(dma_base, dma_bytes).ok_or(UhciError::DmaRegion)?;
         Ok(Uhci {
@@ -538,6 +539,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
     /// they read clear or [`HANDOFF_MICROS`] passed. Then USBINTR is zeroed
     /// and the controller stopped. A firmware that keeps its enables is
     /// logged and the controller left alone.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn take_ownership(&mut self) -> Handoff {
         let dword = self.hw.pci_config_read(LEGACY_OFFSET);
         let above = dword & 0xFFFF_0000;
@@ -583,6 +585,7 @@ impl<H: PciHardware> HostController for Uhci<H> {
     /// Resets the controller (global reset, then host controller reset),
     /// builds the schedule, counts the root ports and starts it. Every wait
     /// is bounded.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn reset_and_start(&mut self) -> Result<(), UhciError> {
         if self.state == State::FirmwareOwned {
             return Err(UhciError::FirmwareOwns);

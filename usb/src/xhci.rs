@@ -201,6 +201,7 @@ impl<H: Hardware> Xhci<H> {
     /// Reads the capability registers of a controller whose BAR0 is
     /// `mmio_bytes` long; DMA memory is `dma_bytes` at physical `dma_base`
     /// (page-aligned, below 4 GiB unless the controller has AC64).
+    #[optimize(size)] // run once at start-up: small beats fast
     pub fn new(mut hw: H, mmio_bytes: u32, dma_base: u64, dma_bytes: u64) -> Result<Self> {
         let read = |hw: &mut H, offset: u32| {
             if offset.checked_add(4).is_some_and(|end| end <= mmio_bytes) {

@@ -1041,6 +1041,7 @@ impl<H: Hardware> HostController for Xhci<H> {
     /// Takes the controller from the firmware (USB Legacy Support): asks for
     /// it, waits up to [`HANDOFF_MICROS`], takes it if the firmware never
     /// lets go, and turns the firmware's SMIs off.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn take_ownership(&mut self) -> Handoff {
         let mut legacy = None;
         self.extended_capabilities(|_, offset, id| {
@@ -1079,6 +1080,7 @@ impl<H: Hardware> HostController for Xhci<H> {
     /// Halts and resets the controller, builds the DCBAA (with scratchpads
     /// if it asks), the command ring and the event ring, starts it, powers
     /// its ports and sends a No Op.
+    #[optimize(size)] // run once at start-up: small beats fast
     fn reset_and_start(&mut self) -> Result<(), XhciError> {
         let command = self.op_read(USBCMD);
         self.op_write(USBCMD, command & !CMD_RUN);

@@ -200,6 +200,7 @@ fn memory_needed(kind: ControllerKind) -> u64 {
 /// the keyboards on each (boot enumeration, bounded; the rest a step per
 /// poll). Every step is bounded; a controller that fails is logged and left,
 /// and the PS/2 keyboard (if any) is all there is.
+#[optimize(size)] // run once at start-up: small beats fast
 pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
     let (found, count) = pci::usb_controllers::<MAX_FOUND>();
     if count == 0 {
@@ -287,6 +288,7 @@ pub fn init(regions: &MemoryRegions, physical_memory_offset: u64) {
 /// Makes the controller's driver, with its registers and DMA memory, and
 /// takes the controller from the firmware. `None` (logged) if it cannot be
 /// driven.
+#[optimize(size)] // run once at start-up: small beats fast
 fn open(
     function: pci::Function,
     kind: ControllerKind,
@@ -333,6 +335,7 @@ fn open(
 
 /// Takes the controller from the firmware and says how that went; a
 /// controller the firmware never let go of is left alone (`None`).
+#[optimize(size)] // run once at start-up: small beats fast
 fn take_from_firmware(
     mut host: Host,
     kind: ControllerKind,
