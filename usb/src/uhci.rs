@@ -709,7 +709,11 @@ impl<H: PciHardware> HostController for Uhci<H> {
             };
             return Some(ResetOutcome::Enabled(speed));
         }
-        if now > reset.bound || reset.stage > PORT_ENABLE_TRIES {
+        // One more look. Past the bound only after two: a poll that comes
+        // late (a busy host, an SMI) has not yet asked the port to enable.
+        reset.stage += 1;
+        let looks = reset.stage - 1;
+        if looks > PORT_ENABLE_TRIES || (looks > 2 && now > reset.bound) {
             self.hw.log(format_args!(
                 "uhci: port {port} did not enable after its reset (PORTSC {value:#06x})"
             ));
@@ -718,7 +722,6 @@ impl<H: PciHardware> HostController for Uhci<H> {
         if reset_over {
             // The reset's own connect and enable changes go, and the
             // port is enabled.
-            reset.stage += 1;
             let clear = value & (PORT_CONNECT_CHANGE | PORT_ENABLE_CHANGE);
             self.hw
                 .write16(offset, Self::port_keep(value) | clear | PORT_ENABLED);

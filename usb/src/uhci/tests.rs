@@ -1064,3 +1064,27 @@ fn a_twenty_byte_report_in_eight_byte_packets_is_put_back_together() {
     ));
     assert_clean(bus.controller().hardware());
 }
+
+#[test]
+fn a_root_port_reset_polled_late_still_tries_to_enable_the_port() {
+    // A busy host (or an SMI) can hold the device layer off for longer than
+    // the enable's whole bound between two polls: the driver must still
+    // write Port Enable before it gives up.
+    let mut model = UhciModel::new(2);
+    model.plug(&[1], UsbDevice::Keyboard(Speed::Full));
+    let mut uhci = started(model);
+    uhci.port_reset_begin(1);
+    let outcome = loop {
+        // Each poll 20 ms after the last, four times the enable's bound.
+        uhci.hardware().now += 20_000;
+        if let Some(outcome) = uhci.port_reset_poll(1) {
+            break outcome;
+        }
+    };
+    assert_eq!(
+        outcome,
+        ResetOutcome::Enabled(Speed::Full),
+        "{:?}",
+        uhci.hardware().log
+    );
+}
