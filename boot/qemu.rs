@@ -5,8 +5,10 @@
 //! unix socket and gives us `sendkey` and `screendump`. (QMP rather than the
 //! human monitor: QMP's screendump runs as a coroutine that asks the display
 //! to update before it saves, and its replies are easy to tell apart from
-//! events.) Dropping a `Qemu` kills the process, so no test can leave an
-//! emulator behind.
+//! events.) Dropping a `Qemu` kills the process, so a test that fails leaves
+//! no emulator behind; and QEMU is started to die with the thread that
+//! started it ([`dies_with_its_thread`]), so neither does a test process
+//! killed outright, which drops nothing.
 
 use crate::image::{ImageError, RgbImage};
 use protocol::{BootRequest, Exit, BOOT_OPTION_FILE};
@@ -675,7 +677,7 @@ impl Qemu {
             .map_err(|e| QemuError::Io(format!("cannot make a scratch dir: {e}")))?;
         let monitor_path = scratch.path().join("monitor.sock");
 
-        let mut command = Command::new(QEMU_BINARY);
+        let mut command = dies_with_its_thread(QEMU_BINARY);
         let image = if options.read_errors.is_empty() {
             format!("format=raw,file={},snapshot=on", options.image.display())
         } else {
@@ -1293,6 +1295,32 @@ impl Drop for Qemu {
     }
 }
 
+/// Runs `program` through util-linux's `setpriv --pdeathsig KILL`, which
+/// asks the kernel (`PR_SET_PDEATHSIG`) to kill it when the thread that
+/// spawned it ends, and then becomes `program` (same process, same pid). A
+/// test process killed by a signal runs no `Drop`, and without this its
+/// emulator would spin until its own watchdog. The process must stay with
+/// the thread that spawned it, as a `Qemu` does. Without `setpriv` on PATH,
+/// `program` runs alone, and only `Drop` ends it.
+pub fn dies_with_its_thread(program: &str) -> Command {
+    static SETPRIV: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let has_setpriv = *SETPRIV.get_or_init(|| {
+        Command::new("setpriv")
+            .arg("--version")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .is_ok_and(|s| s.success())
+    });
+    if has_setpriv {
+        let mut command = Command::new("setpriv");
+        command.args(["--pdeathsig", "KILL", program]);
+        command
+    } else {
+        Command::new(program)
+    }
+}
+
 fn spawn_reader(stream: impl Read + Send + 'static, log: Arc<SerialLog>, echo: bool) {
     std::thread::spawn(move || {
         let mut reader = BufReader::new(stream);
@@ -1365,5 +1393,38 @@ pub fn qemu_key_name(key: &str) -> &str {
     match key {
         "menu" => "compose",
         other => other,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::process::ExitStatusExt;
+
+    /// A process started by [`dies_with_its_thread`] is killed when the
+    /// thread that started it ends, with nothing dropped: as when the test
+    /// process itself is killed. Were it not, `sleep` would end by itself
+    /// after 20 s, and the status would say so.
+    #[test]
+    fn a_child_dies_with_the_thread_that_started_it() {
+        let mut child = std::thread::spawn(|| {
+            let mut child = dies_with_its_thread("sh")
+                .args(["-c", "echo started; exec sleep 20"])
+                .stdout(Stdio::piped())
+                .spawn()
+                .expect("sh starts");
+            // The shell runs only once setpriv has asked for the signal, so
+            // the thread must not end before this line has come.
+            let mut line = String::new();
+            BufReader::new(child.stdout.take().unwrap())
+                .read_line(&mut line)
+                .unwrap();
+            assert_eq!(line, "started\n");
+            child
+        })
+        .join()
+        .unwrap();
+        let status = child.wait().unwrap();
+        assert_eq!(status.signal(), Some(9), "{status}");
     }
 }

@@ -90,6 +90,15 @@ pub trait VgaBus {
     /// to a framebuffer presents (after text is written, say, which no page
     /// flip follows).
     fn flush(&mut self) {}
+    /// Microseconds by the machine's clock, if the bus has one. It bounds
+    /// the driver's waits on Input Status 1 by time
+    /// ([`STATUS_WAIT_MICROS`](crate::STATUS_WAIT_MICROS)), so it must keep
+    /// advancing (the kernel's clock counts a microsecond a reading where
+    /// the TSC stands still). Default: `None`, and a wait counts each status
+    /// read as a microsecond, what one takes on an ISA card.
+    fn now_micros(&mut self) -> Option<u64> {
+        None
+    }
     /// The driver starts `function`, a [`ModeX`](crate::ModeX) method named
     /// as `ModeX::fill_rect`: the bus operations until the matching
     /// [`VgaBus::leave`] are its (calls nest). A slow-motion view records
@@ -128,6 +137,9 @@ impl<T: VgaBus + ?Sized> VgaBus for &mut T {
     }
     fn flush(&mut self) {
         (**self).flush();
+    }
+    fn now_micros(&mut self) -> Option<u64> {
+        (**self).now_micros()
     }
     #[inline(always)]
     fn enter(&mut self, function: &'static str) {

@@ -176,6 +176,11 @@ impl<B: VgaBus> VgaIo<B> {
         self.bus.read_port8(Port::INPUT_STATUS_1)
     }
 
+    /// The bus's clock, which bounds the waits on Input Status 1.
+    pub(crate) fn now_micros(&mut self) -> Option<u64> {
+        self.bus.now_micros()
+    }
+
     // Read-backs, for verifying a mode set.
 
     /// Miscellaneous Output as the card holds it.

@@ -73,7 +73,7 @@ pub use canvas::{ImageCanvas, PageCanvas, PaletteIndex};
 pub use detect::legacy_vga_present;
 pub use driver::ModeX;
 pub use mirror::MirroredVga;
-pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_POLL_LIMIT};
+pub use page::{FlipReport, Page, PAGE_COUNT, STATUS_WAIT_MICROS};
 pub use palette::Rgb6;
 pub use spans::{LineSpans, PageSpans};
 pub use text::{TEXT_COLUMNS, TEXT_ROWS};

@@ -139,6 +139,10 @@ impl<F: FnMut(&SoftVga)> VgaBus for MirroredVga<'_, F> {
         self.soft.let_a_frame_pass();
         self.present_now();
     }
+    /// The model's simulated clock, which times its retraces.
+    fn now_micros(&mut self) -> Option<u64> {
+        self.soft.now_micros()
+    }
 }
 
 #[cfg(test)]

@@ -7,12 +7,15 @@ use crate::{ModeX, VgaBus, PAGE_BYTES};
 /// Pages that fit in the 64 KiB of each plane the CPU window reaches.
 pub const PAGE_COUNT: u8 = 3;
 
-/// How many times a wait reads Input Status 1 before giving up, so a stuck
-/// status bit can never hang the kernel. A read costs about 1 µs on an ISA
-/// card (the bound is then a second) but well under 100 ns under emulation,
-/// where 200,000 reads proved shorter than a frame and flips timed out; a
-/// million leaves room for a frame everywhere.
-pub const STATUS_POLL_LIMIT: u32 = 1_000_000;
+/// How long, by the bus's clock ([`VgaBus::now_micros`]), a wait on Input
+/// Status 1 may last before it gives up, so a stuck status bit can never hang
+/// the kernel: two seconds, about 120 refreshes. The bound is time, not a
+/// count of reads: a read takes about 1 µs on an ISA card but far less under
+/// emulation, and QEMU times its retrace from the host's clock, so a vCPU
+/// kept off a busy host's CPU can miss every short retrace pulse for long
+/// stretches (43 refreshes, 0.71 s, the longest seen beside four busy loops,
+/// more than a million fast reads).
+pub const STATUS_WAIT_MICROS: u64 = 2_000_000;
 
 /// A Mode X page: one of the three screens that fit in video memory. Being an
 /// enum, a page cannot name memory past the third; [`Page::base`] is always
@@ -66,9 +69,10 @@ impl Page {
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
 pub struct FlipReport {
     /// The wait for active display (to write the start address well before
-    /// the latch) hit [`STATUS_POLL_LIMIT`].
+    /// the latch) lasted [`STATUS_WAIT_MICROS`] without seeing it.
     pub display_wait_timed_out: bool,
-    /// The wait for the start of vertical retrace (the latch) hit [`STATUS_POLL_LIMIT`].
+    /// The wait for the start of vertical retrace (the latch) lasted
+    /// [`STATUS_WAIT_MICROS`] without seeing it.
     pub retrace_wait_timed_out: bool,
 }
 
@@ -87,12 +91,15 @@ impl<B: VgaBus> ModeX<B> {
     /// bits 0 and 3 clear, so not in vertical retrace and at least the
     /// blanking lines away from it): the two bytes cannot be latched half old,
     /// half new. Then the flip waits for the start of vertical retrace, where
-    /// the VGA latches the start address. Both waits are bounded.
+    /// the VGA latches the start address. Both waits are bounded by the bus's
+    /// clock: a retrace missed (a busy emulator's vCPU off the CPU across it)
+    /// only makes the flip wait for the next one.
     ///
     /// # Example
     ///
     /// A VGA whose retrace bit never rises: the flip gives up after
-    /// [`STATUS_POLL_LIMIT`] reads and says so, instead of hanging.
+    /// [`STATUS_WAIT_MICROS`] by the software VGA's clock and says so, instead
+    /// of hanging.
     ///
     /// ```
     /// use modex::soft::SoftVga;
@@ -121,10 +128,25 @@ impl<B: VgaBus> ModeX<B> {
         })
     }
 
-    /// Reads Input Status 1 until `done` holds or [`STATUS_POLL_LIMIT`] reads
-    /// have been made; true if `done` held.
+    /// Reads Input Status 1 until `done` holds or [`STATUS_WAIT_MICROS`] have
+    /// passed by the bus's clock (by a count of reads, a microsecond each, on a
+    /// bus without one); true if `done` held.
     fn poll_status(&mut self, done: impl Fn(u8) -> bool) -> bool {
-        (0..STATUS_POLL_LIMIT).any(|_| done(self.io.read_status()))
+        let start = self.io.now_micros();
+        let mut reads: u64 = 0;
+        loop {
+            if done(self.io.read_status()) {
+                return true;
+            }
+            reads += 1;
+            let waited = match (start, self.io.now_micros()) {
+                (Some(start), Some(now)) => now.saturating_sub(start),
+                _ => reads,
+            };
+            if waited >= STATUS_WAIT_MICROS {
+                return false;
+            }
+        }
     }
 }
 

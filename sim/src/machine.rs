@@ -107,6 +107,9 @@ impl VgaBus for ClockedVga {
     fn flush(&mut self) {
         self.operate(|()| BusOp::Flush, |soft| soft.flush());
     }
+    fn now_micros(&mut self) -> Option<u64> {
+        self.soft.now_micros()
+    }
     fn enter(&mut self, function: &'static str) {
         self.log.enter(function);
     }

@@ -56,6 +56,8 @@ pub use timing::{CrtTiming, PORT_ACCESS_NS, VRAM_ACCESS_NS};
 
 pub(crate) use tiles::{PictureSource, TileSet, TILE_PIXELS};
 
+const NANOS_PER_MICRO: u64 = 1_000;
+
 /// The software VGA.
 ///
 /// # Example
@@ -461,6 +463,10 @@ impl VgaBus for SoftVga {
     /// still scan out from the old page's address.
     fn flush(&mut self) {
         self.let_a_frame_pass();
+    }
+    /// The simulated clock, which times the retraces a wait looks for.
+    fn now_micros(&mut self) -> Option<u64> {
+        Some(self.now_ns / NANOS_PER_MICRO)
     }
 }
 

@@ -4,8 +4,9 @@
 use super::{assert_picture, mode_x, power_on, scanout, Picture};
 use crate::regs::status;
 use crate::regs::{Crtc, Port};
-use crate::soft::PORT_ACCESS_NS;
-use crate::{FlipReport, Page, VgaBus, PAGE_BYTES, STATUS_POLL_LIMIT};
+use crate::{FlipReport, ModeX, Page, VgaBus, PAGE_BYTES, STATUS_WAIT_MICROS};
+
+const NANOS_PER_MICRO: u64 = 1_000;
 
 #[test]
 fn show_page_shows_that_page() {
@@ -124,6 +125,10 @@ fn flip_with_retrace_stuck(stuck: bool) -> (FlipReport, u64) {
     (report, elapsed)
 }
 
+/// The longest a wait may overrun its bound: the one read that crossed it
+/// (a microsecond on the software VGA), with room for a few more.
+const OVERRUN_NS: u64 = 10 * NANOS_PER_MICRO;
+
 #[test]
 fn show_page_gives_up_when_the_retrace_bit_is_stuck_high() {
     let (report, elapsed) = flip_with_retrace_stuck(true);
@@ -131,8 +136,9 @@ fn show_page_gives_up_when_the_retrace_bit_is_stuck_high() {
         report.display_wait_timed_out && !report.retrace_wait_timed_out,
         "{report:?}"
     );
+    let bound = STATUS_WAIT_MICROS * NANOS_PER_MICRO;
     assert!(
-        elapsed <= (u64::from(STATUS_POLL_LIMIT) + 10) * PORT_ACCESS_NS,
+        (bound..=bound + OVERRUN_NS).contains(&elapsed),
         "took {elapsed} ns"
     );
 }
@@ -145,8 +151,102 @@ fn show_page_gives_up_when_the_retrace_bit_is_stuck_low() {
         "{report:?}"
     );
     assert!(report.timed_out());
+    let bound = STATUS_WAIT_MICROS * NANOS_PER_MICRO;
     assert!(
-        elapsed <= (2 * u64::from(STATUS_POLL_LIMIT) + 10) * PORT_ACCESS_NS,
+        (bound..=bound + OVERRUN_NS).contains(&elapsed),
         "took {elapsed} ns"
     );
+}
+
+/// A VGA whose Input Status 1 reads cost `nanos_per_read` by its clock (tens
+/// of nanoseconds, as under emulation, where one read takes far less than
+/// the microsecond it takes on an ISA card), showing active display until
+/// vertical retrace begins at read `retrace_at_read` (never, if `None`).
+/// Everything else it ignores.
+struct TimedStatusBus {
+    reads: u64,
+    nanos_per_read: u64,
+    retrace_at_read: Option<u64>,
+    has_clock: bool,
+}
+
+impl TimedStatusBus {
+    fn new(nanos_per_read: u64, retrace_at_read: Option<u64>) -> Self {
+        TimedStatusBus {
+            reads: 0,
+            nanos_per_read,
+            retrace_at_read,
+            has_clock: true,
+        }
+    }
+
+    /// Flips once; the report, the reads made and the time they took by the
+    /// bus's clock.
+    fn flip(self) -> (FlipReport, u64, u64) {
+        let mut vga = ModeX::new(self);
+        let report = vga.show_page(Page::One);
+        let bus = vga.into_bus();
+        (report, bus.reads, bus.reads * bus.nanos_per_read)
+    }
+}
+
+impl VgaBus for TimedStatusBus {
+    fn write_port8(&mut self, _port: Port, _value: u8) {}
+    fn write_port16(&mut self, _port: Port, _value: u16) {}
+    fn read_port8(&mut self, port: Port) -> u8 {
+        if port != Port::INPUT_STATUS_1 {
+            return 0xFF;
+        }
+        self.reads += 1;
+        match self.retrace_at_read {
+            Some(at) if self.reads >= at => status::VERTICAL_RETRACE,
+            _ => 0,
+        }
+    }
+    fn write_vram8(&mut self, _offset: u16, _value: u8) {}
+    fn read_vram8(&mut self, _offset: u16) -> u8 {
+        0xFF
+    }
+    fn now_micros(&mut self) -> Option<u64> {
+        self.has_clock
+            .then(|| self.reads * self.nanos_per_read / NANOS_PER_MICRO)
+    }
+}
+
+#[test]
+fn a_retrace_millions_of_fast_reads_away_is_still_waited_for() {
+    // 50 ns reads, and the retrace 15 refreshes away (250 ms): QEMU on a busy
+    // host, its vCPU off the CPU across every retrace pulse in between. Five
+    // million reads, more than any count of reads that is a second on ISA.
+    let (report, reads, _) = TimedStatusBus::new(50, Some(5_000_000)).flip();
+    assert_eq!(report, FlipReport::default(), "a wait timed out");
+    assert_eq!(reads, 5_000_000, "the flip returned before the retrace");
+}
+
+#[test]
+fn a_missing_retrace_is_given_up_on_by_the_clock_not_by_reads() {
+    for nanos_per_read in [50, 10_000_000] {
+        let (report, reads, elapsed) = TimedStatusBus::new(nanos_per_read, None).flip();
+        assert!(
+            !report.display_wait_timed_out && report.retrace_wait_timed_out,
+            "{report:?}"
+        );
+        let bound = STATUS_WAIT_MICROS * NANOS_PER_MICRO;
+        assert!(
+            (bound..=bound + 2 * nanos_per_read).contains(&elapsed),
+            "{reads} reads of {nanos_per_read} ns waited {elapsed} ns"
+        );
+    }
+}
+
+#[test]
+fn a_bus_without_a_clock_counts_a_microsecond_a_read() {
+    let bus = TimedStatusBus {
+        has_clock: false,
+        ..TimedStatusBus::new(50, None)
+    };
+    let (report, reads, _) = bus.flip();
+    assert!(report.retrace_wait_timed_out, "{report:?}");
+    // One read found active display; the retrace wait read for a "second".
+    assert_eq!(reads, 1 + STATUS_WAIT_MICROS);
 }
