@@ -22,7 +22,7 @@
 
 use crate::math::Vec3;
 use crate::project::{PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
-use modex::PageSpans;
+use modex::{PageSpans, PAGE_PIXELS};
 
 /// Fractional bits of w in `DepthPlane`, and the bits dropped from that to
 /// store w in the depth buffer (which keeps 32).
@@ -84,75 +84,49 @@ impl DepthPlane {
     }
 }
 
-/// Rows of the frame per depth band. The depth buffer covers a band of rows,
-/// not the whole frame, and the frame is drawn band by band: 320 × 40 `u32`
-/// are 50 KiB instead of 300 KiB for the whole frame, which matters because
-/// the kernel keeps the renderer on its 1 MiB stack beside three 75 KiB
-/// frame images. The cost is walking the visible faces once per band.
-pub const BAND_ROWS: i32 = 40;
-/// Depth bands in a frame: the frame is drawn this many times over, one band
-/// at a time.
-pub const BANDS: i32 = SCREEN_HEIGHT / BAND_ROWS;
-const BAND_PIXELS: usize = (SCREEN_WIDTH * BAND_ROWS) as usize;
-
-/// The depth buffer for one band of rows: w of the nearest thing drawn at
-/// each pixel so far, 0 (infinitely far) where nothing is.
+/// The depth buffer: w of the nearest thing drawn at each pixel of the
+/// frame so far, 0 (infinitely far) where nothing is. 300 KiB, so it lives
+/// beside the renderer's frame images (in a static in the kernel, boxed on
+/// the host), never on a stack. It covers the whole frame, so every face is
+/// set up and walked once a frame (it once covered 40-row bands, when the
+/// kernel kept the renderer on its stack, and every face meeting a band was
+/// walked again for it).
 #[derive(Clone)]
-pub struct DepthBand {
-    first_row: i32,
-    w: [u32; BAND_PIXELS],
+pub struct DepthBuffer {
+    w: [u32; PAGE_PIXELS],
 }
 
-/// Leaves out the 50 KiB of depths.
-impl core::fmt::Debug for DepthBand {
+/// Leaves out the 300 KiB of depths.
+impl core::fmt::Debug for DepthBuffer {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("DepthBand")
-            .field("first_row", &self.first_row)
-            .finish_non_exhaustive()
+        f.debug_struct("DepthBuffer").finish_non_exhaustive()
     }
 }
 
-impl Default for DepthBand {
+impl Default for DepthBuffer {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl DepthBand {
-    /// Band 0 (the frame's top rows), with nothing drawn.
+impl DepthBuffer {
+    /// Nothing drawn. All zero, so that a buffer in a static lands in
+    /// `.bss`, not in the kernel file.
     pub const fn new() -> Self {
-        DepthBand {
-            first_row: 0,
-            w: [0; BAND_PIXELS],
+        DepthBuffer {
+            w: [0; PAGE_PIXELS],
         }
     }
 
-    /// Starts band `band` (rows band·BAND_ROWS ..), with nothing drawn if
-    /// the band was cleared after it was last drawn in.
-    pub fn start(&mut self, band: i32) {
-        self.first_row = band * BAND_ROWS;
-    }
-
-    /// Back to nothing drawn. `written` marks, in frame rows, at least every
-    /// span tested since the band started (the frame's own marks serve:
-    /// each span tested is marked there too); only those depths are
-    /// cleared, not the band.
+    /// Back to nothing drawn. `written` marks at least every span tested
+    /// since the buffer was last cleared (the frame's own marks serve: each
+    /// span tested is marked there too); only those depths are cleared, not
+    /// the frame.
     pub fn clear(&mut self, written: &PageSpans) {
-        let rows = self.first_row as usize..(self.first_row + BAND_ROWS) as usize;
-        written.fill_lines(rows, &mut self.w, 0);
+        written.fill_lines(0..SCREEN_HEIGHT as usize, &mut self.w, 0);
     }
 
-    /// The band's rows as a clip rectangle.
-    pub fn clip(&self) -> crate::raster::ClipRect {
-        crate::raster::ClipRect {
-            x0: 0,
-            y0: self.first_row,
-            x1: SCREEN_WIDTH,
-            y1: self.first_row + BAND_ROWS,
-        }
-    }
-
-    /// The span [x0, x1) of row y (inside the band) on the plane: sets
+    /// The span [x0, x1) of row y on the plane: sets
     /// `pixels` (the span's pixels in the frame, x0 first) to `colour`
     /// where the plane is nearer than everything drawn there so far, and
     /// remembers it as the nearest. Ties keep what was drawn first.
@@ -164,8 +138,7 @@ impl DepthBand {
         pixels: &mut [u8],
         colour: u8,
     ) {
-        let local = (y - self.first_row) as usize;
-        let start = local * SCREEN_WIDTH as usize + x0 as usize;
+        let start = y as usize * SCREEN_WIDTH as usize + x0 as usize;
         let nearest = &mut self.w[start..start + pixels.len()];
         let first_w = plane.at(x0, y);
         if pixels.len() < SHORT_SPAN {
@@ -285,9 +258,8 @@ mod tests {
             seed ^= seed << 17;
             seed % below
         };
-        let mut band = DepthBand::new();
-        band.start(2);
-        let mut frame = [0u8; 320 * 40];
+        let mut depths = std::boxed::Box::new(DepthBuffer::new());
+        let mut frame = [0u8; PAGE_PIXELS];
         let mut unclamped_spans = 0;
         let mut previous = None;
         for round in 0..20_000 {
@@ -312,7 +284,7 @@ mod tests {
                 _ => (plane, y, x0, len),
             };
             previous = Some((plane, y, x0, len));
-            let row = (y - 80) as usize * 320;
+            let row = y as usize * 320;
             let span = row + x0 as usize..row + (x0 + len) as usize;
             let colour = random(256) as u8;
             let first_w = plane.at(x0, y);
@@ -320,22 +292,16 @@ mod tests {
             if len >= SHORT_SPAN as i32 && stores_unclamped(first_w) && stores_unclamped(last_w) {
                 unclamped_spans += 1;
             }
-            let mut nearest = band.w;
-            let mut expected = frame;
-            nearer_clamped(
-                &mut nearest[span.clone()],
-                &mut expected[span.clone()],
-                first_w,
-                plane.a,
-                colour,
-            );
-            band.test_span(&plane, y, x0, &mut frame[span], colour);
+            let mut nearest = depths.w[span.clone()].to_vec();
+            let mut expected = frame[span.clone()].to_vec();
+            nearer_clamped(&mut nearest, &mut expected, first_w, plane.a, colour);
+            depths.test_span(&plane, y, x0, &mut frame[span.clone()], colour);
             assert!(
-                band.w == nearest,
+                depths.w[span.clone()] == nearest[..],
                 "depths differ: {plane:?} y {y} x {x0} len {len}"
             );
             assert!(
-                frame == expected,
+                frame[span] == expected[..],
                 "pixels differ: {plane:?} y {y} x {x0} len {len}"
             );
         }
@@ -344,8 +310,7 @@ mod tests {
 
     #[test]
     fn the_nearer_span_wins_and_ties_keep_the_first() {
-        let mut band = DepthBand::new();
-        band.start(1);
+        let mut depths = std::boxed::Box::new(DepthBuffer::new());
         let far = DepthPlane {
             a: 0,
             b: 0,
@@ -357,10 +322,10 @@ mod tests {
             c: 1 << 34,
         };
         let mut row = [0u8; 320];
-        band.test_span(&far, 45, 10, &mut row[10..20], 1);
-        band.test_span(&near, 45, 15, &mut row[15..25], 2);
-        band.test_span(&far, 45, 0, &mut row[0..30], 3);
-        band.test_span(&near, 45, 15, &mut row[15..25], 4);
+        depths.test_span(&far, 45, 10, &mut row[10..20], 1);
+        depths.test_span(&near, 45, 15, &mut row[15..25], 2);
+        depths.test_span(&far, 45, 0, &mut row[0..30], 3);
+        depths.test_span(&near, 45, 15, &mut row[15..25], 4);
         let expected: std::vec::Vec<u8> = (0..30)
             .map(|x| match x {
                 0..10 | 25..30 => 3,
@@ -369,11 +334,9 @@ mod tests {
             })
             .collect();
         assert_eq!(&row[..30], &expected[..]);
-        assert_eq!(band.clip().y0, BAND_ROWS);
-        // Cleared, the next band starts with nothing drawn.
-        band.clear(&PageSpans::all());
-        band.start(2);
-        band.test_span(&far, 85, 10, &mut row[10..20], 5);
+        // Cleared, the next frame starts with nothing drawn.
+        depths.clear(&PageSpans::all());
+        depths.test_span(&far, 45, 10, &mut row[10..20], 5);
         assert_eq!(&row[10..20], &[5; 10]);
     }
 }
