@@ -14,7 +14,7 @@
 
 use demo::frame::{render_faces_with_depth, BACKGROUND};
 use demo::solids::{CUBE, ICOSAHEDRON, TETRAHEDRON};
-use engine::{DepthBand, FaceCounts, Model, Object, Xform};
+use engine::{DepthBuffer, FaceCounts, Model, Object, Xform};
 use modex::soft::SoftVga;
 use modex::{ModeX, Page, PageSpans, PAGE_PIXELS};
 use std::hint::black_box;
@@ -76,7 +76,7 @@ fn measure(faces: usize) -> Measured {
         .map(|(i, &model)| Object::new(model, place(i)))
         .collect();
     let mut image = Box::new([BACKGROUND; PAGE_PIXELS]);
-    let mut band = Box::new(DepthBand::new());
+    let mut depths = Box::new(DepthBuffer::new());
     let mut shadow = Box::new([BACKGROUND; PAGE_PIXELS]);
     let mut soft = Box::new(SoftVga::new());
     ModeX::new(&mut *soft).set_mode();
@@ -89,7 +89,7 @@ fn measure(faces: usize) -> Measured {
         }
         let start = Instant::now();
         let counts =
-            render_faces_with_depth(&mut image, &mut PageSpans::all(), &mut band, |_, draw| {
+            render_faces_with_depth(&mut image, &mut PageSpans::all(), &mut depths, |draw| {
                 let mut counts = FaceCounts::default();
                 for object in &mut objects {
                     counts +=

@@ -11,7 +11,7 @@
 
 use demo::frame::BACKGROUND;
 use demo::grid::Grid;
-use engine::DepthBand;
+use engine::DepthBuffer;
 use modex::soft::SoftVga;
 use modex::{ModeX, Page, PageSpans, PAGE_PIXELS};
 
@@ -20,7 +20,7 @@ const FRAMES: u64 = 30;
 
 fn main() {
     let mut grid: Box<Grid<LIMIT>> = Box::default();
-    let mut band = Box::new(DepthBand::new());
+    let mut depths = Box::new(DepthBuffer::new());
     let mut next = Box::new([BACKGROUND; PAGE_PIXELS]);
     let mut drawn = Box::new(PageSpans::none());
     let mut soft = Box::new(SoftVga::new());
@@ -36,7 +36,7 @@ fn main() {
         let mut frame = |vga: &mut ModeX<&mut SoftVga>| {
             page = page.other();
             grid.tick();
-            grid.render(&mut next, &mut drawn, &mut band);
+            grid.render(&mut next, &mut drawn, &mut depths);
             // What the page held and what the frame drew: as the renderer.
             let held = &mut held[usize::from(page.index())];
             held.add(&drawn);

@@ -21,7 +21,7 @@
 use demo::frame::{FrameDrawer, Renderer};
 use demo::grid::Grid;
 use demo::scene::{Scene, SceneCommand};
-use engine::DepthBand;
+use engine::DepthBuffer;
 use modex::regs::Port;
 use modex::{ModeX, VgaBus};
 use modex::{PageSpans, PAGE_PIXELS};
@@ -71,13 +71,13 @@ fn run(renderer: &mut Renderer, commands: &[SceneCommand], frames: u32) -> Durat
 /// Mean time per frame of one run of `frames` frames of the grid's drawing.
 fn run_grid(grid: &mut Grid<GRID_SOLIDS>, frames: u32) -> Duration {
     let mut image = Box::new([0u8; PAGE_PIXELS]);
-    let mut band = Box::new(DepthBand::new());
+    let mut depths = Box::new(DepthBuffer::new());
     let mut drawn = PageSpans::all();
     grid.reset(GRID_SOLIDS);
     let start = Instant::now();
     for _ in 0..frames {
         grid.tick();
-        black_box(grid.render(&mut image, &mut drawn, &mut band));
+        black_box(grid.render(&mut image, &mut drawn, &mut depths));
     }
     start.elapsed() / frames.max(1)
 }

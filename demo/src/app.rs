@@ -61,8 +61,8 @@ impl FrameRate {
 /// The demo: keyboard decoding, the scene, the renderer and the overlay,
 /// stepped once per frame by the kernel or a test.
 ///
-/// The renderer holds three 75 KiB frame images, a depth band and the
-/// scene's faces (353 KiB in all). `App` owns it by default (a host test
+/// The renderer holds three 75 KiB frame images, the 300 KiB depth buffer,
+/// the scene's faces and the page update's list of writes (742 KiB in all). `App` owns it by default (a host test
 /// boxes the app or keeps it where it likes); the kernel lends it one in
 /// static memory instead ([`App::with_renderer`]), so the images never sit
 /// on the kernel stack.

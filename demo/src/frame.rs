@@ -19,7 +19,7 @@
 
 use crate::depth;
 use crate::scene::{Scene, SceneFaces};
-use engine::{DepthBand, FaceCounts};
+use engine::{DepthBuffer, FaceCounts};
 use modex::{ModeX, Page, PageImage, PageSpans, PageWrites, VgaBus, PAGE_PIXELS};
 
 pub use crate::depth::render_faces_with_depth;
@@ -28,15 +28,15 @@ pub use crate::screen::{BACKGROUND, SCREEN_CLIP};
 /// The scene as colour indices in RAM, background first, each pixel showing
 /// the nearest face there: the frame `Renderer` draws (see
 /// [`depth::render_with_depth`]). Returns the faces drawn and culled. For
-/// tests and host tools: the face list and the depth band, 128 KiB between
-/// them, are on the stack.
+/// tests and host tools: the face list and the depth buffer, 378 KiB
+/// between them, are on the stack.
 pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
     let mut list = SceneFaces::new();
     depth::render_with_depth(
         scene.faces(&mut list),
         image,
         &mut PageSpans::all(),
-        &mut DepthBand::new(),
+        &mut DepthBuffer::new(),
     )
 }
 
@@ -75,7 +75,7 @@ pub struct Renderer {
     next: PageImage,
     /// Where `next` can differ from the background: the spans drawn into it.
     drawn: PageSpans,
-    depth: DepthBand,
+    depth: DepthBuffer,
     /// The scene's faces this frame.
     faces: SceneFaces,
     /// Room for a page update's writes, kept so it is not cleared each frame.
@@ -110,7 +110,7 @@ impl Renderer {
             held: [PageSpans::none(), PageSpans::none()],
             next: [BACKGROUND; PAGE_PIXELS],
             drawn: PageSpans::none(),
-            depth: DepthBand::new(),
+            depth: DepthBuffer::new(),
             faces: SceneFaces::new(),
             writes: PageWrites::new(),
             compare_every_pixel: false,
@@ -223,7 +223,7 @@ mod tests {
         let mut depth = Box::new([0u8; PAGE_PIXELS]);
         let mut painter = Box::new([0u8; PAGE_PIXELS]);
         let mut mixed = Box::new([0u8; PAGE_PIXELS]);
-        let mut band = Box::new(DepthBand::new());
+        let mut depths = Box::new(DepthBuffer::new());
         let mut list = Box::new(SceneFaces::new());
         for (shape, several, frames) in [(0, false, 360), (0, true, 360)] {
             let mut scene = Scene::new();
@@ -245,16 +245,16 @@ mod tests {
                 let a = render_faces_with_depth(
                     &mut depth,
                     &mut PageSpans::all(),
-                    &mut band,
-                    |_, draw| scene.each_visible_face(|v, c| draw(v, c)),
+                    &mut depths,
+                    |draw| scene.each_visible_face(|v, c| draw(v, c)),
                 );
                 let b = render_painter(&mut scene, &mut painter);
                 let faces = scene.faces(&mut list);
                 assert_eq!(
-                    depth::render_with_depth(faces, &mut mixed, &mut PageSpans::all(), &mut band),
+                    depth::render_with_depth(faces, &mut mixed, &mut PageSpans::all(), &mut depths),
                     a
                 );
-                assert!(depth == mixed, "the bands drawn without the test differ");
+                assert!(depth == mixed, "the rows drawn without the test differ");
                 assert_eq!(a, b);
                 assert!(
                     depth == painter,

@@ -14,22 +14,21 @@
 //!
 //! ```
 //! use demo::grid::Grid;
-//! use engine::DepthBand;
+//! use engine::DepthBuffer;
 //! use modex::{PageSpans, PAGE_PIXELS};
 //!
 //! let mut grid: Box<Grid<16>> = Box::default();
-//! let (mut image, mut band) = (Box::new([0u8; PAGE_PIXELS]), Box::new(DepthBand::new()));
+//! let (mut image, mut depths) = (Box::new([0u8; PAGE_PIXELS]), Box::new(DepthBuffer::new()));
 //! grid.reset(12);
 //! grid.tick();
-//! let counts = grid.render(&mut image, &mut PageSpans::all(), &mut band);
+//! let counts = grid.render(&mut image, &mut PageSpans::all(), &mut depths);
 //! assert!(counts.drawn > 12); // each solid shows more than one face
 //! ```
 
 use crate::depth::render_faces_with_depth;
 use crate::solids::SHAPES;
 use core::f64::consts::PI;
-use core::ops::Range;
-use engine::{DepthBand, FaceCounts, Object, VisibleFace, Xform, PROJECTION_RATIO};
+use engine::{DepthBuffer, FaceCounts, Object, Xform, PROJECTION_RATIO};
 use modex::{PageImage, PageSpans, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Centre to centre, in model units: the solids are about 26 units from
@@ -49,9 +48,6 @@ const TURNS_PER_REORTHONORMALIZATION: u32 = 64;
 pub struct Grid<const N: usize> {
     /// The first `count` hold solids.
     objects: [Place; N],
-    /// The rows each solid's vertices span this frame, top to bottom
-    /// inclusive, found in the frame's first band and used by the others.
-    rows: [(i32, i32); N],
     count: usize,
     turns: u32,
 }
@@ -67,7 +63,6 @@ impl<const N: usize> Grid<N> {
     pub const fn new() -> Self {
         Grid {
             objects: [const { Place::Empty }; N],
-            rows: [(0, 0); N],
             count: 0,
             turns: 0,
         }
@@ -136,57 +131,17 @@ impl<const N: usize> Grid<N> {
         &mut self,
         image: &mut PageImage,
         drawn: &mut PageSpans,
-        band: &mut DepthBand,
+        depths: &mut DepthBuffer,
     ) -> FaceCounts {
         let objects = &mut self.objects[..self.count];
-        let object_rows = &mut self.rows[..self.count];
-        render_faces_with_depth(image, drawn, band, |clip, draw| {
-            each_visible_face_in_rows(
-                solids(objects).zip(object_rows.iter_mut()),
-                clip.y0..clip.y1,
-                |visible| draw(visible, visible.face.colour),
-            )
+        render_faces_with_depth(image, drawn, depths, |draw| {
+            let mut counts = FaceCounts::default();
+            for object in solids(objects) {
+                counts += object.each_visible_face(|visible| draw(visible, visible.face.colour));
+            }
+            counts
         })
     }
-}
-
-/// Every face of `objects` that survives backface removal, object by object,
-/// leaving out (while still counting) the faces whose corners all lie above
-/// or all below `rows`: a band's faces, without paying for the depth plane of
-/// a face that misses the band. Each object comes with the rows its vertices
-/// span, found in the first band (`rows` from 0) and read in the others.
-fn each_visible_face_in_rows<'a>(
-    objects: impl IntoIterator<Item = (&'a mut Object, &'a mut (i32, i32))>,
-    rows: Range<i32>,
-    mut draw: impl FnMut(&VisibleFace),
-) -> FaceCounts {
-    let mut counts = FaceCounts::default();
-    for (object, object_rows) in objects {
-        // The frame's counts are the first band's (`render_faces_with_depth`),
-        // so there every object is culled and counted; in the others one
-        // whose corners all lie above or below the band is passed over
-        // without culling its faces again.
-        if rows.start == 0 {
-            let corners = object.screen_vertices().iter().map(|p| p.y);
-            *object_rows = corners.fold((i32::MAX, i32::MIN), |(top, bottom), y| {
-                (top.min(y), bottom.max(y))
-            });
-        } else {
-            let (top, bottom) = *object_rows;
-            if top >= rows.end || bottom <= rows.start {
-                continue;
-            }
-        }
-        counts += object.each_visible_face(|visible| {
-            let top = visible.polygon.iter().map(|p| p.y).min().unwrap_or(0);
-            let bottom = visible.polygon.iter().map(|p| p.y).max().unwrap_or(0);
-            // The filler draws rows top..bottom.
-            if top < rows.end && bottom > rows.start {
-                draw(visible);
-            }
-        });
-    }
-    counts
 }
 
 /// A place in the grid. `repr(u8)`, so that an empty place is a zero tag
@@ -262,14 +217,14 @@ mod tests {
     fn every_size_fills_the_screen_and_draws_every_solid() {
         let mut grid: Box<Grid<300>> = Box::default();
         let mut image = Box::new([0u8; PAGE_PIXELS]);
-        let mut band = Box::new(DepthBand::new());
+        let mut depths = Box::new(DepthBuffer::new());
         let mut drawn = Box::new(PageSpans::all());
         for count in [1, 2, 7, 16, 59, 100, 200, 300] {
             grid.reset(count);
             assert_eq!(grid.count(), count);
             for _ in 0..3 {
                 grid.tick();
-                let counts = grid.render(&mut image, &mut drawn, &mut band);
+                let counts = grid.render(&mut image, &mut drawn, &mut depths);
                 assert!(counts.drawn as usize >= count, "{count}: {counts:?}");
             }
             let (x0, y0, x1, y1) = drawn_box(&image).expect("something drawn");
@@ -278,40 +233,6 @@ mod tests {
                 // Wide or tall enough to reach near one pair of edges.
                 let (wide, tall) = (x1 - x0, y1 - y0);
                 assert!(wide > 250 || tall > 180, "{count}: {wide}x{tall}");
-            }
-        }
-    }
-
-    /// Passing over, in each band after the first, the solids whose rows
-    /// found in the first miss it draws the picture of every solid's every
-    /// face in every band.
-    #[test]
-    fn the_rows_found_in_the_first_band_lose_no_face() {
-        let mut grid: Box<Grid<300>> = Box::default();
-        let mut image = Box::new([0u8; PAGE_PIXELS]);
-        let mut every_face = Box::new([0u8; PAGE_PIXELS]);
-        let mut band = Box::new(DepthBand::new());
-        for count in [7, 59, 300] {
-            grid.reset(count);
-            for _ in 0..4 {
-                grid.tick();
-                let counts = grid.render(&mut image, &mut PageSpans::all(), &mut band);
-                let objects = &mut grid.objects[..count];
-                let expected = render_faces_with_depth(
-                    &mut every_face,
-                    &mut PageSpans::all(),
-                    &mut band,
-                    |_, draw| {
-                        let mut counts = FaceCounts::default();
-                        for object in solids(objects) {
-                            counts += object
-                                .each_visible_face(|visible| draw(visible, visible.face.colour));
-                        }
-                        counts
-                    },
-                );
-                assert_eq!(counts, expected);
-                assert!(image == every_face, "{count} solids");
             }
         }
     }
@@ -327,7 +248,7 @@ mod tests {
         let counts = grid.render(
             &mut image,
             &mut PageSpans::all(),
-            &mut Box::new(DepthBand::new()),
+            &mut Box::new(DepthBuffer::new()),
         );
         assert_eq!(counts, FaceCounts::default());
         assert!(drawn_box(&image).is_none());

@@ -12,7 +12,7 @@ mod model_file;
 mod fuzzing;
 
 use demo::frame::{render_faces_with_depth, BACKGROUND};
-use engine::{DepthBand, Face, Model, Object, Vec3, Xform};
+use engine::{DepthBuffer, Face, Model, Object, Vec3, Xform};
 use model_file::parse;
 use modex::soft::SoftVga;
 use modex::{ModeX, Page, PageSpans, PAGE_BYTES, PAGE_PIXELS};
@@ -101,8 +101,8 @@ proptest! {
         xform.append_rotation_y(turn.1);
         let mut object = Object::new(model, xform);
         let mut image = Box::new([BACKGROUND; PAGE_PIXELS]);
-        let mut band = Box::new(DepthBand::new());
-        render_faces_with_depth(&mut image, &mut PageSpans::all(), &mut band, |_, draw| {
+        let mut depths = Box::new(DepthBuffer::new());
+        render_faces_with_depth(&mut image, &mut PageSpans::all(), &mut depths, |draw| {
             object.each_visible_face(|visible| draw(visible, visible.face.colour))
         });
         // Through the page update onto the software VGA, which flags any

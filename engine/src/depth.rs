@@ -22,7 +22,7 @@
 
 use crate::math::Vec3;
 use crate::project::{PROJECTION_RATIO, SCREEN_HEIGHT, SCREEN_WIDTH};
-use modex::PageSpans;
+use modex::{PageSpans, PAGE_PIXELS};
 
 /// Fractional bits of w in `DepthPlane`, and the bits dropped from that to
 /// store w in the depth buffer (which keeps 32).
@@ -84,75 +84,49 @@ impl DepthPlane {
     }
 }
 
-/// Rows of the frame per depth band. The depth buffer covers a band of rows,
-/// not the whole frame, and the frame is drawn band by band: 320 × 40 `u32`
-/// are 50 KiB instead of 300 KiB for the whole frame, which matters because
-/// the kernel keeps the renderer on its 1 MiB stack beside three 75 KiB
-/// frame images. The cost is walking the visible faces once per band.
-pub const BAND_ROWS: i32 = 40;
-/// Depth bands in a frame: the frame is drawn this many times over, one band
-/// at a time.
-pub const BANDS: i32 = SCREEN_HEIGHT / BAND_ROWS;
-const BAND_PIXELS: usize = (SCREEN_WIDTH * BAND_ROWS) as usize;
-
-/// The depth buffer for one band of rows: w of the nearest thing drawn at
-/// each pixel so far, 0 (infinitely far) where nothing is.
+/// The depth buffer: w of the nearest thing drawn at each pixel of the
+/// frame so far, 0 (infinitely far) where nothing is. 300 KiB, so it lives
+/// beside the renderer's frame images (in a static in the kernel, boxed on
+/// the host), never on a stack. It covers the whole frame, so every face is
+/// set up and walked once a frame (it once covered 40-row bands, when the
+/// kernel kept the renderer on its stack, and every face meeting a band was
+/// walked again for it).
 #[derive(Clone)]
-pub struct DepthBand {
-    first_row: i32,
-    w: [u32; BAND_PIXELS],
+pub struct DepthBuffer {
+    w: [u32; PAGE_PIXELS],
 }
 
-/// Leaves out the 50 KiB of depths.
-impl core::fmt::Debug for DepthBand {
+/// Leaves out the 300 KiB of depths.
+impl core::fmt::Debug for DepthBuffer {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("DepthBand")
-            .field("first_row", &self.first_row)
-            .finish_non_exhaustive()
+        f.debug_struct("DepthBuffer").finish_non_exhaustive()
     }
 }
 
-impl Default for DepthBand {
+impl Default for DepthBuffer {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl DepthBand {
-    /// Band 0 (the frame's top rows), with nothing drawn.
+impl DepthBuffer {
+    /// Nothing drawn. All zero, so that a buffer in a static lands in
+    /// `.bss`, not in the kernel file.
     pub const fn new() -> Self {
-        DepthBand {
-            first_row: 0,
-            w: [0; BAND_PIXELS],
+        DepthBuffer {
+            w: [0; PAGE_PIXELS],
         }
     }
 
-    /// Starts band `band` (rows band·BAND_ROWS ..), with nothing drawn if
-    /// the band was cleared after it was last drawn in.
-    pub fn start(&mut self, band: i32) {
-        self.first_row = band * BAND_ROWS;
-    }
-
-    /// Back to nothing drawn. `written` marks, in frame rows, at least every
-    /// span tested since the band started (the frame's own marks serve:
-    /// each span tested is marked there too); only those depths are
-    /// cleared, not the band.
+    /// Back to nothing drawn. `written` marks at least every span tested
+    /// since the buffer was last cleared (the frame's own marks serve: each
+    /// span tested is marked there too); only those depths are cleared, not
+    /// the frame.
     pub fn clear(&mut self, written: &PageSpans) {
-        let rows = self.first_row as usize..(self.first_row + BAND_ROWS) as usize;
-        written.fill_lines(rows, &mut self.w, 0);
+        written.fill_lines(0..SCREEN_HEIGHT as usize, &mut self.w, 0);
     }
 
-    /// The band's rows as a clip rectangle.
-    pub fn clip(&self) -> crate::raster::ClipRect {
-        crate::raster::ClipRect {
-            x0: 0,
-            y0: self.first_row,
-            x1: SCREEN_WIDTH,
-            y1: self.first_row + BAND_ROWS,
-        }
-    }
-
-    /// The span [x0, x1) of row y (inside the band) on the plane: sets
+    /// The span [x0, x1) of row y on the plane: sets
     /// `pixels` (the span's pixels in the frame, x0 first) to `colour`
     /// where the plane is nearer than everything drawn there so far, and
     /// remembers it as the nearest. Ties keep what was drawn first.
@@ -164,22 +138,74 @@ impl DepthBand {
         pixels: &mut [u8],
         colour: u8,
     ) {
-        let local = (y - self.first_row) as usize;
-        let start = local * SCREEN_WIDTH as usize + x0 as usize;
+        let start = y as usize * SCREEN_WIDTH as usize + x0 as usize;
         let nearest = &mut self.w[start..start + pixels.len()];
-        let mut w = plane.at(x0, y);
-        for (nearest, pixel) in nearest.iter_mut().zip(pixels) {
-            // w ≤ 0 is at or beyond infinity (a plane extended past its face
-            // toward the horizon): never drawn. Nearer than z = −1 is
-            // clamped; nothing drawn comes that near.
-            let stored = (w >> STORED_SHIFT).clamp(0, i64::from(u32::MAX)) as u32;
-            if stored > *nearest {
-                *nearest = stored;
-                *pixel = colour;
-            }
-            // Exact: integers, so the step adds no error.
-            w += plane.a;
+        let first_w = plane.at(x0, y);
+        if pixels.len() < SHORT_SPAN {
+            nearer_clamped(nearest, pixels, first_w, plane.a, colour);
+            return;
         }
+        let last = pixels.len() - 1;
+        // w is linear along the span, so when both ends fit the buffer's
+        // range every pixel between does, and none needs clamping. |a| and
+        // w stay under 2^52 across the screen, so neither sum overflows.
+        let last_w = first_w + plane.a * last as i64;
+        if stores_unclamped(first_w) && stores_unclamped(last_w) {
+            nearer_in_range(nearest, pixels, first_w, plane.a, colour);
+        } else {
+            nearer_clamped(nearest, pixels, first_w, plane.a, colour);
+        }
+    }
+}
+
+/// Spans shorter than this take the depth test a pixel at a time: four
+/// pixels a step do not pay for their set-up.
+const SHORT_SPAN: usize = 8;
+
+/// Whether w, stored, needs no clamp: 0 ≤ w >> STORED_SHIFT ≤ u32::MAX.
+fn stores_unclamped(w: i64) -> bool {
+    (0..=i64::from(u32::MAX)).contains(&(w >> STORED_SHIFT))
+}
+
+/// The depth test along a span whose every w stores unclamped (both ends
+/// do, see `test_span`): `nearest` and `pixels` as there, w = `first_w` at
+/// the first pixel and `step` more at each next. Branchless, so that LLVM
+/// makes it four pixels a step in SSE2 (the kernel's target has it): w in
+/// 64-bit lanes (`paddq`, `psrlq`: w ≥ 0 here, so the logical shift is the
+/// arithmetic one), the compare and both selects in 32-bit lanes. The same
+/// integers as `nearer_clamped`, so the same picture.
+#[inline(always)]
+fn nearer_in_range(nearest: &mut [u32], pixels: &mut [u8], first_w: i64, step: i64, colour: u8) {
+    // Two's complement: adding the step's bits wraps to the exact sum, as
+    // every w on the span is in 0..2^40.
+    let (mut w, step) = (first_w as u64, step as u64);
+    for (nearest, pixel) in nearest.iter_mut().zip(pixels) {
+        let stored = (w >> STORED_SHIFT) as u32;
+        let nearer = stored > *nearest;
+        // Stored unconditionally, as a maximum: a store only where nearer
+        // would be a branch a pixel again.
+        *nearest = stored.max(*nearest);
+        *pixel = if nearer { colour } else { *pixel };
+        w = w.wrapping_add(step);
+    }
+}
+
+/// The depth test along any span, each pixel's w clamped to the buffer's
+/// range: `nearest`, `pixels`, `first_w` and `step` as for
+/// `nearer_in_range`.
+fn nearer_clamped(nearest: &mut [u32], pixels: &mut [u8], first_w: i64, step: i64, colour: u8) {
+    let mut w = first_w;
+    for (nearest, pixel) in nearest.iter_mut().zip(pixels) {
+        // w ≤ 0 is at or beyond infinity (a plane extended past its face
+        // toward the horizon): never drawn. Nearer than z = −1 is
+        // clamped; nothing drawn comes that near.
+        let stored = (w >> STORED_SHIFT).clamp(0, i64::from(u32::MAX)) as u32;
+        if stored > *nearest {
+            *nearest = stored;
+            *pixel = colour;
+        }
+        // Exact: integers, so the step adds no error.
+        w += step;
     }
 }
 
@@ -220,10 +246,71 @@ mod tests {
         );
     }
 
+    /// The depth test four pixels a step gives what the test a pixel at a
+    /// time gives, pixel for pixel and depth for depth, on spans of every
+    /// length, in and out of the buffer's range, over depths drawn before.
+    #[test]
+    fn spans_in_range_match_the_test_a_pixel_at_a_time() {
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut random = move |below: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % below
+        };
+        let mut depths = std::boxed::Box::new(DepthBuffer::new());
+        let mut frame = [0u8; PAGE_PIXELS];
+        let mut unclamped_spans = 0;
+        let mut previous = None;
+        for round in 0..20_000 {
+            // Around the range's ends now and then, where clamping starts.
+            let c = match random(4) {
+                0 => (1i64 << 40) - random(1 << 36) as i64,
+                1 => random(1 << 36) as i64 - (1 << 30),
+                _ => random(1 << 40) as i64,
+            };
+            let a = random(1 << 34) as i64 - (1 << 33);
+            let plane = DepthPlane {
+                a: a >> random(12),
+                b: random(1 << 20) as i64 - (1 << 19),
+                c,
+            };
+            let y = 80 + random(40) as i32;
+            let x0 = random(320) as i32;
+            let len = (random(if round % 2 == 0 { 12 } else { 64 }) as i32).min(320 - x0);
+            // Now and then the last span again, in another colour: ties.
+            let (plane, y, x0, len) = match previous {
+                Some(last) if random(4) == 0 => last,
+                _ => (plane, y, x0, len),
+            };
+            previous = Some((plane, y, x0, len));
+            let row = y as usize * 320;
+            let span = row + x0 as usize..row + (x0 + len) as usize;
+            let colour = random(256) as u8;
+            let first_w = plane.at(x0, y);
+            let last_w = first_w + plane.a * i64::from((len - 1).max(0));
+            if len >= SHORT_SPAN as i32 && stores_unclamped(first_w) && stores_unclamped(last_w) {
+                unclamped_spans += 1;
+            }
+            let mut nearest = depths.w[span.clone()].to_vec();
+            let mut expected = frame[span.clone()].to_vec();
+            nearer_clamped(&mut nearest, &mut expected, first_w, plane.a, colour);
+            depths.test_span(&plane, y, x0, &mut frame[span.clone()], colour);
+            assert!(
+                depths.w[span.clone()] == nearest[..],
+                "depths differ: {plane:?} y {y} x {x0} len {len}"
+            );
+            assert!(
+                frame[span] == expected[..],
+                "pixels differ: {plane:?} y {y} x {x0} len {len}"
+            );
+        }
+        assert!(unclamped_spans > 5_000, "{unclamped_spans} spans in range");
+    }
+
     #[test]
     fn the_nearer_span_wins_and_ties_keep_the_first() {
-        let mut band = DepthBand::new();
-        band.start(1);
+        let mut depths = std::boxed::Box::new(DepthBuffer::new());
         let far = DepthPlane {
             a: 0,
             b: 0,
@@ -235,10 +322,10 @@ mod tests {
             c: 1 << 34,
         };
         let mut row = [0u8; 320];
-        band.test_span(&far, 45, 10, &mut row[10..20], 1);
-        band.test_span(&near, 45, 15, &mut row[15..25], 2);
-        band.test_span(&far, 45, 0, &mut row[0..30], 3);
-        band.test_span(&near, 45, 15, &mut row[15..25], 4);
+        depths.test_span(&far, 45, 10, &mut row[10..20], 1);
+        depths.test_span(&near, 45, 15, &mut row[15..25], 2);
+        depths.test_span(&far, 45, 0, &mut row[0..30], 3);
+        depths.test_span(&near, 45, 15, &mut row[15..25], 4);
         let expected: std::vec::Vec<u8> = (0..30)
             .map(|x| match x {
                 0..10 | 25..30 => 3,
@@ -247,11 +334,9 @@ mod tests {
             })
             .collect();
         assert_eq!(&row[..30], &expected[..]);
-        assert_eq!(band.clip().y0, BAND_ROWS);
-        // Cleared, the next band starts with nothing drawn.
-        band.clear(&PageSpans::all());
-        band.start(2);
-        band.test_span(&far, 85, 10, &mut row[10..20], 5);
+        // Cleared, the next frame starts with nothing drawn.
+        depths.clear(&PageSpans::all());
+        depths.test_span(&far, 45, 10, &mut row[10..20], 5);
         assert_eq!(&row[10..20], &[5; 10]);
     }
 }

@@ -73,7 +73,7 @@ pub mod reference;
 pub mod xform;
 
 pub use cull::is_front_facing;
-pub use depth::{DepthBand, DepthPlane, BANDS, BAND_ROWS};
+pub use depth::{DepthBuffer, DepthPlane};
 pub use light::{outward_normal, quantize, Light};
 pub use math::{Point, Vec3};
 pub use object::{

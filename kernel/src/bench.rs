@@ -14,7 +14,7 @@ use demo::depth::render_with_depth;
 use demo::frame::{FrameDrawer, BACKGROUND};
 use demo::grid::Grid;
 use demo::scene::{Scene, SceneCommand, SceneFaces};
-use engine::DepthBand;
+use engine::DepthBuffer;
 use modex::regs::Port;
 use modex::{ModeX, Page, PageImage, PageSpans, PageWrites, VgaBus, PAGE_PIXELS};
 use spin::Mutex;
@@ -191,7 +191,7 @@ fn largest_grid_at_60_fps<B: VgaBus>(vga: &mut ModeX<B>) {
                 page = page.other();
                 let t0 = time::tsc::rdtsc();
                 grid.tick();
-                grid.render(&mut images.next, &mut images.drawn, &mut images.band);
+                grid.render(&mut images.next, &mut images.drawn, &mut images.depths);
                 let cycles = time::tsc::rdtsc() - t0;
                 (cycles, u64::from(images.update_page(vga, page)))
             };
@@ -260,8 +260,8 @@ struct Phases {
 
 /// The frame, the two pages' shadows, a copy of a shadow for the dry run,
 /// the spans drawn into the frame and held by each page and the room for a
-/// page update's writes (as `Renderer` keeps them), the depth band and the
-/// scene's faces: ~570 KiB, kept off the stack.
+/// page update's writes (as `Renderer` keeps them), the depth buffer and the
+/// scene's faces: ~820 KiB, kept off the stack.
 struct Images {
     next: PageImage,
     drawn: PageSpans,
@@ -269,7 +269,7 @@ struct Images {
     held: [PageSpans; 2],
     dry_run_shadow: PageImage,
     writes: PageWrites,
-    band: DepthBand,
+    depths: DepthBuffer,
     faces: SceneFaces,
 }
 
@@ -280,7 +280,7 @@ static IMAGES: Mutex<Images> = Mutex::new(Images {
     held: [PageSpans::none(), PageSpans::none()],
     dry_run_shadow: [BACKGROUND; PAGE_PIXELS],
     writes: PageWrites::new(),
-    band: DepthBand::new(),
+    depths: DepthBuffer::new(),
     faces: SceneFaces::new(),
 });
 
@@ -359,7 +359,12 @@ fn time_phases<B: VgaBus>(vga: &mut ModeX<B>, commands: &[SceneCommand]) -> Phas
         let t1 = time::tsc::rdtsc();
         let faces = scene.faces(&mut images.faces);
         let t2 = time::tsc::rdtsc();
-        render_with_depth(faces, &mut images.next, &mut images.drawn, &mut images.band);
+        render_with_depth(
+            faces,
+            &mut images.next,
+            &mut images.drawn,
+            &mut images.depths,
+        );
         let t3 = time::tsc::rdtsc();
         images.spans_to_compare(page);
         let spans = &images.held[index];

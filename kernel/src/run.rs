@@ -16,9 +16,9 @@ use modex::{ModeX, VgaBus};
 use protocol::line;
 use spin::Mutex;
 
-/// The renderer's three 75 KiB frame images, its depth band and the scene's
-/// faces (353 KiB), in static memory rather than on the stack; the demo and
-/// the bench take turns.
+/// The renderer (742 KiB: three 75 KiB frame images, the depth buffer, the
+/// scene's faces and the page update's writes), in static memory rather
+/// than on the stack; the demo and the bench take turns.
 pub static RENDERER: Mutex<Renderer> = Mutex::new(Renderer::new());
 
 /// Say on serial every scancode byte taken (boot word `scancodes=echo`), so

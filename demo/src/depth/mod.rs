@@ -9,7 +9,7 @@
 //! Every frame is drawn the same way: [`rows_needing_depth_test`] looks at
 //! the objects' screen rectangles and convexity and answers with the rows
 //! where two surfaces can meet; those rows are drawn with the per-pixel
-//! depth test, band by band, and the rest far to near without it. The rule
+//! depth test, and the rest far to near without it. The rule
 //! and the loops that apply it are here.
 //!
 //! [`render_faces_with_depth`] draws any set of objects with the test
@@ -21,8 +21,7 @@ use crate::faces::Faces;
 use crate::screen::{BACKGROUND, SCREEN_CLIP};
 use core::ops::Range;
 use engine::{
-    fill_convex_polygon, ClipRect, DepthBand, DepthPlane, FaceCounts, Point, VisibleFace, BANDS,
-    BAND_ROWS,
+    fill_convex_polygon, ClipRect, DepthBuffer, DepthPlane, FaceCounts, Point, VisibleFace,
 };
 use modex::{PageImage, PageSpans, SCREEN_HEIGHT, SCREEN_WIDTH};
 
@@ -61,54 +60,62 @@ pub fn rows_needing_depth_test(faces: Faces<'_>) -> Option<Range<i32>> {
 /// Hidden surfaces, exactly: every face that survived backface removal is
 /// scan-converted with a per-pixel depth test (−1/z from the face's plane,
 /// see `engine::depth`), so the nearest surface shows whatever the objects'
-/// order, shape or overlap. The depth buffer covers one band of rows at a
-/// time (`band`), so the faces are walked once per band; a band skips the
-/// faces that miss its rows.
+/// order, shape or overlap. The depth buffer covers the whole frame, so
+/// each face is set up and walked once.
 ///
 /// The test is paid only where it can change a pixel. Within one convex
 /// solid the faces that survive backface removal never overlap, so only the
-/// bands holding rows where two objects' screen rectangles meet, or a
-/// solid that is not convex, are drawn with the test
-/// ([`rows_needing_depth_test`]); the rows above and below them are filled
-/// without it, far to near — for the starting scene that is the whole
-/// frame, at the cost it had before the depth test. Each row is drawn once,
-/// one way or the other. Tests check this gives the picture of the depth
-/// test everywhere. Returns the faces' counts.
+/// rows where two objects' screen rectangles meet, or a solid that is not
+/// convex, are drawn with the test ([`rows_needing_depth_test`]); the rows
+/// above and below them are filled without it, far to near — for the
+/// starting scene that is the whole frame, at the cost it had before the
+/// depth test. Each row is drawn once, one way or the other. Tests check
+/// this gives the picture of the depth test everywhere. Returns the faces'
+/// counts.
 ///
 /// `drawn` marks where `image` may differ from the background (see
 /// `modex::spans`): only there is the last frame erased, and every span
 /// filled is marked, so that on return it marks this frame's spans.
+/// `depths` holds nothing drawn, before and after.
 pub fn render_with_depth(
     faces: Faces<'_>,
     image: &mut PageImage,
     drawn: &mut PageSpans,
-    band: &mut DepthBand,
+    depths: &mut DepthBuffer,
 ) -> FaceCounts {
     erase(image, drawn);
-    let Some(rows) = rows_needing_depth_test(faces) else {
+    let rows = rows_needing_depth_test(faces)
+        .map(|rows| rows.start.clamp(0, SCREEN_HEIGHT)..rows.end.clamp(0, SCREEN_HEIGHT))
+        .filter(|rows| !rows.is_empty());
+    let Some(rows) = rows else {
         painter_rows(faces, image, drawn, 0..SCREEN_HEIGHT);
         return faces.counts();
     };
-    let first = rows.start.clamp(0, SCREEN_HEIGHT) / BAND_ROWS;
-    let last = (rows.end.clamp(0, SCREEN_HEIGHT) + BAND_ROWS - 1) / BAND_ROWS;
-    if first == last {
-        painter_rows(faces, image, drawn, 0..SCREEN_HEIGHT);
-        return faces.counts();
-    }
-    for untested in [0..first * BAND_ROWS, last * BAND_ROWS..SCREEN_HEIGHT] {
+    for untested in [0..rows.start, rows.end..SCREEN_HEIGHT] {
         if !untested.is_empty() {
             painter_rows(faces, image, drawn, untested);
         }
     }
-    depth_test_bands(band, drawn, first..last, |band, drawn, clip| {
-        let rows = clip.y0..clip.y1;
-        for face in faces.all() {
-            if let (true, Some(plane)) = (face.meets_rows(&rows), &face.depth_plane) {
-                fill_nearer(image, drawn, band, clip, face.polygon(), plane, face.colour);
-            }
+    let clip = ClipRect {
+        y0: rows.start,
+        y1: rows.end,
+        ..SCREEN_CLIP
+    };
+    for face in faces.all() {
+        if let (true, Some(plane)) = (face.meets_rows(&rows), &face.depth_plane) {
+            fill_nearer(
+                image,
+                drawn,
+                depths,
+                clip,
+                face.polygon(),
+                plane,
+                face.colour,
+            );
         }
-        faces.counts()
-    })
+    }
+    depths.clear(drawn);
+    faces.counts()
 }
 
 /// Back to the background wherever `drawn` marks, and nothing marked.
@@ -118,58 +125,43 @@ fn erase(image: &mut PageImage, drawn: &mut PageSpans) {
 }
 
 /// The depth-tested drawing of `render_with_depth`, on every row, for any
-/// set of objects: `faces` is called once per band, with the band's rows,
-/// and must hand every face that survived backface removal — it may leave
-/// out those that miss the band's rows — with its colour, to the function it
-/// is given. The counts of the first band are returned. `drawn` is as for
+/// set of objects: `faces` must hand every face that survived backface
+/// removal, with its colour, to the function it is given, and return their
+/// counts, which are returned. `drawn` and `depths` are as for
 /// [`render_with_depth`].
 pub fn render_faces_with_depth(
     image: &mut PageImage,
     drawn: &mut PageSpans,
-    band: &mut DepthBand,
-    mut faces: impl FnMut(ClipRect, &mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
+    depths: &mut DepthBuffer,
+    faces: impl FnOnce(&mut dyn FnMut(&VisibleFace, u8)) -> FaceCounts,
 ) -> FaceCounts {
     erase(image, drawn);
-    depth_test_bands(band, drawn, 0..BANDS, |band, drawn, clip| {
-        faces(clip, &mut |visible, colour| {
-            if let Some(plane) = visible.depth_plane() {
-                fill_nearer(image, drawn, band, clip, visible.polygon, &plane, colour);
-            }
-        })
-    })
+    let counts = faces(&mut |visible, colour| {
+        if let Some(plane) = visible.depth_plane() {
+            fill_nearer(
+                image,
+                drawn,
+                depths,
+                SCREEN_CLIP,
+                visible.polygon,
+                &plane,
+                colour,
+            );
+        }
+    });
+    depths.clear(drawn);
+    counts
 }
 
-/// The bands in `bands`, one after the other: each band starts with
-/// nothing drawn, then `draw_band` draws into its rows with the depth test,
-/// marking in `drawn` every span it tests; then the band's depths are
-/// cleared at those marks. Returns what `draw_band` counted in the first
-/// band.
-fn depth_test_bands(
-    band: &mut DepthBand,
-    drawn: &mut PageSpans,
-    bands: Range<i32>,
-    mut draw_band: impl FnMut(&mut DepthBand, &mut PageSpans, ClipRect) -> FaceCounts,
-) -> FaceCounts {
-    let mut counts = None;
-    for index in bands {
-        band.start(index);
-        let clip = band.clip();
-        let band_counts = draw_band(band, drawn, clip);
-        band.clear(drawn);
-        counts.get_or_insert(band_counts);
-    }
-    counts.unwrap_or_default()
-}
-
-/// Fills `polygon`, within `clip` (rows of the current band), with `colour`
-/// where its plane is nearer than anything drawn there yet. Always inlined:
+/// Fills `polygon`, within `clip`, with `colour` where its plane is nearer
+/// than anything drawn there yet. Always inlined:
 /// it holds the inner loop, and left out of line it cost the grid's frame
 /// (`cpu_cost`'s workload) 3% more instructions.
 #[inline(always)]
 fn fill_nearer(
     image: &mut PageImage,
     drawn: &mut PageSpans,
-    band: &mut DepthBand,
+    depths: &mut DepthBuffer,
     clip: ClipRect,
     polygon: &[Point],
     plane: &DepthPlane,
@@ -179,7 +171,7 @@ fn fill_nearer(
         let row = (y * SCREEN_WIDTH) as usize;
         drawn.mark(y as usize, x_start as usize..x_end as usize);
         let pixels = &mut image[row + x_start as usize..row + x_end as usize];
-        band.test_span(plane, y, x_start, pixels, colour);
+        depths.test_span(plane, y, x_start, pixels, colour);
     });
 }
 
@@ -274,7 +266,7 @@ mod tests {
     fn the_rows_drawn_without_the_test_match_the_test_everywhere() {
         let mut everywhere = Box::new([0u8; PAGE_PIXELS]);
         let mut mixed = Box::new([0u8; PAGE_PIXELS]);
-        let mut band = Box::new(DepthBand::new());
+        let mut depths = Box::new(DepthBuffer::new());
         for (mut objects, list) in [
             listed(&[(&CUBE, -12.0, -150.0, true), (&CUBE, 12.0, -150.0, true)]),
             listed(&[(&LETTER_L, 0.0, -150.0, false)]),
@@ -285,8 +277,8 @@ mod tests {
             let counts = render_faces_with_depth(
                 &mut everywhere,
                 &mut PageSpans::all(),
-                &mut band,
-                |_, draw| {
+                &mut depths,
+                |draw| {
                     let mut counts = FaceCounts::default();
                     for object in &mut objects {
                         counts +=
@@ -297,7 +289,7 @@ mod tests {
             );
             assert_eq!(counts, faces.counts());
             assert_eq!(
-                render_with_depth(faces, &mut mixed, &mut PageSpans::all(), &mut band),
+                render_with_depth(faces, &mut mixed, &mut PageSpans::all(), &mut depths),
                 counts
             );
             assert!(mixed.iter().any(|&pixel| pixel != BACKGROUND));

@@ -10,8 +10,7 @@
 //! depends on neither (only on `engine`), so neither depends on the other.
 //!
 //! A face is culled, coloured and given its depth plane once a frame, here,
-//! however many times the depth policy then draws it (once per band of
-//! rows). The list is fixed-size, as there is no heap: its owner sizes it
+//! and the depth policy draws it once. The list is fixed-size, as there is no heap: its owner sizes it
 //! for the most objects and faces it can show.
 
 pub mod bounds;
