@@ -20,6 +20,13 @@
 //!   files the build wrote.
 //!
 //! It prints a table and a machine-readable last line.
+//!
+//! With `WEB_PAGE_PROFILE=1` it profiles instead of timing: each crowd case
+//! runs its frames under the DevTools `Profiler` (sampling every
+//! [`SAMPLE_US`] µs) and the bench prints, per case, where the frames spent
+//! their time (self time by function, garbage collection included) and what
+//! the slowest of them were made of. The module's functions have names only
+//! in a build that keeps them: `CARGO_PROFILE_WEB_WASM_STRIP=false`.
 
 use std::time::Duration;
 
@@ -38,6 +45,12 @@ const WARM_UP: usize = 300;
 /// How long the page may take to draw its first frame.
 const READY_TIMEOUT: Duration = Duration::from_secs(120);
 const MIB: f64 = 1024.0 * 1024.0;
+/// The profiler's sampling interval in profile mode, in µs.
+const SAMPLE_US: u64 = 50;
+/// In profile mode, the slowest frames are this fraction of them.
+const SLOWEST: f64 = 0.02;
+/// Functions listed for each case in profile mode.
+const TOP_FUNCTIONS: usize = 14;
 
 /// Runs before the page's own scripts: records `performance.now()` when the
 /// page's hook (`window.modexPage`) first turns `ready`.
@@ -136,6 +149,147 @@ fn frame_costs(page: &Page) -> Vec<f64> {
         .collect()
 }
 
+/// Profile mode: runs `FRAMES` frames of the paused page under the DevTools
+/// Profiler and prints where they spent their time, over all frames and
+/// over the slowest [`SLOWEST`] of them.
+///
+/// Frames take turns calling `stepFrames(1)` from two functions, `evenFrame`
+/// and `oddFrame`, so that each frame's samples lie between two changes of
+/// the one in the stack; samples outside either (garbage collection, the
+/// loop) belong to the frame they fall in.
+fn profile_frames(page: &Page, case: &str) {
+    page.evaluate(&format!("modexPage.stepFrames({WARM_UP})"))
+        .unwrap();
+    page.call("Profiler.enable", json!({})).unwrap();
+    page.call(
+        "Profiler.setSamplingInterval",
+        json!({ "interval": SAMPLE_US }),
+    )
+    .unwrap();
+    page.call("Profiler.start", json!({})).unwrap();
+    page.evaluate(&format!(
+        "(() => {{
+            function evenFrame() {{ return modexPage.stepFrames(1); }}
+            function oddFrame() {{ return modexPage.stepFrames(1); }}
+            for (let i = 0; i < {FRAMES}; i++) {{
+                if (i % 2) oddFrame(); else evenFrame();
+            }}
+        }})()"
+    ))
+    .unwrap();
+    let profile = page.call("Profiler.stop", json!({})).unwrap()["profile"].take();
+    page.call("Profiler.disable", json!({})).unwrap();
+
+    // Each node's name, parent and the frame function (1 even, 2 odd)
+    // among it and its callers.
+    let nodes = profile["nodes"].as_array().expect("profile nodes");
+    let mut index = std::collections::HashMap::new();
+    for (at, node) in nodes.iter().enumerate() {
+        index.insert(node["id"].as_u64().unwrap(), at);
+    }
+    let mut parent = vec![None; nodes.len()];
+    for (at, node) in nodes.iter().enumerate() {
+        for child in node["children"].as_array().into_iter().flatten() {
+            parent[index[&child.as_u64().unwrap()]] = Some(at);
+        }
+    }
+    let name = |at: usize| -> String {
+        let frame = &nodes[at]["callFrame"];
+        let function = frame["functionName"].as_str().unwrap_or("");
+        let url = frame["url"].as_str().unwrap_or("");
+        let file = url.rsplit('/').next().unwrap_or("");
+        match (function.is_empty(), file.is_empty()) {
+            (false, true) => function.to_owned(),
+            (false, false) => format!("{function} ({file})"),
+            (true, _) => format!("(anonymous) ({file})"),
+        }
+    };
+    let frame_of = |mut at: usize| -> u8 {
+        loop {
+            match nodes[at]["callFrame"]["functionName"].as_str() {
+                Some("evenFrame") => return 1,
+                Some("oddFrame") => return 2,
+                _ => {}
+            }
+            match parent[at] {
+                Some(up) => at = up,
+                None => return 0,
+            }
+        }
+    };
+    let which: Vec<u8> = (0..nodes.len()).map(frame_of).collect();
+
+    // Each sample lasts until the next; a frame is a run of samples.
+    let samples: Vec<usize> = profile["samples"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|id| index[&id.as_u64().unwrap()])
+        .collect();
+    let deltas: Vec<f64> = profile["timeDeltas"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|d| d.as_f64().unwrap())
+        .collect();
+    let mut frames: Vec<Vec<(usize, f64)>> = Vec::new();
+    let mut current = 0;
+    for (i, &sample) in samples.iter().enumerate() {
+        let lasts = deltas.get(i + 1).copied().unwrap_or(0.0);
+        if which[sample] != 0 && which[sample] != current {
+            current = which[sample];
+            frames.push(Vec::new());
+        }
+        if let Some(frame) = frames.last_mut() {
+            frame.push((sample, lasts));
+        }
+    }
+    // The last frame's samples run into the end of the loop: drop it.
+    frames.pop();
+    let length = |frame: &Vec<(usize, f64)>| frame.iter().map(|s| s.1).sum::<f64>();
+    frames.sort_by(|a, b| length(b).total_cmp(&length(a)));
+    let slowest = ((frames.len() as f64 * SLOWEST).ceil() as usize).max(1);
+    // Samples spaced more than three intervals apart: the thread was not
+    // running (the machine's other work), or the sampler was late.
+    let gap = 3.0 * SAMPLE_US as f64;
+    let report = |title: &str, frames: &[Vec<(usize, f64)>]| {
+        let mut by_name: std::collections::HashMap<String, f64> = Default::default();
+        let mut total = 0.0;
+        for &(sample, lasts) in frames.iter().flatten() {
+            total += lasts;
+            let label = if lasts > gap {
+                format!("(a gap in the samples: over {gap} µs)")
+            } else {
+                name(sample)
+            };
+            *by_name.entry(label).or_default() += lasts;
+        }
+        let mut ranked: Vec<(String, f64)> = by_name.into_iter().collect();
+        ranked.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let count = frames.len().max(1) as f64;
+        println!(
+            "\n{case}: {title}: {} frames, {:.3} ms a frame; self time by function:",
+            frames.len(),
+            total / count / 1000.0
+        );
+        for (label, micros) in ranked.iter().take(TOP_FUNCTIONS) {
+            println!(
+                "  {:>8.1} µs a frame {:>5.1} %  {label}",
+                micros / count,
+                micros / total.max(1.0) * 100.0
+            );
+        }
+    };
+    report("all frames", &frames);
+    report(
+        &format!("the slowest {slowest} frames ({} ms and over)", {
+            let shortest = frames.get(slowest - 1).map_or(0.0, length);
+            format!("{:.2}", shortest / 1000.0)
+        }),
+        &frames[..slowest.min(frames.len())],
+    );
+}
+
 /// The value at `fraction` of the sorted samples (nearest rank).
 fn percentile(samples: &[f64], fraction: f64) -> f64 {
     let mut sorted = samples.to_vec();
@@ -153,6 +307,7 @@ fn key(page: &Page, code: &str, key: &str) {
 }
 
 fn main() {
+    let profiling = std::env::var_os("WEB_PAGE_PROFILE").is_some();
     let dir = tempfile::tempdir().expect("a scratch directory");
     let built = web::build_page(dir.path()).expect("the page builds");
     let single_dir = tempfile::tempdir().expect("a scratch directory");
@@ -169,7 +324,8 @@ fn main() {
     );
 
     // Time to the first frame, cold.
-    let loads: Vec<(f64, f64)> = (0..COLD_LOADS).map(|_| cold_load(&url)).collect();
+    let cold_loads = if profiling { 0 } else { COLD_LOADS };
+    let loads: Vec<(f64, f64)> = (0..cold_loads).map(|_| cold_load(&url)).collect();
     let firsts: Vec<f64> = loads.iter().map(|l| l.0).collect();
     let after_load: Vec<f64> = loads.iter().map(|l| l.0 - l.1).collect();
 
@@ -185,7 +341,9 @@ fn main() {
     .to_vec();
     let mut weight = Vec::new();
     let count = cases.len();
-    for case in (0..ROUNDS).flat_map(|_| 0..count) {
+    // One round is enough to profile.
+    let rounds = if profiling { 1 } else { ROUNDS };
+    for case in (0..rounds).flat_map(|_| 0..count) {
         let (lit, inspector) = (case >= 2, case % 2 == 0);
         let page = browser
             .open(&format!("{url}?paused=1"))
@@ -209,7 +367,14 @@ fn main() {
             .unwrap();
         let shown = page.evaluate("modexPage.inspectorRgba() !== null").unwrap();
         assert_eq!(shown, Value::Bool(inspector), "the inspector is as set");
+        if profiling {
+            profile_frames(&page, cases[case].0);
+            continue;
+        }
         cases[case].1.extend(frame_costs(&page));
+    }
+    if profiling {
+        return;
     }
 
     println!();

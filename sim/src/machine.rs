@@ -12,9 +12,9 @@ use demo::app::App;
 use demo::frame::Renderer;
 use modex::regs::Port;
 use modex::soft::{SoftVga, PLANE_BYTES};
-use modex::{ModeX, VgaBus, SCREEN_HEIGHT, SCREEN_WIDTH};
+use modex::{ModeX, VgaBus, PAGE_BYTES, SCREEN_HEIGHT, SCREEN_WIDTH};
 
-use crate::inspector::{frame_cost, page_image, FrameCost};
+use crate::inspector::{frame_cost, FrameCost};
 use crate::keys::Scancode;
 use crate::oplog::{BusOp, LoggedOp, OpLog};
 
@@ -221,21 +221,17 @@ impl Machine {
         // A flip has waited for the retrace already; an idle frame waits here.
         self.idle_until_retrace(retraces_before);
         let soft = &self.vga.bus().soft;
-        // A drawn frame is the page the flip just put on screen.
-        let (old_page, new_page) = if drawn {
-            let page = self.app.shown_page();
-            (
-                page_image(
-                    |plane| &self.planes_before[plane * PLANE_BYTES..][..PLANE_BYTES],
-                    page,
-                ),
-                page_image(|plane| &soft.plane(plane)[..], page),
-            )
-        } else {
-            (Vec::new(), Vec::new())
-        };
+        // A drawn frame is the page the flip just put on screen: its bytes
+        // in each plane, before the frame and now.
+        let page = usize::from(self.app.shown_page().base());
+        let page_bytes = if drawn { usize::from(PAGE_BYTES) } else { 0 };
+        let old_planes: [&[u8]; 4] = std::array::from_fn(|plane| {
+            &self.planes_before[plane * PLANE_BYTES + page..][..page_bytes]
+        });
+        let new_planes: [&[u8]; 4] =
+            std::array::from_fn(|plane| &soft.plane(plane)[page..][..page_bytes]);
         self.frames += 1;
-        self.last_cost = frame_cost(counts_before, soft.counts(), &old_page, &new_page);
+        self.last_cost = frame_cost(counts_before, soft.counts(), old_planes, new_planes);
         self.last_cost
     }
 

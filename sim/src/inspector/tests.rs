@@ -59,6 +59,54 @@ fn the_lower_bound_counts_distinct_new_colours_per_address() {
     assert_eq!(lower_bound(&[], &[]), 0);
 }
 
+fn planes(planes: &[Vec<u8>]) -> [&[u8]; 4] {
+    std::array::from_fn(|plane| planes[plane].as_slice())
+}
+
+#[test]
+fn the_lower_bound_from_the_planes_is_the_page_images() {
+    // Pages with a few changed runs of addresses (as a frame changes them),
+    // in one plane or all,
+    // at every alignment against the eight compared at once, and a length
+    // that is not a multiple of eight.
+    let mut seed = 0x2545_F491_4F6C_DD1Du64;
+    let mut random = move |below: usize| {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed % below as u64) as usize
+    };
+    for addresses in [0, 5, 8, 19_200, 1_001] {
+        for _ in 0..20 {
+            let old: Vec<Vec<u8>> = (0..4)
+                .map(|_| (0..addresses).map(|_| random(4) as u8).collect())
+                .collect();
+            let mut new = old.clone();
+            for _ in 0..random(12) {
+                let (start, length) = (random(addresses.max(1)), 1 + random(40));
+                // Some runs change one plane alone, some all four.
+                let plane = random(5);
+                let changed = if plane == 4 { 0..4 } else { plane..plane + 1 };
+                for plane in changed {
+                    for byte in new[plane].iter_mut().skip(start).take(length) {
+                        *byte = random(4) as u8;
+                    }
+                }
+            }
+            let image = |planes: &[Vec<u8>]| -> Vec<u8> {
+                (0..addresses)
+                    .flat_map(|address| (0..4).map(move |plane| planes[plane][address]))
+                    .collect()
+            };
+            assert_eq!(
+                lower_bound_in_planes(planes(&old), planes(&new)),
+                lower_bound(&image(&old), &image(&new)),
+                "{addresses} addresses"
+            );
+        }
+    }
+}
+
 #[test]
 fn the_registers_are_the_soft_vgas() {
     let mut machine = Machine::new();
