@@ -13,7 +13,7 @@ use embedded_graphics::prelude::*;
 use embedded_graphics::text::{Baseline, Text};
 use modex::regs::{gc, Graphics, Sequencer};
 use modex::soft::{dac_6_to_8, BusCounts, SoftVga};
-use modex::{Page, BYTES_PER_LINE, PAGE_COUNT, PAGE_PIXELS, SCREEN_HEIGHT};
+use modex::{Page, BYTES_PER_LINE, PAGE_COUNT, SCREEN_HEIGHT};
 
 /// What one frame cost on the bus.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -104,20 +104,6 @@ fn address_bound(old: [u8; 4], new: [u8; 4]) -> u64 {
         }
     }
     distinct as u64
-}
-
-/// A page's pixels in screen order, read from the planes: pixel (x, y) is
-/// plane `x % 4`'s byte at `page.base() + y * 80 + x / 4`.
-pub fn page_image<'a>(plane: impl Fn(usize) -> &'a [u8], page: Page) -> Vec<u8> {
-    let planes = [plane(0), plane(1), plane(2), plane(3)];
-    let base = usize::from(page.base());
-    let mut image = vec![0; PAGE_PIXELS];
-    for (address, pixels) in image.as_chunks_mut::<4>().0.iter_mut().enumerate() {
-        for (pixel, plane) in pixels.iter_mut().zip(planes) {
-            *pixel = plane[base + address];
-        }
-    }
-    image
 }
 
 /// The registers the inspector shows.
