@@ -84,10 +84,16 @@ impl<const LINES: usize> LineSpans<LINES> {
         }
     }
 
+    /// The marked addresses of line `line`, bit i for address i (none for
+    /// a line past the last): what the page update walks.
+    pub(crate) fn marked(&self, line: usize) -> u128 {
+        self.lines.get(line).copied().unwrap_or(0)
+    }
+
     /// The marked addresses of line `line`, as runs of neighbouring
     /// addresses, left to right; runs that touch are one run.
     pub fn runs(&self, line: usize) -> impl Iterator<Item = Range<usize>> {
-        let mut bits = self.lines.get(line).copied().unwrap_or(0);
+        let mut bits = self.marked(line);
         core::iter::from_fn(move || {
             if bits == 0 {
                 return None;
@@ -124,10 +130,11 @@ impl<const LINES: usize> LineSpans<LINES> {
         }
     }
 
-    /// Copies every marked pixel of `from` into `to` (each `LINES` lines of
-    /// `SCREEN_WIDTH`, row by row); the rest of `to` is left as it is.
-    pub fn copy<T: Copy>(&self, from: &[T], to: &mut [T]) {
-        for line in 0..LINES {
+    /// Copies every marked pixel of the lines `lines` of `from` into `to`
+    /// (each `LINES` lines of `SCREEN_WIDTH`, row by row); the rest of `to`
+    /// is left as it is.
+    pub fn copy<T: Copy>(&self, lines: Range<usize>, from: &[T], to: &mut [T]) {
+        for line in lines {
             for run in self.runs(line) {
                 let pixels = line * WIDTH + 4 * run.start..line * WIDTH + 4 * run.end;
                 if let (Some(from), Some(to)) = (from.get(pixels.clone()), to.get_mut(pixels)) {

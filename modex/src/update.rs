@@ -15,13 +15,19 @@ use crate::page::Page;
 use crate::regs::PlaneMask;
 use crate::spans::PageSpans;
 use crate::{BYTES_PER_LINE, SCREEN_HEIGHT, SCREEN_WIDTH};
-use core::ops::Range;
 
 /// Pixels in a page: one byte each in a RAM image of it.
 pub const PAGE_PIXELS: usize = (SCREEN_WIDTH * SCREEN_HEIGHT) as usize;
 
 /// A page's picture in RAM: row-major colour indices.
 pub type PageImage = [u8; PAGE_PIXELS];
+
+const WIDTH: usize = SCREEN_WIDTH as usize;
+const LINES: usize = SCREEN_HEIGHT as usize;
+/// The fours of addresses (sixteen pixels) of a line.
+const FOURS: usize = WIDTH / 16;
+/// A line of a page image.
+type Line = [u8; WIDTH];
 
 impl<B: VgaBus> ModeX<B> {
     /// Makes `page` show `target`, given that it shows `shadow` now and
@@ -63,14 +69,12 @@ impl<B: VgaBus> ModeX<B> {
         writes: &mut PageWrites,
     ) -> u32 {
         self.issued_by("ModeX::update_page", |vga| {
-            let written = if writes.collect(spans, shadow, target) {
-                vga.write_by_mask(page, writes)
-            } else {
-                // More writes than the list holds (a whole new picture): the
-                // same writes in the same order, found again for each mask.
-                vga.write_by_passes(page, spans, shadow, target)
-            };
-            spans.copy(target, shadow);
+            // The lines collected are already shadowed; the rest of a frame
+            // of more writes than the list holds (a whole new picture) is
+            // found again for each mask, then copied.
+            let collected = writes.collect(spans, shadow, target);
+            let written = vga.write_by_mask(page, writes, collected, spans, shadow, target);
+            spans.copy(collected..LINES, target, shadow);
             written
         })
     }
@@ -80,11 +84,10 @@ impl<B: VgaBus> ModeX<B> {
     /// compare with (the report screen on the spare page); 76,800 writes.
     pub fn write_page(&mut self, page: Page, image: &PageImage) {
         self.issued_by("ModeX::write_page", |vga| {
-            let width = SCREEN_WIDTH as usize;
             for plane in 0..4u8 {
                 vga.io.set_map_mask(PlaneMask::plane(plane));
-                for y in 0..SCREEN_HEIGHT as usize {
-                    let line = &image[y * width..][..width];
+                for y in 0..LINES {
+                    let line = &image[y * WIDTH..][..WIDTH];
                     let line_base = page.base() + y as u16 * BYTES_PER_LINE;
                     for i in 0..usize::from(BYTES_PER_LINE) {
                         vga.io
@@ -108,73 +111,65 @@ impl<B: VgaBus> ModeX<B> {
         cached.into_iter().chain(others)
     }
 
-    /// Makes the collected writes mask by mask, each mask's in the order
-    /// they were found, following the list's links.
-    fn write_by_mask(&mut self, page: Page, writes: &PageWrites) -> u32 {
-        let mut written = 0;
-        for mask in self.mask_order(writes.masks) {
-            self.io.set_map_mask(mask);
-            for write in writes.with_mask(mask) {
-                let address = page.base() + write.address;
-                if write.count == 1 {
-                    self.io.write_vram8(address, write.colour);
-                } else {
-                    self.io.fill_vram(address, write.count, write.colour);
-                }
-                written += u32::from(write.count);
-            }
-        }
-        written
-    }
-
-    /// Finds and makes the writes mask by mask, visiting for each mask only
-    /// the lines that need it.
-    fn write_by_passes(
+    /// Makes the frame's writes mask by mask. For each mask: first the
+    /// listed writes with it, in the order they were found, following the
+    /// list's links; then, if the list holds only the lines before
+    /// `listed_lines`, those of the lines from there on, found again line by
+    /// line (visiting only the lines that need the mask) from the `shadow`
+    /// they have not yet been copied into.
+    fn write_by_mask(
         &mut self,
         page: Page,
+        listed: &PageWrites,
+        listed_lines: usize,
         spans: &PageSpans,
-        shadow: &PageImage,
+        shadow: &mut PageImage,
         target: &PageImage,
     ) -> u32 {
-        let mut line = LineWrites::new();
-        let mut line_masks = [0u16; SCREEN_HEIGHT as usize];
-        let mut frame_masks = 0u16;
-        for (y, masks) in line_masks.iter_mut().enumerate() {
-            for write in line.find(spans, shadow, target, y) {
-                *masks |= mask_bit(write.mask);
-            }
-            frame_masks |= *masks;
+        let mut rest = (listed_lines < LINES).then(|| LineWrites::masks_from(listed_lines));
+        let mut frame_masks = listed.masks();
+        if let Some(rest) = &mut rest {
+            frame_masks |= rest.find_masks(spans, shadow, target);
         }
         let mut written = 0;
         for mask in self.mask_order(frame_masks) {
             self.io.set_map_mask(mask);
-            for (y, masks) in line_masks.iter().enumerate() {
-                if masks & mask_bit(mask) == 0 {
+            for write in listed.with_mask(mask) {
+                written += self.make(page.base(), write);
+            }
+            let Some(rest) = &mut rest else { continue };
+            for y in listed_lines..LINES {
+                if rest.line_masks[y] & mask_bit(mask) == 0 {
                     continue;
                 }
                 let line_base = page.base() + y as u16 * BYTES_PER_LINE;
-                for write in line.find(spans, shadow, target, y) {
-                    if write.mask != mask {
-                        continue;
+                for write in rest.find(spans, shadow, target, y) {
+                    if write.mask == mask {
+                        written += self.make(line_base, write);
                     }
-                    if write.count == 1 {
-                        self.io.write_vram8(line_base + write.address, write.colour);
-                    } else {
-                        self.io
-                            .fill_vram(line_base + write.address, write.count, write.colour);
-                    }
-                    written += u32::from(write.count);
                 }
             }
         }
         written
     }
+
+    /// One write, its address from `base`, with its mask already set;
+    /// returns the bytes written.
+    fn make(&mut self, base: u16, write: &Write) -> u32 {
+        if write.count == 1 {
+            self.io.write_vram8(base + write.address, write.colour);
+        } else {
+            self.io
+                .fill_vram(base + write.address, write.count, write.colour);
+        }
+        u32::from(write.count)
+    }
 }
 
 /// One write of the page update: `count` addresses from `address` (relative
-/// to the page), each given `colour` through Map Mask `mask`. A count above
-/// one is a run of addresses whose four pixels all become one colour, one
-/// fill with all planes enabled.
+/// to the page or the line), each given `colour` through Map Mask `mask`. A
+/// count above one is a run of addresses whose four pixels all become one
+/// colour, one fill with all planes enabled.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Write {
     address: u16,
@@ -188,25 +183,42 @@ struct Write {
 /// solids averages 3,600; a screen-filling grid of 256 turning solids about
 /// 5,000), 128 KiB with the links, in a [`PageWrites`].
 const WRITE_LIST_CAPACITY: usize = 16_384;
-/// The end of a mask's chain of writes.
+/// Where in [`PageWrites`]' links each mask's chain starts: past the list.
+const CHAIN_HEADS: usize = WRITE_LIST_CAPACITY;
+/// The end of a mask's chain of writes, in [`PageWrites::with_mask`].
 const NO_WRITE: u16 = u16::MAX;
-const _: () = assert!(WRITE_LIST_CAPACITY < NO_WRITE as usize);
+const _: () = assert!(CHAIN_HEADS + 16 < NO_WRITE as usize);
+/// The most writes one line can need: one per pixel (an address's four
+/// pixels take at most four writes).
+const LINE_WRITE_CAPACITY: usize = WIDTH;
+
+/// Where the search puts the writes it finds: the frame's list
+/// ([`PageWrites`]) or one line's ([`LineWrites`]).
+trait WriteSink {
+    /// Whether the search brings the shadow line it compares up to the new
+    /// one as it goes, at each changed address: the frame's list, which
+    /// finds each write once, does; a line's, found again for each mask,
+    /// must not.
+    const SHADOWS: bool;
+    fn push(&mut self, write: Write);
+}
 
 /// Room for a frame's writes in the order they are found (line by line,
-/// address by address), each mask's chained in that order, and the set of
-/// masks among them: making them mask by mask is then one step per write,
-/// not one pass over the whole list per mask. All zero when new, so a
-/// renderer in static memory keeps one in `.bss`; each update starts it
-/// afresh by resetting the chains' ends, not the 128 KiB.
+/// address by address), each mask's chained in that order: making them mask
+/// by mask is then one step per write, not one pass over the whole list per
+/// mask. All zero when new, so a renderer in static memory keeps one in
+/// `.bss`; each update starts it afresh by resetting the chains' ends, not
+/// the 128 KiB.
 pub struct PageWrites {
     list: [Write; WRITE_LIST_CAPACITY],
-    /// For each write but its mask's last, the next with the same mask.
-    next_with_mask: [u16; WRITE_LIST_CAPACITY],
-    /// Each mask's first and last write, or `NO_WRITE`.
-    first_with_mask: [u16; 16],
+    /// For each write but its mask's last, the next with the same mask;
+    /// then, from `CHAIN_HEADS`, each mask's first write. A write is
+    /// chained with no test for an empty chain: it is linked after its
+    /// mask's last, which is the mask's head while it has none.
+    next_with_mask: [u16; CHAIN_HEADS + 16],
+    /// Each mask's last write, or its head while it has none.
     last_with_mask: [u16; 16],
     len: usize,
-    masks: u16,
 }
 
 /// Not the 16,384 writes.
@@ -234,57 +246,60 @@ impl PageWrites {
                 colour: 0,
                 mask: PlaneMask::NONE,
             }; WRITE_LIST_CAPACITY],
-            next_with_mask: [0; WRITE_LIST_CAPACITY],
-            first_with_mask: [0; 16],
+            next_with_mask: [0; CHAIN_HEADS + 16],
             last_with_mask: [0; 16],
             len: 0,
-            masks: 0,
         }
     }
 
-    /// Collects every write the marked addresses need; false if there are
-    /// more than the list holds (what was collected is then of no use).
-    fn collect(&mut self, spans: &PageSpans, shadow: &PageImage, target: &PageImage) -> bool {
-        self.first_with_mask = [NO_WRITE; 16];
-        self.last_with_mask = [NO_WRITE; 16];
-        (self.len, self.masks) = (0, 0);
-        let mut line = LineWrites::new();
-        for y in 0..SCREEN_HEIGHT as usize {
-            let line_base = y as u16 * BYTES_PER_LINE;
-            for &write in line.find(spans, shadow, target, y) {
-                if !self.push(Write {
-                    address: line_base + write.address,
-                    ..write
-                }) {
-                    return false;
-                }
+    /// Collects the writes the marked addresses need, line by line from the
+    /// first, straight into the list, and brings `shadow` up to `target` at
+    /// every line collected. Returns the first line not collected: all
+    /// (`SCREEN_HEIGHT`) unless one more line's writes might not have fitted.
+    fn collect(&mut self, spans: &PageSpans, shadow: &mut PageImage, target: &PageImage) -> usize {
+        self.last_with_mask = core::array::from_fn(|mask| (CHAIN_HEADS + mask) as u16);
+        self.len = 0;
+        let lines = shadow.as_chunks_mut::<WIDTH>().0.iter_mut();
+        for (y, (old, new)) in lines.zip(target.as_chunks::<WIDTH>().0).enumerate() {
+            let marked = spans.marked(y);
+            if marked == 0 {
+                continue;
             }
+            if self.len + LINE_WRITE_CAPACITY > WRITE_LIST_CAPACITY {
+                return y;
+            }
+            find_line_writes(self, y as u16 * BYTES_PER_LINE, marked, old, new);
         }
-        true
+        LINES
     }
 
-    /// Appends `write` to the list and to its mask's chain; false if full.
-    fn push(&mut self, write: Write) -> bool {
-        let index = self.len;
-        let Some(slot) = self.list.get_mut(index) else {
-            return false;
-        };
-        *slot = write;
-        let mask = usize::from(write.mask.bits());
-        match self.last_with_mask[mask] {
-            NO_WRITE => self.first_with_mask[mask] = index as u16,
-            last => self.next_with_mask[usize::from(last)] = index as u16,
-        }
-        self.last_with_mask[mask] = index as u16;
-        self.len += 1;
-        self.masks |= mask_bit(write.mask);
-        true
+    /// Whether the list holds a write with `mask` (none of a list never
+    /// collected into, whose chains' ends are still zero).
+    fn has(&self, mask: PlaneMask) -> bool {
+        let mask = usize::from(mask.bits());
+        self.len > 0 && usize::from(self.last_with_mask[mask]) != CHAIN_HEADS + mask
+    }
+
+    /// The masks of the writes listed, one bit each.
+    fn masks(&self) -> u16 {
+        (0..16)
+            .map(PlaneMask::from_bits_truncate)
+            .filter(|&mask| self.has(mask))
+            .fold(0, |masks, mask| masks | mask_bit(mask))
     }
 
     /// The writes with `mask`, in the order they were found.
     fn with_mask(&self, mask: PlaneMask) -> impl Iterator<Item = &Write> {
-        let mask = usize::from(mask.bits());
-        let (mut next, last) = (self.first_with_mask[mask], self.last_with_mask[mask]);
+        let (mut next, last) = match self.has(mask) {
+            true => {
+                let mask = usize::from(mask.bits());
+                (
+                    self.next_with_mask[CHAIN_HEADS + mask],
+                    self.last_with_mask[mask],
+                )
+            }
+            false => (NO_WRITE, NO_WRITE),
+        };
         core::iter::from_fn(move || {
             let write = self.list.get(usize::from(next))?;
             next = if next == last {
@@ -297,42 +312,83 @@ impl PageWrites {
     }
 }
 
-/// The most writes one line can need: one per pixel.
-const LINE_WRITE_CAPACITY: usize = SCREEN_WIDTH as usize;
+impl WriteSink for PageWrites {
+    const SHADOWS: bool = true;
 
-/// The writes one line needs, found into a buffer that is reused line after
-/// line: no call per write, and the search is compiled once for every bus
-/// and caller.
+    /// Appends `write` to the list and to its mask's chain. `collect` starts
+    /// a line only with room for all its writes, so none is ever dropped
+    /// here (and none could be written out of bounds).
+    fn push(&mut self, write: Write) {
+        let index = self.len;
+        let Some(slot) = self.list.get_mut(index) else {
+            return;
+        };
+        *slot = write;
+        let last = &mut self.last_with_mask[usize::from(write.mask.bits())];
+        if let Some(link) = self.next_with_mask.get_mut(usize::from(*last)) {
+            *link = index as u16;
+        }
+        *last = index as u16;
+        self.len = index + 1;
+    }
+}
+
+/// The writes of the lines a frame's list had no room for, found again
+/// line by line into a buffer reused line after line, and which masks each
+/// of those lines needs.
 struct LineWrites {
     list: [Write; LINE_WRITE_CAPACITY],
     len: usize,
+    first_line: usize,
+    line_masks: [u16; LINES],
 }
 
 impl LineWrites {
-    fn new() -> Self {
+    fn masks_from(first_line: usize) -> Self {
         LineWrites {
             list: [Write::default(); LINE_WRITE_CAPACITY],
             len: 0,
+            first_line,
+            line_masks: [0; LINES],
         }
     }
 
-    /// The writes line `y` needs over the addresses `spans` marks on it, in
-    /// address order (addresses relative to the line).
+    /// Finds which masks each line from the first needs; returns them all.
+    fn find_masks(&mut self, spans: &PageSpans, shadow: &mut PageImage, target: &PageImage) -> u16 {
+        let mut all = 0;
+        for y in self.first_line..LINES {
+            let masks = self
+                .find(spans, shadow, target, y)
+                .iter()
+                .fold(0, |masks, write| masks | mask_bit(write.mask));
+            self.line_masks[y] = masks;
+            all |= masks;
+        }
+        all
+    }
+
+    /// The writes line `y` needs, in address order, addresses relative to
+    /// the line; `shadow` is read, not changed.
     fn find(
         &mut self,
         spans: &PageSpans,
-        shadow: &PageImage,
+        shadow: &mut PageImage,
         target: &PageImage,
         y: usize,
     ) -> &[Write] {
-        let width = SCREEN_WIDTH as usize;
-        let (old_line, new_line) = (&shadow[y * width..][..width], &target[y * width..][..width]);
         self.len = 0;
-        for run in spans.runs(y) {
-            self.add_run(old_line, new_line, run);
+        if let (Some(old), Some(new)) = (
+            shadow.as_chunks_mut::<WIDTH>().0.get_mut(y),
+            target.as_chunks::<WIDTH>().0.get(y),
+        ) {
+            find_line_writes(self, 0, spans.marked(y), old, new);
         }
         &self.list[..self.len]
     }
+}
+
+impl WriteSink for LineWrites {
+    const SHADOWS: bool = false;
 
     fn push(&mut self, write: Write) {
         // At most one write a pixel, so the list never fills; were it ever
@@ -342,53 +398,142 @@ impl LineWrites {
             self.len += 1;
         }
     }
+}
 
-    /// Adds the writes that bring `old_line` to `new_line` at the addresses
-    /// in `quads`, in address order: a run of addresses whose four pixels
-    /// all become one colour is one write with all planes (a fill); any
-    /// other changed address gets one write per distinct new colour among
-    /// its changed pixels.
-    ///
-    /// Most marked addresses keep their pixels: [`first_change`] passes
-    /// over them two at a time.
-    fn add_run(&mut self, old_line: &[u8], new_line: &[u8], quads: Range<usize>) {
-        let mut i = quads.start;
-        loop {
-            i = first_change(old_line, new_line, i..quads.end);
-            if i >= quads.end {
-                break;
-            }
-            // Address i changes. (An unchanged address never starts a run.)
-            let (old, new) = (quad(old_line, i), quad(new_line, i));
-            let run = solid_run(old_line, new_line, i, quads.end);
-            if run > 0 {
-                self.push(Write {
-                    address: i as u16,
-                    count: run as u16,
-                    colour: new as u8,
-                    mask: PlaneMask::ALL,
-                });
-                i += run;
+/// Finds the writes that bring the line `old` to `new` at the addresses
+/// `marked` sets (bit i for address i), in address order, and gives them to
+/// `sink`, their addresses from `line_base`: a run of addresses whose four
+/// pixels all become one colour is one write with all planes (a fill); any
+/// other changed address gets one write per distinct new colour among its
+/// changed pixels. With [`WriteSink::SHADOWS`], `old` takes each changed
+/// address's new pixels as it is passed.
+///
+/// The line is taken four addresses at a time (sixteen pixels, aligned in
+/// the line), visiting only the fours with a marked address: a four whose
+/// pixels all agree costs one 16-byte compare and a step to the next. Of a
+/// four that differs, the changed pixels of all four addresses are found at
+/// once, and only its marked addresses with some are visited.
+fn find_line_writes<S: WriteSink>(
+    sink: &mut S,
+    line_base: u16,
+    marked: u128,
+    old: &mut Line,
+    new: &Line,
+) {
+    let mut runs = marked;
+    // The first four not yet searched: two runs can share a four, and a
+    // fill from a shared four can reach into the next run's.
+    let mut next = 0;
+    // The addresses of the next four still to search: all but those a fill
+    // from the four before has already written.
+    let mut after_fill = 0xF;
+    while runs != 0 {
+        // The lowest run of marks: adding its lowest bit carries through it
+        // and stops on the bit past it (a line's 80 bits leave room). Its
+        // fours are searched from the first not yet searched.
+        let first = runs.trailing_zeros() as usize;
+        let past = runs.wrapping_add(runs.isolate_lowest_one());
+        runs &= past;
+        next = next.max(first / 4);
+        let end = (past.trailing_zeros() as usize).div_ceil(4).min(FOURS);
+        while next < end {
+            let four = next;
+            next += 1;
+            let changed = differing_pixels(old, new, four);
+            if changed == 0 {
+                after_fill = 0xF;
                 continue;
             }
-            let mut pending = differing_bytes(old, new);
-            while pending != 0 {
-                // The first changed pixel's colour, and every changed pixel
-                // of that colour: one write.
-                let colour = (new >> (8 * pending.trailing_zeros())) as u8;
-                let planes = pending & !differing_bytes(new, splat(colour));
-                pending &= !planes;
-                self.push(Write {
-                    address: i as u16,
-                    count: 1,
-                    colour,
-                    mask: PlaneMask::from_bits_truncate(planes),
-                });
+            let marks = (marked >> (4 * four)) as usize & after_fill;
+            after_fill = 0xF;
+            // Four bits an address: its pixels (planes) that change.
+            let mut changed = changed & ALL_PLANES_OF[marks];
+            while changed != 0 {
+                let slot = changed.trailing_zeros() / 4;
+                let mut planes_left = (changed >> (4 * slot)) as u8 & 0x0F;
+                changed &= !(0x0F << (4 * slot));
+                let address = 4 * four + slot as usize;
+                let new_quad = quad(new, address);
+                if planes_left == 0x0F && new_quad == splat(new_quad as u8) {
+                    let fill_end = solid_run_end(old, new, marked, address);
+                    sink.push(Write {
+                        address: line_base + address as u16,
+                        count: (fill_end - address) as u16,
+                        colour: new_quad as u8,
+                        mask: PlaneMask::ALL,
+                    });
+                    if S::SHADOWS {
+                        if let Some(pixels) = old.get_mut(4 * address..4 * fill_end) {
+                            pixels.fill(new_quad as u8);
+                        }
+                    }
+                    // Go on after the fill, which stays within its run of
+                    // marks: in the four it ends in, at its end.
+                    next = fill_end / 4;
+                    after_fill = 0xF << (fill_end % 4) & 0xF;
+                    break;
+                }
+                while planes_left != 0 {
+                    // The first changed pixel's colour, and every changed
+                    // pixel of that colour: one write.
+                    let colour = (new_quad >> (8 * planes_left.trailing_zeros())) as u8;
+                    let planes = match planes_left.is_power_of_two() {
+                        true => planes_left,
+                        false => planes_left & !differing_bytes(new_quad, splat(colour)),
+                    };
+                    planes_left &= !planes;
+                    sink.push(Write {
+                        address: line_base + address as u16,
+                        count: 1,
+                        colour,
+                        mask: PlaneMask::from_bits_truncate(planes),
+                    });
+                }
+                if S::SHADOWS {
+                    if let Some(pixels) = old.get_mut(4 * address..4 * address + 4) {
+                        pixels.copy_from_slice(&new_quad.to_le_bytes());
+                    }
+                }
             }
-            i += 1;
         }
     }
 }
+
+/// Which of the sixteen pixels of the four addresses `4 * four` to
+/// `4 * four + 3` differ between the lines: bit 4j + p for address
+/// `4 * four + j`, plane p (one 16-byte compare where the target has one).
+fn differing_pixels(old: &[u8], new: &[u8], four: usize) -> u32 {
+    let pixels = 16 * four..16 * four + 16;
+    let (Some(old), Some(new)) = (old.get(pixels.clone()), new.get(pixels)) else {
+        return 0;
+    };
+    let (Ok(old), Ok(new)) = (<&[u8; 16]>::try_from(old), <&[u8; 16]>::try_from(new)) else {
+        return 0;
+    };
+    let differ: [bool; 16] = core::array::from_fn(|i| old[i] != new[i]);
+    differ
+        .iter()
+        .enumerate()
+        .fold(0, |bits, (i, &differs)| bits | u32::from(differs) << i)
+}
+
+/// For each set of the four addresses of a four (bit j for address j), all
+/// four planes of each (bits 4j to 4j + 3).
+const ALL_PLANES_OF: [u32; 16] = {
+    let mut table = [0; 16];
+    let mut addresses = 0;
+    while addresses < 16 {
+        let mut j = 0;
+        while j < 4 {
+            if addresses & 1 << j != 0 {
+                table[addresses] |= 0xF << (4 * j);
+            }
+            j += 1;
+        }
+        addresses += 1;
+    }
+    table
+};
 
 /// A mask's bit in a set of masks (one bit per mask value, 0 to 15).
 fn mask_bit(planes: PlaneMask) -> u16 {
@@ -400,31 +545,6 @@ fn quad(line: &[u8], address: usize) -> u32 {
     line.get(4 * address..4 * address + 4)
         .and_then(|quad| quad.try_into().ok())
         .map_or(0, u32::from_le_bytes)
-}
-
-/// The first address of `quads` whose pixels differ between the lines, or
-/// `quads.end` if none does. Four addresses (sixteen pixels) are compared
-/// at a time, one 128-bit compare (which the compiler may make of two
-/// 64-bit ones), and the lowest differing byte of a differing four names
-/// its address; the range's last one to three addresses, which a 16-byte
-/// load would reach past, are compared a quad at a time.
-fn first_change(old_line: &[u8], new_line: &[u8], quads: Range<usize>) -> usize {
-    let pixels = 4 * quads.start..4 * quads.end;
-    let (Some(old), Some(new)) = (old_line.get(pixels.clone()), new_line.get(pixels)) else {
-        return quads.end;
-    };
-    let fours = old.as_chunks::<16>().0.iter().zip(new.as_chunks::<16>().0);
-    for (k, (&old, &new)) in fours.enumerate() {
-        let changed = u128::from_le_bytes(old) ^ u128::from_le_bytes(new);
-        if changed != 0 {
-            // Little-endian: the lowest byte is the first address's plane 0.
-            return quads.start + 4 * k + changed.trailing_zeros() as usize / 32;
-        }
-    }
-    let left_over = quads.start + old.len() / 16 * 4;
-    (left_over..quads.end)
-        .find(|&i| quad(old_line, i) != quad(new_line, i))
-        .unwrap_or(quads.end)
 }
 
 /// `colour` in all four bytes of a quad.
@@ -443,16 +563,20 @@ fn differing_bytes(a: u32, b: u32) -> u8 {
     ((tops >> 7).wrapping_mul(0x0102_0408) >> 24) as u8
 }
 
-/// How many addresses from `start` on (before `end`) have all four pixels
-/// changing to one and the same colour, the new colour at `start` (0 if the
-/// first does not).
-fn solid_run(old_line: &[u8], new_line: &[u8], start: usize, end: usize) -> usize {
-    let colour = splat(new_line[4 * start]);
-    (start..end)
-        .take_while(|&i| {
-            quad(new_line, i) == colour && differing_bytes(quad(old_line, i), colour) == 0x0F
-        })
-        .count()
+/// The end of the run of addresses from `start` (which starts one) whose
+/// four pixels all change to one and the same colour, the new colour at
+/// `start`: it goes on while the addresses are marked.
+fn solid_run_end(old: &[u8], new: &[u8], marked: u128, start: usize) -> usize {
+    let colour = quad(new, start);
+    let mut end = start + 1;
+    while end < usize::from(BYTES_PER_LINE)
+        && marked >> end & 1 != 0
+        && quad(new, end) == colour
+        && differing_bytes(quad(old, end), colour) == 0x0F
+    {
+        end += 1;
+    }
+    end
 }
 
 #[cfg(test)]
@@ -460,6 +584,7 @@ mod tests {
     use super::*;
     use crate::record::Recorder;
     use crate::soft::SoftVga;
+    use core::ops::Range;
     use std::boxed::Box;
     use std::vec;
     use std::vec::Vec;
@@ -575,14 +700,33 @@ mod tests {
             }
             let changed = PageSpans::all();
             let mut writes = Box::new(PageWrites::new());
-            assert!(
-                writes.collect(&changed, &shadow, &target),
+            let (mut listed_shadow, mut passes_shadow) = (shadow.clone(), shadow.clone());
+            assert_eq!(
+                writes.collect(&changed, &mut listed_shadow, &target),
+                LINES,
                 "a small change fits"
             );
             let mut by_list = ModeX::new(Recorder::default());
-            by_list.write_by_mask(Page::One, &writes);
+            by_list.write_by_mask(
+                Page::One,
+                &writes,
+                LINES,
+                &changed,
+                &mut listed_shadow,
+                &target,
+            );
             let mut by_passes = ModeX::new(Recorder::default());
-            by_passes.write_by_passes(Page::One, &changed, &shadow, &target);
+            let no_writes = Box::new(PageWrites::new());
+            by_passes.write_by_mask(
+                Page::One,
+                &no_writes,
+                0,
+                &changed,
+                &mut passes_shadow,
+                &target,
+            );
+            assert!(listed_shadow[..] == target[..], "round {round}");
+            assert!(passes_shadow[..] == shadow[..], "round {round}");
             assert!(!by_list.bus().0.is_empty());
             assert_eq!(by_list.bus().0, by_passes.bus().0, "round {round}");
             // And the whole update leaves the shadow equal to the target.
@@ -602,7 +746,7 @@ mod tests {
         let target: Box<PageImage> =
             Box::new(core::array::from_fn(|i| if i % 4 < 2 { 9 } else { 10 }));
         let changed = PageSpans::all();
-        assert!(!PageWrites::new().collect(&changed, &shadow, &target));
+        assert!(PageWrites::new().collect(&changed, &mut shadow.clone(), &target) < LINES);
         assert_eq!(
             vga.update_page(Page::Zero, &mut shadow, &target, &PageSpans::all()),
             38_400
@@ -770,7 +914,7 @@ mod tests {
             seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
             (seed >> 8) % below
         };
-        let mut line = LineWrites::new();
+        let mut line = Box::new(LineWrites::masks_from(0));
         let mut found = 0;
         for y in 0..SCREEN_HEIGHT as usize {
             // Few colours, so runs, repeats and unchanged pixels are common.
@@ -794,13 +938,97 @@ mod tests {
             let (old, new) = (&shadow[y * 320..][..320], &target[y * 320..][..320]);
             let expected = writes_pixel_by_pixel(old, new, start..end);
             assert_eq!(
-                line.find(&spans, &shadow, &target, y),
+                line.find(&spans, &mut shadow, &target, y),
                 &expected[..],
                 "line {y}, {start}..{end}"
             );
             found += expected.len();
         }
         assert!(found > 500, "{found}");
+    }
+
+    /// The page update makes the writes the pixel-by-pixel search finds
+    /// over each marked run, grouped by mask, each mask's in address order:
+    /// over random lines with several runs of marks, fills that start in a
+    /// four two runs share and reach into the second, and frames of more
+    /// writes than the list holds, whose lines past the list's are found
+    /// again mask by mask. Marked pixels end up shadowed, no others.
+    #[test]
+    fn the_page_update_makes_the_pixel_by_pixel_writes_grouped_by_mask() {
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut random = move |below: usize| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 16) as usize % below
+        };
+        let mut writes = Box::new(PageWrites::new());
+        let (mut listed, mut overflowed, mut fills) = (0, 0, 0);
+        for round in 0..48 {
+            let mut shadow = Box::new([0u8; PAGE_PIXELS]);
+            let mut target = Box::new([0u8; PAGE_PIXELS]);
+            let mut spans = Box::new(PageSpans::none());
+            let noise = round % 4 == 3;
+            for y in 0..LINES {
+                let line = y * WIDTH;
+                for x in 0..WIDTH {
+                    shadow[line + x] = random(3) as u8;
+                    target[line + x] = match noise || random(4) == 0 {
+                        true => random(5) as u8,
+                        false => shadow[line + x],
+                    };
+                }
+                for _ in 0..random(4) {
+                    // Solid stretches over changed pixels: fills.
+                    let (x0, length) = (random(WIDTH), 4 + random(40));
+                    target[line + x0..line + (x0 + length).min(WIDTH)].fill(7);
+                }
+                for _ in 0..random(6) + 8 * usize::from(noise) {
+                    // Runs of marks with gaps, some of one or two addresses.
+                    let x0 = random(WIDTH);
+                    spans.mark(y, x0..x0 + 1 + random(48));
+                }
+            }
+            let mut found = Vec::new();
+            for y in 0..LINES {
+                let (old, new) = (&shadow[y * WIDTH..][..WIDTH], &target[y * WIDTH..][..WIDTH]);
+                for run in spans.runs(y) {
+                    for write in writes_pixel_by_pixel(old, new, run) {
+                        let address = y as u16 * BYTES_PER_LINE + write.address;
+                        found.push(Write { address, ..write });
+                    }
+                }
+            }
+            let mut expected = ModeX::new(Recorder::default());
+            for mask in (1..16).map(PlaneMask::from_bits_truncate) {
+                if found.iter().any(|write| write.mask == mask) {
+                    expected.io.set_map_mask(mask);
+                    for write in found.iter().filter(|write| write.mask == mask) {
+                        expected.make(Page::One.base(), write);
+                    }
+                }
+            }
+            let before = shadow.clone();
+            let mut vga = ModeX::new(Recorder::default());
+            vga.update_page_with(Page::One, &mut shadow, &target, &spans, &mut writes);
+            assert_eq!(vga.bus().0, expected.bus().0, "round {round}");
+            for y in 0..LINES {
+                let marked = spans.marked(y);
+                for x in 0..WIDTH {
+                    let pixel = y * WIDTH + x;
+                    let wanted = match marked >> (x / 4) & 1 != 0 {
+                        true => target[pixel],
+                        false => before[pixel],
+                    };
+                    assert_eq!(shadow[pixel], wanted, "round {round}, line {y}, x {x}");
+                }
+            }
+            listed += usize::from(found.len() <= WRITE_LIST_CAPACITY - LINE_WRITE_CAPACITY);
+            overflowed += usize::from(found.len() > WRITE_LIST_CAPACITY);
+            fills += found.iter().filter(|write| write.count > 1).count();
+        }
+        assert!(listed > 30 && overflowed >= 12, "{listed}, {overflowed}");
+        assert!(fills > 2_000, "{fills}");
     }
 
     /// A change in the last address of a run, which a 64-bit compare from
