@@ -774,13 +774,7 @@ mod tests {
         let mut full_shadows = shadows.clone();
         let mut by_spans = ModeX::new(Recorder::default());
         let mut by_pixels = ModeX::new(Recorder::default());
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut random = move |below: usize| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 16) as usize % below
-        };
+        let mut random = xorshift(0x2545_f491_4f6c_dd1du64);
         let (mut compared, mut overflowed) = (0, 0);
         let mut writes = Box::new(PageWrites::new());
         for round in 0..400 {
@@ -947,6 +941,17 @@ mod tests {
         assert!(found > 500, "{found}");
     }
 
+    /// A xorshift generator from `seed`: numbers below the bound asked for,
+    /// the same every run.
+    fn xorshift(mut state: u64) -> impl FnMut(usize) -> usize {
+        move |below| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 16) as usize % below
+        }
+    }
+
     /// The page update makes the writes the pixel-by-pixel search finds
     /// over each marked run, grouped by mask, each mask's in address order:
     /// over random lines with several runs of marks, fills that start in a
@@ -955,13 +960,7 @@ mod tests {
     /// again mask by mask. Marked pixels end up shadowed, no others.
     #[test]
     fn the_page_update_makes_the_pixel_by_pixel_writes_grouped_by_mask() {
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
-        let mut random = move |below: usize| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 16) as usize % below
-        };
+        let mut random = xorshift(0x9E37_79B9_7F4A_7C15u64);
         let mut writes = Box::new(PageWrites::new());
         let (mut listed, mut overflowed, mut fills) = (0, 0, 0);
         for round in 0..48 {
