@@ -132,7 +132,8 @@ fn boot(machine: &Machine) -> Qemu {
 
 /// The kernel prints its clock once a second for 10 s (boot option
 /// `clock-check`) while two threads keep both host cores busy; the host notes
-/// when each line arrives. Over the 10 s the two must agree within 1 %.
+/// when each line arrives. Between the promptest line of the first three and
+/// of the last three (7 s or more apart) the two must agree within 1 %.
 fn check_the_clock(qemu: &mut Qemu, machine: &Machine) {
     let stop = Arc::new(AtomicBool::new(false));
     let load: Vec<_> = (0..2)
@@ -180,13 +181,25 @@ fn check_the_clock(qemu: &mut Qemu, machine: &Machine) {
         machine.name
     );
 
-    let (first_micros, first_arrival) = readings[0];
-    let (last_micros, last_arrival) = readings[readings.len() - 1];
+    let whole = Duration::from_micros(readings[readings.len() - 1].0 - readings[0].0);
+    assert!(whole >= Duration::from_secs(10), "{whole:?}");
+    // A line reaches the host some time after the kernel printed it, never
+    // before, and on a busy host that delay varies (up to 0.1 s seen beside
+    // four busy loops). So the two clocks are compared between the promptest
+    // of the first three lines and the promptest of the last three: the
+    // line whose arrival, less its kernel time, is least.
+    let promptest = |lines: &[(u64, Instant)]| {
+        *lines
+            .iter()
+            .min_by_key(|&&(micros, arrived)| arrived - Duration::from_micros(micros))
+            .expect("three lines")
+    };
+    let (first_micros, first_arrival) = promptest(&readings[..3]);
+    let (last_micros, last_arrival) = promptest(&readings[readings.len() - 3..]);
     let kernel = Duration::from_micros(last_micros - first_micros);
     let host = last_arrival - first_arrival;
     let ratio = kernel.as_secs_f64() / host.as_secs_f64();
     println!("  kernel {kernel:?} against host {host:?}: ratio {ratio:.5}");
-    assert!(kernel >= Duration::from_secs(10), "{kernel:?}");
     assert!(
         (ratio - 1.0).abs() < 0.01,
         "{}: the kernel's clock measured {kernel:?} while the host's measured {host:?}",
