@@ -22,6 +22,7 @@ use demo::scene::{Scene, SceneCommand};
 use frame_sets::{cube_set, extras_set};
 use modex::soft::{BusCounts, SoftVga};
 use modex::{ModeX, Page, PAGE_PIXELS};
+use sim::inspector::lower_bound;
 use std::time::{Duration, Instant};
 
 #[derive(Default, Clone, Copy)]
@@ -64,30 +65,21 @@ fn page_image(soft: &SoftVga, page: Page) -> Vec<u8> {
         .collect()
 }
 
-/// Σ over addresses of the distinct new colours among changed pixels (the
-/// video-memory writes), and the number of distinct Map Mask values those
-/// writes need: each write's planes are the changed pixels of one colour.
-fn lower_bound(old: &[u8], new: &[u8]) -> (u64, u64) {
+/// The distinct Map Mask values a frame's writes need, at the fewest: each
+/// write's planes are the changed pixels of one new colour at one address.
+/// (The writes themselves are counted by `sim::inspector::lower_bound`, the
+/// figure the web page's inspector shows.)
+fn masks_needed(old: &[u8], new: &[u8]) -> u64 {
     let mut masks = 0u16;
-    let writes = old
-        .as_chunks::<4>()
-        .0
-        .iter()
-        .zip(new.as_chunks::<4>().0)
-        .map(|(o, n)| {
-            let mut colours: Vec<u8> = (0..4).filter(|&p| o[p] != n[p]).map(|p| n[p]).collect();
-            colours.sort_unstable();
-            colours.dedup();
-            for &colour in &colours {
-                let planes = (0..4)
-                    .filter(|&p| o[p] != n[p] && n[p] == colour)
-                    .fold(0u16, |m, p| m | 1 << p);
-                masks |= 1 << planes;
-            }
-            colours.len() as u64
-        })
-        .sum();
-    (writes, u64::from(masks.count_ones()))
+    for (o, n) in old.as_chunks::<4>().0.iter().zip(new.as_chunks::<4>().0) {
+        for p in (0..4).filter(|&p| o[p] != n[p]) {
+            let planes = (0..4)
+                .filter(|&q| o[q] != n[q] && n[q] == n[p])
+                .fold(0u16, |m, q| m | 1 << q);
+            masks |= 1 << planes;
+        }
+    }
+    u64::from(masks.count_ones())
 }
 
 /// Renders the set with `drawer`; returns its totals and, if asked (only for
@@ -135,7 +127,8 @@ fn run<D: FrameDrawer>(
             "a renderer drew a wrong frame"
         );
         if let Some(before_image) = before_image {
-            let (writes, masks) = lower_bound(&before_image, &after_image);
+            let writes = lower_bound(&before_image, &after_image);
+            let masks = masks_needed(&before_image, &after_image);
             bound += writes;
             full_bound += writes + masks;
         }
