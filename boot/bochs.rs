@@ -11,7 +11,7 @@
 use crate::image::RgbImage;
 use std::io;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::process::{Child, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 use xvfb::{X11Error, Xvfb};
 
@@ -269,7 +269,12 @@ impl Bochs {
         std::fs::write(&debugger_commands, "c\n")
             .map_err(|e| io_error("cannot write the debugger commands", e))?;
 
-        let xvfb = Xvfb::start(SCREEN, START_TIMEOUT)?;
+        // Both killed with the test's thread, as QEMU is (`bochs` below).
+        let xvfb = Xvfb::start_with(
+            crate::qemu::dies_with_its_thread("Xvfb"),
+            SCREEN,
+            START_TIMEOUT,
+        )?;
         // On an error `xvfb` is dropped, which stops it.
         let bochs = spawn_bochs(&bochsrc, &debugger_commands, xvfb.display(), scratch.path())?;
         let mut bochs = Bochs {
@@ -445,7 +450,10 @@ fn spawn_bochs(
 ) -> Result<Child> {
     let output = std::fs::File::create(dir.join("bochs.out"))
         .map_err(|e| io_error("cannot create bochs.out", e))?;
-    Command::new("bochs")
+    // Killed with the test's thread, as QEMU is: a test process killed by
+    // a signal runs no `Drop`, and Bochs would otherwise stop at its
+    // breakpoint until someone kills it.
+    crate::qemu::dies_with_its_thread("bochs")
         .arg("-q")
         .arg("-f")
         .arg(bochsrc)

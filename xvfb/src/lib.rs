@@ -157,11 +157,22 @@ impl Xvfb {
     /// whenever its last client leaves, and a short-lived `xdotool` leaving
     /// while Bochs connected made Bochs fail with "cannot connect to X server".
     pub fn start(screen: (u32, u32), timeout: Duration) -> Result<Xvfb, X11Error> {
+        Self::start_with(Command::new("Xvfb"), screen, timeout)
+    }
+
+    /// [`Xvfb::start`] with the caller's command for the server, which must
+    /// run `Xvfb` (through a wrapper that becomes it, say, so that the server
+    /// dies with the process that started it); the arguments are added here.
+    pub fn start_with(
+        mut command: Command,
+        screen: (u32, u32),
+        timeout: Duration,
+    ) -> Result<Xvfb, X11Error> {
         let missing = missing_packages();
         if !missing.is_empty() {
             return Err(X11Error::NotInstalled { missing });
         }
-        let mut server = Command::new("Xvfb")
+        let mut server = command
             .args(["-displayfd", "1", "-noreset", "-nolisten", "tcp"])
             .args(["-screen", "0", &format!("{}x{}x24", screen.0, screen.1)])
             .stdin(Stdio::null())
