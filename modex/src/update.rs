@@ -420,22 +420,34 @@ fn find_line_writes<S: WriteSink>(
     old: &mut Line,
     new: &Line,
 ) {
-    let mut runs = marked;
+    // The marks are taken 64 at a time, addresses 0 to 63 and then 64 to
+    // 79 (a run across address 64 is two runs), so that finding a run is
+    // a few 64-bit steps, not 128-bit ones.
+    let (mut runs, mut half_base, mut high_half) = (marked as u64, 0, (marked >> 64) as u64);
     // The first four not yet searched: two runs can share a four, and a
     // fill from a shared four can reach into the next run's.
     let mut next = 0;
     // The addresses of the next four still to search: all but those a fill
     // from the four before has already written.
     let mut after_fill = 0xF;
-    while runs != 0 {
+    loop {
+        if runs == 0 {
+            if high_half == 0 {
+                break;
+            }
+            (runs, half_base, high_half) = (high_half, 64, 0);
+        }
         // The lowest run of marks: adding its lowest bit carries through it
-        // and stops on the bit past it (a line's 80 bits leave room). Its
-        // fours are searched from the first not yet searched.
-        let first = runs.trailing_zeros() as usize;
-        let past = runs.wrapping_add(runs.isolate_lowest_one());
+        // and stops on the bit past it (or, for a run to bit 63, carries
+        // out, leaving no bit: 64). Its fours are searched from the first
+        // not yet searched.
+        let first = half_base + runs.trailing_zeros() as usize;
+        let past = runs.wrapping_add(runs & runs.wrapping_neg());
         runs &= past;
         next = next.max(first / 4);
-        let end = (past.trailing_zeros() as usize).div_ceil(4).min(FOURS);
+        let end = (half_base + past.trailing_zeros() as usize)
+            .div_ceil(4)
+            .min(FOURS);
         while next < end {
             let four = next;
             next += 1;
