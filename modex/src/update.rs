@@ -1045,6 +1045,41 @@ mod tests {
         assert!(fills > 2_000, "{fills}");
     }
 
+    /// The marks are searched 64 addresses at a time, so a run across
+    /// address 64 is two runs: a fill across it is still one write, the
+    /// changes on both sides of it are found, in order, and nothing past
+    /// the run's ends is. Runs ending at 63, starting at 64 and reaching
+    /// the line's end are each tried too.
+    #[test]
+    fn a_run_across_address_64_is_searched_as_one() {
+        let mut line = LineWrites::masks_from(0);
+        for (run, fill) in [
+            (56..72, 60..70),
+            (60..64, 61..64),
+            (64..68, 64..66),
+            (40..80, 62..80),
+        ] {
+            let mut shadow = Box::new([0u8; PAGE_PIXELS]);
+            let mut target = Box::new([0u8; PAGE_PIXELS]);
+            // Every address changes, outside the fill one plane of each.
+            for address in 0..80 {
+                target[4 * address + address % 4] = 3;
+            }
+            target[4 * fill.start..4 * fill.end].fill(5);
+            let mut spans = PageSpans::none();
+            spans.mark(0, 4 * run.start..4 * run.end);
+            let expected = writes_pixel_by_pixel(&shadow[..320], &target[..320], run.clone());
+            assert!(expected
+                .iter()
+                .any(|write| write.count as usize == fill.len()));
+            assert_eq!(
+                line.find(&spans, &mut shadow, &target, 0),
+                &expected[..],
+                "{run:?}"
+            );
+        }
+    }
+
     /// A change in the last address of a run, which a 64-bit compare from
     /// the address before it (odd lengths) would have to reach past the run
     /// for, reaches the page: it is compared on its own.
