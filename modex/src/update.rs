@@ -445,7 +445,7 @@ fn find_line_writes<S: WriteSink>(
         // out, leaving no bit: 64). Its fours are searched from the first
         // not yet searched.
         let first = half_base + runs.trailing_zeros() as usize;
-        let past = runs.wrapping_add(runs & runs.wrapping_neg());
+        let past = runs.wrapping_add(runs.isolate_lowest_one());
         runs &= past;
         next = next.max(first / 4);
         let end = (half_base + past.trailing_zeros() as usize)
