@@ -312,26 +312,26 @@ impl Scene {
     /// to each object's centre.
     pub fn drawing_order(&self) -> ([usize; MAX_OBJECTS], usize) {
         let count = self.object_count();
-        let distance: [f64; MAX_OBJECTS] = core::array::from_fn(|index| {
-            if index < count {
-                self.objects[index].position().length()
-            } else {
-                0.0
-            }
-        });
         // The objects shown are always a prefix, so the last order holds
         // the same objects when it holds as many.
-        let (last, last_count) = self.last_order;
-        let mut order = if last_count == count {
-            last
-        } else {
-            core::array::from_fn(|index| index)
-        };
-        sort_far_to_near(&mut order[..count], &distance);
+        let (mut order, last_count) = self.last_order;
+        if last_count != count {
+            // A loop over the objects shown, not an array built whole,
+            // which was 59 stores' worth of code.
+            for (index, slot) in order[..count].iter_mut().enumerate() {
+                *slot = index;
+            }
+        }
+        let objects = &self.objects[..count];
+        sort_far_to_near(&mut order[..count], |index| {
+            objects[index].position().length()
+        });
         (order, count)
     }
 
-    /// `drawing_order`, kept as where the next frame's sort starts.
+    /// `drawing_order`, kept as where the next frame's sort starts. Out of
+    /// line: one copy in the kernel file for both its callers.
+    #[inline(never)]
     fn next_drawing_order(&mut self) -> ([usize; MAX_OBJECTS], usize) {
         self.last_order = self.drawing_order();
         self.last_order
@@ -388,15 +388,15 @@ impl Scene {
     }
 }
 
-/// Sorts `order` (indices into `distance`) farthest first, and by index
-/// among equals, so that the result is the one order those two rules
-/// give, whatever order it starts in. An insertion sort: the scene holds at
+/// Sorts `order` (indices, each at `distance(index)`) farthest first,
+/// and by index among equals, so that the result is the one order those
+/// two rules give, whatever order it starts in. An insertion sort: the scene holds at
 /// most MAX_OBJECTS objects (59), the library's sort was 17 KB of the
 /// kernel file for them, and started from the last frame's order, which
 /// objects moving a little a frame seldom change, it makes one compare an
 /// object rather than one for every pair (`drawing_order`).
-fn sort_far_to_near(order: &mut [usize], distance: &[f64]) {
-    let after = |a: usize, b: usize| match distance[a].total_cmp(&distance[b]) {
+fn sort_far_to_near(order: &mut [usize], distance: impl Fn(usize) -> f64) {
+    let after = |a: usize, b: usize| match distance(a).total_cmp(&distance(b)) {
         core::cmp::Ordering::Less => true,
         core::cmp::Ordering::Equal => a > b,
         core::cmp::Ordering::Greater => false,

@@ -577,7 +577,7 @@ fn the_drawing_order_does_not_depend_on_where_its_sort_starts() {
             }
             near
         };
-        super::sort_far_to_near(&mut order, &distance);
+        super::sort_far_to_near(&mut order, |index| distance[index]);
         assert_eq!(order, expected, "{distance:?}");
     }
 }
