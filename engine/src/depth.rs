@@ -141,19 +141,16 @@ impl DepthBuffer {
         let start = y as usize * SCREEN_WIDTH as usize + x0 as usize;
         let nearest = &mut self.w[start..start + pixels.len()];
         let first_w = plane.at(x0, y);
-        if pixels.len() < SHORT_SPAN {
-            nearer_clamped(nearest, pixels, first_w, plane.a, colour);
-            return;
-        }
-        let last = pixels.len() - 1;
         // w is linear along the span, so when both ends fit the buffer's
         // range every pixel between does, and none needs clamping. |a| and
         // w stay under 2^52 across the screen, so neither sum overflows.
-        let last_w = first_w + plane.a * last as i64;
-        if stores_unclamped(first_w) && stores_unclamped(last_w) {
-            nearer_in_range(nearest, pixels, first_w, plane.a, colour);
-        } else {
+        let last_w = first_w + plane.a * pixels.len().saturating_sub(1) as i64;
+        if !(stores_unclamped(first_w) && stores_unclamped(last_w)) {
             nearer_clamped(nearest, pixels, first_w, plane.a, colour);
+        } else if pixels.len() < SHORT_SPAN {
+            nearer_in_range_short(nearest, pixels, first_w, plane.a, colour);
+        } else {
+            nearer_in_range(nearest, pixels, first_w, plane.a, colour);
         }
     }
 }
@@ -186,6 +183,27 @@ fn nearer_in_range(nearest: &mut [u32], pixels: &mut [u8], first_w: i64, step: i
         // would be a branch a pixel again.
         *nearest = stored.max(*nearest);
         *pixel = if nearer { colour } else { *pixel };
+        w = w.wrapping_add(step);
+    }
+}
+
+/// `nearer_in_range` a pixel at a time, for a span too short for four
+/// pixels a step to pay: a compare and a branch a pixel, no clamp. The
+/// same integers, so the same picture.
+fn nearer_in_range_short(
+    nearest: &mut [u32],
+    pixels: &mut [u8],
+    first_w: i64,
+    step: i64,
+    colour: u8,
+) {
+    let (mut w, step) = (first_w as u64, step as u64);
+    for (nearest, pixel) in nearest.iter_mut().zip(pixels) {
+        let stored = (w >> STORED_SHIFT) as u32;
+        if stored > *nearest {
+            *nearest = stored;
+            *pixel = colour;
+        }
         w = w.wrapping_add(step);
     }
 }
@@ -246,9 +264,10 @@ mod tests {
         );
     }
 
-    /// The depth test four pixels a step gives what the test a pixel at a
-    /// time gives, pixel for pixel and depth for depth, on spans of every
-    /// length, in and out of the buffer's range, over depths drawn before.
+    /// The depth test four pixels a step, and the short spans' test with no
+    /// clamp, give what the clamped test a pixel at a time gives, pixel for
+    /// pixel and depth for depth, on spans of every length, in and out of
+    /// the buffer's range, over depths drawn before.
     #[test]
     fn spans_in_range_match_the_test_a_pixel_at_a_time() {
         let mut seed = 0x2545_f491_4f6c_dd1d_u64;
@@ -260,7 +279,7 @@ mod tests {
         };
         let mut depths = std::boxed::Box::new(DepthBuffer::new());
         let mut frame = [0u8; PAGE_PIXELS];
-        let mut unclamped_spans = 0;
+        let (mut unclamped_spans, mut short_unclamped_spans) = (0, 0);
         let mut previous = None;
         for round in 0..20_000 {
             // Around the range's ends now and then, where clamping starts.
@@ -289,8 +308,12 @@ mod tests {
             let colour = random(256) as u8;
             let first_w = plane.at(x0, y);
             let last_w = first_w + plane.a * i64::from((len - 1).max(0));
-            if len >= SHORT_SPAN as i32 && stores_unclamped(first_w) && stores_unclamped(last_w) {
-                unclamped_spans += 1;
+            if len > 0 && stores_unclamped(first_w) && stores_unclamped(last_w) {
+                if len >= SHORT_SPAN as i32 {
+                    unclamped_spans += 1;
+                } else {
+                    short_unclamped_spans += 1;
+                }
             }
             let mut nearest = depths.w[span.clone()].to_vec();
             let mut expected = frame[span.clone()].to_vec();
@@ -306,6 +329,10 @@ mod tests {
             );
         }
         assert!(unclamped_spans > 5_000, "{unclamped_spans} spans in range");
+        assert!(
+            short_unclamped_spans > 3_000,
+            "{short_unclamped_spans} short spans in range"
+        );
     }
 
     #[test]

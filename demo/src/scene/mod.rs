@@ -105,6 +105,9 @@ pub struct Scene {
     light: Light,
     spinning: bool,
     rotations: u32,
+    /// The last drawing order and how many objects it held: the next
+    /// frame's sort starts from it, as objects move little between frames.
+    last_order: ([usize; MAX_OBJECTS], usize),
 }
 
 impl Default for Scene {
@@ -152,6 +155,7 @@ impl Scene {
             light: default_light(),
             spinning: false,
             rotations: 0,
+            last_order: ([0; MAX_OBJECTS], 0),
         }
     }
 
@@ -308,37 +312,36 @@ impl Scene {
     /// to each object's centre.
     pub fn drawing_order(&self) -> ([usize; MAX_OBJECTS], usize) {
         let count = self.object_count();
-        let mut order: [usize; MAX_OBJECTS] = core::array::from_fn(|index| index);
-        let distance: [f64; MAX_OBJECTS] = core::array::from_fn(|index| {
-            if index < count {
-                self.objects[index].position().length()
-            } else {
-                0.0
-            }
-        });
-        // Farthest first, and by index among equals, so the order never
-        // depends on a sort's choices. An insertion sort: the scene holds at
-        // most MAX_OBJECTS objects (59), and the library's sort was 17 KB of
-        // the kernel file for them.
-        for sorted in 1..count {
-            let mut at = sorted;
-            while at > 0
-                && distance[order[at - 1]]
-                    .total_cmp(&distance[order[at]])
-                    .is_lt()
-            {
-                order.swap(at - 1, at);
-                at -= 1;
+        // The objects shown are always a prefix, so the last order holds
+        // the same objects when it holds as many.
+        let (mut order, last_count) = self.last_order;
+        if last_count != count {
+            // A loop over the objects shown, not an array built whole,
+            // which was 59 stores' worth of code.
+            for (index, slot) in order[..count].iter_mut().enumerate() {
+                *slot = index;
             }
         }
+        let objects = &self.objects[..count];
+        sort_far_to_near(&mut order[..count], |index| {
+            objects[index].position().length()
+        });
         (order, count)
+    }
+
+    /// `drawing_order`, kept as where the next frame's sort starts. Out of
+    /// line: one copy in the kernel file for both its callers.
+    #[inline(never)]
+    fn next_drawing_order(&mut self) -> ([usize; MAX_OBJECTS], usize) {
+        self.last_order = self.drawing_order();
+        self.last_order
     }
 
     /// The faces to draw this frame, far to near, as screen polygons with
     /// their colours: Abrash's flat colours, or with lighting on the level of
     /// the colour's ramp that the face's brightness gives.
     pub fn visible_faces(&mut self, mut draw: impl FnMut(&[Point], u8)) -> FaceCounts {
-        let (order, count) = self.drawing_order();
+        let (order, count) = self.next_drawing_order();
         let (lighting, light) = (self.lighting, self.light);
         let mut counts = FaceCounts::default();
         for &index in &order[..count] {
@@ -379,9 +382,31 @@ impl Scene {
                 face_colour(visible, lighting, &light)
             });
         }
-        let (order, count) = self.drawing_order();
+        let (order, count) = self.next_drawing_order();
         list.set_far_to_near(&order[..count]);
         list.faces()
+    }
+}
+
+/// Sorts `order` (indices, each at `distance(index)`) farthest first,
+/// and by index among equals, so that the result is the one order those
+/// two rules give, whatever order it starts in. An insertion sort: the scene holds at
+/// most MAX_OBJECTS objects (59), the library's sort was 17 KB of the
+/// kernel file for them, and started from the last frame's order, which
+/// objects moving a little a frame seldom change, it makes one compare an
+/// object rather than one for every pair (`drawing_order`).
+fn sort_far_to_near(order: &mut [usize], distance: impl Fn(usize) -> f64) {
+    let after = |a: usize, b: usize| match distance(a).total_cmp(&distance(b)) {
+        core::cmp::Ordering::Less => true,
+        core::cmp::Ordering::Equal => a > b,
+        core::cmp::Ordering::Greater => false,
+    };
+    for sorted in 1..order.len() {
+        let mut at = sorted;
+        while at > 0 && after(order[at - 1], order[at]) {
+            order.swap(at - 1, at);
+            at -= 1;
+        }
     }
 }
 

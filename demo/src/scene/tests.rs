@@ -3,6 +3,7 @@
 use super::*;
 use crate::solids::CUBE;
 use engine::{Face, Vec3};
+use std::vec::Vec;
 
 fn face_normal_and_centre(object: &Object, face: &Face) -> (Vec3, Vec3) {
     let v: [Vec3; 3] = core::array::from_fn(|i| object.view_vertex(face.vertices[i]));
@@ -533,4 +534,64 @@ fn the_face_list_holds_every_face_of_every_object() {
         .map(|object| object.model().faces.len())
         .sum();
     assert_eq!(faces, MAX_FACES);
+}
+
+/// The drawing order's sort, started from any order (the last frame's),
+/// gives the order that farthest first, and by index among equals, gives:
+/// the straightforward sort's.
+#[test]
+fn the_drawing_order_does_not_depend_on_where_its_sort_starts() {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move |below: u64| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state % below
+    };
+    for round in 0..2_000 {
+        let count = 1 + next(MAX_OBJECTS as u64) as usize;
+        // Few distinct distances, so that ties are common; -0.0 and 0.0
+        // and a NaN too, which `total_cmp` orders.
+        let distance: Vec<f64> = (0..count)
+            .map(|_| match next(12) {
+                0 => -0.0,
+                1 => f64::NAN,
+                n => n as f64 * 7.5,
+            })
+            .collect();
+        let mut expected: Vec<usize> = (0..count).collect();
+        expected.sort_by(|&a, &b| distance[b].total_cmp(&distance[a]).then(a.cmp(&b)));
+        // A shuffled start, or on odd rounds the answer itself nearly:
+        // two neighbours swapped, as a frame's motion does.
+        let mut order: Vec<usize> = if round % 2 == 0 {
+            let mut shuffled: Vec<usize> = (0..count).collect();
+            for i in (1..count).rev() {
+                shuffled.swap(i, next(i as u64 + 1) as usize);
+            }
+            shuffled
+        } else {
+            let mut near = expected.clone();
+            if count > 1 {
+                let i = next(count as u64 - 1) as usize;
+                near.swap(i, i + 1);
+            }
+            near
+        };
+        super::sort_far_to_near(&mut order, |index| distance[index]);
+        assert_eq!(order, expected, "{distance:?}");
+    }
+}
+
+/// A scene's order, sorted from the last frame's, is a fresh scene's.
+#[test]
+fn the_drawing_order_after_frames_is_the_order_from_scratch() {
+    let mut scene = Scene::initial();
+    scene.apply(SceneCommand::ToggleCrowd);
+    for _ in 0..40 {
+        scene.tick();
+        scene.visible_faces(|_, _| {});
+        let mut fresh = scene.clone();
+        fresh.last_order = ([0; MAX_OBJECTS], 0);
+        assert_eq!(scene.drawing_order(), fresh.drawing_order());
+    }
 }
