@@ -98,6 +98,8 @@
       if (element.hidden !== hidden) element.hidden = hidden;
     }
 
+    let textsVersion = -1;
+    let shownFrames = -1;
     function draw() {
       paint(screen, w.screen_ptr(), 320, 240);
       const panel = w.panel_ptr();
@@ -106,10 +108,19 @@
       const slow = w.ops_ptr();
       setHidden(ops, !slow);
       if (slow) paint(ops, slow, w.ops_width(), w.ops_height());
-      setText("last-op", text(w.last_op()));
+      // The texts cross from the module only when they have changed.
+      const version = w.texts_version();
+      if (version !== textsVersion) {
+        textsVersion = version;
+        setText("last-op", text(w.last_op()));
+        say(text(w.message()));
+      }
       setText("play", w.paused() ? "Play" : "Pause");
-      setText("frame-count", "frame " + w.frames());
-      say(text(w.message()));
+      const frames = w.frames();
+      if (frames !== shownFrames) {
+        shownFrames = frames;
+        setText("frame-count", "frame " + frames);
+      }
     }
 
     let stopped = false;
@@ -172,6 +183,7 @@
       link.click();
       setTimeout(() => URL.revokeObjectURL(link.href), 10000);
       say("Recorded " + length + " bytes of GIF.");
+      textsVersion = -1; // the module's message replaces it at the next draw, as before
     }));
 
     // Frames on the display's refresh; the module runs as many frames of

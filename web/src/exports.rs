@@ -234,6 +234,13 @@ pub extern "C" fn message() -> usize {
     output(text.as_bytes())
 }
 
+/// A number that changes whenever `last_op` or `message` would give
+/// another text: the page fetches them only then.
+#[no_mangle]
+pub extern "C" fn texts_version() -> u32 {
+    with_page(|page| page.texts_version())
+}
+
 /// The last operation stepped, described, into the output buffer.
 #[no_mangle]
 pub extern "C" fn last_op() -> usize {

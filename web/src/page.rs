@@ -53,6 +53,9 @@ pub struct Page {
     slow: Option<SlowMotion>,
     last_op: String,
     message: String,
+    /// Changes whenever `last_op` or `message` does, so the page fetches
+    /// the texts across the module's boundary only then.
+    texts_version: u32,
     screen: Vec<u8>,
     /// The picture's DAC indices, the step before `screen`.
     indices: Vec<u8>,
@@ -94,6 +97,7 @@ impl Page {
             slow,
             last_op: String::new(),
             message: problem.unwrap_or_default(),
+            texts_version: 0,
             // Black until the first Mode X picture.
             screen: [0, 0, 0, 255].repeat(PICTURE_WIDTH * PICTURE_HEIGHT),
             indices: vec![0; PICTURE_WIDTH * PICTURE_HEIGHT],
@@ -186,7 +190,9 @@ impl Page {
                 break;
             };
             if let Some(text) = slow.step() {
-                self.last_op = text.to_string();
+                self.last_op.clear();
+                self.last_op.push_str(text);
+                self.texts_version = self.texts_version.wrapping_add(1);
                 done += 1;
             }
             if slow.finished() {
@@ -237,8 +243,9 @@ impl Page {
         if self.machine.app().quit_requested() {
             self.ended = true;
             self.paused = true;
-            self.message =
-                "Esc: the demo has ended, as on the machine; reload the page to start again".into();
+            self.set_message(
+                "Esc: the demo has ended, as on the machine; reload the page to start again".into(),
+            );
             return None;
         }
         let (cost, log) = if logged {
@@ -353,6 +360,14 @@ impl Page {
     /// Replaces the one-line message.
     pub fn set_message(&mut self, line: String) {
         self.message = line;
+        self.texts_version = self.texts_version.wrapping_add(1);
+    }
+
+    /// A number that changes whenever [`Page::last_op`] or
+    /// [`Page::message`] does (and seldom else): the page reads the texts
+    /// only when it has changed.
+    pub fn texts_version(&self) -> u32 {
+        self.texts_version
     }
 
     /// The picture, 320x240 RGBA.

@@ -218,6 +218,30 @@ fn esc_ends_the_demo_and_the_page_says_so() {
     });
 }
 
+/// The page reads the texts from the module only when their version has
+/// changed, so every change of either text must change it, and frames that
+/// change neither leave it alone.
+#[test]
+fn the_texts_version_changes_with_the_texts_and_only_then() {
+    crate::with_big_stack(|| {
+        let mut page = Page::new("?keys=m,x&frames=0");
+        let texts = |page: &Page| (page.last_op().to_string(), page.message().to_string());
+        let mut seen = (page.texts_version(), texts(&page));
+        page.step_frames(30);
+        assert_eq!(page.texts_version(), seen.0, "frames changed no text");
+        for op in 0..40 {
+            page.step_ops(1);
+            let now = (page.texts_version(), texts(&page));
+            if now.1 != seen.1 {
+                assert_ne!(now.0, seen.0, "op {op} changed {:?}", now.1);
+            }
+            seen = now;
+        }
+        page.set_message("no GIF: test".into());
+        assert_ne!(page.texts_version(), seen.0, "a new message");
+    });
+}
+
 #[test]
 fn the_mode_set_steps_from_text_mode() {
     crate::with_big_stack(|| {
