@@ -181,24 +181,44 @@ impl History {
 
 /// The inspector's text, line by line.
 pub fn text_lines(state: &VgaState, history: &History) -> Vec<String> {
-    let page = match state.shown_page {
-        Some(page) => format!("page {page} of 0-{} shown", PAGE_COUNT - 1),
-        None => "not the start of a page".to_string(),
-    };
+    let mut lines = Vec::new();
+    write_text_lines(state, history, &mut lines);
+    lines
+}
+
+/// [`text_lines`] written into `lines`, reusing its strings (the panel
+/// writes them every frame, with no allocation once they have grown).
+fn write_text_lines(state: &VgaState, history: &History, lines: &mut Vec<String>) {
+    use std::fmt::Write;
+    lines.resize_with(TEXT_LINES as usize, String::new);
+    lines.iter_mut().for_each(String::clear);
     let last = history.last();
-    vec![
-        format!("CRTC start address 0x{:04X}: {page}", state.start_address),
-        format!(
-            "Map Mask 0x{:02X}  Bit Mask 0x{:02X}  write mode {}",
-            state.map_mask, state.bit_mask, state.write_mode
-        ),
-        format!("frame {}, last frame's bus work:", history.frames()),
-        format!(
-            "video-memory writes {:>6}  lower bound {:>6}",
-            last.vram_writes, last.lower_bound
-        ),
-        format!("port writes {:>6}", last.port_writes),
-    ]
+    // Writing into a String cannot fail.
+    let _ = write!(
+        lines[0],
+        "CRTC start address 0x{:04X}: ",
+        state.start_address
+    );
+    let _ = match state.shown_page {
+        Some(page) => write!(lines[0], "page {page} of 0-{} shown", PAGE_COUNT - 1),
+        None => write!(lines[0], "not the start of a page"),
+    };
+    let _ = write!(
+        lines[1],
+        "Map Mask 0x{:02X}  Bit Mask 0x{:02X}  write mode {}",
+        state.map_mask, state.bit_mask, state.write_mode
+    );
+    let _ = write!(
+        lines[2],
+        "frame {}, last frame's bus work:",
+        history.frames()
+    );
+    let _ = write!(
+        lines[3],
+        "video-memory writes {:>6}  lower bound {:>6}",
+        last.vram_writes, last.lower_bound
+    );
+    let _ = write!(lines[4], "port writes {:>6}", last.port_writes);
 }
 
 /// How a [`Panel`] packs a colour into each `u32`.
@@ -221,7 +241,7 @@ impl Encoding {
 }
 
 /// An RGB image, one colour in each `u32` as its [`Encoding`] packs it.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub struct Panel {
     /// Width in pixels.
     pub width: usize,
@@ -231,6 +251,27 @@ pub struct Panel {
     pub encoding: Encoding,
     /// Row by row.
     pub pixels: Vec<u32>,
+    /// What [`redraw_panel`] drew last, and the rows changed since they
+    /// were last taken.
+    pub(crate) drawn: Drawn,
+}
+
+/// What a panel shows, kept so that [`redraw_panel`] draws again only
+/// what changed, and the rows it changed, so that a canvas takes only those.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Drawn {
+    /// Each plane's image, 80 bytes a row, as drawn (empty: none yet).
+    planes: Vec<u8>,
+    /// The colours the plane images were drawn in.
+    palette: Vec<u32>,
+    /// The text lines as drawn.
+    lines: Vec<String>,
+    /// The lines of this redraw, written in place of a fresh `Vec` each time.
+    next_lines: Vec<String>,
+    /// Per row of the panel: changed since last taken.
+    changed_rows: Vec<bool>,
+    /// The history's frames and last cost when the plots were drawn.
+    plotted: Option<(u64, FrameCost)>,
 }
 
 /// The panel's width; its height is the picture's beside it.
@@ -269,6 +310,10 @@ impl Panel {
             height,
             encoding,
             pixels: vec![encoding.pack(rgb(BACKGROUND)); width * height],
+            drawn: Drawn {
+                changed_rows: vec![true; height],
+                ..Drawn::default()
+            },
         };
         panel.text("VGA inspector (V hides it)", MARGIN, 2, TEXT);
         for plane in 0..4 {
@@ -299,6 +344,33 @@ impl Panel {
         let background = self.encoding.pack(rgb(BACKGROUND));
         let width = self.width;
         self.pixels[top as usize * width..][..rows as usize * width].fill(background);
+        self.mark_changed(top as usize..(top + rows) as usize);
+    }
+
+    fn mark_changed(&mut self, rows: core::ops::Range<usize>) {
+        if let Some(flags) = self.drawn.changed_rows.get_mut(rows) {
+            flags.fill(true);
+        }
+    }
+
+    /// The runs of rows changed since the last call (all of them the first
+    /// time), top down, into `runs` (emptied first): a canvas showing the
+    /// panel needs only those again.
+    pub fn take_changed_rows(&mut self, runs: &mut Vec<core::ops::Range<usize>>) {
+        runs.clear();
+        let mut row = 0;
+        let flags = &mut self.drawn.changed_rows;
+        while row < flags.len() {
+            if flags[row] {
+                let start = row;
+                while row < flags.len() && flags[row] {
+                    flags[row] = false;
+                    row += 1;
+                }
+                runs.push(start..row);
+            }
+            row += 1;
+        }
     }
 }
 
@@ -346,15 +418,30 @@ pub fn draw_panel(vga: &SoftVga, history: &History, height: usize) -> Panel {
 /// Draws into `panel` (made by [`Panel::inspector`]) everything that changes
 /// with the VGA and the history, over what it showed before: the result is
 /// [`draw_panel`]'s, pixel for pixel, without painting the panel afresh.
+/// Only what changed is drawn again: a plane image's row whose bytes or
+/// colours changed, a text line whose text did, the plots when the history
+/// has a new frame (the panel is redrawn with one history, which only
+/// grows); [`Panel::take_changed_rows`] says which rows that touched.
 pub fn redraw_panel(panel: &mut Panel, vga: &SoftVga, history: &History) {
     let state = vga_state(vga);
     draw_planes(panel, vga, state.start_address);
-    panel.clear_rows(TEXT_TOP, TEXT_LINES * LINE_HEIGHT);
-    let mut y = TEXT_TOP;
-    for line in text_lines(&state, history) {
-        panel.text(&line, MARGIN, y, TEXT);
-        y += LINE_HEIGHT;
+    // Only the lines whose text changed (the frame's number, the figures).
+    let mut lines = std::mem::take(&mut panel.drawn.next_lines);
+    write_text_lines(&state, history, &mut lines);
+    for (index, line) in lines.iter().enumerate() {
+        if panel.drawn.lines.get(index) != Some(line) {
+            let y = TEXT_TOP + index as i32 * LINE_HEIGHT;
+            panel.clear_rows(y, LINE_HEIGHT);
+            panel.text(line, MARGIN, y, TEXT);
+        }
     }
+    panel.drawn.next_lines = std::mem::replace(&mut panel.drawn.lines, lines);
+    // The plots change only with a frame pushed to the history.
+    let plotted = Some((history.frames(), history.last()));
+    if panel.drawn.plotted == plotted {
+        return;
+    }
+    panel.drawn.plotted = plotted;
     let vram = |cost: &FrameCost| cost.vram_writes;
     let bound = |cost: &FrameCost| cost.lower_bound;
     draw_plot(
@@ -372,23 +459,50 @@ pub fn redraw_panel(panel: &mut Panel, vga: &SoftVga, history: &History) {
 }
 
 /// Each plane's bytes of the page from `start`, a row of 80 at a time, every
-/// pixel of the images written (nothing else to clear).
+/// pixel of the images written (nothing else to clear); a row whose bytes
+/// and colours are those drawn last is left as it is.
 fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
     let encoding = panel.encoding;
-    let palette: Vec<u32> = (0..=255u8)
-        .map(|index| encoding.pack(vga.dac_entry(index).map(dac_6_to_8)))
-        .collect();
+    let drawn = &mut panel.drawn;
+    let palette_before = drawn.palette.len();
+    drawn.palette.resize(256, 0);
+    let mut same_colours = palette_before == 256;
+    for (index, colour) in drawn.palette.iter_mut().enumerate() {
+        let new = encoding.pack(vga.dac_entry(index as u8).map(dac_6_to_8));
+        same_colours &= *colour == new;
+        *colour = new;
+    }
     let row_bytes = usize::from(BYTES_PER_LINE);
+    let rows = SCREEN_HEIGHT as usize;
+    let image_bytes = rows * row_bytes;
+    if drawn.planes.len() != 4 * image_bytes {
+        drawn.planes = vec![0; 4 * image_bytes];
+        same_colours = false;
+    }
+    let mut row_bytes_now = [0u8; BYTES_PER_LINE as usize];
     for plane in 0..4 {
         let left = plane_left(plane) as usize;
         let bytes = vga.plane(plane);
-        for row in 0..SCREEN_HEIGHT as usize {
-            let line = (PLANES_TOP as usize + row) * panel.width + left;
+        for row in 0..rows {
             let first = start.wrapping_add((row * row_bytes) as u16);
-            for (x, pixel) in panel.pixels[line..][..row_bytes].iter_mut().enumerate() {
-                let byte = bytes[usize::from(first.wrapping_add(x as u16))];
+            for (x, byte) in row_bytes_now.iter_mut().enumerate() {
+                *byte = bytes[usize::from(first.wrapping_add(x as u16))];
+            }
+            let shown = &mut panel.drawn.planes[(plane * rows + row) * row_bytes..][..row_bytes];
+            if same_colours && *shown == row_bytes_now {
+                continue;
+            }
+            shown.copy_from_slice(&row_bytes_now);
+            let y = PLANES_TOP as usize + row;
+            let line = y * panel.width + left;
+            let palette = &panel.drawn.palette;
+            for (pixel, &byte) in panel.pixels[line..][..row_bytes]
+                .iter_mut()
+                .zip(&row_bytes_now)
+            {
                 *pixel = palette[usize::from(byte)];
             }
+            panel.mark_changed(y..y + 1);
         }
     }
 }
