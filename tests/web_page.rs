@@ -347,6 +347,37 @@ fn the_starting_cube_is_the_hosts_on_the_page_and_its_canvases() {
     });
 }
 
+/// The canvases take only the rows that changed (`changed_rows`): after
+/// frames of the spinning crowd, painted a frame at a time, what they hold
+/// is still the host's whole picture and panel.
+#[test]
+fn canvases_painted_by_changed_rows_hold_the_hosts_pixels() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?keys=m&paused=1");
+        let mut host = Host::new();
+        host.tap("m");
+        for _ in 0..5 {
+            step_frames(&page, 1);
+            host.frames(1);
+        }
+        let (width, _, screen) = canvas_pixels(&page, "screen");
+        assert_same_pixels(
+            "the #screen canvas",
+            width,
+            &screen,
+            &host.machine.scanout_rgb(),
+        );
+        let (width, height, inspector) = canvas_pixels(&page, "inspector");
+        assert_same_pixels(
+            "the #inspector canvas",
+            width,
+            &inspector,
+            &host.panel(height),
+        );
+    });
+}
+
 /// A PNG's width and RGB pixels.
 fn decode_png(png: &[u8]) -> (usize, Vec<[u8; 3]>) {
     let mut decoder = png::Decoder::new(std::io::Cursor::new(png));

@@ -6,6 +6,7 @@
 
 use std::collections::VecDeque;
 use std::convert::Infallible;
+use std::ops::Range;
 
 use embedded_graphics::mono_font::{ascii::FONT_6X10, MonoTextStyle};
 use embedded_graphics::pixelcolor::Rgb888;
@@ -256,6 +257,49 @@ pub struct Panel {
     pub(crate) drawn: Drawn,
 }
 
+/// The rows of an image changed since they were last taken: what a canvas
+/// showing the image must take again (the panel's, the web page's picture).
+#[derive(Clone, Debug, Default)]
+pub struct ChangedRows {
+    flags: Vec<bool>,
+}
+
+impl ChangedRows {
+    /// All `rows` rows changed (nothing has been shown yet).
+    pub fn all(rows: usize) -> Self {
+        ChangedRows {
+            flags: vec![true; rows],
+        }
+    }
+
+    /// Rows `rows` changed (what lies past the last row is ignored).
+    pub fn mark(&mut self, rows: Range<usize>) {
+        let end = rows.end.min(self.flags.len());
+        if let Some(flags) = self.flags.get_mut(rows.start.min(end)..end) {
+            flags.fill(true);
+        }
+    }
+
+    /// The runs of rows changed since the last call, top down, into `runs`
+    /// (emptied first); none are changed after it.
+    pub fn take(&mut self, runs: &mut Vec<Range<usize>>) {
+        runs.clear();
+        let flags = &mut self.flags;
+        let mut row = 0;
+        while row < flags.len() {
+            if flags[row] {
+                let start = row;
+                while row < flags.len() && flags[row] {
+                    flags[row] = false;
+                    row += 1;
+                }
+                runs.push(start..row);
+            }
+            row += 1;
+        }
+    }
+}
+
 /// What a panel shows, kept so that [`redraw_panel`] draws again only
 /// what changed, and the rows it changed, so that a canvas takes only those.
 #[derive(Clone, Debug, Default)]
@@ -268,8 +312,8 @@ pub(crate) struct Drawn {
     lines: Vec<String>,
     /// The lines of this redraw, written in place of a fresh `Vec` each time.
     next_lines: Vec<String>,
-    /// Per row of the panel: changed since last taken.
-    changed_rows: Vec<bool>,
+    /// The panel's rows changed since last taken.
+    changed_rows: ChangedRows,
     /// The history's frames and last cost when the plots were drawn.
     plotted: Option<(u64, FrameCost)>,
 }
@@ -311,7 +355,7 @@ impl Panel {
             encoding,
             pixels: vec![encoding.pack(rgb(BACKGROUND)); width * height],
             drawn: Drawn {
-                changed_rows: vec![true; height],
+                changed_rows: ChangedRows::all(height),
                 ..Drawn::default()
             },
         };
@@ -347,30 +391,15 @@ impl Panel {
         self.mark_changed(top as usize..(top + rows) as usize);
     }
 
-    fn mark_changed(&mut self, rows: core::ops::Range<usize>) {
-        if let Some(flags) = self.drawn.changed_rows.get_mut(rows) {
-            flags.fill(true);
-        }
+    fn mark_changed(&mut self, rows: Range<usize>) {
+        self.drawn.changed_rows.mark(rows);
     }
 
     /// The runs of rows changed since the last call (all of them the first
     /// time), top down, into `runs` (emptied first): a canvas showing the
     /// panel needs only those again.
-    pub fn take_changed_rows(&mut self, runs: &mut Vec<core::ops::Range<usize>>) {
-        runs.clear();
-        let mut row = 0;
-        let flags = &mut self.drawn.changed_rows;
-        while row < flags.len() {
-            if flags[row] {
-                let start = row;
-                while row < flags.len() && flags[row] {
-                    flags[row] = false;
-                    row += 1;
-                }
-                runs.push(start..row);
-            }
-            row += 1;
-        }
+    pub fn take_changed_rows(&mut self, runs: &mut Vec<Range<usize>>) {
+        self.drawn.changed_rows.take(runs);
     }
 }
 

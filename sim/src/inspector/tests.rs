@@ -219,7 +219,7 @@ fn a_redraw_changes_only_the_rows_whose_content_changed() {
     let mut panel = Panel::inspector(480, Encoding::Rgba);
     let mut runs = Vec::new();
     panel.take_changed_rows(&mut runs);
-    assert_eq!(runs, [0..480], "a new panel is all to show");
+    assert_eq!(runs, vec![0..480], "a new panel is all to show");
     redraw_panel(&mut panel, machine.vga(), &history);
     panel.take_changed_rows(&mut runs);
     assert!(!runs.is_empty());

@@ -324,3 +324,44 @@ fn the_books_replay_urls_show_what_the_book_says() {
         }
     });
 }
+
+#[test]
+fn the_canvases_take_only_the_rows_that_changed() {
+    crate::with_big_stack(|| {
+        let mut page = Page::new("?keys=m&paused=1");
+        let picture = page.take_changed_rows(Canvas::Picture).to_vec();
+        assert_eq!(picture, vec![0..PICTURE_HEIGHT]);
+        let panel = page.take_changed_rows(Canvas::Inspector).to_vec();
+        assert_eq!(panel, vec![0..INSPECTOR_HEIGHT]);
+        page.step_frames(2);
+        let picture_rows: usize = page
+            .take_changed_rows(Canvas::Picture)
+            .iter()
+            .map(|run| run.len())
+            .sum();
+        assert!(
+            picture_rows > 0 && picture_rows < PICTURE_HEIGHT,
+            "{picture_rows}"
+        );
+        assert!(!page.take_changed_rows(Canvas::Inspector).is_empty());
+        // Drawn again with nothing changed: nothing to take.
+        page.set_inspector(true);
+        assert_eq!(page.take_changed_rows(Canvas::Picture), []);
+        assert_eq!(page.take_changed_rows(Canvas::Inspector), []);
+        // Rows not taken add up until they are.
+        page.step_frames(1);
+        page.step_frames(1);
+        let mut machine = Machine::new();
+        machine.tap(key("m"));
+        for _ in 0..4 {
+            machine.frame();
+        }
+        assert!(page.screen_rgba() == rgba_of_rgb(&machine.scanout_rgb()));
+        let runs = page.take_changed_rows(Canvas::Picture).to_vec();
+        assert!(!runs.is_empty());
+        assert!(
+            runs.windows(2).all(|pair| pair[0].end < pair[1].start),
+            "{runs:?}"
+        );
+    });
+}
