@@ -30,6 +30,9 @@ pub const INSPECTOR_HEIGHT: usize = 2 * PICTURE_HEIGHT;
 pub const GIF_EVERY: u32 = 2;
 /// The most frames a GIF holds (a minute of the demo).
 pub const GIF_MAX_FRAMES: u32 = 3600;
+/// Changed rows this close are painted as one run, unchanged rows between
+/// included.
+pub const PAINT_GAP_ROWS: usize = 16;
 /// The byte before the make code of an extended key.
 const EXTENDED_PREFIX: u8 = 0xE0;
 
@@ -387,11 +390,14 @@ impl Page {
     /// The rows of `canvas` changed since they were last taken (all of them
     /// the first time), as runs top down: the canvas showing it needs only
     /// those painted again.
+    /// Runs fewer than [`PAINT_GAP_ROWS`] apart come as one: each run is a
+    /// `putImageData` call, whose own cost is worth a few unchanged rows.
     pub fn take_changed_rows(&mut self, canvas: Canvas) -> &[Range<usize>] {
         match canvas {
             Canvas::Picture => self.picture.changed.take(&mut self.runs),
             Canvas::Inspector => self.panel.take_changed_rows(&mut self.runs),
         }
+        merge_close_runs(&mut self.runs);
         &self.runs
     }
 
@@ -526,6 +532,23 @@ impl Picture {
             self.changed.mark(row..row + 1);
         }
     }
+}
+
+/// Joins runs of rows (top down, apart) fewer than [`PAINT_GAP_ROWS`]
+/// apart into one.
+fn merge_close_runs(runs: &mut Vec<Range<usize>>) {
+    let mut merged: usize = 0;
+    for index in 0..runs.len() {
+        let run = runs[index].clone();
+        match merged.checked_sub(1).map(|last| &mut runs[last]) {
+            Some(last) if run.start - last.end < PAINT_GAP_ROWS => last.end = run.end,
+            _ => {
+                runs[merged] = run;
+                merged += 1;
+            }
+        }
+    }
+    runs.truncate(merged);
 }
 
 /// The panel's width, for the exports.

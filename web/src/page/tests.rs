@@ -360,8 +360,20 @@ fn the_canvases_take_only_the_rows_that_changed() {
         let runs = page.take_changed_rows(Canvas::Picture).to_vec();
         assert!(!runs.is_empty());
         assert!(
-            runs.windows(2).all(|pair| pair[0].end < pair[1].start),
+            runs.windows(2)
+                .all(|pair| pair[0].end + PAINT_GAP_ROWS <= pair[1].start),
             "{runs:?}"
         );
     });
+}
+
+#[test]
+fn runs_of_rows_close_together_are_painted_as_one() {
+    let gap = PAINT_GAP_ROWS;
+    let mut runs = vec![0..2, 2 + gap - 1..30, 30 + gap..40, 200..201];
+    merge_close_runs(&mut runs);
+    assert_eq!(runs, vec![0..30, 30 + gap..40, 200..201]);
+    let mut none = Vec::new();
+    merge_close_runs(&mut none);
+    assert!(none.is_empty());
 }
