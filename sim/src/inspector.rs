@@ -508,32 +508,50 @@ fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
         drawn.planes = vec![0; 4 * image_bytes];
         same_colours = false;
     }
-    let mut row_bytes_now = [0u8; BYTES_PER_LINE as usize];
+    let mut wrapped = [0u8; BYTES_PER_LINE as usize];
     for plane in 0..4 {
         let left = plane_left(plane) as usize;
         let bytes = vga.plane(plane);
         for row in 0..rows {
             let first = start.wrapping_add((row * row_bytes) as u16);
-            for (x, byte) in row_bytes_now.iter_mut().enumerate() {
-                *byte = bytes[usize::from(first.wrapping_add(x as u16))];
-            }
+            let first = usize::from(first);
+            // A row is a slice of the plane unless it wraps past its end.
+            let now: &[u8] = match bytes.get(first..first + row_bytes) {
+                Some(slice) => slice,
+                None => {
+                    for (x, byte) in wrapped.iter_mut().enumerate() {
+                        *byte = bytes[(first + x) % bytes.len()];
+                    }
+                    &wrapped
+                }
+            };
             let shown = &mut panel.drawn.planes[(plane * rows + row) * row_bytes..][..row_bytes];
-            if same_colours && *shown == row_bytes_now {
+            if same_colours && same_bytes(shown, now) {
                 continue;
             }
-            shown.copy_from_slice(&row_bytes_now);
+            shown.copy_from_slice(now);
             let y = PLANES_TOP as usize + row;
             let line = y * panel.width + left;
             let palette = &panel.drawn.palette;
-            for (pixel, &byte) in panel.pixels[line..][..row_bytes]
-                .iter_mut()
-                .zip(&row_bytes_now)
-            {
+            for (pixel, &byte) in panel.pixels[line..][..row_bytes].iter_mut().zip(now) {
                 *pixel = palette[usize::from(byte)];
             }
             panel.mark_changed(y..y + 1);
         }
     }
+}
+
+/// Whether two rows of plane bytes are equal, eight bytes to a comparison
+/// (a byte-by-byte loop is what a slice comparison costs in WebAssembly).
+fn same_bytes(a: &[u8], b: &[u8]) -> bool {
+    let (a_words, a_rest) = a.as_chunks::<8>();
+    let (b_words, b_rest) = b.as_chunks::<8>();
+    a.len() == b.len()
+        && a_rest == b_rest
+        && a_words
+            .iter()
+            .zip(b_words)
+            .all(|(a, b)| u64::from_ne_bytes(*a) == u64::from_ne_bytes(*b))
 }
 
 /// A figure of each frame's cost, and its colour in the plot.

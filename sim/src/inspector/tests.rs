@@ -254,3 +254,45 @@ fn the_plots_scale_is_written_in_decimal() {
         assert_eq!(decimal(value, &mut digits), value.to_string());
     }
 }
+
+#[test]
+fn a_start_address_near_the_planes_end_wraps_to_their_start() {
+    use modex::regs::{Crtc, Port};
+    use modex::VgaBus;
+    let mut vga = Box::new(machine_vga());
+    // Video memory wraps at 64 KiB: a start 40 bytes before the end puts
+    // offset 0 in the middle of the first row. Byte 0 of each plane gets a colour of its
+    // own (Map Mask: one plane at a time).
+    let start: u16 = 0x1_0000u32.wrapping_sub(40) as u16;
+    for plane in 0..4u8 {
+        let map_mask = u16::from(1u8 << plane) << 8 | u16::from(Sequencer::MapMask.index());
+        vga.write_port16(Port::SEQUENCER_INDEX, map_mask);
+        vga.write_vram8(0, 40 + plane);
+    }
+    let [high, low] = start.to_be_bytes();
+    vga.write_port16(
+        Port::CRTC_INDEX,
+        u16::from(high) << 8 | u16::from(Crtc::StartAddressHigh.index()),
+    );
+    vga.write_port16(
+        Port::CRTC_INDEX,
+        u16::from(low) << 8 | u16::from(Crtc::StartAddressLow.index()),
+    );
+    vga.let_a_frame_pass();
+    assert_eq!(vga.displayed_start(), start);
+    let panel = draw_panel(&vga, &History::default(), 480);
+    for plane in 0..4u8 {
+        let [r, g, b] = vga.dac_entry(40 + plane).map(dac_6_to_8);
+        let left = MARGIN as usize + usize::from(plane) * (80 + PLANE_GAP as usize);
+        let shown = panel.pixels[PLANES_TOP as usize * panel.width + left + 40];
+        assert_eq!(
+            shown,
+            u32::from(r) << 16 | u32::from(g) << 8 | u32::from(b),
+            "plane {plane}"
+        );
+    }
+}
+
+fn machine_vga() -> modex::soft::SoftVga {
+    Machine::new().vga().clone()
+}
