@@ -541,9 +541,10 @@ fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
     }
 }
 
-/// Whether two rows of plane bytes are equal, eight bytes to a comparison
-/// (a byte-by-byte loop is what a slice comparison costs in WebAssembly).
-fn same_bytes(a: &[u8], b: &[u8]) -> bool {
+/// Whether two runs of bytes are equal, eight bytes to a comparison (a
+/// slice comparison is `memcmp`, a byte-by-byte loop in WebAssembly): the
+/// panel's plane rows, the web page's picture rows.
+pub fn same_bytes(a: &[u8], b: &[u8]) -> bool {
     let (a_words, a_rest) = a.as_chunks::<8>();
     let (b_words, b_rest) = b.as_chunks::<8>();
     a.len() == b.len()

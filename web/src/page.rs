@@ -9,7 +9,9 @@ use std::ops::Range;
 use keyboard::keys::{scancode_for_name, Scancode};
 use modex::soft::{dac_6_to_8, SoftVga};
 use modex::{SCREEN_HEIGHT, SCREEN_WIDTH};
-use sim::inspector::{redraw_panel, ChangedRows, Encoding, History, Panel, PANEL_WIDTH};
+use sim::inspector::{
+    redraw_panel, same_bytes, ChangedRows, Encoding, History, Panel, PANEL_WIDTH,
+};
 use sim::machine::Machine;
 use sim::record::{record_gif_with, RecordError};
 
@@ -522,7 +524,7 @@ impl Picture {
             .zip(self.indices.as_chunks_mut::<PICTURE_WIDTH>().0)
             .zip(self.rgba.as_chunks_mut::<{ 4 * PICTURE_WIDTH }>().0);
         for (row, ((scanned, shown), rgba)) in rows.enumerate() {
-            if same_colours && scanned == shown {
+            if same_colours && same_bytes(scanned, shown) {
                 continue;
             }
             shown.copy_from_slice(scanned);

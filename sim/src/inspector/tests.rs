@@ -296,3 +296,15 @@ fn a_start_address_near_the_planes_end_wraps_to_their_start() {
 fn machine_vga() -> modex::soft::SoftVga {
     Machine::new().vga().clone()
 }
+
+#[test]
+fn same_bytes_compares_every_byte() {
+    let row: Vec<u8> = (0..83).collect();
+    assert!(same_bytes(&row, &row.clone()));
+    for at in [0, 7, 8, 79, 80, 82] {
+        let mut other = row.clone();
+        other[at] ^= 1;
+        assert!(!same_bytes(&row, &other), "byte {at}");
+    }
+    assert!(!same_bytes(&row, &row[..82]));
+}
