@@ -297,22 +297,7 @@ fn the_starting_cube_is_the_hosts_on_the_page_and_its_canvases() {
         let host = Host::new();
         assert_page_is_host(&page, &host, "at the start");
         // What the browser painted: the canvases hold the same pixels.
-        let (width, height, screen) = canvas_pixels(&page, "screen");
-        assert_eq!((width, height), (WIDTH, HEIGHT));
-        assert_same_pixels(
-            "the #screen canvas",
-            WIDTH,
-            &screen,
-            &host.machine.scanout_rgb(),
-        );
-        let (width, height, inspector) = canvas_pixels(&page, "inspector");
-        assert_eq!(width, PANEL_WIDTH);
-        assert_same_pixels(
-            "the #inspector canvas",
-            width,
-            &inspector,
-            &host.panel(height),
-        );
+        assert_canvases_are_host(&page, &host);
         // On screen: scaled by a whole number, without smoothing. The
         // browser's own composited picture of the canvas is the host's
         // picture with each pixel a square of scale x scale.
@@ -347,6 +332,27 @@ fn the_starting_cube_is_the_hosts_on_the_page_and_its_canvases() {
     });
 }
 
+/// What the browser painted on the #screen and #inspector canvases
+/// (`getImageData`) is the host's picture and panel.
+fn assert_canvases_are_host(page: &Page, host: &Host) {
+    let (width, height, screen) = canvas_pixels(page, "screen");
+    assert_eq!((width, height), (WIDTH, HEIGHT));
+    assert_same_pixels(
+        "the #screen canvas",
+        WIDTH,
+        &screen,
+        &host.machine.scanout_rgb(),
+    );
+    let (width, height, inspector) = canvas_pixels(page, "inspector");
+    assert_eq!(width, PANEL_WIDTH);
+    assert_same_pixels(
+        "the #inspector canvas",
+        width,
+        &inspector,
+        &host.panel(height),
+    );
+}
+
 /// A PNG's width and RGB pixels.
 fn decode_png(png: &[u8]) -> (usize, Vec<[u8; 3]>) {
     let mut decoder = png::Decoder::new(std::io::Cursor::new(png));
@@ -374,6 +380,9 @@ fn readme_keys_typed_in_the_browser_give_the_hosts_pictures() {
             host.tap(name);
             host.frames(2);
             assert_page_is_host(&page, &host, &format!("after {code}"));
+            // The canvases took only the rows that changed (`changed_rows`),
+            // and still hold the host's whole picture and panel.
+            assert_canvases_are_host(&page, &host);
         }
         assert_eq!(
             evaluate_u64(&page, "modexPage.frames()"),

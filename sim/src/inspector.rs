@@ -6,6 +6,7 @@
 
 use std::collections::VecDeque;
 use std::convert::Infallible;
+use std::ops::Range;
 
 use embedded_graphics::mono_font::{ascii::FONT_6X10, MonoTextStyle};
 use embedded_graphics::pixelcolor::Rgb888;
@@ -59,31 +60,37 @@ pub fn lower_bound(old_page: &[u8], new_page: &[u8]) -> u64 {
 
 /// [`lower_bound`] read straight from the planes, with no page image made:
 /// `old[plane]` and `new[plane]` are that plane's bytes of the page, before
-/// and after. Eight addresses at a time whose bytes are unchanged in every
-/// plane (most of a frame's) cost four comparisons of eight bytes.
+/// and after. Eight addresses at a time, as one word of each plane: the
+/// four planes' differences are or-ed, and only the addresses whose byte of
+/// that is not zero (a frame changes few of them) are counted one by one.
 pub fn lower_bound_in_planes(old: [&[u8]; 4], new: [&[u8]; 4]) -> u64 {
     let addresses = old.iter().chain(&new).map(|plane| plane.len()).min();
     let addresses = addresses.unwrap_or(0);
+    let old = old.map(|plane| &plane[..addresses]);
+    let new = new.map(|plane| &plane[..addresses]);
     let pixels = |planes: [&[u8]; 4], address: usize| planes.map(|plane| plane[address]);
+    let old_words = old.map(|plane| plane.as_chunks::<8>().0);
+    let new_words = new.map(|plane| plane.as_chunks::<8>().0);
     let mut bound = 0;
-    let mut address = 0;
-    while address < addresses {
-        let end = (address + 8).min(addresses);
-        let unchanged = end - address == 8
-            && (0..4).all(|plane| {
-                let eight = |bytes: &[u8]| -> [u8; 8] {
-                    bytes[address..end].try_into().expect("eight bytes")
-                };
-                eight(old[plane]) == eight(new[plane])
-            });
-        if !unchanged {
-            bound += (address..end)
-                .map(|at| address_bound(pixels(old, at), pixels(new, at)))
-                .sum::<u64>();
+    for word in 0..addresses / 8 {
+        // Byte `b` of `changed` is not zero where address `8 * word + b`
+        // changed in some plane.
+        let mut changed = (0..4).fold(0, |changed, plane| {
+            changed
+                | (u64::from_le_bytes(old_words[plane][word])
+                    ^ u64::from_le_bytes(new_words[plane][word]))
+        });
+        while changed != 0 {
+            let byte = changed.trailing_zeros() / 8;
+            changed &= !(0xFF << (byte * 8));
+            let address = word * 8 + byte as usize;
+            bound += address_bound(pixels(old, address), pixels(new, address));
         }
-        address = end;
     }
     bound
+        + (addresses / 8 * 8..addresses)
+            .map(|address| address_bound(pixels(old, address), pixels(new, address)))
+            .sum::<u64>()
 }
 
 /// One address's share of the lower bound: the distinct new colours among
@@ -175,24 +182,44 @@ impl History {
 
 /// The inspector's text, line by line.
 pub fn text_lines(state: &VgaState, history: &History) -> Vec<String> {
-    let page = match state.shown_page {
-        Some(page) => format!("page {page} of 0-{} shown", PAGE_COUNT - 1),
-        None => "not the start of a page".to_string(),
-    };
+    let mut lines = Vec::new();
+    write_text_lines(state, history, &mut lines);
+    lines
+}
+
+/// [`text_lines`] written into `lines`, reusing its strings (the panel
+/// writes them every frame, with no allocation once they have grown).
+fn write_text_lines(state: &VgaState, history: &History, lines: &mut Vec<String>) {
+    use std::fmt::Write;
+    lines.resize_with(TEXT_LINES as usize, String::new);
+    lines.iter_mut().for_each(String::clear);
     let last = history.last();
-    vec![
-        format!("CRTC start address 0x{:04X}: {page}", state.start_address),
-        format!(
-            "Map Mask 0x{:02X}  Bit Mask 0x{:02X}  write mode {}",
-            state.map_mask, state.bit_mask, state.write_mode
-        ),
-        format!("frame {}, last frame's bus work:", history.frames()),
-        format!(
-            "video-memory writes {:>6}  lower bound {:>6}",
-            last.vram_writes, last.lower_bound
-        ),
-        format!("port writes {:>6}", last.port_writes),
-    ]
+    // Writing into a String cannot fail.
+    let _ = write!(
+        lines[0],
+        "CRTC start address 0x{:04X}: ",
+        state.start_address
+    );
+    let _ = match state.shown_page {
+        Some(page) => write!(lines[0], "page {page} of 0-{} shown", PAGE_COUNT - 1),
+        None => write!(lines[0], "not the start of a page"),
+    };
+    let _ = write!(
+        lines[1],
+        "Map Mask 0x{:02X}  Bit Mask 0x{:02X}  write mode {}",
+        state.map_mask, state.bit_mask, state.write_mode
+    );
+    let _ = write!(
+        lines[2],
+        "frame {}, last frame's bus work:",
+        history.frames()
+    );
+    let _ = write!(
+        lines[3],
+        "video-memory writes {:>6}  lower bound {:>6}",
+        last.vram_writes, last.lower_bound
+    );
+    let _ = write!(lines[4], "port writes {:>6}", last.port_writes);
 }
 
 /// How a [`Panel`] packs a colour into each `u32`.
@@ -215,7 +242,7 @@ impl Encoding {
 }
 
 /// An RGB image, one colour in each `u32` as its [`Encoding`] packs it.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug)]
 pub struct Panel {
     /// Width in pixels.
     pub width: usize,
@@ -225,6 +252,70 @@ pub struct Panel {
     pub encoding: Encoding,
     /// Row by row.
     pub pixels: Vec<u32>,
+    /// What [`redraw_panel`] drew last, and the rows changed since they
+    /// were last taken.
+    pub(crate) drawn: Drawn,
+}
+
+/// The rows of an image changed since they were last taken: what a canvas
+/// showing the image must take again (the panel's, the web page's picture).
+#[derive(Clone, Debug, Default)]
+pub struct ChangedRows {
+    flags: Vec<bool>,
+}
+
+impl ChangedRows {
+    /// All `rows` rows changed (nothing has been shown yet).
+    pub fn all(rows: usize) -> Self {
+        ChangedRows {
+            flags: vec![true; rows],
+        }
+    }
+
+    /// Rows `rows` changed (what lies past the last row is ignored).
+    pub fn mark(&mut self, rows: Range<usize>) {
+        let end = rows.end.min(self.flags.len());
+        if let Some(flags) = self.flags.get_mut(rows.start.min(end)..end) {
+            flags.fill(true);
+        }
+    }
+
+    /// The runs of rows changed since the last call, top down, into `runs`
+    /// (emptied first); none are changed after it.
+    pub fn take(&mut self, runs: &mut Vec<Range<usize>>) {
+        runs.clear();
+        let flags = &mut self.flags;
+        let mut row = 0;
+        while row < flags.len() {
+            if flags[row] {
+                let start = row;
+                while row < flags.len() && flags[row] {
+                    flags[row] = false;
+                    row += 1;
+                }
+                runs.push(start..row);
+            }
+            row += 1;
+        }
+    }
+}
+
+/// What a panel shows, kept so that [`redraw_panel`] draws again only
+/// what changed, and the rows it changed, so that a canvas takes only those.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct Drawn {
+    /// Each plane's image, 80 bytes a row, as drawn (empty: none yet).
+    planes: Vec<u8>,
+    /// The colours the plane images were drawn in.
+    palette: Vec<u32>,
+    /// The text lines as drawn.
+    lines: Vec<String>,
+    /// The lines of this redraw, written in place of a fresh `Vec` each time.
+    next_lines: Vec<String>,
+    /// The panel's rows changed since last taken.
+    changed_rows: ChangedRows,
+    /// The history's frames and last cost when the plots were drawn.
+    plotted: Option<(u64, FrameCost)>,
 }
 
 /// The panel's width; its height is the picture's beside it.
@@ -263,6 +354,10 @@ impl Panel {
             height,
             encoding,
             pixels: vec![encoding.pack(rgb(BACKGROUND)); width * height],
+            drawn: Drawn {
+                changed_rows: ChangedRows::all(height),
+                ..Drawn::default()
+            },
         };
         panel.text("VGA inspector (V hides it)", MARGIN, 2, TEXT);
         for plane in 0..4 {
@@ -293,6 +388,18 @@ impl Panel {
         let background = self.encoding.pack(rgb(BACKGROUND));
         let width = self.width;
         self.pixels[top as usize * width..][..rows as usize * width].fill(background);
+        self.mark_changed(top as usize..(top + rows) as usize);
+    }
+
+    fn mark_changed(&mut self, rows: Range<usize>) {
+        self.drawn.changed_rows.mark(rows);
+    }
+
+    /// The runs of rows changed since the last call (all of them the first
+    /// time), top down, into `runs` (emptied first): a canvas showing the
+    /// panel needs only those again.
+    pub fn take_changed_rows(&mut self, runs: &mut Vec<Range<usize>>) {
+        self.drawn.changed_rows.take(runs);
     }
 }
 
@@ -340,15 +447,30 @@ pub fn draw_panel(vga: &SoftVga, history: &History, height: usize) -> Panel {
 /// Draws into `panel` (made by [`Panel::inspector`]) everything that changes
 /// with the VGA and the history, over what it showed before: the result is
 /// [`draw_panel`]'s, pixel for pixel, without painting the panel afresh.
+/// Only what changed is drawn again: a plane image's row whose bytes or
+/// colours changed, a text line whose text did, the plots when the history
+/// has a new frame (the panel is redrawn with one history, which only
+/// grows); [`Panel::take_changed_rows`] says which rows that touched.
 pub fn redraw_panel(panel: &mut Panel, vga: &SoftVga, history: &History) {
     let state = vga_state(vga);
     draw_planes(panel, vga, state.start_address);
-    panel.clear_rows(TEXT_TOP, TEXT_LINES * LINE_HEIGHT);
-    let mut y = TEXT_TOP;
-    for line in text_lines(&state, history) {
-        panel.text(&line, MARGIN, y, TEXT);
-        y += LINE_HEIGHT;
+    // Only the lines whose text changed (the frame's number, the figures).
+    let mut lines = std::mem::take(&mut panel.drawn.next_lines);
+    write_text_lines(&state, history, &mut lines);
+    for (index, line) in lines.iter().enumerate() {
+        if panel.drawn.lines.get(index) != Some(line) {
+            let y = TEXT_TOP + index as i32 * LINE_HEIGHT;
+            panel.clear_rows(y, LINE_HEIGHT);
+            panel.text(line, MARGIN, y, TEXT);
+        }
     }
+    panel.drawn.next_lines = std::mem::replace(&mut panel.drawn.lines, lines);
+    // The plots change only with a frame pushed to the history.
+    let plotted = Some((history.frames(), history.last()));
+    if panel.drawn.plotted == plotted {
+        return;
+    }
+    panel.drawn.plotted = plotted;
     let vram = |cost: &FrameCost| cost.vram_writes;
     let bound = |cost: &FrameCost| cost.lower_bound;
     draw_plot(
@@ -366,25 +488,71 @@ pub fn redraw_panel(panel: &mut Panel, vga: &SoftVga, history: &History) {
 }
 
 /// Each plane's bytes of the page from `start`, a row of 80 at a time, every
-/// pixel of the images written (nothing else to clear).
+/// pixel of the images written (nothing else to clear); a row whose bytes
+/// and colours are those drawn last is left as it is.
 fn draw_planes(panel: &mut Panel, vga: &SoftVga, start: u16) {
     let encoding = panel.encoding;
-    let palette: Vec<u32> = (0..=255u8)
-        .map(|index| encoding.pack(vga.dac_entry(index).map(dac_6_to_8)))
-        .collect();
+    let drawn = &mut panel.drawn;
+    let palette_before = drawn.palette.len();
+    drawn.palette.resize(256, 0);
+    let mut same_colours = palette_before == 256;
+    for (index, colour) in drawn.palette.iter_mut().enumerate() {
+        let new = encoding.pack(vga.dac_entry(index as u8).map(dac_6_to_8));
+        same_colours &= *colour == new;
+        *colour = new;
+    }
     let row_bytes = usize::from(BYTES_PER_LINE);
+    let rows = SCREEN_HEIGHT as usize;
+    let image_bytes = rows * row_bytes;
+    if drawn.planes.len() != 4 * image_bytes {
+        drawn.planes = vec![0; 4 * image_bytes];
+        same_colours = false;
+    }
+    let mut wrapped = [0u8; BYTES_PER_LINE as usize];
     for plane in 0..4 {
         let left = plane_left(plane) as usize;
         let bytes = vga.plane(plane);
-        for row in 0..SCREEN_HEIGHT as usize {
-            let line = (PLANES_TOP as usize + row) * panel.width + left;
+        for row in 0..rows {
             let first = start.wrapping_add((row * row_bytes) as u16);
-            for (x, pixel) in panel.pixels[line..][..row_bytes].iter_mut().enumerate() {
-                let byte = bytes[usize::from(first.wrapping_add(x as u16))];
+            let first = usize::from(first);
+            // A row is a slice of the plane unless it wraps past its end.
+            let now: &[u8] = match bytes.get(first..first + row_bytes) {
+                Some(slice) => slice,
+                None => {
+                    for (x, byte) in wrapped.iter_mut().enumerate() {
+                        *byte = bytes[(first + x) % bytes.len()];
+                    }
+                    &wrapped
+                }
+            };
+            let shown = &mut panel.drawn.planes[(plane * rows + row) * row_bytes..][..row_bytes];
+            if same_colours && same_bytes(shown, now) {
+                continue;
+            }
+            shown.copy_from_slice(now);
+            let y = PLANES_TOP as usize + row;
+            let line = y * panel.width + left;
+            let palette = &panel.drawn.palette;
+            for (pixel, &byte) in panel.pixels[line..][..row_bytes].iter_mut().zip(now) {
                 *pixel = palette[usize::from(byte)];
             }
+            panel.mark_changed(y..y + 1);
         }
     }
+}
+
+/// Whether two runs of bytes are equal, eight bytes to a comparison (a
+/// slice comparison is `memcmp`, a byte-by-byte loop in WebAssembly): the
+/// panel's plane rows, the web page's picture rows.
+pub fn same_bytes(a: &[u8], b: &[u8]) -> bool {
+    let (a_words, a_rest) = a.as_chunks::<8>();
+    let (b_words, b_rest) = b.as_chunks::<8>();
+    a.len() == b.len()
+        && a_rest == b_rest
+        && a_words
+            .iter()
+            .zip(b_words)
+            .all(|(a, b)| u64::from_ne_bytes(*a) == u64::from_ne_bytes(*b))
 }
 
 /// A figure of each frame's cost, and its colour in the plot.
@@ -418,12 +586,29 @@ fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) 
             }
         }
     }
+    let mut digits = [0; 20];
     panel.text(
-        &format!("{largest}"),
+        decimal(largest, &mut digits),
         MARGIN + PLOT_FRAMES as i32 - 6 * 8,
         top,
         TEXT,
     );
+}
+
+/// `value` in decimal, written into `digits` (a `u64` has at most 20): the
+/// plots' scale every frame without a `String` made for it.
+fn decimal(mut value: u64, digits: &mut [u8; 20]) -> &str {
+    let mut first = digits.len();
+    loop {
+        first -= 1;
+        digits[first] = b'0' + (value % 10) as u8;
+        value /= 10;
+        if value == 0 {
+            break;
+        }
+    }
+    // Only ASCII digits were written.
+    core::str::from_utf8(&digits[first..]).unwrap_or_default()
 }
 
 #[cfg(test)]

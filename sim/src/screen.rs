@@ -67,6 +67,7 @@ mod tests {
             height: 600,
             encoding: crate::inspector::Encoding::Xrgb,
             pixels: (0..3000).collect(),
+            drawn: Default::default(),
         };
         let pixels = compose(&picture, 2, Some(&panel));
         assert_eq!(window_size(2, Some(5)), (645, 480));

@@ -76,9 +76,10 @@
     const ops = $("ops");
     // Each canvas keeps its context and an ImageData over the module's
     // pixels, made again only when they move or memory grows: a frame
-    // makes no garbage here.
+    // makes no garbage here. A tracked canvas (0: the picture, 1: the
+    // inspector) takes only the rows the module says changed since.
     const painters = new Map();
-    function paint(canvas, pointer, width, height) {
+    function paint(canvas, pointer, width, height, tracked) {
       let painter = painters.get(canvas);
       if (!painter) {
         painter = { context: canvas.getContext("2d"), image: null, pointer: 0 };
@@ -91,25 +92,43 @@
         painter.image = new ImageData(pixels, width, height);
         painter.pointer = pointer;
       }
-      painter.context.putImageData(painter.image, 0, 0);
+      if (tracked === undefined) {
+        painter.context.putImageData(painter.image, 0, 0);
+        return;
+      }
+      const runs = w.changed_rows(tracked);
+      for (let i = 0; i < runs; i++) {
+        painter.context.putImageData(painter.image, 0, 0, 0, w.run_top(i), width, w.run_rows(i));
+      }
     }
     // Visibility, like text, changes only when it changes.
     function setHidden(element, hidden) {
       if (element.hidden !== hidden) element.hidden = hidden;
     }
 
+    let textsVersion = -1;
+    let shownFrames = -1;
     function draw() {
-      paint(screen, w.screen_ptr(), 320, 240);
+      paint(screen, w.screen_ptr(), 320, 240, 0);
       const panel = w.panel_ptr();
       setHidden(inspector, !panel);
-      if (panel) paint(inspector, panel, w.panel_width(), w.panel_height());
+      if (panel) paint(inspector, panel, w.panel_width(), w.panel_height(), 1);
       const slow = w.ops_ptr();
       setHidden(ops, !slow);
       if (slow) paint(ops, slow, w.ops_width(), w.ops_height());
-      setText("last-op", text(w.last_op()));
+      // The texts cross from the module only when they have changed.
+      const version = w.texts_version();
+      if (version !== textsVersion) {
+        textsVersion = version;
+        setText("last-op", text(w.last_op()));
+        say(text(w.message()));
+      }
       setText("play", w.paused() ? "Play" : "Pause");
-      setText("frame-count", "frame " + w.frames());
-      say(text(w.message()));
+      const frames = w.frames();
+      if (frames !== shownFrames) {
+        shownFrames = frames;
+        setText("frame-count", "frame " + frames);
+      }
     }
 
     let stopped = false;
@@ -172,6 +191,7 @@
       link.click();
       setTimeout(() => URL.revokeObjectURL(link.href), 10000);
       say("Recorded " + length + " bytes of GIF.");
+      textsVersion = -1; // the module's message replaces it at the next draw, as before
     }));
 
     // Frames on the display's refresh; the module runs as many frames of

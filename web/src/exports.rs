@@ -14,7 +14,7 @@
 
 use std::cell::RefCell;
 
-use crate::page::{Page, INSPECTOR_HEIGHT, INSPECTOR_WIDTH, OPS_SIZE};
+use crate::page::{Canvas, Page, INSPECTOR_HEIGHT, INSPECTOR_WIDTH, OPS_SIZE};
 
 thread_local! {
     static PAGE: RefCell<Option<Page>> = const { RefCell::new(None) };
@@ -178,6 +178,32 @@ pub extern "C" fn panel_ptr() -> *const u8 {
     })
 }
 
+/// Takes the rows of a canvas (0: the picture, 1: the inspector panel)
+/// changed since they were last taken, as runs top down; returns how many.
+/// `run_top(i)` and `run_rows(i)` give run `i`: the canvas needs only
+/// those rows painted again.
+#[no_mangle]
+pub extern "C" fn changed_rows(canvas: u32) -> usize {
+    let canvas = if canvas == 0 {
+        Canvas::Picture
+    } else {
+        Canvas::Inspector
+    };
+    with_page(|page| page.take_changed_rows(canvas).len())
+}
+
+/// The first row of run `index` of the last `changed_rows` (0 past them).
+#[no_mangle]
+pub extern "C" fn run_top(index: usize) -> usize {
+    with_page(|page| page.changed_runs().get(index).map_or(0, |run| run.start))
+}
+
+/// The rows in run `index` of the last `changed_rows` (0 past them).
+#[no_mangle]
+pub extern "C" fn run_rows(index: usize) -> usize {
+    with_page(|page| page.changed_runs().get(index).map_or(0, |run| run.len()))
+}
+
 /// The inspector panel's width.
 #[no_mangle]
 pub extern "C" fn panel_width() -> usize {
@@ -232,6 +258,13 @@ pub extern "C" fn hover(x: u32, y: u32) -> usize {
 pub extern "C" fn message() -> usize {
     let text = with_page(|page| page.message().to_string());
     output(text.as_bytes())
+}
+
+/// A number that changes whenever `last_op` or `message` would give
+/// another text: the page fetches them only then.
+#[no_mangle]
+pub extern "C" fn texts_version() -> u32 {
+    with_page(|page| page.texts_version())
 }
 
 /// The last operation stepped, described, into the output buffer.

@@ -4,11 +4,14 @@
 //! puts on the canvases. The WebAssembly exports are thin calls into this.
 
 use std::collections::VecDeque;
+use std::ops::Range;
 
 use keyboard::keys::{scancode_for_name, Scancode};
 use modex::soft::{dac_6_to_8, SoftVga};
 use modex::{SCREEN_HEIGHT, SCREEN_WIDTH};
-use sim::inspector::{redraw_panel, Encoding, History, Panel, PANEL_WIDTH};
+use sim::inspector::{
+    redraw_panel, same_bytes, ChangedRows, Encoding, History, Panel, PANEL_WIDTH,
+};
 use sim::machine::Machine;
 use sim::record::{record_gif_with, RecordError};
 
@@ -29,6 +32,9 @@ pub const INSPECTOR_HEIGHT: usize = 2 * PICTURE_HEIGHT;
 pub const GIF_EVERY: u32 = 2;
 /// The most frames a GIF holds (a minute of the demo).
 pub const GIF_MAX_FRAMES: u32 = 3600;
+/// Changed rows this close are painted as one run, unchanged rows between
+/// included.
+pub const PAINT_GAP_ROWS: usize = 16;
 /// The byte before the make code of an extended key.
 const EXTENDED_PREFIX: u8 = 0xE0;
 
@@ -53,14 +59,26 @@ pub struct Page {
     slow: Option<SlowMotion>,
     last_op: String,
     message: String,
-    screen: Vec<u8>,
-    /// The picture's DAC indices, the step before `screen`.
-    indices: Vec<u8>,
+    /// Changes whenever `last_op` or `message` does, so the page fetches
+    /// the texts across the module's boundary only then.
+    texts_version: u32,
+    picture: Picture,
     /// The inspector's panel in RGBA, kept between frames: only what
     /// changes is drawn again (`sim::inspector::redraw_panel`), and the
     /// canvas takes its bytes where they lie.
     panel: Panel,
     ops_panel: Vec<u8>,
+    /// The runs of rows last taken by [`Page::take_changed_rows`].
+    runs: Vec<Range<usize>>,
+}
+
+/// A canvas whose rows the page tracks, so that it takes only those changed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Canvas {
+    /// The picture.
+    Picture,
+    /// The inspector's panel.
+    Inspector,
 }
 
 impl Page {
@@ -94,11 +112,11 @@ impl Page {
             slow,
             last_op: String::new(),
             message: problem.unwrap_or_default(),
-            // Black until the first Mode X picture.
-            screen: [0, 0, 0, 255].repeat(PICTURE_WIDTH * PICTURE_HEIGHT),
-            indices: vec![0; PICTURE_WIDTH * PICTURE_HEIGHT],
+            texts_version: 0,
+            picture: Picture::new(),
             panel: Panel::inspector(INSPECTOR_HEIGHT, Encoding::Rgba),
             ops_panel: Vec::new(),
+            runs: Vec::new(),
         };
         let ops = page.replay.ops;
         if ops > 0 {
@@ -186,7 +204,9 @@ impl Page {
                 break;
             };
             if let Some(text) = slow.step() {
-                self.last_op = text.to_string();
+                self.last_op.clear();
+                self.last_op.push_str(text);
+                self.texts_version = self.texts_version.wrapping_add(1);
                 done += 1;
             }
             if slow.finished() {
@@ -237,8 +257,9 @@ impl Page {
         if self.machine.app().quit_requested() {
             self.ended = true;
             self.paused = true;
-            self.message =
-                "Esc: the demo has ended, as on the machine; reload the page to start again".into();
+            self.set_message(
+                "Esc: the demo has ended, as on the machine; reload the page to start again".into(),
+            );
             return None;
         }
         let (cost, log) = if logged {
@@ -353,11 +374,38 @@ impl Page {
     /// Replaces the one-line message.
     pub fn set_message(&mut self, line: String) {
         self.message = line;
+        self.texts_version = self.texts_version.wrapping_add(1);
+    }
+
+    /// A number that changes whenever [`Page::last_op`] or
+    /// [`Page::message`] does (and seldom else): the page reads the texts
+    /// only when it has changed.
+    pub fn texts_version(&self) -> u32 {
+        self.texts_version
     }
 
     /// The picture, 320x240 RGBA.
     pub fn screen_rgba(&self) -> &[u8] {
-        &self.screen
+        &self.picture.rgba
+    }
+
+    /// The rows of `canvas` changed since they were last taken (all of them
+    /// the first time), as runs top down: the canvas showing it needs only
+    /// those painted again.
+    /// Runs fewer than [`PAINT_GAP_ROWS`] apart come as one: each run is a
+    /// `putImageData` call, whose own cost is worth a few unchanged rows.
+    pub fn take_changed_rows(&mut self, canvas: Canvas) -> &[Range<usize>] {
+        match canvas {
+            Canvas::Picture => self.picture.changed.take(&mut self.runs),
+            Canvas::Inspector => self.panel.take_changed_rows(&mut self.runs),
+        }
+        merge_close_runs(&mut self.runs);
+        &self.runs
+    }
+
+    /// The runs [`Page::take_changed_rows`] took last.
+    pub fn changed_runs(&self) -> &[Range<usize>] {
+        &self.runs
     }
 
     /// The inspector panel, [`PANEL_WIDTH`] x [`INSPECTOR_HEIGHT`], each
@@ -411,7 +459,7 @@ impl Page {
             None => self.machine.vga(),
         };
         if vga.picture_size() == (PICTURE_WIDTH, PICTURE_HEIGHT) {
-            scanout_rgba(vga, &mut self.indices, &mut self.screen);
+            self.picture.scan_out(vga);
         }
         // Any other picture (the goodbye screen's text mode) is not shown:
         // the last Mode X picture stays.
@@ -426,26 +474,83 @@ impl Page {
 
 /// The picture as RGBA, exactly as `SoftVga::scanout_rgb` gives it (the
 /// DAC's colours widened to 8 bits through the pixel mask, black while video
-/// is off), through `indices` (the picture's DAC indices, kept between
-/// frames) and one table of 256 colours rather than a pass per pixel
-/// through the DAC.
-fn scanout_rgba(vga: &SoftVga, indices: &mut [u8], rgba: &mut [u8]) {
-    vga.scanout_indices(indices);
-    let enabled = vga.video_enabled();
-    let mask = vga.dac_pixel_mask();
-    let table: Vec<[u8; 4]> = (0..=255u8)
-        .map(|index| {
-            let [r, g, b] = vga.dac_entry(index & mask).map(dac_6_to_8);
-            if enabled {
+/// is off), kept between frames with its DAC indices: a row is converted
+/// again only when its indices or the colours changed, and noted changed.
+struct Picture {
+    rgba: Vec<u8>,
+    /// The DAC indices `rgba` shows.
+    indices: Vec<u8>,
+    /// The indices scanned out now, compared with `indices` row by row.
+    scanned: Vec<u8>,
+    /// The colour of each index that `rgba` shows.
+    colours: [[u8; 4]; 256],
+    changed: ChangedRows,
+}
+
+impl Picture {
+    /// Black until the first Mode X picture.
+    fn new() -> Self {
+        let pixels = PICTURE_WIDTH * PICTURE_HEIGHT;
+        Picture {
+            rgba: [0, 0, 0, 255].repeat(pixels),
+            indices: vec![0; pixels],
+            scanned: vec![0; pixels],
+            colours: [[0, 0, 0, 255]; 256],
+            changed: ChangedRows::all(PICTURE_HEIGHT),
+        }
+    }
+
+    /// Brings the picture to `vga`'s, which shows Mode X.
+    fn scan_out(&mut self, vga: &SoftVga) {
+        vga.scanout_indices(&mut self.scanned);
+        let enabled = vga.video_enabled();
+        let mask = vga.dac_pixel_mask();
+        let mut same_colours = true;
+        for (index, colour) in self.colours.iter_mut().enumerate() {
+            let [r, g, b] = vga.dac_entry(index as u8 & mask).map(dac_6_to_8);
+            let new = if enabled {
                 [r, g, b, 255]
             } else {
                 [0, 0, 0, 255]
+            };
+            same_colours &= *colour == new;
+            *colour = new;
+        }
+        let rows = self
+            .scanned
+            .as_chunks::<PICTURE_WIDTH>()
+            .0
+            .iter()
+            .zip(self.indices.as_chunks_mut::<PICTURE_WIDTH>().0)
+            .zip(self.rgba.as_chunks_mut::<{ 4 * PICTURE_WIDTH }>().0);
+        for (row, ((scanned, shown), rgba)) in rows.enumerate() {
+            if same_colours && same_bytes(scanned, shown) {
+                continue;
             }
-        })
-        .collect();
-    for (pixel, &index) in rgba.as_chunks_mut::<4>().0.iter_mut().zip(indices.iter()) {
-        *pixel = table[usize::from(index)];
+            shown.copy_from_slice(scanned);
+            for (pixel, &index) in rgba.as_chunks_mut::<4>().0.iter_mut().zip(scanned.iter()) {
+                *pixel = self.colours[usize::from(index)];
+            }
+            self.changed.mark(row..row + 1);
+        }
     }
+}
+
+/// Joins runs of rows (top down, apart) fewer than [`PAINT_GAP_ROWS`]
+/// apart into one.
+fn merge_close_runs(runs: &mut Vec<Range<usize>>) {
+    let mut merged: usize = 0;
+    for index in 0..runs.len() {
+        let run = runs[index].clone();
+        match merged.checked_sub(1).map(|last| &mut runs[last]) {
+            Some(last) if run.start - last.end < PAINT_GAP_ROWS => last.end = run.end,
+            _ => {
+                runs[merged] = run;
+                merged += 1;
+            }
+        }
+    }
+    runs.truncate(merged);
 }
 
 /// The panel's width, for the exports.

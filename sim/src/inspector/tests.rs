@@ -192,7 +192,10 @@ fn a_panel_redrawn_in_place_is_the_panel_drawn_afresh() {
         let history = &histories[frame % histories.len()];
         let fresh = draw_panel(machine.vga(), history, 480);
         redraw_panel(&mut kept, machine.vga(), history);
-        assert!(kept == fresh, "frame {frame}: the kept panel differs");
+        assert!(
+            kept.pixels == fresh.pixels,
+            "frame {frame}: the kept panel differs"
+        );
         redraw_panel(&mut kept_rgba, machine.vga(), history);
         let as_rgba: Vec<u32> = fresh
             .pixels
@@ -204,4 +207,104 @@ fn a_panel_redrawn_in_place_is_the_panel_drawn_afresh() {
             .collect();
         assert!(kept_rgba.pixels == as_rgba, "frame {frame}: RGBA differs");
     }
+}
+
+#[test]
+fn a_redraw_changes_only_the_rows_whose_content_changed() {
+    let mut machine = Machine::new();
+    tap(&mut machine, "m");
+    machine.frame();
+    let mut history = History::default();
+    history.push(machine.last_cost());
+    let mut panel = Panel::inspector(480, Encoding::Rgba);
+    let mut runs = Vec::new();
+    panel.take_changed_rows(&mut runs);
+    assert_eq!(runs, vec![0..480], "a new panel is all to show");
+    redraw_panel(&mut panel, machine.vga(), &history);
+    panel.take_changed_rows(&mut runs);
+    assert!(!runs.is_empty());
+    // Nothing changed: nothing drawn again.
+    redraw_panel(&mut panel, machine.vga(), &history);
+    panel.take_changed_rows(&mut runs);
+    assert_eq!(runs, [], "an unchanged VGA and history change no row");
+    // A frame of the spinning crowd: some plane rows, the frame's line, the
+    // plots; never the title or the labels above the planes.
+    machine.frame();
+    history.push(machine.last_cost());
+    redraw_panel(&mut panel, machine.vga(), &history);
+    panel.take_changed_rows(&mut runs);
+    let rows: usize = runs.iter().map(|run| run.len()).sum();
+    assert!(
+        runs.iter().all(|run| run.start >= PLANES_TOP as usize),
+        "{runs:?}"
+    );
+    let frame_line = TEXT_TOP as usize + 2 * LINE_HEIGHT as usize;
+    assert!(runs.iter().any(|run| run.contains(&frame_line)), "{runs:?}");
+    assert!(rows < 480 - PLANES_TOP as usize, "{rows} rows: {runs:?}");
+    assert!(
+        runs.iter().any(|run| run.start < TEXT_TOP as usize),
+        "{runs:?}"
+    );
+}
+
+#[test]
+fn the_plots_scale_is_written_in_decimal() {
+    let mut digits = [0; 20];
+    for value in [0, 7, 10, 9_876_543, u64::MAX] {
+        assert_eq!(decimal(value, &mut digits), value.to_string());
+    }
+}
+
+#[test]
+fn a_start_address_near_the_planes_end_wraps_to_their_start() {
+    use modex::regs::{Crtc, Port};
+    use modex::VgaBus;
+    let mut vga = Box::new(machine_vga());
+    // Video memory wraps at 64 KiB: a start 40 bytes before the end puts
+    // offset 0 in the middle of the first row. Byte 0 of each plane gets a colour of its
+    // own (Map Mask: one plane at a time).
+    let start: u16 = 0x1_0000u32.wrapping_sub(40) as u16;
+    for plane in 0..4u8 {
+        let map_mask = u16::from(1u8 << plane) << 8 | u16::from(Sequencer::MapMask.index());
+        vga.write_port16(Port::SEQUENCER_INDEX, map_mask);
+        vga.write_vram8(0, 40 + plane);
+    }
+    let [high, low] = start.to_be_bytes();
+    vga.write_port16(
+        Port::CRTC_INDEX,
+        u16::from(high) << 8 | u16::from(Crtc::StartAddressHigh.index()),
+    );
+    vga.write_port16(
+        Port::CRTC_INDEX,
+        u16::from(low) << 8 | u16::from(Crtc::StartAddressLow.index()),
+    );
+    vga.let_a_frame_pass();
+    assert_eq!(vga.displayed_start(), start);
+    let panel = draw_panel(&vga, &History::default(), 480);
+    for plane in 0..4u8 {
+        let [r, g, b] = vga.dac_entry(40 + plane).map(dac_6_to_8);
+        let left = MARGIN as usize + usize::from(plane) * (80 + PLANE_GAP as usize);
+        let shown = panel.pixels[PLANES_TOP as usize * panel.width + left + 40];
+        assert_eq!(
+            shown,
+            u32::from(r) << 16 | u32::from(g) << 8 | u32::from(b),
+            "plane {plane}"
+        );
+    }
+}
+
+fn machine_vga() -> modex::soft::SoftVga {
+    Machine::new().vga().clone()
+}
+
+#[test]
+fn same_bytes_compares_every_byte() {
+    let row: Vec<u8> = (0..83).collect();
+    assert!(same_bytes(&row, &row.clone()));
+    for at in [0, 7, 8, 79, 80, 82] {
+        let mut other = row.clone();
+        other[at] ^= 1;
+        assert!(!same_bytes(&row, &other), "byte {at}");
+    }
+    assert!(!same_bytes(&row, &row[..82]));
 }

@@ -218,6 +218,30 @@ fn esc_ends_the_demo_and_the_page_says_so() {
     });
 }
 
+/// The page reads the texts from the module only when their version has
+/// changed, so every change of either text must change it, and frames that
+/// change neither leave it alone.
+#[test]
+fn the_texts_version_changes_with_the_texts_and_only_then() {
+    crate::with_big_stack(|| {
+        let mut page = Page::new("?keys=m,x&frames=0");
+        let texts = |page: &Page| (page.last_op().to_string(), page.message().to_string());
+        let mut seen = (page.texts_version(), texts(&page));
+        page.step_frames(30);
+        assert_eq!(page.texts_version(), seen.0, "frames changed no text");
+        for op in 0..40 {
+            page.step_ops(1);
+            let now = (page.texts_version(), texts(&page));
+            if now.1 != seen.1 {
+                assert_ne!(now.0, seen.0, "op {op} changed {:?}", now.1);
+            }
+            seen = now;
+        }
+        page.set_message("no GIF: test".into());
+        assert_ne!(page.texts_version(), seen.0, "a new message");
+    });
+}
+
 #[test]
 fn the_mode_set_steps_from_text_mode() {
     crate::with_big_stack(|| {
@@ -299,4 +323,57 @@ fn the_books_replay_urls_show_what_the_book_says() {
             }
         }
     });
+}
+
+#[test]
+fn the_canvases_take_only_the_rows_that_changed() {
+    crate::with_big_stack(|| {
+        let mut page = Page::new("?keys=m&paused=1");
+        let picture = page.take_changed_rows(Canvas::Picture).to_vec();
+        assert_eq!(picture, vec![0..PICTURE_HEIGHT]);
+        let panel = page.take_changed_rows(Canvas::Inspector).to_vec();
+        assert_eq!(panel, vec![0..INSPECTOR_HEIGHT]);
+        page.step_frames(2);
+        let picture_rows: usize = page
+            .take_changed_rows(Canvas::Picture)
+            .iter()
+            .map(|run| run.len())
+            .sum();
+        assert!(
+            picture_rows > 0 && picture_rows < PICTURE_HEIGHT,
+            "{picture_rows}"
+        );
+        assert!(!page.take_changed_rows(Canvas::Inspector).is_empty());
+        // Drawn again with nothing changed: nothing to take.
+        page.set_inspector(true);
+        assert_eq!(page.take_changed_rows(Canvas::Picture), []);
+        assert_eq!(page.take_changed_rows(Canvas::Inspector), []);
+        // Rows not taken add up until they are.
+        page.step_frames(1);
+        page.step_frames(1);
+        let mut machine = Machine::new();
+        machine.tap(key("m"));
+        for _ in 0..4 {
+            machine.frame();
+        }
+        assert!(page.screen_rgba() == rgba_of_rgb(&machine.scanout_rgb()));
+        let runs = page.take_changed_rows(Canvas::Picture).to_vec();
+        assert!(!runs.is_empty());
+        assert!(
+            runs.windows(2)
+                .all(|pair| pair[0].end + PAINT_GAP_ROWS <= pair[1].start),
+            "{runs:?}"
+        );
+    });
+}
+
+#[test]
+fn runs_of_rows_close_together_are_painted_as_one() {
+    let gap = PAINT_GAP_ROWS;
+    let mut runs = vec![0..2, 2 + gap - 1..30, 30 + gap..40, 200..201];
+    merge_close_runs(&mut runs);
+    assert_eq!(runs, vec![0..30, 30 + gap..40, 200..201]);
+    let mut none = Vec::new();
+    merge_close_runs(&mut none);
+    assert!(none.is_empty());
 }
