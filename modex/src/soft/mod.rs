@@ -87,6 +87,11 @@ pub struct SoftVga {
     /// flip's status reads advance the clock thousands of times a frame.
     /// Zero, or the present time, asks at the next step.
     next_retrace_ns: u64,
+    /// Input Status 1's beam bits until `status_until_ns`
+    /// ([`CrtTiming::status_until`]). Zero, or the present time, asks the
+    /// timing at the next read.
+    status_bits: u8,
+    status_until_ns: u64,
     /// The start address the CRTC latched at the last vertical retrace.
     displayed_start: u16,
     frame_count: u64,
@@ -138,6 +143,8 @@ impl SoftVga {
             timing,
             now_ns: 0,
             next_retrace_ns: 0,
+            status_bits: 0,
+            status_until_ns: 0,
             frame_count: 0,
             retrace_stuck: None,
             register_writes: 0,
@@ -173,6 +180,8 @@ impl SoftVga {
             },
             now_ns: 0,
             next_retrace_ns: 0,
+            status_bits: 0,
+            status_until_ns: 0,
             displayed_start: 0,
             frame_count: 0,
             // `None` is the byte 2; power-on sets it.
@@ -199,6 +208,7 @@ impl SoftVga {
         self.memory.clear();
         self.now_ns = 0;
         self.next_retrace_ns = 0;
+        self.status_until_ns = 0;
         self.frame_count = 0;
         self.retrace_stuck = None;
         self.register_writes = 0;
@@ -371,12 +381,16 @@ impl SoftVga {
         if timing != self.timing {
             self.timing = timing;
             self.next_retrace_ns = self.now_ns;
+            self.status_until_ns = self.now_ns;
         }
     }
 
     fn input_status_1(&mut self) -> u8 {
         self.registers.reset_attribute_flip_flop();
-        let bits = self.timing.status_at(self.now_ns);
+        if self.now_ns >= self.status_until_ns {
+            (self.status_bits, self.status_until_ns) = self.timing.status_until(self.now_ns);
+        }
+        let bits = self.status_bits;
         match self.retrace_stuck {
             None => bits,
             Some(true) => bits | status::VERTICAL_RETRACE,

@@ -107,7 +107,7 @@ impl CrtTiming {
     }
 
     /// Input Status 1 bits 0 (display disabled) and 3 (vertical retrace) at `ns`.
-    pub(super) fn status_at(&self, ns: u64) -> u8 {
+    pub(crate) fn status_at(&self, ns: u64) -> u8 {
         let (line, character) = self.beam_at(ns);
         let retrace =
             (self.retrace_start_line..self.retrace_start_line + self.retrace_lines).contains(&line);
@@ -131,10 +131,42 @@ impl CrtTiming {
             return u64::MAX;
         }
         let first = self.retrace_start_line * self.dots_per_line();
-        let dot = u128::from(first)
-            + u128::from(self.retraces_started_by(ns)) * u128::from(self.dots_per_frame());
-        let at = (dot * u128::from(NANOS_PER_SECOND)).div_ceil(u128::from(self.dot_clock_hz));
-        u64::try_from(at).unwrap_or(u64::MAX)
+        self.first_ns_at_dot(first + self.retraces_started_by(ns) * self.dots_per_frame())
+    }
+
+    /// The first nanosecond at which `dots_at` reaches `dot`: the quotient
+    /// `dot * 10^9 / dot_clock_hz` rounded up, with whole seconds and the
+    /// rest scaled apart as in `dots_at`, so nothing overflows u64 and no
+    /// u128 library call runs.
+    fn first_ns_at_dot(&self, dot: u64) -> u64 {
+        let (seconds, rest) = (dot / self.dot_clock_hz, dot % self.dot_clock_hz);
+        seconds
+            .saturating_mul(NANOS_PER_SECOND)
+            .saturating_add((rest * NANOS_PER_SECOND).div_ceil(self.dot_clock_hz))
+    }
+
+    /// Input Status 1's bits at `ns` ([`CrtTiming::status_at`]) and a time
+    /// before which they cannot change: the beam's next crossing of the
+    /// display's right edge, or of its line's end. A wait on the status
+    /// reads it every microsecond, about 32 times a line, so the software
+    /// VGA keeps the bits until then rather than divide its way to the beam
+    /// at every read.
+    pub(super) fn status_until(&self, ns: u64) -> (u8, u64) {
+        let dots = self.dots_at(ns);
+        let dots_per_line = self.dots_per_line();
+        // A line's dots: a frame is whole lines, so this is the beam's
+        // place in its line.
+        let into_line = dots % dots_per_line;
+        let display_end = (self.display_characters * self.dots_per_character).min(dots_per_line);
+        let next_edge = if into_line < display_end {
+            display_end
+        } else {
+            dots_per_line
+        };
+        (
+            self.status_at(ns),
+            self.first_ns_at_dot(dots - into_line + next_edge),
+        )
     }
 
     pub(super) fn retraces_started_by(&self, ns: u64) -> u64 {
@@ -222,5 +254,48 @@ mod tests {
             ))
         };
         assert_eq!(never.next_retrace_ns(12_345), u64::MAX);
+    }
+
+    /// The bits `status_until` gives hold from its time to the time it
+    /// gives, and that time is a dot boundary's first nanosecond, at every
+    /// dot clock and at display edges past the line's end.
+    #[test]
+    fn the_status_holds_until_the_time_given() {
+        let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
+        let mut next = move |below: u64| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed % below
+        };
+        for (&hz, display_characters) in DOT_CLOCK_HZ.iter().zip([80, 100, 120, 1]) {
+            let timing = CrtTiming {
+                dot_clock_hz: hz,
+                dots_per_character: 8 + (hz % 2),
+                characters_per_line: 100,
+                display_characters,
+                lines_per_frame: 525,
+                display_lines: 480,
+                retrace_start_line: 490,
+                retrace_lines: 2,
+            };
+            let mut ns = next(1 << 40);
+            for _ in 0..2_000 {
+                let (bits, until) = timing.status_until(ns);
+                assert!(until > ns, "{ns} ns at {hz} Hz");
+                for probe in [ns, until - 1, ns + next(until - ns)] {
+                    assert_eq!(
+                        timing.status_at(probe),
+                        bits,
+                        "{probe} ns, from {ns} at {hz} Hz"
+                    );
+                }
+                assert!(
+                    timing.dots_at(until) > timing.dots_at(until - 1),
+                    "{until} ns"
+                );
+                ns = until + next(3) * next(40_000);
+            }
+        }
     }
 }
