@@ -599,6 +599,7 @@ mod tests {
     use super::*;
     use crate::record::Recorder;
     use crate::soft::SoftVga;
+    use crate::tests::xorshift;
     use core::ops::Range;
     use std::boxed::Box;
     use std::vec;
@@ -954,17 +955,6 @@ mod tests {
             found += expected.len();
         }
         assert!(found > 500, "{found}");
-    }
-
-    /// A xorshift generator from `seed`: numbers below the bound asked for,
-    /// the same every run.
-    fn xorshift(mut state: u64) -> impl FnMut(usize) -> usize {
-        move |below| {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 16) as usize % below
-        }
     }
 
     /// The page update makes the writes the pixel-by-pixel search finds

@@ -261,13 +261,8 @@ mod tests {
     /// dot clock and at display edges past the line's end.
     #[test]
     fn the_status_holds_until_the_time_given() {
-        let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
-        let mut next = move |below: u64| {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed % below
-        };
+        let mut random = crate::tests::xorshift(0x2545_f491_4f6c_dd1d);
+        let mut next = move |below: u64| random(below as usize) as u64;
         for (&hz, display_characters) in DOT_CLOCK_HZ.iter().zip([80, 100, 120, 1]) {
             let timing = CrtTiming {
                 dot_clock_hz: hz,

@@ -21,6 +21,17 @@ use crate::{ModeX, Page, BYTES_PER_LINE, PAGE_BYTES, SCREEN_HEIGHT, SCREEN_WIDTH
 pub(crate) const WIDTH: usize = SCREEN_WIDTH as usize;
 pub(crate) const HEIGHT: usize = SCREEN_HEIGHT as usize;
 
+/// A xorshift generator from `state`: numbers below the bound asked for,
+/// the same every run.
+pub(crate) fn xorshift(mut state: u64) -> impl FnMut(usize) -> usize {
+    move |below| {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 16) as usize % below
+    }
+}
+
 /// A powered-on software VGA, boxed: it is too big to move around freely.
 pub(crate) fn power_on() -> Box<SoftVga> {
     Box::new(SoftVga::new())

@@ -280,11 +280,8 @@ fn input_status_1_is_the_beams_at_every_read_across_timing_changes() {
     let mut soft = power_on();
     crate::ModeX::new(&mut *soft).set_mode();
     let misc = soft.read_port8(Port::MISC_OUTPUT_READ);
-    let mut seed: u32 = 0x9e37_79b9;
+    let mut random = super::xorshift(0x9e37_79b9);
     for read in 0..200_000u32 {
-        seed ^= seed << 13;
-        seed ^= seed >> 17;
-        seed ^= seed << 5;
         if read % 5_000 == 0 {
             // Between the 25 and 28 MHz clocks: the beam jumps.
             let clock = ((read / 5_000) % 2) as u8;
@@ -294,7 +291,7 @@ fn input_status_1_is_the_beams_at_every_read_across_timing_changes() {
                     | clock << crate::regs::misc::CLOCK_SELECT_SHIFT,
             );
         }
-        soft.advance_ns(u64::from(seed % 4) * u64::from(seed >> 20));
+        soft.advance_ns((random(4) * random(4_096)) as u64);
         let bits = soft.read_port8(Port::INPUT_STATUS_1);
         let beam = soft.timing().status_at(soft.now_ns());
         assert_eq!(bits, beam, "read {read} at {} ns", soft.now_ns());
