@@ -14,7 +14,10 @@
 //!   and the same lit, L), inspector on and off: the page paused, each frame
 //!   run by the hook's `stepFrames(1)`, which does what a frame on
 //!   `requestAnimationFrame` does (the module's frame, the picture and panels
-//!   rendered, the canvases painted), timed with `performance.now()`;
+//!   rendered, the canvases painted), timed with `performance.now()`; and
+//!   the crowd with the inspector on once more in a browser that compiles
+//!   the module ahead with V8's optimising compiler ([`COMPILED_AHEAD`]),
+//!   so that no background compile competes with the frames;
 //! - the page's weight: the bytes the browser fetched to show it (the
 //!   navigation's and every resource's body, the book included) and the
 //!   files the build wrote.
@@ -40,8 +43,19 @@ const COLD_LOADS: usize = 7;
 /// machine does not fall on one case alone.
 const FRAMES: usize = 400;
 const ROUNDS: usize = 3;
-/// Enough for V8 to have tiered the module up to its optimising compiler.
+/// Untimed frames first: V8 compiles the module with its baseline compiler
+/// and, meanwhile, the functions that turn out hot with its optimising one,
+/// in the background; not always finished after these (docs/performance.md,
+/// "What the slowest frames were").
 const WARM_UP: usize = 300;
+/// The flags of the browser for the case "compiled ahead": V8 compiles the
+/// module with its optimising compiler (TurboFan) before it runs, rather
+/// than with its baseline compiler (Liftoff) and then, in the background,
+/// each function that turns out hot. On a 2-core machine those background
+/// compiles take the core the page's frames run on for milliseconds at a
+/// time (docs/performance.md, "What the slowest frames were"); this case
+/// times the page's own work without them.
+const COMPILED_AHEAD: &str = "--js-flags=--no-liftoff";
 /// How long the page may take to draw its first frame.
 const READY_TIMEOUT: Duration = Duration::from_secs(120);
 const MIB: f64 = 1024.0 * 1024.0;
@@ -74,6 +88,16 @@ const READY_TRAP: &str = "(() => {
         },
     });
 })()";
+
+/// One case of the frame costs: the scene's lighting, the inspector, the
+/// browser it runs in, and its frames' costs so far.
+struct Case<'browser> {
+    name: &'static str,
+    lit: bool,
+    inspector: bool,
+    browser: &'browser Browser,
+    costs: Vec<f64>,
+}
 
 /// One cold load: milliseconds from navigation start to the first frame,
 /// and to the load event's start.
@@ -330,21 +354,41 @@ fn main() {
     let after_load: Vec<f64> = loads.iter().map(|l| l.0 - l.1).collect();
 
     // Frame costs in the crowd: each case in a fresh tab, so that each
-    // times the same frames of the same scene.
-    let mut cases: Vec<(&str, Vec<f64>)> = [
-        "crowd, inspector on",
-        "crowd, inspector off",
-        "crowd lit, inspector on",
-        "crowd lit, inspector off",
-    ]
-    .map(|name| (name, Vec::new()))
-    .to_vec();
+    // times the same frames of the same scene. The last case runs in a
+    // browser that compiles the module with V8's optimising compiler
+    // before it runs, so that no background compile competes with its
+    // frames (see COMPILED_AHEAD).
+    let ahead = Browser::start_with(browser::Options {
+        extra_args: vec![COMPILED_AHEAD.into()],
+        ..browser::Options::default()
+    })
+    .expect("Chromium starts");
+    let case = |name, lit, inspector, browser| Case {
+        name,
+        lit,
+        inspector,
+        browser,
+        costs: Vec::new(),
+    };
+    let mut cases = [
+        case("crowd, inspector on", false, true, &browser),
+        case("crowd, inspector off", false, false, &browser),
+        case("crowd lit, inspector on", true, true, &browser),
+        case("crowd lit, inspector off", true, false, &browser),
+        case("crowd, inspector on, compiled ahead", false, true, &ahead),
+    ];
     let mut weight = Vec::new();
     let count = cases.len();
     // One round is enough to profile.
     let rounds = if profiling { 1 } else { ROUNDS };
     for case in (0..rounds).flat_map(|_| 0..count) {
-        let (lit, inspector) = (case >= 2, case % 2 == 0);
+        let Case {
+            name,
+            lit,
+            inspector,
+            browser,
+            ..
+        } = cases[case];
         let page = browser
             .open(&format!("{url}?paused=1"))
             .expect("the page loads");
@@ -368,10 +412,10 @@ fn main() {
         let shown = page.evaluate("modexPage.inspectorRgba() !== null").unwrap();
         assert_eq!(shown, Value::Bool(inspector), "the inspector is as set");
         if profiling {
-            profile_frames(&page, cases[case].0);
+            profile_frames(&page, name);
             continue;
         }
-        cases[case].1.extend(frame_costs(&page));
+        cases[case].costs.extend(frame_costs(&page));
     }
     if profiling {
         return;
@@ -390,7 +434,7 @@ fn main() {
         percentile(&after_load, 0.5),
         max(&after_load)
     );
-    for (name, costs) in &cases {
+    for Case { name, costs, .. } in &cases {
         println!(
             "| frame cost, {name} ({} frames) | {:.2} ms | {:.2} ms | {:.2} ms |",
             costs.len(),
@@ -422,7 +466,7 @@ fn main() {
     );
     let summary: Vec<String> = cases
         .iter()
-        .map(|(name, costs)| {
+        .map(|Case { name, costs, .. }| {
             let key = name.replace(", ", "_").replace(' ', "_");
             format!(
                 "{key}_median_ms={:.2} {key}_p99_ms={:.2}",
