@@ -427,6 +427,9 @@ fn find_line_writes<S: WriteSink>(
     // 79 (a run across address 64 is two runs), so that finding a run is
     // a few 64-bit steps, not 128-bit ones.
     let (mut runs, mut half_base, mut high_half) = (marked as u64, 0, (marked >> 64) as u64);
+    // The half being searched, whole: a four lies in one half (64 is a
+    // multiple of four), so its marks are four bits of it.
+    let mut half = runs;
     // The first four not yet searched: two runs can share a four, and a
     // fill from a shared four can reach into the next run's.
     let mut next = 0;
@@ -438,7 +441,7 @@ fn find_line_writes<S: WriteSink>(
             if high_half == 0 {
                 break;
             }
-            (runs, half_base, high_half) = (high_half, 64, 0);
+            (runs, half, half_base, high_half) = (high_half, high_half, 64, 0);
         }
         // The lowest run of marks: adding its lowest bit carries through it
         // and stops on the bit past it (or, for a run to bit 63, carries
@@ -459,7 +462,7 @@ fn find_line_writes<S: WriteSink>(
                 after_fill = 0xF;
                 continue;
             }
-            let marks = (marked >> (4 * four)) as usize & after_fill;
+            let marks = (half >> (4 * four - half_base)) as usize & after_fill;
             after_fill = 0xF;
             // Four bits an address: its pixels (planes) that change.
             let mut changed = changed & ALL_PLANES_OF[marks];
@@ -517,12 +520,11 @@ fn find_line_writes<S: WriteSink>(
 /// Which of the sixteen pixels of the four addresses `4 * four` to
 /// `4 * four + 3` differ between the lines: bit 4j + p for address
 /// `4 * four + j`, plane p (one 16-byte compare where the target has one).
-fn differing_pixels(old: &[u8], new: &[u8], four: usize) -> u32 {
-    let pixels = 16 * four..16 * four + 16;
-    let (Some(old), Some(new)) = (old.get(pixels.clone()), new.get(pixels)) else {
-        return 0;
-    };
-    let (Ok(old), Ok(new)) = (<&[u8; 16]>::try_from(old), <&[u8; 16]>::try_from(new)) else {
+fn differing_pixels(old: &Line, new: &Line, four: usize) -> u32 {
+    let (Some(old), Some(new)) = (
+        old.as_chunks::<16>().0.get(four),
+        new.as_chunks::<16>().0.get(four),
+    ) else {
         return 0;
     };
     let differ: [bool; 16] = core::array::from_fn(|i| old[i] != new[i]);
