@@ -9,6 +9,7 @@ use crate::light::{newell_normal, outward_normal};
 use crate::math::{Point, Vec3};
 use crate::project::project_to_screen;
 use crate::xform::Xform;
+use core::sync::atomic::{AtomicU64, Ordering};
 
 /// Most vertices a model may have: an object keeps its projected vertices in
 /// fixed-size arrays, as there is no heap.
@@ -98,6 +99,11 @@ impl core::ops::AddAssign for FaceCounts {
     }
 }
 
+/// How many projections of any object there have been: each takes the next
+/// number, so a number names one set of projected vertices (see
+/// [`Object::projection`]). Zero, so that it starts in `.bss`.
+static PROJECTIONS_SO_FAR: AtomicU64 = AtomicU64::new(0);
+
 /// A model placed in the world.
 #[derive(Clone, Debug)]
 pub struct Object {
@@ -108,6 +114,9 @@ pub struct Object {
     /// Every vertex lies beyond `NEAREST_DRAWN_Z`.
     in_front: bool,
     recalc: bool,
+    /// The number of the projection `view` and `screen` come from (0
+    /// before the first).
+    projection: u64,
     #[cfg(any(test, feature = "test-support"))]
     projections: u64,
 }
@@ -153,6 +162,7 @@ impl Object {
             screen: [Point::new(0, 0); MAX_VERTICES],
             in_front: false,
             recalc: true,
+            projection: 0,
             #[cfg(any(test, feature = "test-support"))]
             projections: 0,
         }
@@ -212,10 +222,22 @@ impl Object {
             .iter()
             .all(|view| view.z <= NEAREST_DRAWN_Z);
         self.recalc = false;
+        self.projection = PROJECTIONS_SO_FAR.fetch_add(1, Ordering::Relaxed) + 1;
         #[cfg(any(test, feature = "test-support"))]
         {
             self.projections += 1;
         }
+    }
+
+    /// The number of the projection the object's vertices come from,
+    /// projecting them first if it moved. No two projections, of this
+    /// object or any other, share a number in a run of the program (a clone
+    /// shares its original's until either moves), so the same number means
+    /// the same model, view and screen vertices: the same faces, which a
+    /// face list can keep rather than find again (`demo::faces`).
+    pub fn projection(&mut self) -> u64 {
+        self.recalculate_if_moved();
+        self.projection
     }
 
     /// The screen position of each vertex (view space is world space here).
@@ -320,6 +342,25 @@ mod tests {
         assert_eq!(card.projections(), 1, "projection waits for the next frame");
         drawn_colours(&mut card);
         assert_eq!(card.projections(), 2);
+    }
+
+    #[test]
+    fn a_projection_number_names_one_set_of_vertices() {
+        let mut card = Object::new(&CARD, Xform::translation(0.0, 0.0, -50.0));
+        let mut other = card.clone();
+        let first = card.projection();
+        assert_ne!(first, 0);
+        assert_eq!(card.projection(), first, "unmoved, the same vertices");
+        drawn_colours(&mut card);
+        assert_eq!(card.projection(), first);
+        // Another object's projection, even of the same model in the same
+        // place, has a number of its own.
+        assert_ne!(other.projection(), first);
+        card.object_to_world_mut().translate(1.0, 0.0, 0.0);
+        let moved = card.projection();
+        assert_ne!(moved, first, "moved, new vertices");
+        card.set_model(&CARD);
+        assert_ne!(card.projection(), moved, "a new model, new vertices");
     }
 
     #[test]

@@ -229,7 +229,7 @@ mod tests {
         let mut list = Box::new(FaceList::new());
         list.begin_frame(false);
         for (object, &(_, _, _, convex)) in placed.iter_mut().zip(objects) {
-            list.push_object(object, convex, |visible| visible.face.colour);
+            list.push_object(object, convex, 0, |visible| visible.face.colour);
         }
         let order: [usize; 4] = core::array::from_fn(|index| index);
         list.set_far_to_near(&order[..objects.len()]);

@@ -84,25 +84,33 @@ pub struct ObjectFaces {
     /// Convex, so that its faces that survive backface removal never
     /// overlap one another.
     pub convex: bool,
+    /// Its faces drawn and culled.
+    counts: FaceCounts,
+    /// What its faces were found from: the object's projection number
+    /// ([`Object::projection`]) and the colouring's.
+    found_from: (u64, u64),
 }
 
 impl ObjectFaces {
     /// An unused place: all zero, so that a list in a static starts in
-    /// `.bss` rather than in the kernel file (`tests/size.rs`).
+    /// `.bss` rather than in the kernel file (`tests/size.rs`). No object
+    /// was found from projection 0.
     const EMPTY: ObjectFaces = ObjectFaces {
         first_face: 0,
         end_face: 0,
         bounds: None,
         convex: false,
+        counts: FaceCounts {
+            drawn: 0,
+            culled: 0,
+        },
+        found_from: (0, 0),
     };
 }
 
-/// Room for one frame's faces: up to `OBJECTS` objects with `FACES` faces
-/// between them. The scene fills it ([`FaceList::begin_frame`], then
-/// [`FaceList::push_object`] per object, then [`FaceList::set_far_to_near`]);
-/// the depth policy reads it through [`FaceList::faces`].
+/// One frame's part of a [`FaceList`].
 #[derive(Clone, Debug)]
-pub struct FaceList<const OBJECTS: usize, const FACES: usize> {
+struct FrameFaces<const OBJECTS: usize, const FACES: usize> {
     objects: [ObjectFaces; OBJECTS],
     object_count: usize,
     faces: [ScreenFace; FACES],
@@ -110,6 +118,65 @@ pub struct FaceList<const OBJECTS: usize, const FACES: usize> {
     far_to_near: [usize; OBJECTS],
     counts: FaceCounts,
     small_solids: bool,
+}
+
+impl<const OBJECTS: usize, const FACES: usize> FrameFaces<OBJECTS, FACES> {
+    const EMPTY: Self = FrameFaces {
+        objects: [ObjectFaces::EMPTY; OBJECTS],
+        object_count: 0,
+        faces: [ScreenFace::EMPTY; FACES],
+        face_count: 0,
+        far_to_near: [0; OBJECTS],
+        counts: FaceCounts {
+            drawn: 0,
+            culled: 0,
+        },
+        small_solids: false,
+    };
+
+    /// Adds `faces` to the object being pushed. Panics if the list has no
+    /// room left.
+    fn add_faces(&mut self, faces: &[ScreenFace]) {
+        let room = self.face_count..self.face_count + faces.len();
+        let Some(room) = self.faces.get_mut(room) else {
+            panic!("the face list holds at most {FACES} faces");
+        };
+        room.copy_from_slice(faces);
+        self.face_count += faces.len();
+    }
+
+    /// Ends the object whose faces were added from `first_face` on. Panics
+    /// if the list has no room for another object.
+    fn end_object(&mut self, first_face: usize, object: ObjectFaces) {
+        let Some(slot) = self.objects.get_mut(self.object_count) else {
+            panic!("the face list holds at most {OBJECTS} objects");
+        };
+        *slot = ObjectFaces {
+            first_face,
+            end_face: self.face_count,
+            ..object
+        };
+        self.object_count += 1;
+        self.counts += object.counts;
+    }
+}
+
+/// Room for one frame's faces: up to `OBJECTS` objects with `FACES` faces
+/// between them. The scene fills it ([`FaceList::begin_frame`], then
+/// [`FaceList::push_object`] per object, then [`FaceList::set_far_to_near`]);
+/// the depth policy reads it through [`FaceList::faces`].
+///
+/// It keeps the last frame's faces beside the frame's, so that an object
+/// that has not moved since (its [`Object::projection`] the same) and is
+/// coloured the same way gets last frame's faces copied rather than culled,
+/// coloured and given depth planes again. Half the crowd waits its turn to
+/// move each frame.
+#[derive(Clone, Debug)]
+pub struct FaceList<const OBJECTS: usize, const FACES: usize> {
+    /// This frame's and the last frame's, in turn.
+    frames: [FrameFaces<OBJECTS, FACES>; 2],
+    /// Which of `frames` is this frame's.
+    current: usize,
 }
 
 impl<const OBJECTS: usize, const FACES: usize> Default for FaceList<OBJECTS, FACES> {
@@ -123,32 +190,31 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
     /// renderer's images.
     pub const fn new() -> Self {
         FaceList {
-            objects: [ObjectFaces::EMPTY; OBJECTS],
-            object_count: 0,
-            faces: [ScreenFace::EMPTY; FACES],
-            face_count: 0,
-            far_to_near: [0; OBJECTS],
-            counts: FaceCounts {
-                drawn: 0,
-                culled: 0,
-            },
-            small_solids: false,
+            frames: [FrameFaces::EMPTY; 2],
+            current: 0,
         }
     }
 
-    /// Empties the list for a new frame. `small_solids`: some objects are so
+    /// Empties the list for a new frame, keeping the last one's faces. `small_solids`: some objects are so
     /// small on the screen that rounding their corners to pixels can fold a
     /// face over its neighbour (see [`Faces::small_solids`]).
     pub fn begin_frame(&mut self, small_solids: bool) {
-        self.object_count = 0;
-        self.face_count = 0;
-        self.counts = FaceCounts::default();
-        self.small_solids = small_solids;
+        self.current = 1 - self.current;
+        let frame = &mut self.frames[self.current];
+        frame.object_count = 0;
+        frame.face_count = 0;
+        frame.counts = FaceCounts::default();
+        frame.small_solids = small_solids;
     }
 
     /// Adds `object` (projected first if it moved) with its screen
     /// rectangle and each face that survives backface removal, in model
     /// order, coloured by `colour`; counts the faces drawn and culled.
+    /// `colouring` names the way `colour` colours: the caller gives another
+    /// number whenever what the colours depend on, beyond the face and
+    /// where it is, changes. An object pushed in the same place in the
+    /// order last frame, unmoved and coloured the same way, gets last
+    /// frame's faces.
     ///
     /// Panics if the list has no room left: its owner sizes it for the most
     /// objects and faces it shows, so that would be a mistake in that sizing.
@@ -156,56 +222,71 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
         &mut self,
         object: &mut Object,
         convex: bool,
+        colouring: u64,
         colour: impl Fn(&VisibleFace) -> u8,
     ) {
-        assert!(
-            self.object_count < OBJECTS,
-            "the face list holds at most {OBJECTS} objects"
-        );
-        let bounds = ScreenBox::around(object.screen_vertices());
-        let first_face = self.face_count;
-        let (faces, face_count) = (&mut self.faces, &mut self.face_count);
-        self.counts += object.each_visible_face(|visible| {
-            assert!(
-                *face_count < FACES,
-                "the face list holds at most {FACES} faces"
-            );
-            faces[*face_count] = ScreenFace::new(visible, colour(visible));
-            *face_count += 1;
-        });
-        self.objects[self.object_count] = ObjectFaces {
-            first_face,
-            end_face: self.face_count,
-            bounds,
-            convex,
+        let found_from = (object.projection(), colouring);
+        let [even, odd] = &mut self.frames;
+        let (frame, last) = match self.current {
+            0 => (even, &*odd),
+            _ => (odd, &*even),
         };
-        self.object_count += 1;
+        let first_face = frame.face_count;
+        let slot = frame.object_count;
+        let kept = last
+            .objects
+            .get(slot)
+            .filter(|kept| slot < last.object_count && kept.found_from == found_from)
+            .filter(|kept| kept.convex == convex)
+            .and_then(|kept| Some((*kept, last.faces.get(kept.first_face..kept.end_face)?)));
+        let object = match kept {
+            Some((kept, faces)) => {
+                frame.add_faces(faces);
+                kept
+            }
+            None => {
+                let bounds = ScreenBox::around(object.screen_vertices());
+                let counts = object.each_visible_face(|visible| {
+                    frame.add_faces(&[ScreenFace::new(visible, colour(visible))])
+                });
+                ObjectFaces {
+                    bounds,
+                    convex,
+                    counts,
+                    found_from,
+                    ..ObjectFaces::EMPTY
+                }
+            }
+        };
+        frame.end_object(first_face, object);
     }
 
     /// The order the objects pushed this frame are painted in without the
     /// depth test, farthest first: indices in the order they were pushed.
     /// Panics unless `order` names each of them once.
     pub fn set_far_to_near(&mut self, order: &[usize]) {
-        assert_eq!(order.len(), self.object_count, "an order for every object");
+        let frame = &mut self.frames[self.current];
+        assert_eq!(order.len(), frame.object_count, "an order for every object");
         let mut named = [false; OBJECTS];
         for &index in order {
             assert!(
-                index < self.object_count && !named[index],
+                index < frame.object_count && !named[index],
                 "object {index} named twice or missing"
             );
             named[index] = true;
         }
-        self.far_to_near[..order.len()].copy_from_slice(order);
+        frame.far_to_near[..order.len()].copy_from_slice(order);
     }
 
     /// The frame's faces, to draw.
     pub fn faces(&self) -> Faces<'_> {
+        let frame = &self.frames[self.current];
         Faces {
-            objects: &self.objects[..self.object_count],
-            faces: &self.faces[..self.face_count],
-            far_to_near: &self.far_to_near[..self.object_count],
-            counts: self.counts,
-            small_solids: self.small_solids,
+            objects: &frame.objects[..frame.object_count],
+            faces: &frame.faces[..frame.face_count],
+            far_to_near: &frame.far_to_near[..frame.object_count],
+            counts: frame.counts,
+            small_solids: frame.small_solids,
         }
     }
 }
@@ -278,9 +359,9 @@ mod tests {
         let mut turned = Object::new(&TETRAHEDRON, Xform::translation(0.0, 0.0, -200.0));
         turned.object_to_world_mut().append_rotation_y(0.5);
         list.begin_frame(true);
-        list.push_object(&mut near, true, |_| 7);
-        list.push_object(&mut far, false, |visible| visible.face.colour);
-        list.push_object(&mut turned, true, |_| 9);
+        list.push_object(&mut near, true, 7, |_| 7);
+        list.push_object(&mut far, false, 0, |visible| visible.face.colour);
+        list.push_object(&mut turned, true, 9, |_| 9);
         list.set_far_to_near(&[1, 2, 0]);
         let faces = list.faces();
         assert!(faces.small_solids());
@@ -328,6 +409,53 @@ mod tests {
         assert!(!faces.small_solids());
     }
 
+    /// Frame by frame, the list hands out what a fresh one does, while it
+    /// colours an object's faces again only when the object moved, the
+    /// colouring changed, or another object took its place in the order.
+    #[test]
+    fn only_an_unmoved_object_coloured_the_same_keeps_last_frames_faces() {
+        let mut list: FaceList<3, 20> = FaceList::new();
+        let mut objects = [cube_at(-40.0, -100.0), cube_at(40.0, -300.0)];
+        objects[1].object_to_world_mut().append_rotation_y(0.5);
+        // The frames in which each object's faces were coloured.
+        let coloured = core::cell::RefCell::new([Vec::new(), Vec::new()]);
+        for frame in 0..12 {
+            if frame % 3 == 1 {
+                objects[0].object_to_world_mut().append_rotation_x(0.3);
+            }
+            // A new way of colouring every four frames; the order reversed
+            // from frame 9.
+            let colouring = frame / 4;
+            let order: [usize; 2] = if frame < 9 { [0, 1] } else { [1, 0] };
+            let mut fresh: FaceList<3, 20> = FaceList::new();
+            list.begin_frame(false);
+            fresh.begin_frame(false);
+            for index in order {
+                let object = &mut objects[index];
+                let colour = |_: &VisibleFace| {
+                    let frames = &mut coloured.borrow_mut()[index];
+                    if frames.last() != Some(&frame) {
+                        frames.push(frame);
+                    }
+                    5 + colouring as u8
+                };
+                list.push_object(object, true, colouring, colour);
+                fresh.push_object(object, true, colouring, |_| 5 + colouring as u8);
+            }
+            list.set_far_to_near(&[1, 0]);
+            fresh.set_far_to_near(&[1, 0]);
+            let (kept, fresh) = (list.faces(), fresh.faces());
+            assert_eq!(kept.objects(), fresh.objects(), "frame {frame}");
+            assert_eq!(kept.all(), fresh.all(), "frame {frame}");
+            assert_eq!(kept.counts(), fresh.counts(), "frame {frame}");
+        }
+        let [moved, unmoved] = coloured.into_inner();
+        // New colourings at 0, 4 and 8, the order changed at 9, and moves
+        // at 1, 4, 7 and 10.
+        assert_eq!(unmoved, [0, 4, 8, 9]);
+        assert_eq!(moved, [0, 1, 4, 7, 8, 9, 10]);
+    }
+
     #[test]
     fn a_face_meets_the_rows_its_fill_can_reach() {
         let mut object = cube_at(0.0, -100.0);
@@ -353,7 +481,7 @@ mod tests {
             let mut cube = cube_at(30.0, -100.0);
             cube.object_to_world_mut().append_rotation_y(0.6);
             cube.object_to_world_mut().append_rotation_x(0.6);
-            list.push_object(&mut cube, true, |_| 1);
+            list.push_object(&mut cube, true, 0, |_| 1);
         }
     }
 
@@ -362,8 +490,8 @@ mod tests {
     fn an_order_must_name_each_object_once() {
         let mut list: FaceList<2, 12> = FaceList::new();
         list.begin_frame(false);
-        list.push_object(&mut cube_at(0.0, -100.0), true, |_| 1);
-        list.push_object(&mut cube_at(0.0, -200.0), true, |_| 1);
+        list.push_object(&mut cube_at(0.0, -100.0), true, 0, |_| 1);
+        list.push_object(&mut cube_at(0.0, -200.0), true, 0, |_| 1);
         list.set_far_to_near(&[1, 1]);
     }
 }

@@ -103,6 +103,10 @@ pub struct Scene {
     solid: usize,
     lighting: bool,
     light: Light,
+    /// Another number each time `lighting` or `light` changes: the face
+    /// list keeps an unmoved object's faces, colours and all, only while
+    /// it stays the same.
+    colouring: u64,
     spinning: bool,
     rotations: u32,
     /// The last drawing order and how many objects it held: the next
@@ -153,6 +157,7 @@ impl Scene {
             solid: 0,
             lighting: false,
             light: default_light(),
+            colouring: 0,
             spinning: false,
             rotations: 0,
             last_order: ([0; MAX_OBJECTS], 0),
@@ -237,7 +242,10 @@ impl Scene {
             }
             SceneCommand::Rotate(axis, sense) => self.rotate(axis, sense.signed(ROTATION_STEP)),
             SceneCommand::ToggleSpin => self.spinning = !self.spinning,
-            SceneCommand::ToggleLighting => self.lighting = !self.lighting,
+            SceneCommand::ToggleLighting => {
+                self.lighting = !self.lighting;
+                self.colouring += 1;
+            }
             SceneCommand::TurnLight(turn) => {
                 let (yaw, pitch) = match turn {
                     LightTurn::Left => (-LIGHT_STEP, 0.0),
@@ -246,6 +254,7 @@ impl Scene {
                     LightTurn::Down => (0.0, -LIGHT_STEP),
                 };
                 self.light.turn(yaw, pitch);
+                self.colouring += 1;
             }
             SceneCommand::NextSolid => {
                 self.solid = (self.solid + 1) % SHAPES.len();
@@ -375,10 +384,10 @@ impl Scene {
     /// they will be drawn.
     pub fn faces<'list>(&mut self, list: &'list mut SceneFaces) -> Faces<'list> {
         list.begin_frame(self.crowd);
-        let (lighting, light) = (self.lighting, self.light);
+        let (lighting, light, colouring) = (self.lighting, self.light, self.colouring);
         for object in self.objects_mut() {
             let convex = convex(object.model());
-            list.push_object(object, convex, |visible| {
+            list.push_object(object, convex, colouring, |visible| {
                 face_colour(visible, lighting, &light)
             });
         }

@@ -429,6 +429,9 @@ fn members_of_the_crowd_pass_through_each_other() {
 /// The faces handed out are the faces `each_visible_face` walks, in its
 /// order and colours, grouped by object; the painter's order is
 /// `drawing_order`'s; the counts and the small-solids flag are the scene's.
+/// One list serves every frame of every scene, with the lighting, the light
+/// and the solid changed on the way, so faces it keeps from the last frame
+/// must be the ones found afresh.
 #[test]
 fn the_faces_handed_out_are_the_faces_the_scene_walks() {
     let mut list = std::boxed::Box::new(SceneFaces::new());
@@ -444,6 +447,12 @@ fn the_faces_handed_out_are_the_faces_the_scene_walks() {
             scene.apply(command);
         }
         for frame in 0..40 {
+            match frame {
+                10 | 25 => scene.apply(SceneCommand::ToggleLighting),
+                15 | 30 => scene.apply(SceneCommand::TurnLight(LightTurn::Left)),
+                20 => scene.apply(SceneCommand::NextSolid),
+                _ => {}
+            }
             scene.tick();
             let mut walked = std::vec::Vec::new();
             let counts = scene.each_visible_face(|visible, colour| {
