@@ -9,8 +9,10 @@
 //! then the other. Neither calls back into the other, and this module
 //! depends on neither (only on `engine`), so neither depends on the other.
 //!
-//! A face is culled, coloured and given its depth plane once a frame, here,
-//! and the depth policy draws it once. The list is fixed-size, as there is no heap: its owner sizes it
+//! A face is culled, coloured and given its depth plane here, once a frame,
+//! or once for as long as its object stays put (the list keeps the last
+//! frame's faces, see [`FaceList`]), and the depth policy draws it once a
+//! frame. The list is fixed-size, as there is no heap: its owner sizes it
 //! for the most objects and faces it can show.
 
 pub mod bounds;
