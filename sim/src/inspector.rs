@@ -586,29 +586,13 @@ fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) 
             }
         }
     }
-    let mut digits = [0; 20];
+    let mut digits = itoa::Buffer::new();
     panel.text(
-        decimal(largest, &mut digits),
+        digits.format(largest),
         MARGIN + PLOT_FRAMES as i32 - 6 * 8,
         top,
         TEXT,
     );
-}
-
-/// `value` in decimal, written into `digits` (a `u64` has at most 20): the
-/// plots' scale every frame without a `String` made for it.
-fn decimal(mut value: u64, digits: &mut [u8; 20]) -> &str {
-    let mut first = digits.len();
-    loop {
-        first -= 1;
-        digits[first] = b'0' + (value % 10) as u8;
-        value /= 10;
-        if value == 0 {
-            break;
-        }
-    }
-    // Only ASCII digits were written.
-    core::str::from_utf8(&digits[first..]).unwrap_or_default()
 }
 
 #[cfg(test)]

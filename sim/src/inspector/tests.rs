@@ -248,14 +248,6 @@ fn a_redraw_changes_only_the_rows_whose_content_changed() {
 }
 
 #[test]
-fn the_plots_scale_is_written_in_decimal() {
-    let mut digits = [0; 20];
-    for value in [0, 7, 10, 9_876_543, u64::MAX] {
-        assert_eq!(decimal(value, &mut digits), value.to_string());
-    }
-}
-
-#[test]
 fn a_start_address_near_the_planes_end_wraps_to_their_start() {
     use modex::regs::{Crtc, Port};
     use modex::VgaBus;
