@@ -197,9 +197,10 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
         }
     }
 
-    /// Empties the list for a new frame, keeping the last one's faces. `small_solids`: some objects are so
-    /// small on the screen that rounding their corners to pixels can fold a
-    /// face over its neighbour (see [`Faces::small_solids`]).
+    /// Empties the list for a new frame, keeping the last one's faces.
+    /// `small_solids`: some objects are so small on the screen that rounding
+    /// their corners to pixels can fold a face over its neighbour (see
+    /// [`Faces::small_solids`]).
     pub fn begin_frame(&mut self, small_solids: bool) {
         self.current = 1 - self.current;
         let frame = &mut self.frames[self.current];
