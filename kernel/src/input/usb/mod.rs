@@ -448,6 +448,7 @@ fn memory_window(
 /// Resets and starts a controller taken from the firmware, and puts the
 /// device layer over it; `Absent` (logged, and halted again) if it would
 /// not start.
+#[optimize(size)] // run once at start-up: small beats fast
 fn start(mut host: Host) -> Controller {
     host::route_ports_to_xhci(&mut host);
     match host.reset_and_start() {
