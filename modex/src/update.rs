@@ -1128,4 +1128,19 @@ mod tests {
         assert_eq!(whole_line.next(), Some(0..80));
         assert_eq!(whole_line.next(), None);
     }
+
+    #[test]
+    fn a_span_marks_exactly_the_addresses_its_pixels_lie_in() {
+        // Spans of one pixel or more: the renderer marks no empty ones.
+        for start in 0..320 {
+            for end in start + 1..=330 {
+                let mut spans = PageSpans::none();
+                spans.mark(7, start..end);
+                let addresses =
+                    (0..80).filter(|address| (start..end.min(320)).any(|x| x / 4 == *address));
+                let expected = addresses.fold(0u128, |bits, address| bits | 1 << address);
+                assert_eq!(spans.marked(7), expected, "pixels {start}..{end}");
+            }
+        }
+    }
 }
