@@ -28,7 +28,7 @@ pub use crate::screen::{BACKGROUND, SCREEN_CLIP};
 /// The scene as colour indices in RAM, background first, each pixel showing
 /// the nearest face there: the frame `Renderer` draws (see
 /// [`depth::render_with_depth`]). Returns the faces drawn and culled. For
-/// tests and host tools: the face list and the depth buffer, 459 KiB
+/// tests and host tools: the face list and the depth buffer, 567 KiB
 /// between them, are on the stack.
 pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
     let mut list = SceneFaces::new();
@@ -42,14 +42,14 @@ pub fn render_to_image(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
 
 /// The scene painted by the painter's algorithm, kept for comparison (see
 /// [`depth::render_painter`]): whole objects far to near, no depth test.
-/// The face list, 159 KiB, is on the stack.
+/// The face list, 267 KiB, is on the stack.
 pub fn render_painter(scene: &mut Scene, image: &mut PageImage) -> FaceCounts {
     let mut list = SceneFaces::new();
     depth::render_painter(scene.faces(&mut list), image)
 }
 
 /// Whether the scene's frame needs the depth test anywhere (see
-/// [`depth::needs_depth_test`]). The face list, 159 KiB, is on the stack.
+/// [`depth::needs_depth_test`]). The face list, 267 KiB, is on the stack.
 pub fn needs_depth_test(scene: &mut Scene) -> bool {
     let mut list = SceneFaces::new();
     depth::needs_depth_test(scene.faces(&mut list))

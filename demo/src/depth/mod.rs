@@ -17,7 +17,7 @@
 //! benches) rather than a scene's face list.
 
 use crate::faces::bounds::{hull, overlap_rows};
-use crate::faces::Faces;
+use crate::faces::{Faces, ScreenFace};
 use crate::screen::{BACKGROUND, SCREEN_CLIP};
 use core::ops::Range;
 use engine::{
@@ -102,17 +102,12 @@ pub fn render_with_depth(
         ..SCREEN_CLIP
     };
     for face in faces.all() {
-        if let (true, Some(plane)) = (face.meets_rows(&rows), &face.depth_plane) {
-            fill_nearer(
-                image,
-                drawn,
-                depths,
-                clip,
-                face.polygon(),
-                plane,
-                face.colour,
-            );
-        }
+        let (true, Some(plane)) = (face.meets_rows(&rows), &face.depth_plane) else {
+            continue;
+        };
+        face_rows(faces, face, clip, |y, xs| {
+            draw_nearer(image, drawn, depths, plane, face.colour, y, xs);
+        });
     }
     depths.clear(drawn);
     faces.counts()
@@ -168,11 +163,26 @@ fn fill_nearer(
     colour: u8,
 ) {
     fill_convex_polygon(polygon, clip, |y, x_start, x_end| {
-        let row = (y * SCREEN_WIDTH) as usize;
-        drawn.mark(y as usize, x_start as usize..x_end as usize);
-        let pixels = &mut image[row + x_start as usize..row + x_end as usize];
-        depths.test_span(plane, y, x_start, pixels, colour);
+        draw_nearer(image, drawn, depths, plane, colour, y, x_start..x_end);
     });
+}
+
+/// Pixels `xs` of row `y` (within the screen), marked in `drawn`, set to
+/// `colour` where `plane` is nearer than anything drawn there yet.
+#[inline(always)]
+fn draw_nearer(
+    image: &mut PageImage,
+    drawn: &mut PageSpans,
+    depths: &mut DepthBuffer,
+    plane: &DepthPlane,
+    colour: u8,
+    y: i32,
+    xs: Range<i32>,
+) {
+    let row = (y * SCREEN_WIDTH) as usize;
+    drawn.mark(y as usize, xs.start as usize..xs.end as usize);
+    let pixels = &mut image[row + xs.start as usize..row + xs.end as usize];
+    depths.test_span(plane, y, xs.start, pixels, colour);
 }
 
 /// The painter's algorithm, kept for comparison: whole objects far to near
@@ -195,12 +205,37 @@ fn painter_rows(faces: Faces<'_>, image: &mut PageImage, drawn: &mut PageSpans, 
     };
     for object in faces.far_to_near() {
         for face in object {
-            fill_convex_polygon(face.polygon(), clip, |y, x_start, x_end| {
+            face_rows(faces, face, clip, |y, xs| {
                 let row = (y * SCREEN_WIDTH) as usize;
-                drawn.mark(y as usize, x_start as usize..x_end as usize);
-                image[row + x_start as usize..row + x_end as usize].fill(face.colour);
+                drawn.mark(y as usize, xs.start as usize..xs.end as usize);
+                image[row + xs.start as usize..row + xs.end as usize].fill(face.colour);
             });
         }
+    }
+}
+
+/// Each row of `face` (one of `faces`) within `clip`, whose columns must be
+/// the screen's, as `row(y, xs)` from the top: the rows the face list kept,
+/// or the face's polygon filled again where the list had no room for them.
+#[inline(always)]
+fn face_rows(
+    faces: Faces<'_>,
+    face: &ScreenFace,
+    clip: ClipRect,
+    mut row: impl FnMut(i32, Range<i32>),
+) {
+    match faces.spans_of(face) {
+        Some(spans) => {
+            for span in spans {
+                let y = i32::from(span.y);
+                if (clip.y0..clip.y1).contains(&y) {
+                    row(y, span.x_start.into()..span.x_end.into());
+                }
+            }
+        }
+        None => fill_convex_polygon(face.polygon(), clip, |y, x_start, x_end| {
+            row(y, x_start..x_end);
+        }),
     }
 }
 
@@ -258,6 +293,78 @@ mod tests {
             rows_needing_depth_test(small.faces()),
             Some(i32::MIN..i32::MAX)
         );
+    }
+
+    /// Faces drawn from the rows the face list kept, and faces past its
+    /// room for rows, filled from their polygons where they are drawn, make
+    /// the picture the polygons make, with the test and without it.
+    #[test]
+    fn faces_drawn_from_kept_rows_or_polygons_make_one_picture() {
+        let mut cubes: Vec<Object> = (0..24)
+            .map(|i| {
+                // Each a little nearer than the last, so that the last
+                // pushed, which find no room for their rows, show.
+                let (x, z) = (f64::from(i) * 0.2, -40.0 + f64::from(i) * 0.05);
+                let mut cube = Object::new(&CUBE, Xform::translation(x, 0.0, z));
+                let turn = cube.object_to_world_mut();
+                turn.append_rotation_y(0.6 + 0.01 * f64::from(i));
+                turn.append_rotation_x(0.4);
+                cube
+            })
+            .collect();
+        let mut list: Box<FaceList<24, 96>> = Box::default();
+        let (mut from_rows, mut from_polygons) =
+            (Box::new([0u8; PAGE_PIXELS]), Box::new([0u8; PAGE_PIXELS]));
+        let mut depths = Box::new(DepthBuffer::new());
+        for small_solids in [false, true] {
+            list.begin_frame(small_solids);
+            for cube in &mut cubes {
+                list.push_object(cube, true, 0, |visible| visible.face.colour);
+            }
+            let order: Vec<usize> = (0..cubes.len()).collect();
+            list.set_far_to_near(&order);
+            let faces = list.faces();
+            let without_rows = faces
+                .all()
+                .iter()
+                .filter(|face| faces.spans_of(face).is_none());
+            assert!(without_rows.count() > 0, "some faces past the rows kept");
+            render_with_depth(faces, &mut from_rows, &mut PageSpans::all(), &mut depths);
+            render_faces_with_depth(
+                &mut from_polygons,
+                &mut PageSpans::all(),
+                &mut depths,
+                |draw| {
+                    let mut counts = FaceCounts::default();
+                    for cube in &mut cubes {
+                        counts +=
+                            cube.each_visible_face(|visible| draw(visible, visible.face.colour));
+                    }
+                    counts
+                },
+            );
+            assert!(
+                from_rows
+                    .iter()
+                    .filter(|&&pixel| pixel != BACKGROUND)
+                    .count()
+                    > PAGE_PIXELS / 2
+            );
+            assert!(from_rows == from_polygons, "small solids: {small_solids}");
+            // And far to near, with no depth test.
+            render_painter(faces, &mut from_rows);
+            from_polygons.fill(BACKGROUND);
+            for face in faces.far_to_near().flatten() {
+                fill_convex_polygon(face.polygon(), SCREEN_CLIP, |y, x_start, x_end| {
+                    let row = (y * SCREEN_WIDTH) as usize;
+                    from_polygons[row + x_start as usize..row + x_end as usize].fill(face.colour);
+                });
+            }
+            assert!(
+                from_rows == from_polygons,
+                "painted, small solids: {small_solids}"
+            );
+        }
     }
 
     /// Drawn with the test only where it is needed, and far to near

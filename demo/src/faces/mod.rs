@@ -7,19 +7,50 @@
 //! and the objects' order far to near; [`crate::depth`] reads the list as
 //! [`Faces`] and draws it into the frame; [`crate::frame`] calls the one,
 //! then the other. Neither calls back into the other, and this module
-//! depends on neither (only on `engine`), so neither depends on the other.
+//! depends on neither (only on `engine` and the screen's rectangle), so
+//! neither depends on the other.
 //!
-//! A face is culled, coloured and given its depth plane here, once a frame,
-//! or once for as long as its object stays put (the list keeps the last
-//! frame's faces, see [`FaceList`]), and the depth policy draws it once a
-//! frame. The list is fixed-size, as there is no heap: its owner sizes it
-//! for the most objects and faces it can show.
+//! A face is culled, coloured, given its depth plane and scan-converted
+//! into its rows on the screen ([`Span`]) here, once a frame, or once for as
+//! long as its object stays put (the list keeps the last frame's faces, see
+//! [`FaceList`]), and the depth policy draws its rows once a frame. The list
+//! is fixed-size, as there is no heap: its owner sizes it for the most
+//! objects and faces it can show.
 
 pub mod bounds;
 
+use crate::screen::SCREEN_CLIP;
 use bounds::ScreenBox;
 use core::ops::Range;
-use engine::{DepthPlane, FaceCounts, Object, Point, VisibleFace, MAX_FACE_VERTICES};
+use engine::{
+    fill_convex_polygon, DepthPlane, FaceCounts, Object, Point, VisibleFace, MAX_FACE_VERTICES,
+};
+
+/// The rows a [`FaceList`] keeps for one frame's faces, 48 KiB: the crowd
+/// of 59 small solids fills about 3,300, a cube filling the screen at most
+/// 720.
+/// Faces past them keep none, and are scan-converted where they are drawn.
+pub const SPANS_PER_FRAME: usize = 8192;
+
+/// One row of a face on the screen: pixels `x_start..x_end` of row `y`,
+/// within the screen, as the polygon filler finds them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Span {
+    /// The row.
+    pub y: u16,
+    /// The first pixel drawn.
+    pub x_start: u16,
+    /// The pixel just right of the last one drawn.
+    pub x_end: u16,
+}
+
+impl Span {
+    const EMPTY: Span = Span {
+        y: 0,
+        x_start: 0,
+        x_end: 0,
+    };
+}
 
 /// One face to draw: it faces the viewer, its corners are on the screen,
 /// and its colour is decided.
@@ -34,6 +65,8 @@ pub struct ScreenFace {
     pub depth_plane: Option<DepthPlane>,
     top: i32,
     bottom: i32,
+    /// Where its rows are in the frame's spans, when the list had room.
+    spans: Option<(u32, u32)>,
 }
 
 impl ScreenFace {
@@ -44,6 +77,7 @@ impl ScreenFace {
         depth_plane: None,
         top: 0,
         bottom: 0,
+        spans: None,
     };
 
     /// The face `visible` (which survived backface removal) in `colour`.
@@ -59,6 +93,7 @@ impl ScreenFace {
             depth_plane: visible.depth_plane(),
             top: polygon.iter().map(|p| p.y).min().unwrap_or(0),
             bottom: polygon.iter().map(|p| p.y).max().unwrap_or(0),
+            spans: None,
         }
     }
 
@@ -80,6 +115,9 @@ impl ScreenFace {
 pub struct ObjectFaces {
     first_face: usize,
     end_face: usize,
+    /// Where its faces' rows are in the frame's spans.
+    first_span: usize,
+    end_span: usize,
     /// The rectangle around all its vertices on the screen (drawn or not):
     /// its drawing never leaves it. `None` for a model with no vertices.
     pub bounds: Option<ScreenBox>,
@@ -100,6 +138,8 @@ impl ObjectFaces {
     const EMPTY: ObjectFaces = ObjectFaces {
         first_face: 0,
         end_face: 0,
+        first_span: 0,
+        end_span: 0,
         bounds: None,
         convex: false,
         counts: FaceCounts {
@@ -117,6 +157,8 @@ struct FrameFaces<const OBJECTS: usize, const FACES: usize> {
     object_count: usize,
     faces: [ScreenFace; FACES],
     face_count: usize,
+    spans: [Span; SPANS_PER_FRAME],
+    span_count: usize,
     far_to_near: [usize; OBJECTS],
     counts: FaceCounts,
     small_solids: bool,
@@ -128,6 +170,8 @@ impl<const OBJECTS: usize, const FACES: usize> FrameFaces<OBJECTS, FACES> {
         object_count: 0,
         faces: [ScreenFace::EMPTY; FACES],
         face_count: 0,
+        spans: [Span::EMPTY; SPANS_PER_FRAME],
+        span_count: 0,
         far_to_near: [0; OBJECTS],
         counts: FaceCounts {
             drawn: 0,
@@ -147,15 +191,71 @@ impl<const OBJECTS: usize, const FACES: usize> FrameFaces<OBJECTS, FACES> {
         self.face_count += faces.len();
     }
 
-    /// Ends the object whose faces were added from `first_face` on. Panics
-    /// if the list has no room for another object.
-    fn end_object(&mut self, first_face: usize, object: ObjectFaces) {
+    /// Adds the face `visible` in `colour` to the object being pushed, with
+    /// its rows on the screen when they fit. Panics if the list has no room
+    /// for the face.
+    fn add_face(&mut self, visible: &VisibleFace, colour: u8) {
+        let mut face = ScreenFace::new(visible, colour);
+        let first = self.span_count;
+        let (spans, mut count) = (&mut self.spans, first);
+        let mut fits = true;
+        fill_convex_polygon(face.polygon(), SCREEN_CLIP, |y, x_start, x_end| {
+            // Within the screen, so each fits a u16.
+            let span = Span {
+                y: y as u16,
+                x_start: x_start as u16,
+                x_end: x_end as u16,
+            };
+            match spans.get_mut(count) {
+                Some(slot) => *slot = span,
+                None => fits = false,
+            }
+            count += 1;
+        });
+        if fits {
+            face.spans = Some((first as u32, count as u32));
+            self.span_count = count;
+        }
+        self.add_faces(&[face]);
+    }
+
+    /// Adds `faces`, one object's faces last frame, with their rows:
+    /// `spans`, that object's rows in last frame's spans from index
+    /// `first_span` on, copied where they fit (where they do not, the faces
+    /// keep no rows).
+    fn add_kept_faces(&mut self, faces: &[ScreenFace], spans: &[Span], first_span: usize) {
+        let first_face = self.face_count;
+        self.add_faces(faces);
+        let start = self.span_count;
+        let copied = match self.spans.get_mut(start..start + spans.len()) {
+            Some(room) => {
+                room.copy_from_slice(spans);
+                self.span_count += spans.len();
+                true
+            }
+            None => false,
+        };
+        let rebased = |index: u32| (index as usize - first_span + start) as u32;
+        for face in &mut self.faces[first_face..self.face_count] {
+            face.spans = face
+                .spans
+                .filter(|_| copied)
+                .map(|(first, end)| (rebased(first), rebased(end)));
+        }
+    }
+
+    /// Ends the object whose faces were added from `first_face` on, and
+    /// their rows from `first_span` on. Panics if the list has no room for
+    /// another object.
+    fn end_object(&mut self, first_face: usize, first_span: usize, object: ObjectFaces) {
         let Some(slot) = self.objects.get_mut(self.object_count) else {
             panic!("the face list holds at most {OBJECTS} objects");
         };
         *slot = ObjectFaces {
             first_face,
             end_face: self.face_count,
+            first_span,
+            end_span: self.span_count,
             ..object
         };
         self.object_count += 1;
@@ -206,6 +306,7 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
         let frame = &mut self.frames[self.current];
         frame.object_count = 0;
         frame.face_count = 0;
+        frame.span_count = 0;
         frame.counts = FaceCounts::default();
         frame.small_solids = small_solids;
     }
@@ -234,24 +335,30 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
             0 => (even, &*odd),
             _ => (odd, &*even),
         };
-        let first_face = frame.face_count;
+        let (first_face, first_span) = (frame.face_count, frame.span_count);
         let slot = frame.object_count;
         let kept = last
             .objects
             .get(slot)
             .filter(|kept| slot < last.object_count && kept.found_from == found_from)
             .filter(|kept| kept.convex == convex)
-            .and_then(|kept| Some((*kept, last.faces.get(kept.first_face..kept.end_face)?)));
+            .and_then(|kept| {
+                let faces = last.faces.get(kept.first_face..kept.end_face)?;
+                Some((
+                    *kept,
+                    faces,
+                    last.spans.get(kept.first_span..kept.end_span)?,
+                ))
+            });
         let object = match kept {
-            Some((kept, faces)) => {
-                frame.add_faces(faces);
+            Some((kept, faces, spans)) => {
+                frame.add_kept_faces(faces, spans, kept.first_span);
                 kept
             }
             None => {
                 let bounds = ScreenBox::around(object.screen_vertices());
-                let counts = object.each_visible_face(|visible| {
-                    frame.add_faces(&[ScreenFace::new(visible, colour(visible))])
-                });
+                let counts =
+                    object.each_visible_face(|visible| frame.add_face(visible, colour(visible)));
                 ObjectFaces {
                     bounds,
                     convex,
@@ -261,7 +368,7 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
                 }
             }
         };
-        frame.end_object(first_face, object);
+        frame.end_object(first_face, first_span, object);
     }
 
     /// The order the objects pushed this frame are painted in without the
@@ -287,6 +394,7 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
         Faces {
             objects: &frame.objects[..frame.object_count],
             faces: &frame.faces[..frame.face_count],
+            spans: &frame.spans[..frame.span_count],
             far_to_near: &frame.far_to_near[..frame.object_count],
             counts: frame.counts,
             small_solids: frame.small_solids,
@@ -299,6 +407,7 @@ impl<const OBJECTS: usize, const FACES: usize> FaceList<OBJECTS, FACES> {
 pub struct Faces<'list> {
     objects: &'list [ObjectFaces],
     faces: &'list [ScreenFace],
+    spans: &'list [Span],
     far_to_near: &'list [usize],
     counts: FaceCounts,
     small_solids: bool,
@@ -315,6 +424,15 @@ impl<'list> Faces<'list> {
     /// (where two faces tie in depth, the first drawn shows).
     pub fn all(&self) -> &'list [ScreenFace] {
         self.faces
+    }
+
+    /// The rows `face` (one of [`Faces::all`]) covers on the screen, top
+    /// to bottom, as `fill_convex_polygon` finds them within the screen:
+    /// `None` where the list had no room for them, and the face's polygon
+    /// must be filled where it is drawn.
+    pub fn spans_of(&self, face: &ScreenFace) -> Option<&'list [Span]> {
+        let (first, end) = face.spans?;
+        self.spans.get(first as usize..end as usize)
     }
 
     /// The faces of `object` (one of [`Faces::objects`]).
@@ -349,6 +467,7 @@ mod tests {
     use super::*;
     use crate::solids::{CUBE, TETRAHEDRON};
     use engine::Xform;
+    use std::boxed::Box;
     use std::vec::Vec;
 
     fn cube_at(x: f64, z: f64) -> Object {
@@ -451,12 +570,75 @@ mod tests {
             assert_eq!(kept.objects(), fresh.objects(), "frame {frame}");
             assert_eq!(kept.all(), fresh.all(), "frame {frame}");
             assert_eq!(kept.counts(), fresh.counts(), "frame {frame}");
+            for face in kept.all() {
+                let rows = kept.spans_of(face);
+                assert_eq!(rows, fresh.spans_of(face), "frame {frame}");
+                assert_eq!(rows, Some(&filled_rows(face)[..]), "frame {frame}");
+            }
         }
         let [moved, unmoved] = coloured.into_inner();
         // New colourings at 0, 4 and 8, the order changed at 9, and moves
         // at 1, 4, 7 and 10.
         assert_eq!(unmoved, [0, 4, 8, 9]);
         assert_eq!(moved, [0, 1, 4, 7, 8, 9, 10]);
+    }
+
+    /// The rows the polygon filler finds for `face` within the screen.
+    fn filled_rows(face: &ScreenFace) -> Vec<Span> {
+        let mut rows = Vec::new();
+        fill_convex_polygon(face.polygon(), SCREEN_CLIP, |y, x_start, x_end| {
+            rows.push(Span {
+                y: y as u16,
+                x_start: x_start as u16,
+                x_end: x_end as u16,
+            })
+        });
+        rows
+    }
+
+    /// Cubes so near that each fills the screen need more rows than the
+    /// list keeps: the faces that fit keep the filler's rows, the rest keep
+    /// none (and are filled where they are drawn), in the frame that found
+    /// them and in the next, which keeps them.
+    #[test]
+    fn faces_past_the_rows_kept_keep_none() {
+        let mut list: Box<FaceList<24, 96>> = Box::default();
+        let mut cubes: Vec<Object> = (0..24)
+            .map(|i| cube_at(f64::from(i) * 0.1, -40.0))
+            .collect();
+        for cube in &mut cubes {
+            cube.object_to_world_mut().append_rotation_y(0.6);
+            cube.object_to_world_mut().append_rotation_x(0.4);
+        }
+        for frame in 0..2 {
+            list.begin_frame(false);
+            for cube in &mut cubes {
+                list.push_object(cube, true, 0, |_| 1);
+            }
+            let faces = list.faces();
+            let (mut kept, mut none, mut rows) = (0, 0, 0);
+            for face in faces.all() {
+                match faces.spans_of(face) {
+                    Some(spans) => {
+                        assert_eq!(spans, &filled_rows(face)[..], "frame {frame}");
+                        kept += 1;
+                        rows += spans.len();
+                    }
+                    None => {
+                        assert!(
+                            rows + filled_rows(face).len() > SPANS_PER_FRAME,
+                            "frame {frame}"
+                        );
+                        none += 1;
+                    }
+                }
+            }
+            assert!(
+                kept > 0 && none > 0,
+                "frame {frame}: {kept} kept, {none} not"
+            );
+            assert!(rows <= SPANS_PER_FRAME);
+        }
     }
 
     #[test]

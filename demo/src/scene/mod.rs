@@ -72,7 +72,8 @@ pub const MAX_FACES: usize = {
     total
 };
 
-/// Room for a frame of the scene's faces (78 KiB), for [`Scene::faces`].
+/// Room for the scene's faces and their rows, this frame's and the last's
+/// (267 KiB), for [`Scene::faces`].
 pub type SceneFaces = FaceList<MAX_OBJECTS, MAX_FACES>;
 
 /// What is drawn: the objects, the light, and the switches the keys flip.
