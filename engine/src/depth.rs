@@ -88,7 +88,7 @@ impl DepthPlane {
 /// frame so far, 0 (infinitely far) where nothing is. 300 KiB, so it lives
 /// beside the renderer's frame images (in a static in the kernel, boxed on
 /// the host), never on a stack. It covers the whole frame, so every face is
-/// set up and walked once a frame (it once covered 40-row bands, when the
+/// drawn into it once a frame (it once covered 40-row bands, when the
 /// kernel kept the renderer on its stack, and every face meeting a band was
 /// walked again for it).
 #[derive(Clone)]

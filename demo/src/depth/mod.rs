@@ -61,7 +61,8 @@ pub fn rows_needing_depth_test(faces: Faces<'_>) -> Option<Range<i32>> {
 /// scan-converted with a per-pixel depth test (−1/z from the face's plane,
 /// see `engine::depth`), so the nearest surface shows whatever the objects'
 /// order, shape or overlap. The depth buffer covers the whole frame, so
-/// each face is set up and walked once.
+/// each face's rows (as the face list keeps them, see `face_rows`) are
+/// drawn once.
 ///
 /// The test is paid only where it can change a pixel. Within one convex
 /// solid the faces that survive backface removal never overlap, so only the
