@@ -296,6 +296,22 @@ mod tests {
         );
     }
 
+    /// `objects` drawn into `image` with the depth test on every row, each
+    /// face in its model colour; their faces' counts.
+    fn depth_tested_everywhere(
+        objects: &mut [Object],
+        image: &mut PageImage,
+        depths: &mut DepthBuffer,
+    ) -> FaceCounts {
+        render_faces_with_depth(image, &mut PageSpans::all(), depths, |draw| {
+            let mut counts = FaceCounts::default();
+            for object in objects {
+                counts += object.each_visible_face(|visible| draw(visible, visible.face.colour));
+            }
+            counts
+        })
+    }
+
     /// Faces drawn from the rows the face list kept, and faces past its
     /// room for rows, filled from their polygons where they are drawn, make
     /// the picture the polygons make, with the test and without it.
@@ -331,19 +347,7 @@ mod tests {
                 .filter(|face| faces.spans_of(face).is_none());
             assert!(without_rows.count() > 0, "some faces past the rows kept");
             render_with_depth(faces, &mut from_rows, &mut PageSpans::all(), &mut depths);
-            render_faces_with_depth(
-                &mut from_polygons,
-                &mut PageSpans::all(),
-                &mut depths,
-                |draw| {
-                    let mut counts = FaceCounts::default();
-                    for cube in &mut cubes {
-                        counts +=
-                            cube.each_visible_face(|visible| draw(visible, visible.face.colour));
-                    }
-                    counts
-                },
-            );
+            depth_tested_everywhere(&mut cubes, &mut from_polygons, &mut depths);
             assert!(
                 from_rows
                     .iter()
@@ -382,19 +386,7 @@ mod tests {
             let faces = list.faces();
             let rows = rows_needing_depth_test(faces).expect("the test somewhere");
             assert!(rows.start > 0 && rows.end < SCREEN_HEIGHT, "{rows:?}");
-            let counts = render_faces_with_depth(
-                &mut everywhere,
-                &mut PageSpans::all(),
-                &mut depths,
-                |draw| {
-                    let mut counts = FaceCounts::default();
-                    for object in &mut objects {
-                        counts +=
-                            object.each_visible_face(|visible| draw(visible, visible.face.colour));
-                    }
-                    counts
-                },
-            );
+            let counts = depth_tested_everywhere(&mut objects, &mut everywhere, &mut depths);
             assert_eq!(counts, faces.counts());
             assert_eq!(
                 render_with_depth(faces, &mut mixed, &mut PageSpans::all(), &mut depths),
