@@ -34,7 +34,7 @@ pub const SPANS_PER_FRAME: usize = 8192;
 
 /// One row of a face on the screen: pixels `x_start..x_end` of row `y`,
 /// within the screen, as the polygon filler finds them.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Span {
     /// The row.
     pub y: u16,
