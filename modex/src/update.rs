@@ -13,7 +13,7 @@ use crate::bus::VgaBus;
 use crate::driver::ModeX;
 use crate::page::Page;
 use crate::regs::PlaneMask;
-use crate::spans::PageSpans;
+use crate::spans::{PageSpans, GROUP_PIXELS};
 use crate::{BYTES_PER_LINE, SCREEN_HEIGHT, SCREEN_WIDTH};
 
 /// Pixels in a page: one byte each in a RAM image of it.
@@ -24,10 +24,8 @@ pub type PageImage = [u8; PAGE_PIXELS];
 
 const WIDTH: usize = SCREEN_WIDTH as usize;
 const LINES: usize = SCREEN_HEIGHT as usize;
-/// The fours of addresses (sixteen pixels) of a line.
-const FOURS: usize = WIDTH / 16;
-/// A line of a page image.
-type Line = [u8; WIDTH];
+/// The groups of four addresses (sixteen pixels) of a line.
+const GROUPS: usize = WIDTH / GROUP_PIXELS;
 
 impl<B: VgaBus> ModeX<B> {
     /// Makes `page` show `target`, given that it shows `shadow` now and
@@ -142,10 +140,9 @@ impl<B: VgaBus> ModeX<B> {
                 if rest.line_masks[y] & mask_bit(mask) == 0 {
                     continue;
                 }
-                let line_base = page.base() + y as u16 * BYTES_PER_LINE;
                 for write in rest.find(spans, shadow, target, y) {
                     if write.mask == mask {
-                        written += self.make(line_base, write);
+                        written += self.make(page.base(), write);
                     }
                 }
             }
@@ -166,12 +163,12 @@ impl<B: VgaBus> ModeX<B> {
     }
 }
 
-/// One write of the page update: `count` addresses from `address` (relative
-/// to the page or the line), each given `colour` through Map Mask `mask`. A
-/// count above one is a run of addresses whose four pixels all become one
-/// colour, one fill with all planes enabled. Six bytes padded to eight and
-/// aligned: the list is then indexed by a shift rather than a multiply by
-/// six, which measured cheaper than the padding's store.
+/// One write of the page update: `count` addresses from `address` (from the
+/// page's first), each given `colour` through Map Mask `mask`. A count above
+/// one is a run of addresses whose four pixels all become one colour, one
+/// fill with all planes enabled. Six bytes padded to eight and aligned: the
+/// list is then indexed by a shift rather than a multiply by six, which
+/// measured cheaper than the padding's store.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[repr(C, align(8))]
 struct Write {
@@ -262,8 +259,7 @@ impl PageWrites {
     fn collect(&mut self, spans: &PageSpans, shadow: &mut PageImage, target: &PageImage) -> usize {
         self.last_with_mask = core::array::from_fn(|mask| (CHAIN_HEADS + mask) as u16);
         self.len = 0;
-        let lines = shadow.as_chunks_mut::<WIDTH>().0.iter_mut();
-        for (y, (old, new)) in lines.zip(target.as_chunks::<WIDTH>().0).enumerate() {
+        for y in 0..LINES {
             let marked = spans.marked(y);
             if marked == 0 {
                 continue;
@@ -271,7 +267,7 @@ impl PageWrites {
             if self.len + LINE_WRITE_CAPACITY > WRITE_LIST_CAPACITY {
                 return y;
             }
-            find_line_writes(self, y as u16 * BYTES_PER_LINE, marked, old, new);
+            find_line_writes(self, y, marked, shadow, target);
         }
         LINES
     }
@@ -370,8 +366,8 @@ impl LineWrites {
         all
     }
 
-    /// The writes line `y` needs, in address order, addresses relative to
-    /// the line; `shadow` is read, not changed.
+    /// The writes line `y` needs, in address order, addresses from the
+    /// page's first; `shadow` is read, not changed.
     fn find(
         &mut self,
         spans: &PageSpans,
@@ -380,12 +376,7 @@ impl LineWrites {
         y: usize,
     ) -> &[Write] {
         self.len = 0;
-        if let (Some(old), Some(new)) = (
-            shadow.as_chunks_mut::<WIDTH>().0.get_mut(y),
-            target.as_chunks::<WIDTH>().0.get(y),
-        ) {
-            find_line_writes(self, 0, spans.marked(y), old, new);
-        }
+        find_line_writes(self, y, spans.marked(y), shadow, target);
         &self.list[..self.len]
     }
 }
@@ -403,93 +394,85 @@ impl WriteSink for LineWrites {
     }
 }
 
-/// Finds the writes that bring the line `old` to `new` at the addresses
-/// `marked` sets (bit i for address i), in address order, and gives them to
-/// `sink`, their addresses from `line_base`: a run of addresses whose four
-/// pixels all become one colour is one write with all planes (a fill); any
-/// other changed address gets one write per distinct new colour among its
-/// changed pixels. With [`WriteSink::SHADOWS`], `old` takes each changed
-/// address's new pixels as it is passed.
+/// Finds the writes that bring line `y` of the page image `old` to `new`
+/// within the groups `marked` sets (bit i for the line's pixels 16i to
+/// 16i + 15, its addresses 4i to 4i + 3), in address order, and gives them
+/// to `sink`, their addresses from the page's first: a run of addresses
+/// whose four pixels all become one colour is one write with all planes (a
+/// fill); any other changed address gets one write per distinct new colour
+/// among its changed pixels. With [`WriteSink::SHADOWS`], `old` takes each
+/// group's new pixels once its writes are found.
 ///
-/// The line is taken four addresses at a time (sixteen pixels, aligned in
-/// the line), visiting only the fours with a marked address: a four whose
-/// pixels all agree costs one 16-byte compare and a step to the next. Of a
-/// four that differs, the changed pixels of all four addresses are found at
-/// once, and only its marked addresses with some are visited.
+/// A marked group whose pixels all agree costs one 16-byte compare and a
+/// step to the next. Of a group that differs, the changed pixels of all
+/// four addresses are found at once, and only its addresses with some are
+/// visited. A fill goes on through the run of marked groups it starts in,
+/// never past it, so never past the line's end.
 fn find_line_writes<S: WriteSink>(
     sink: &mut S,
-    line_base: u16,
-    marked: u128,
-    old: &mut Line,
-    new: &Line,
+    y: usize,
+    marked: u32,
+    old: &mut PageImage,
+    new: &PageImage,
 ) {
-    // The marks are taken 64 at a time, addresses 0 to 63 and then 64 to
-    // 79 (a run across address 64 is two runs), so that finding a run is
-    // a few 64-bit steps, not 128-bit ones.
-    let (mut runs, mut half_base, mut high_half) = (marked as u64, 0, (marked >> 64) as u64);
-    // The half being searched, whole: a four lies in one half (64 is a
-    // multiple of four), so its marks are four bits of it.
-    let mut half = runs;
-    // The first four not yet searched: two runs can share a four, and a
-    // fill from a shared four can reach into the next run's.
-    let mut next = 0;
-    // The addresses of the next four still to search: all but those a fill
-    // from the four before has already written.
-    let mut after_fill = 0xF;
-    loop {
-        if runs == 0 {
-            if high_half == 0 {
-                break;
-            }
-            (runs, half, half_base, high_half) = (high_half, high_half, 64, 0);
-        }
-        // The lowest run of marks: adding its lowest bit carries through it
-        // and stops on the bit past it (or, for a run to bit 63, carries
-        // out, leaving no bit: 64). Its fours are searched from the first
-        // not yet searched.
-        let first = half_base + runs.trailing_zeros() as usize;
-        let past = runs.wrapping_add(runs.isolate_lowest_one());
+    // The line's first group in the page: a line is twenty groups, so a
+    // group's pixels start at 16 times its number in the page image, and
+    // its addresses at 4 times it in the page.
+    let line_group = y * GROUPS;
+    let mut runs = marked;
+    // The group a fill ended inside, and its addresses the fill did not
+    // write: the only ones of it still to search. (A search that shadows
+    // finds the others unchanged by then.)
+    let (mut after_fill_group, mut after_fill) = (usize::MAX, 0xF);
+    while runs != 0 {
+        // The lowest run of marked groups: adding its lowest bit carries
+        // through it and stops on the bit past it (at most 20 bits are
+        // set, so the sum fits).
+        let mut group = line_group + runs.trailing_zeros() as usize;
+        let past = runs + runs.isolate_lowest_one();
         runs &= past;
-        next = next.max(first / 4);
-        let end = (half_base + past.trailing_zeros() as usize)
-            .div_ceil(4)
-            .min(FOURS);
-        while next < end {
-            let four = next;
-            next += 1;
-            let changed = differing_pixels(old, new, four);
+        let end = line_group + (past.trailing_zeros() as usize).min(GROUPS);
+        'run: while group < end {
+            let this = group;
+            group += 1;
+            let mut changed = differing_pixels(old, new, this);
             if changed == 0 {
-                after_fill = 0xF;
                 continue;
             }
-            let marks = (half >> (4 * four - half_base)) as usize & after_fill;
-            after_fill = 0xF;
-            // Four bits an address: its pixels (planes) that change.
-            let mut changed = changed & ALL_PLANES_OF[marks];
+            if !S::SHADOWS && this == after_fill_group {
+                // Four bits an address: its pixels (planes) that change.
+                changed &= ALL_PLANES_OF[after_fill];
+            }
             while changed != 0 {
                 let slot = changed.trailing_zeros() / 4;
                 let mut planes_left = (changed >> (4 * slot)) as u8 & 0x0F;
                 changed &= !(0x0F << (4 * slot));
-                let address = 4 * four + slot as usize;
+                let address = 4 * this + slot as usize;
                 let new_quad = quad(new, address);
                 if planes_left == 0x0F && new_quad == splat(new_quad as u8) {
-                    let fill_end = solid_run_end(old, new, marked, address);
+                    let fill_end = solid_run_end(old, new, 4 * end, address);
                     sink.push(Write {
-                        address: line_base + address as u16,
+                        address: address as u16,
                         count: (fill_end - address) as u16,
                         colour: new_quad as u8,
                         mask: PlaneMask::ALL,
                     });
                     if S::SHADOWS {
-                        if let Some(pixels) = old.get_mut(4 * address..4 * fill_end) {
-                            pixels.fill(new_quad as u8);
+                        // The group's addresses before the fill, and the fill.
+                        let pixels = GROUP_PIXELS * this..4 * fill_end;
+                        if let (Some(old), Some(new)) =
+                            (old.get_mut(pixels.clone()), new.get(pixels))
+                        {
+                            old.copy_from_slice(new);
                         }
                     }
-                    // Go on after the fill, which stays within its run of
-                    // marks: in the four it ends in, at its end.
-                    next = fill_end / 4;
-                    after_fill = 0xF << (fill_end % 4) & 0xF;
-                    break;
+                    // Go on after the fill: in the group it ends in, from
+                    // its end.
+                    group = fill_end / 4;
+                    if !S::SHADOWS {
+                        (after_fill_group, after_fill) = (group, 0xF << (fill_end % 4) & 0xF);
+                    }
+                    continue 'run;
                 }
                 while planes_left != 0 {
                     // The first changed pixel's colour, and every changed
@@ -501,29 +484,34 @@ fn find_line_writes<S: WriteSink>(
                     };
                     planes_left &= !planes;
                     sink.push(Write {
-                        address: line_base + address as u16,
+                        address: address as u16,
                         count: 1,
                         colour,
                         mask: PlaneMask::from_bits_truncate(planes),
                     });
                 }
-                if S::SHADOWS {
-                    if let Some(pixels) = old.get_mut(4 * address..4 * address + 4) {
-                        pixels.copy_from_slice(&new_quad.to_le_bytes());
-                    }
+            }
+            if S::SHADOWS {
+                // Every changed address of the group is written: the shadow
+                // takes the whole group at once.
+                if let (Some(old), Some(new)) = (
+                    old.as_chunks_mut::<GROUP_PIXELS>().0.get_mut(this),
+                    new.as_chunks::<GROUP_PIXELS>().0.get(this),
+                ) {
+                    *old = *new;
                 }
             }
         }
     }
 }
 
-/// Which of the sixteen pixels of the four addresses `4 * four` to
-/// `4 * four + 3` differ between the lines: bit 4j + p for address
-/// `4 * four + j`, plane p (one 16-byte compare where the target has one).
-fn differing_pixels(old: &Line, new: &Line, four: usize) -> u32 {
+/// Which of the sixteen pixels of group `group` (addresses `4 * group` to
+/// `4 * group + 3`) differ between the lines: bit 4j + p for address
+/// `4 * group + j`, plane p (one 16-byte compare where the target has one).
+fn differing_pixels(old: &[u8], new: &[u8], group: usize) -> u32 {
     let (Some(old), Some(new)) = (
-        old.as_chunks::<16>().0.get(four),
-        new.as_chunks::<16>().0.get(four),
+        old.as_chunks::<GROUP_PIXELS>().0.get(group),
+        new.as_chunks::<GROUP_PIXELS>().0.get(group),
     ) else {
         return 0;
     };
@@ -534,7 +522,7 @@ fn differing_pixels(old: &Line, new: &Line, four: usize) -> u32 {
         .fold(0, |bits, (i, &differs)| bits | u32::from(differs) << i)
 }
 
-/// For each set of the four addresses of a four (bit j for address j), all
+/// For each set of the four addresses of a group (bit j for address j), all
 /// four planes of each (bits 4j to 4j + 3).
 const ALL_PLANES_OF: [u32; 16] = {
     let mut table = [0; 16];
@@ -582,12 +570,11 @@ fn differing_bytes(a: u32, b: u32) -> u8 {
 
 /// The end of the run of addresses from `start` (which starts one) whose
 /// four pixels all change to one and the same colour, the new colour at
-/// `start`: it goes on while the addresses are marked.
-fn solid_run_end(old: &[u8], new: &[u8], marked: u128, start: usize) -> usize {
+/// `start`: it goes on up to, not including, address `run_end` at most.
+fn solid_run_end(old: &[u8], new: &[u8], run_end: usize, start: usize) -> usize {
     let colour = quad(new, start);
     let mut end = start + 1;
-    while end < usize::from(BYTES_PER_LINE)
-        && marked >> end & 1 != 0
+    while end < run_end
         && quad(new, end) == colour
         && differing_bytes(quad(old, end), colour) == 0x0F
     {
@@ -599,7 +586,7 @@ fn solid_run_end(old: &[u8], new: &[u8], marked: u128, start: usize) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::record::Recorder;
+    use crate::record::{Operation, Recorder};
     use crate::soft::SoftVga;
     use crate::tests::xorshift;
     use core::ops::Range;
@@ -857,6 +844,11 @@ mod tests {
 
     /// The writes for one address range found the plain way, a pixel at a
     /// time: what the word-at-a-time search must find, in the same order.
+    /// The runs of addresses line `y` has marked: its marked groups'.
+    fn marked_addresses(spans: &PageSpans, y: usize) -> impl Iterator<Item = Range<usize>> + '_ {
+        spans.runs(y).map(|pixels| pixels.start / 4..pixels.end / 4)
+    }
+
     fn writes_pixel_by_pixel(old: &[u8], new: &[u8], quads: Range<usize>) -> Vec<Write> {
         let quad = |line: &[u8], i: usize| {
             [
@@ -914,11 +906,12 @@ mod tests {
         writes
     }
 
-    /// The word-at-a-time search finds the writes of the pixel-by-pixel
-    /// one, in the same order, over random lines and every shape of run:
-    /// odd and even lengths, odd and even starts, the line's last address.
+    /// The search by groups of sixteen pixels finds the writes of the
+    /// pixel-by-pixel one, in the same order, over random lines and every
+    /// shape of marked span: odd and even lengths, odd and even starts, the
+    /// line's last address.
     #[test]
-    fn the_word_search_finds_the_writes_of_the_pixel_by_pixel_search() {
+    fn the_group_search_finds_the_writes_of_the_pixel_by_pixel_search() {
         let mut shadow = Box::new([0u8; PAGE_PIXELS]);
         let mut target = Box::new([0u8; PAGE_PIXELS]);
         let mut seed = 0x1234_5678u32;
@@ -948,7 +941,15 @@ mod tests {
             let mut spans = PageSpans::none();
             spans.mark(y, 4 * start..4 * end);
             let (old, new) = (&shadow[y * 320..][..320], &target[y * 320..][..320]);
-            let expected = writes_pixel_by_pixel(old, new, start..end);
+            // Addresses from the page's first, as the search gives them.
+            let line_base = y as u16 * BYTES_PER_LINE;
+            let expected: Vec<Write> = marked_addresses(&spans, y)
+                .flat_map(|run| writes_pixel_by_pixel(old, new, run))
+                .map(|write| Write {
+                    address: line_base + write.address,
+                    ..write
+                })
+                .collect();
             assert_eq!(
                 line.find(&spans, &mut shadow, &target, y),
                 &expected[..],
@@ -998,7 +999,7 @@ mod tests {
             let mut found = Vec::new();
             for y in 0..LINES {
                 let (old, new) = (&shadow[y * WIDTH..][..WIDTH], &target[y * WIDTH..][..WIDTH]);
-                for run in spans.runs(y) {
+                for run in marked_addresses(&spans, y) {
                     for write in writes_pixel_by_pixel(old, new, run) {
                         let address = y as u16 * BYTES_PER_LINE + write.address;
                         found.push(Write { address, ..write });
@@ -1022,7 +1023,7 @@ mod tests {
                 let marked = spans.marked(y);
                 for x in 0..WIDTH {
                     let pixel = y * WIDTH + x;
-                    let wanted = match marked >> (x / 4) & 1 != 0 {
+                    let wanted = match marked >> (x / GROUP_PIXELS) & 1 != 0 {
                         true => target[pixel],
                         false => before[pixel],
                     };
@@ -1037,19 +1038,20 @@ mod tests {
         assert!(fills > 2_000, "{fills}");
     }
 
-    /// The marks are searched 64 addresses at a time, so a run across
-    /// address 64 is two runs: a fill across it is still one write, the
+    /// A fill across the groups of a run of marks is one write, the
     /// changes on both sides of it are found, in order, and nothing past
-    /// the run's ends is. Runs ending at 63, starting at 64 and reaching
-    /// the line's end are each tried too.
+    /// the run's ends is: a solid stretch that goes on past the run is cut
+    /// at its end. Runs of one group and runs to the line's end are tried
+    /// too.
     #[test]
-    fn a_run_across_address_64_is_searched_as_one() {
+    fn a_fill_crosses_the_groups_of_its_run_and_stops_at_its_end() {
         let mut line = LineWrites::masks_from(0);
         for (run, fill) in [
             (56..72, 60..70),
             (60..64, 61..64),
             (64..68, 64..66),
             (40..80, 62..80),
+            (56..64, 60..70),
         ] {
             let mut shadow = Box::new([0u8; PAGE_PIXELS]);
             let mut target = Box::new([0u8; PAGE_PIXELS]);
@@ -1061,15 +1063,55 @@ mod tests {
             let mut spans = PageSpans::none();
             spans.mark(0, 4 * run.start..4 * run.end);
             let expected = writes_pixel_by_pixel(&shadow[..320], &target[..320], run.clone());
+            let filled = fill.start.max(run.start)..fill.end.min(run.end);
             assert!(expected
                 .iter()
-                .any(|write| write.count as usize == fill.len()));
+                .any(|write| write.count as usize == filled.len()));
             assert_eq!(
                 line.find(&spans, &mut shadow, &target, 0),
                 &expected[..],
                 "{run:?}"
             );
         }
+    }
+
+    /// The page's groups run on from line to line, as video memory does,
+    /// but a fill does not: a solid stretch from the end of one marked line
+    /// into the start of the next is two fills, one a line, as the
+    /// pixel-by-pixel search finds them, and both reach the page.
+    #[test]
+    fn a_fill_stops_at_the_end_of_its_line() {
+        let mut soft = Box::new(SoftVga::new());
+        let mut vga = ModeX::new(&mut *soft);
+        vga.set_mode();
+        let mut shadow = Box::new([0u8; PAGE_PIXELS]);
+        let mut target = Box::new([0u8; PAGE_PIXELS]);
+        let mut spans = PageSpans::none();
+        spans.mark(4, 0..320);
+        spans.mark(5, 0..320);
+        // Addresses 76 to 79 of line 4 and 0 to 3 of line 5.
+        target[5 * 320 - 16..5 * 320 + 16].fill(6);
+        let mut recorded = ModeX::new(Recorder::default());
+        let mut recorded_shadow = shadow.clone();
+        recorded.update_page(Page::Zero, &mut recorded_shadow, &target, &spans);
+        let fills: Vec<_> = recorded
+            .bus()
+            .0
+            .iter()
+            .filter_map(|operation| match operation {
+                Operation::Fill {
+                    offset,
+                    count,
+                    value: 6,
+                } => Some((*offset, *count)),
+                _ => None,
+            })
+            .collect();
+        let line_4_end = Page::Zero.base() + 4 * BYTES_PER_LINE + 76;
+        assert_eq!(fills, [(line_4_end, 4), (line_4_end + 4, 4)]);
+        assert_eq!(vga.update_page(Page::Zero, &mut shadow, &target, &spans), 8);
+        assert_eq!(&indices(vga.bus())[..], &target[..]);
+        assert_eq!(shadow, target);
     }
 
     /// A change in the last address of a run, which a 64-bit compare from
@@ -1104,41 +1146,41 @@ mod tests {
     }
 
     #[test]
-    fn runs_are_the_marked_addresses_and_touching_spans_are_one_run() {
+    fn runs_are_the_marked_groups_and_touching_spans_are_one_run() {
         let mut spans = PageSpans::none();
         assert_eq!(spans.runs(3).count(), 0);
-        spans.mark(3, 5..9); // addresses 1 and 2
-        spans.mark(3, 12..13); // 3: touches, one run
-        spans.mark(3, 40..41);
-        spans.mark(3, 316..400); // cut at the line's end
-        spans.mark(3, 20..20); // empty
+        spans.mark(3, 5..9); // group 0
+        spans.mark(3, 16..17); // group 1: touches, one run
+        spans.mark(3, 70..71); // group 4
+        spans.mark(3, 316..400); // group 19, cut at the line's end
+        spans.mark(3, 48..48); // empty, between groups 2 and 3
         spans.mark(240, 0..320); // no such line
         let runs: std::vec::Vec<_> = spans.runs(3).collect();
-        assert_eq!(runs, [1..4, 10..11, 79..80]);
+        assert_eq!(runs, [0..32, 64..80, 304..320]);
         let mut image = [7u8; PAGE_PIXELS];
         spans.fill(&mut image[..], 0);
         let cleared: std::vec::Vec<_> = (0..PAGE_PIXELS).filter(|&i| image[i] == 0).collect();
-        let expected: std::vec::Vec<_> = [4..16, 40..44, 316..320]
+        let expected: std::vec::Vec<_> = [0..32, 64..80, 304..320]
             .into_iter()
             .flatten()
             .map(|x| 3 * 320 + x)
             .collect();
         assert_eq!(cleared, expected);
         let mut whole_line = PageSpans::all().runs(239);
-        assert_eq!(whole_line.next(), Some(0..80));
+        assert_eq!(whole_line.next(), Some(0..320));
         assert_eq!(whole_line.next(), None);
     }
 
     #[test]
-    fn a_span_marks_exactly_the_addresses_its_pixels_lie_in() {
+    fn a_span_marks_exactly_the_groups_its_pixels_lie_in() {
         // Spans of one pixel or more: the renderer marks no empty ones.
         for start in 0..320 {
             for end in start + 1..=330 {
                 let mut spans = PageSpans::none();
                 spans.mark(7, start..end);
-                let addresses =
-                    (0..80).filter(|address| (start..end.min(320)).any(|x| x / 4 == *address));
-                let expected = addresses.fold(0u128, |bits, address| bits | 1 << address);
+                let groups = (0..GROUPS)
+                    .filter(|group| (start..end.min(320)).any(|x| x / GROUP_PIXELS == *group));
+                let expected = groups.fold(0u32, |bits, group| bits | 1 << group);
                 assert_eq!(spans.marked(7), expected, "pixels {start}..{end}");
             }
         }
