@@ -133,7 +133,7 @@ impl<B: VgaBus> ModeX<B> {
         for mask in self.mask_order(frame_masks) {
             self.io.set_map_mask(mask);
             for write in listed.with_mask(mask) {
-                written += self.make(page.base(), write);
+                written += self.make(page.base(), &write);
             }
             let Some(rest) = &mut rest else { continue };
             for y in listed_lines..LINES {
@@ -166,11 +166,8 @@ impl<B: VgaBus> ModeX<B> {
 /// One write of the page update: `count` addresses from `address` (from the
 /// page's first), each given `colour` through Map Mask `mask`. A count above
 /// one is a run of addresses whose four pixels all become one colour, one
-/// fill with all planes enabled. Six bytes padded to eight and aligned: the
-/// list is then indexed by a shift rather than a multiply by six, which
-/// measured cheaper than the padding's store.
+/// fill with all planes enabled.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[repr(C, align(8))]
 struct Write {
     address: u16,
     count: u16,
@@ -179,15 +176,11 @@ struct Write {
 }
 
 /// Writes a frame's update can collect before it falls back to finding them
-/// again mask by mask: far more than a spinning scene needs (the crowd of 59
+/// again mask by mask: more than a spinning scene needs (the crowd of 59
 /// solids averages 3,600; a screen-filling grid of 256 turning solids about
-/// 5,000), 160 KiB with the links, in a [`PageWrites`].
-const WRITE_LIST_CAPACITY: usize = 16_384;
-/// Where in [`PageWrites`]' links each mask's chain starts: past the list.
-const CHAIN_HEADS: usize = WRITE_LIST_CAPACITY;
-/// The end of a mask's chain of writes, in [`PageWrites::with_mask`].
-const NO_WRITE: u16 = u16::MAX;
-const _: () = assert!(CHAIN_HEADS + 16 < NO_WRITE as usize);
+/// 5,000). Each mask's list has room for all of them, 512 KiB in a
+/// [`PageWrites`].
+const WRITE_LIST_CAPACITY: usize = 8_192;
 /// The most writes one line can need: one per pixel (an address's four
 /// pixels take at most four writes).
 const LINE_WRITE_CAPACITY: usize = WIDTH;
@@ -203,25 +196,31 @@ trait WriteSink {
     fn push(&mut self, write: Write);
 }
 
-/// Room for a frame's writes in the order they are found (line by line,
-/// address by address), each mask's chained in that order: making them mask
-/// by mask is then one step per write, not one pass over the whole list per
-/// mask. All zero when new, so a renderer in static memory keeps one in
-/// `.bss`; each update starts it afresh by resetting the chains' ends, not
-/// the 160 KiB.
+/// One write of a mask's list in [`PageWrites`]: a [`Write`] less the mask
+/// its list is for, four bytes. (A count is at most a line's 80 addresses.)
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Listed {
+    address: u16,
+    count: u8,
+    colour: u8,
+}
+
+/// Room for a frame's writes, each mask's in a list of its own in the order
+/// they are found (line by line, address by address): making them mask by
+/// mask is then a walk along each list, and listing one is a store and a
+/// count. All zero when new, so a renderer in static memory keeps one in
+/// `.bss`; each update starts it afresh by zeroing the counts, not the
+/// 512 KiB.
 pub struct PageWrites {
-    list: [Write; WRITE_LIST_CAPACITY],
-    /// For each write but its mask's last, the next with the same mask;
-    /// then, from `CHAIN_HEADS`, each mask's first write. A write is
-    /// chained with no test for an empty chain: it is linked after its
-    /// mask's last, which is the mask's head while it has none.
-    next_with_mask: [u16; CHAIN_HEADS + 16],
-    /// Each mask's last write, or its head while it has none.
-    last_with_mask: [u16; 16],
+    /// Mask m's writes in list m (list 0, no planes, stays empty).
+    lists: [[Listed; WRITE_LIST_CAPACITY]; 16],
+    /// How many writes each mask's list holds.
+    counts: [u16; 16],
+    /// How many writes all the lists hold.
     len: usize,
 }
 
-/// Not the 16,384 writes.
+/// Not the writes.
 impl core::fmt::Debug for PageWrites {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.debug_struct("PageWrites")
@@ -240,14 +239,12 @@ impl PageWrites {
     /// Empty room, all zero.
     pub const fn new() -> Self {
         PageWrites {
-            list: [Write {
+            lists: [[Listed {
                 address: 0,
                 count: 0,
                 colour: 0,
-                mask: PlaneMask::NONE,
-            }; WRITE_LIST_CAPACITY],
-            next_with_mask: [0; CHAIN_HEADS + 16],
-            last_with_mask: [0; 16],
+            }; WRITE_LIST_CAPACITY]; 16],
+            counts: [0; 16],
             len: 0,
         }
     }
@@ -257,7 +254,7 @@ impl PageWrites {
     /// every line collected. Returns the first line not collected: all
     /// (`SCREEN_HEIGHT`) unless one more line's writes might not have fitted.
     fn collect(&mut self, spans: &PageSpans, shadow: &mut PageImage, target: &PageImage) -> usize {
-        self.last_with_mask = core::array::from_fn(|mask| (CHAIN_HEADS + mask) as u16);
+        self.counts = [0; 16];
         self.len = 0;
         for y in 0..LINES {
             let marked = spans.marked(y);
@@ -272,41 +269,23 @@ impl PageWrites {
         LINES
     }
 
-    /// Whether the list holds a write with `mask` (none of a list never
-    /// collected into, whose chains' ends are still zero).
-    fn has(&self, mask: PlaneMask) -> bool {
-        let mask = usize::from(mask.bits());
-        self.len > 0 && usize::from(self.last_with_mask[mask]) != CHAIN_HEADS + mask
-    }
-
     /// The masks of the writes listed, one bit each.
     fn masks(&self) -> u16 {
         (0..16)
-            .map(PlaneMask::from_bits_truncate)
-            .filter(|&mask| self.has(mask))
-            .fold(0, |masks, mask| masks | mask_bit(mask))
+            .filter(|&mask| self.counts[mask] > 0)
+            .fold(0, |masks, mask| masks | 1 << mask)
     }
 
     /// The writes with `mask`, in the order they were found.
-    fn with_mask(&self, mask: PlaneMask) -> impl Iterator<Item = &Write> {
-        let (mut next, last) = match self.has(mask) {
-            true => {
-                let mask = usize::from(mask.bits());
-                (
-                    self.next_with_mask[CHAIN_HEADS + mask],
-                    self.last_with_mask[mask],
-                )
-            }
-            false => (NO_WRITE, NO_WRITE),
-        };
-        core::iter::from_fn(move || {
-            let write = self.list.get(usize::from(next))?;
-            next = if next == last {
-                NO_WRITE
-            } else {
-                self.next_with_mask[usize::from(next)]
-            };
-            Some(write)
+    fn with_mask(&self, mask: PlaneMask) -> impl Iterator<Item = Write> + '_ {
+        let mask_index = usize::from(mask.bits()) & 15;
+        let count = usize::from(self.counts[mask_index]);
+        let listed = self.lists[mask_index].get(..count).unwrap_or_default();
+        listed.iter().map(move |listed| Write {
+            address: listed.address,
+            count: u16::from(listed.count),
+            colour: listed.colour,
+            mask,
         })
     }
 }
@@ -314,21 +293,21 @@ impl PageWrites {
 impl WriteSink for PageWrites {
     const SHADOWS: bool = true;
 
-    /// Appends `write` to the list and to its mask's chain. `collect` starts
-    /// a line only with room for all its writes, so none is ever dropped
-    /// here (and none could be written out of bounds).
+    /// Appends `write` to its mask's list. `collect` starts a line only
+    /// with room for all its writes, so none is ever dropped here (and none
+    /// could be written out of bounds).
     fn push(&mut self, write: Write) {
-        let index = self.len;
-        let Some(slot) = self.list.get_mut(index) else {
-            return;
-        };
-        *slot = write;
-        let last = &mut self.last_with_mask[usize::from(write.mask.bits())];
-        if let Some(link) = self.next_with_mask.get_mut(usize::from(*last)) {
-            *link = index as u16;
+        let mask = usize::from(write.mask.bits()) & 15;
+        let count = self.counts[mask];
+        if let Some(slot) = self.lists[mask].get_mut(usize::from(count)) {
+            *slot = Listed {
+                address: write.address,
+                count: write.count as u8,
+                colour: write.colour,
+            };
+            self.counts[mask] = count + 1;
+            self.len += 1;
         }
-        *last = index as u16;
-        self.len = index + 1;
     }
 }
 
