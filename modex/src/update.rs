@@ -1093,9 +1093,9 @@ mod tests {
         assert_eq!(shadow, target);
     }
 
-    /// A change in the last address of a run, which a 64-bit compare from
-    /// the address before it (odd lengths) would have to reach past the run
-    /// for, reaches the page: it is compared on its own.
+    /// A change in the last address of a marked span reaches the page,
+    /// whatever the span's length (one to nine addresses) and start (the
+    /// line's first address, the second, or so that it ends the line).
     #[test]
     fn a_change_in_the_last_address_of_a_run_is_written() {
         let mut soft = Box::new(SoftVga::new());
