@@ -825,6 +825,50 @@ fn a_browser_without_webassembly_gets_a_message() {
     });
 }
 
+#[test]
+fn a_browser_without_webassembly_simd_gets_a_message() {
+    with_big_stack(|| {
+        let probe = simd_probe();
+        let browser = Browser::start().unwrap();
+        let page = browser.open("about:blank").unwrap();
+        // This Chromium has SIMD: the loader's probe module is valid here.
+        // (If the probe were malformed, every browser would be told it
+        // lacks SIMD and every other test of the page would fail.)
+        assert_eq!(
+            page.evaluate(&format!("WebAssembly.validate(new Uint8Array({probe}))"))
+                .unwrap(),
+            true
+        );
+        // A browser without SIMD says no to that module and to no other.
+        page.call(
+            "Page.addScriptToEvaluateOnNewDocument",
+            serde_json::json!({ "source": format!(
+                "(() => {{ const validate = WebAssembly.validate; \
+                   WebAssembly.validate = (bytes) => \
+                     bytes.join() === {probe}.join() ? false : validate(bytes); }})()"
+            ) }),
+        )
+        .unwrap();
+        page.navigate(page_url()).unwrap();
+        let message = evaluate_string(&page, "document.getElementById('message').textContent");
+        assert!(message.contains("WebAssembly SIMD"), "{message:?}");
+        assert_eq!(page.evaluate("window.modexPage.ready").unwrap(), false);
+    });
+}
+
+/// The loader's SIMD probe, as written in `web/page/modex.js`: the bytes
+/// of a module whose one function uses a SIMD instruction, as a JavaScript
+/// array.
+fn simd_probe() -> String {
+    let loader = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/web/page/modex.js"))
+        .expect("web/page/modex.js");
+    let (_, rest) = loader
+        .split_once("const simdProbe = new Uint8Array(")
+        .expect("modex.js has a SIMD probe");
+    let (bytes, _) = rest.split_once(");").expect("the probe's bytes end");
+    bytes.split_whitespace().collect()
+}
+
 /// The book's chapters: the names of `docs/*.md`.
 fn chapter_names() -> Vec<String> {
     let docs = concat!(env!("CARGO_MANIFEST_DIR"), "/docs");

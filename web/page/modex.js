@@ -23,6 +23,17 @@
     say("This page needs WebAssembly, which this browser lacks or has switched off.");
     return;
   }
+  // The module is built with WebAssembly's 128-bit SIMD (.cargo/config.toml),
+  // which browsers since 2021 (Safari since 2023) have. The smallest module
+  // that uses it: one function, i32.const 0, i8x16.splat.
+  const simdProbe = new Uint8Array([
+    0, 97, 115, 109, 1, 0, 0, 0, 1, 5, 1, 96, 0, 1, 123, 3, 2, 1, 0, 10, 8, 1, 6, 0, 65, 0, 253, 15, 11,
+  ]);
+  if (!WebAssembly.validate(simdProbe)) {
+    say("This page needs WebAssembly SIMD (Chrome or Edge 91, Firefox 89, Safari 16.4 or later), " +
+        "which this browser lacks.");
+    return;
+  }
 
   // The module comes deflated (zlib's format: a seventh of its size), in
   // base64 inside the single-file page or as modex.wasm.deflate beside it
