@@ -99,6 +99,16 @@ pub trait VgaBus {
     fn now_micros(&mut self) -> Option<u64> {
         None
     }
+    /// Reads `port` until a read gives `value` in the bits of `mask`, or
+    /// until `limit_micros` have passed: true if a read did. The driver's
+    /// waits on Input Status 1 for the display and the retrace. Default:
+    /// [`poll_by_reads`], one [`VgaBus::read_port8`] after another. A
+    /// software VGA may answer for a stretch of reads at once, where it
+    /// knows they would all read the same, as long as it ends where those
+    /// reads would have left it.
+    fn poll_port8(&mut self, port: Port, mask: u8, value: u8, limit_micros: u64) -> bool {
+        poll_by_reads(self, port, mask, value, limit_micros)
+    }
     /// The driver starts `function`, a [`ModeX`](crate::ModeX) method named
     /// as `ModeX::fill_rect`: the bus operations until the matching
     /// [`VgaBus::leave`] are its (calls nest). A slow-motion view records
@@ -141,6 +151,9 @@ impl<T: VgaBus + ?Sized> VgaBus for &mut T {
     fn now_micros(&mut self) -> Option<u64> {
         (**self).now_micros()
     }
+    fn poll_port8(&mut self, port: Port, mask: u8, value: u8, limit_micros: u64) -> bool {
+        (**self).poll_port8(port, mask, value, limit_micros)
+    }
     #[inline(always)]
     fn enter(&mut self, function: &'static str) {
         (**self).enter(function);
@@ -148,5 +161,33 @@ impl<T: VgaBus + ?Sized> VgaBus for &mut T {
     #[inline(always)]
     fn leave(&mut self) {
         (**self).leave();
+    }
+}
+
+/// [`VgaBus::poll_port8`] a read at a time: reads `port` until a read gives
+/// `value` in the bits of `mask`, or until `limit_micros` have passed by the
+/// bus's clock (by a count of reads, a microsecond each, on a bus without
+/// one, what a read takes on an ISA card); true if a read did.
+pub fn poll_by_reads<B: VgaBus + ?Sized>(
+    bus: &mut B,
+    port: Port,
+    mask: u8,
+    value: u8,
+    limit_micros: u64,
+) -> bool {
+    let start = bus.now_micros();
+    let mut reads: u64 = 0;
+    loop {
+        if bus.read_port8(port) & mask == value {
+            return true;
+        }
+        reads += 1;
+        let waited = match (start, bus.now_micros()) {
+            (Some(start), Some(now)) => now.saturating_sub(start),
+            _ => reads,
+        };
+        if waited >= limit_micros {
+            return false;
+        }
     }
 }

@@ -12,7 +12,7 @@ use crate::card::vendor::cirrus;
 use crate::card::{Card, ExtensionProbe, ResetStep};
 use crate::palette::Rgb6;
 use crate::regs::{ac, vbe, Attribute, Crtc, Graphics, IndexedPair, PlaneMask, Port, Sequencer};
-use crate::VgaBus;
+use crate::{VgaBus, STATUS_WAIT_MICROS};
 
 /// The bus, the card it belongs to, and what the driver last wrote to the
 /// registers it caches.
@@ -171,14 +171,13 @@ impl<B: VgaBus> VgaIo<B> {
         }
     }
 
-    /// One read of Input Status 1.
-    pub(crate) fn read_status(&mut self) -> u8 {
-        self.bus.read_port8(Port::INPUT_STATUS_1)
-    }
-
-    /// The bus's clock, which bounds the waits on Input Status 1.
-    pub(crate) fn now_micros(&mut self) -> Option<u64> {
-        self.bus.now_micros()
+    /// Reads Input Status 1 until its bits under `mask` are `value`, or
+    /// until [`STATUS_WAIT_MICROS`] have passed by the bus's clock (by a
+    /// count of reads, a microsecond each, on a bus without one); true if
+    /// they were.
+    pub(crate) fn poll_status(&mut self, mask: u8, value: u8) -> bool {
+        self.bus
+            .poll_port8(Port::INPUT_STATUS_1, mask, value, STATUS_WAIT_MICROS)
     }
 
     // Read-backs, for verifying a mode set.

@@ -68,7 +68,7 @@ mod spans;
 mod text;
 mod update;
 
-pub use bus::{VgaBus, CPU_WINDOW_BYTES};
+pub use bus::{poll_by_reads, VgaBus, CPU_WINDOW_BYTES};
 pub use canvas::{ImageCanvas, PageCanvas, PaletteIndex};
 pub use detect::legacy_vga_present;
 pub use driver::ModeX;

@@ -113,40 +113,20 @@ impl<B: VgaBus> ModeX<B> {
     /// ```
     pub fn show_page(&mut self, page: Page) -> FlipReport {
         self.issued_by("ModeX::show_page", |vga| {
-            let display_wait_timed_out = !vga.poll_status(|bits| {
-                bits & (status::VERTICAL_RETRACE | status::DISPLAY_DISABLED) == 0
-            });
+            let display_wait_timed_out = !vga
+                .io
+                .poll_status(status::VERTICAL_RETRACE | status::DISPLAY_DISABLED, 0);
             let [high, low] = page.base().to_be_bytes();
             vga.io.write_crtc(Crtc::StartAddressHigh, high);
             vga.io.write_crtc(Crtc::StartAddressLow, low);
-            let retrace_wait_timed_out =
-                !vga.poll_status(|bits| bits & status::VERTICAL_RETRACE != 0);
+            let retrace_wait_timed_out = !vga
+                .io
+                .poll_status(status::VERTICAL_RETRACE, status::VERTICAL_RETRACE);
             FlipReport {
                 display_wait_timed_out,
                 retrace_wait_timed_out,
             }
         })
-    }
-
-    /// Reads Input Status 1 until `done` holds or [`STATUS_WAIT_MICROS`] have
-    /// passed by the bus's clock (by a count of reads, a microsecond each, on a
-    /// bus without one); true if `done` held.
-    fn poll_status(&mut self, done: impl Fn(u8) -> bool) -> bool {
-        let start = self.io.now_micros();
-        let mut reads: u64 = 0;
-        loop {
-            if done(self.io.read_status()) {
-                return true;
-            }
-            reads += 1;
-            let waited = match (start, self.io.now_micros()) {
-                (Some(start), Some(now)) => now.saturating_sub(start),
-                _ => reads,
-            };
-            if waited >= STATUS_WAIT_MICROS {
-                return false;
-            }
-        }
     }
 }
 

@@ -112,6 +112,18 @@ impl VgaBus for ClockedVga {
     fn now_micros(&mut self) -> Option<u64> {
         self.soft.now_micros()
     }
+    /// A frame being recorded logs each read, as `poll_by_reads` makes
+    /// them; any other lets the software VGA take its stretches of equal
+    /// reads at once, and the clock is read once at the end: nothing reads
+    /// it in between.
+    fn poll_port8(&mut self, port: Port, mask: u8, value: u8, limit_micros: u64) -> bool {
+        if self.log.recording() {
+            return modex::poll_by_reads(self, port, mask, value, limit_micros);
+        }
+        let done = self.soft.poll_port8(port, mask, value, limit_micros);
+        self.tick();
+        done
+    }
     fn enter(&mut self, function: &'static str) {
         self.log.enter(function);
     }

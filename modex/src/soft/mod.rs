@@ -30,6 +30,8 @@
 //! * Power-on is the BIOS's mode 3 with video memory cleared (no BIOS font).
 
 mod memory;
+#[cfg(test)]
+mod poll_tests;
 mod probe;
 mod registers;
 mod scanout;
@@ -43,7 +45,7 @@ use core::ops::Range;
 use crate::mode::TEXT_80X25;
 use crate::palette::{Rgb6, EGA_PALETTE};
 use crate::regs::{status, PLANE_COUNT};
-use crate::{VgaBus, CPU_WINDOW_BYTES};
+use crate::{poll_by_reads, VgaBus, CPU_WINDOW_BYTES};
 
 use memory::VideoMemory;
 use probe::WriteGuard;
@@ -481,6 +483,56 @@ impl VgaBus for SoftVga {
     /// The simulated clock, which times the retraces a wait looks for.
     fn now_micros(&mut self) -> Option<u64> {
         Some(self.now_ns / NANOS_PER_MICRO)
+    }
+    /// The reads one after another, as [`poll_by_reads`] makes them, except
+    /// that the reads of Input Status 1 that must give the bits just read
+    /// are taken in one step: the bits hold until the beam's next edge
+    /// (`status_until_ns`), and the vertical retrace bit until a line where
+    /// the retrace starts or ends, so the reads before then are counted and
+    /// their microseconds pass at once. A wait for the retrace, thousands of
+    /// reads, is a few steps. It ends with the count, the clock, the frames
+    /// latched and the answer that the reads one by one would give
+    /// (`poll_tests`).
+    fn poll_port8(&mut self, port: Port, mask: u8, value: u8, limit_micros: u64) -> bool {
+        // The waited microseconds below are the reads made.
+        const _: () = assert!(PORT_ACCESS_NS == NANOS_PER_MICRO);
+        if port != self.registers.input_status_1_port() {
+            return poll_by_reads(self, port, mask, value, limit_micros);
+        }
+        let start = self.now_ns / NANOS_PER_MICRO;
+        loop {
+            if self.read_port8(port) & mask == value {
+                return true;
+            }
+            // A read takes PORT_ACCESS_NS, a microsecond, so the reads so
+            // far are the microseconds waited, as poll_by_reads counts them.
+            let waited = self.now_ns / NANOS_PER_MICRO - start;
+            if waited >= limit_micros {
+                return false;
+            }
+            // The next reads fall at now + k µs, k = 1, 2, ...; those before
+            // `until` read these bits again under `mask`: the next edge of
+            // the beam, or where the vertical retrace bit may next change
+            // if that bit is all the wait looks at (or it is stuck, and
+            // then no read will ever differ).
+            let until = if mask & !status::VERTICAL_RETRACE == 0 {
+                match self.retrace_stuck {
+                    None => self.timing.retrace_bit_until(self.now_ns),
+                    Some(_) => u64::MAX,
+                }
+            } else {
+                self.status_until_ns
+            };
+            let same = until.saturating_sub(self.now_ns + 1) / PORT_ACCESS_NS;
+            let skipped = same.min(limit_micros - waited);
+            if skipped > 0 {
+                self.counts.port_reads += skipped;
+                self.advance_ns(skipped * PORT_ACCESS_NS);
+                if waited + skipped >= limit_micros {
+                    return false;
+                }
+            }
+        }
     }
 }
 

@@ -150,7 +150,7 @@ impl CrtTiming {
     /// display's right edge, or of its line's end. A wait on the status
     /// reads it every microsecond, about 32 times a line, so the software
     /// VGA keeps the bits until then rather than divide its way to the beam
-    /// at every read.
+    /// at every read, and a wait takes the reads before then in one step.
     pub(super) fn status_until(&self, ns: u64) -> (u8, u64) {
         let dots = self.dots_at(ns);
         let dots_per_line = self.dots_per_line();
@@ -167,6 +167,24 @@ impl CrtTiming {
             self.status_at(ns),
             self.first_ns_at_dot(dots - into_line + next_edge),
         )
+    }
+
+    /// A time before which Input Status 1's vertical retrace bit cannot
+    /// change from its value at `ns`: the start of the next line on which
+    /// the retrace starts or ends, or of the next frame. A wait for the
+    /// retrace, which looks at that bit alone, skips to it.
+    pub(super) fn retrace_bit_until(&self, ns: u64) -> u64 {
+        let dots = self.dots_at(ns);
+        let (dots_per_line, dots_per_frame) = (self.dots_per_line(), self.dots_per_frame());
+        let into_frame = dots % dots_per_frame;
+        let line = into_frame / dots_per_line;
+        let retrace_end_line = self.retrace_start_line + self.retrace_lines;
+        let next_line = [self.retrace_start_line, retrace_end_line]
+            .into_iter()
+            .filter(|&edge| edge > line && edge < self.lines_per_frame)
+            .min()
+            .unwrap_or(self.lines_per_frame);
+        self.first_ns_at_dot(dots - into_frame + next_line * dots_per_line)
     }
 
     pub(super) fn retraces_started_by(&self, ns: u64) -> u64 {
