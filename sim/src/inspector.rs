@@ -7,9 +7,10 @@
 use std::collections::VecDeque;
 use std::convert::Infallible;
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use embedded_graphics::mono_font::{ascii::FONT_6X10, MonoTextStyle};
-use embedded_graphics::pixelcolor::Rgb888;
+use embedded_graphics::pixelcolor::{BinaryColor, Rgb888};
 use embedded_graphics::prelude::*;
 use embedded_graphics::text::{Baseline, Text};
 use modex::regs::{gc, Graphics, Sequencer};
@@ -370,7 +371,34 @@ impl Panel {
         panel
     }
 
+    /// `text` in `FONT_6X10` with its top left at (x, y), clipped to the
+    /// panel. Printable ASCII, all the inspector writes, is drawn from the
+    /// font's glyphs as bit rows ([`glyph_rows`]), a fifth of what
+    /// embedded-graphics' text renderer costs a character; anything else
+    /// goes through that renderer. The same pixels either way (a test
+    /// draws every glyph both ways).
     fn text(&mut self, text: &str, x: i32, y: i32, colour: Rgb888) {
+        if !text.bytes().all(|byte| GLYPH_CHARACTERS.contains(&byte)) {
+            self.text_by_renderer(text, x, y, colour);
+            return;
+        }
+        let colour = self.encoding.pack(rgb(colour));
+        let glyphs = glyph_rows();
+        for (index, byte) in text.bytes().enumerate() {
+            let left = x + index as i32 * GLYPH_WIDTH;
+            let rows = &glyphs[usize::from(byte - GLYPH_CHARACTERS.start)];
+            for (row, &bits) in (y..).zip(rows) {
+                for column in 0..GLYPH_WIDTH {
+                    if bits & (1 << column) != 0 {
+                        self.put(left + column, row, colour);
+                    }
+                }
+            }
+        }
+    }
+
+    /// `text` as embedded-graphics' text renderer draws it.
+    fn text_by_renderer(&mut self, text: &str, x: i32, y: i32, colour: Rgb888) {
         let style = MonoTextStyle::new(&FONT_6X10, colour);
         // Drawing into a Vec cannot fail.
         let _ = Text::with_baseline(text, Point::new(x, y), style, Baseline::Top).draw(self);
@@ -405,6 +433,57 @@ impl Panel {
 
 fn rgb(colour: Rgb888) -> [u8; 3] {
     [colour.r(), colour.g(), colour.b()]
+}
+
+/// The characters [`glyph_rows`] holds: printable ASCII.
+const GLYPH_CHARACTERS: Range<u8> = 0x20..0x7F;
+/// `FONT_6X10`'s glyph size, and the step from one character to the next.
+const GLYPH_WIDTH: i32 = 6;
+const GLYPH_HEIGHT: usize = 10;
+
+/// Each printable ASCII character's glyph in `FONT_6X10`, a row of bits a
+/// line (bit n: the pixel n from the left), as embedded-graphics' text
+/// renderer draws it: made once, by that renderer, the first time text is
+/// drawn.
+fn glyph_rows() -> &'static [[u8; GLYPH_HEIGHT]; GLYPH_CHARACTERS.end as usize - 0x20] {
+    static GLYPHS: OnceLock<[[u8; GLYPH_HEIGHT]; GLYPH_CHARACTERS.end as usize - 0x20]> =
+        OnceLock::new();
+    GLYPHS.get_or_init(|| {
+        /// One glyph's pixels, as bits.
+        struct GlyphCell([u8; GLYPH_HEIGHT]);
+        impl OriginDimensions for GlyphCell {
+            fn size(&self) -> Size {
+                Size::new(GLYPH_WIDTH as u32, GLYPH_HEIGHT as u32)
+            }
+        }
+        impl DrawTarget for GlyphCell {
+            type Color = BinaryColor;
+            type Error = Infallible;
+            fn draw_iter<I: IntoIterator<Item = Pixel<BinaryColor>>>(
+                &mut self,
+                pixels: I,
+            ) -> Result<(), Infallible> {
+                for Pixel(point, colour) in pixels {
+                    let inside = (0..GLYPH_WIDTH).contains(&point.x)
+                        && (0..GLYPH_HEIGHT as i32).contains(&point.y);
+                    if inside && colour.is_on() {
+                        self.0[point.y as usize] |= 1 << point.x;
+                    }
+                }
+                Ok(())
+            }
+        }
+        let mut glyphs = [[0; GLYPH_HEIGHT]; GLYPH_CHARACTERS.end as usize - 0x20];
+        for (glyph, character) in glyphs.iter_mut().zip(GLYPH_CHARACTERS) {
+            let mut cell = GlyphCell([0; GLYPH_HEIGHT]);
+            let mut utf8 = [0; 4];
+            let text = char::from(character).encode_utf8(&mut utf8);
+            let style = MonoTextStyle::new(&FONT_6X10, BinaryColor::On);
+            let _ = Text::with_baseline(text, Point::zero(), style, Baseline::Top).draw(&mut cell);
+            *glyph = cell.0;
+        }
+        glyphs
+    })
 }
 
 /// The left edge of plane `plane`'s image.
@@ -568,21 +647,25 @@ fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) 
         .unwrap_or(0)
         .max(1);
     panel.clear_rows(top, PLOT_HEIGHT);
-    let bottom = top + PLOT_HEIGHT - 1;
+    let width = panel.width;
+    let bottom = (top + PLOT_HEIGHT - 1) as usize;
     let axis = panel.encoding.pack(rgb(AXIS_COLOUR));
-    for x in 0..PLOT_FRAMES as i32 {
-        panel.put(MARGIN + x, bottom, axis);
-    }
+    let left = MARGIN as usize;
+    panel.pixels[bottom * width + left..][..PLOT_FRAMES].fill(axis);
     let start = PLOT_FRAMES - history.costs.len();
-    for (column, cost) in history.costs().enumerate() {
-        let x = MARGIN + (start + column) as i32;
-        // The first series as bars, the others as points over them.
-        for (index, &(value, colour)) in series.iter().enumerate() {
-            let height = (value(cost) * (PLOT_HEIGHT as u64 - 1) / largest) as i32;
+    // The first series as bars, the others as points over them: each a
+    // column's run of pixels, bottom - height up to bottom - lowest, a row
+    // apart.
+    for (index, &(value, colour)) in series.iter().enumerate() {
+        let colour = panel.encoding.pack(rgb(colour));
+        for (column, cost) in history.costs().enumerate() {
+            let x = left + start + column;
+            let height = (value(cost) * (PLOT_HEIGHT as u64 - 1) / largest) as usize;
             let lowest = if index == 0 { 0 } else { height };
-            let colour = panel.encoding.pack(rgb(colour));
-            for y in lowest..=height {
-                panel.put(x, bottom - y, colour);
+            let first = (bottom - height) * width + x;
+            let last = (bottom - lowest) * width + x;
+            for pixel in panel.pixels[first..=last].iter_mut().step_by(width) {
+                *pixel = colour;
             }
         }
     }

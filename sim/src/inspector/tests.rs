@@ -300,3 +300,66 @@ fn same_bytes_compares_every_byte() {
     }
     assert!(!same_bytes(&row, &row[..82]));
 }
+
+#[test]
+fn text_from_the_glyph_rows_is_the_text_renderers() {
+    let printable: String = GLYPH_CHARACTERS.map(char::from).collect();
+    // Anywhere on the panel, and cut by each of its edges.
+    for (x, y) in [(8, 2), (-3, -4), (400 - 6 * 3 - 2, 100), (-7, 470 - 6)] {
+        let mut fast = Panel::inspector(470, Encoding::Xrgb);
+        let mut rendered = fast.clone();
+        fast.text(&printable, x, y, VRAM_COLOUR);
+        rendered.text_by_renderer(&printable, x, y, VRAM_COLOUR);
+        assert!(fast.pixels == rendered.pixels, "at ({x}, {y})");
+        // Each glyph has pixels, so a glyph left out would be seen.
+        assert!(glyph_rows()[1..]
+            .iter()
+            .all(|rows| rows.iter().any(|&bits| bits != 0)));
+    }
+    // Text outside printable ASCII goes to the renderer, as it did.
+    let mut fast = Panel::inspector(470, Encoding::Rgba);
+    let mut rendered = fast.clone();
+    fast.text("µs ± 5 °", 20, 30, TEXT);
+    rendered.text_by_renderer("µs ± 5 °", 20, 30, TEXT);
+    assert!(fast.pixels == rendered.pixels);
+}
+
+#[test]
+fn a_plot_is_a_bar_and_a_point_a_frame_newest_on_the_right() {
+    let mut history = History::default();
+    // The largest value is the plot's top; the frame before it is half.
+    for (vram_writes, lower_bound) in [(550, 110), (1_100, 0)] {
+        history.push(FrameCost {
+            vram_writes,
+            lower_bound,
+            ..FrameCost::default()
+        });
+    }
+    let mut panel = Panel::inspector(470, Encoding::Xrgb);
+    let vram = |cost: &FrameCost| cost.vram_writes;
+    let bound = |cost: &FrameCost| cost.lower_bound;
+    draw_plot(
+        &mut panel,
+        &history,
+        BUS_PLOT_TOP,
+        &[(vram, VRAM_COLOUR), (bound, BOUND_COLOUR)],
+    );
+    let pack = |colour| Encoding::Xrgb.pack(rgb(colour));
+    let bottom = (BUS_PLOT_TOP + PLOT_HEIGHT - 1) as usize;
+    let at = |x: usize, y: usize| panel.pixels[y * panel.width + x];
+    // Columns with no frame: the axis, nothing above it.
+    let first = MARGIN as usize;
+    assert_eq!(at(first, bottom), pack(AXIS_COLOUR));
+    assert_eq!(at(first, bottom - 1), pack(BACKGROUND));
+    // The newest frame, rightmost: a bar of the full height (55 rows over
+    // the bottom one), its bound (0) a point on the bottom row over it.
+    let newest = first + PLOT_FRAMES - 1;
+    assert_eq!(at(newest, bottom), pack(BOUND_COLOUR));
+    assert!((bottom - 55..bottom).all(|y| at(newest, y) == pack(VRAM_COLOUR)));
+    // The frame before: half the height (27 rows), its bound a fifth of
+    // that (550 and 110 of 1,100, of 55 rows: 27 and 5), background above.
+    let before = newest - 1;
+    assert_eq!(at(before, bottom - 5), pack(BOUND_COLOUR));
+    assert!((bottom - 27..=bottom).all(|y| y == bottom - 5 || at(before, y) == pack(VRAM_COLOUR)));
+    assert_eq!(at(before, bottom - 28), pack(BACKGROUND));
+}
