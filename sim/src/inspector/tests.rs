@@ -66,9 +66,8 @@ fn planes(planes: &[Vec<u8>]) -> [&[u8]; 4] {
 #[test]
 fn the_lower_bound_from_the_planes_is_the_page_images() {
     // Pages with a few changed runs of addresses (as a frame changes them),
-    // in one plane or all,
-    // at every alignment against the eight compared at once, and a length
-    // that is not a multiple of eight.
+    // in one plane or all, at every alignment against the sixteen compared
+    // at once, and lengths that are not a multiple of sixteen.
     let mut seed = 0x2545_F491_4F6C_DD1Du64;
     let mut random = move |below: usize| {
         seed ^= seed << 13;
@@ -76,7 +75,7 @@ fn the_lower_bound_from_the_planes_is_the_page_images() {
         seed ^= seed << 17;
         (seed % below as u64) as usize
     };
-    for addresses in [0, 5, 8, 19_200, 1_001] {
+    for addresses in [0, 5, 16, 31, 19_200, 1_001] {
         for _ in 0..20 {
             let old: Vec<Vec<u8>> = (0..4)
                 .map(|_| (0..addresses).map(|_| random(4) as u8).collect())
