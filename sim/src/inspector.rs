@@ -574,13 +574,13 @@ pub fn redraw_panel(panel: &mut Panel, vga: &SoftVga, history: &History) {
         panel,
         history,
         BUS_PLOT_TOP,
-        &[(vram, VRAM_COLOUR), (bound, BOUND_COLOUR)],
+        [(vram, VRAM_COLOUR), (bound, BOUND_COLOUR)],
     );
     draw_plot(
         panel,
         history,
         PORT_PLOT_TOP,
-        &[(|cost: &FrameCost| cost.port_writes, PORT_COLOUR)],
+        [(|cost: &FrameCost| cost.port_writes, PORT_COLOUR)],
     );
 }
 
@@ -656,35 +656,53 @@ pub fn same_bytes(a: &[u8], b: &[u8]) -> bool {
 type Series = (fn(&FrameCost) -> u64, Rgb888);
 
 /// One column per frame, the newest on the right, every series on one scale
-/// whose top is the largest value shown (written at the top right).
-fn draw_plot(panel: &mut Panel, history: &History, top: i32, series: &[Series]) {
+/// whose top is the largest value shown (written at the top right): the
+/// first series as bars, the others as points over them.
+fn draw_plot<const SERIES: usize>(
+    panel: &mut Panel,
+    history: &History,
+    top: i32,
+    series: [Series; SERIES],
+) {
     let largest = history
         .costs()
         .flat_map(|cost| series.iter().map(move |(value, _)| value(cost)))
         .max()
         .unwrap_or(0)
         .max(1);
-    panel.clear_rows(top, PLOT_HEIGHT);
-    let width = panel.width;
-    let bottom = (top + PLOT_HEIGHT - 1) as usize;
-    let axis = panel.encoding.pack(rgb(AXIS_COLOUR));
-    let left = MARGIN as usize;
-    panel.pixels[bottom * width + left..][..PLOT_FRAMES].fill(axis);
+    // Each series' height in each column, counted from 1 at the bottom row
+    // (0: no frame there yet).
+    let mut heights = [[0u8; PLOT_FRAMES]; SERIES];
     let start = PLOT_FRAMES - history.costs.len();
-    // The first series as bars, the others as points over them: each a
-    // column's run of pixels, bottom - height up to bottom - lowest, a row
-    // apart.
-    for (index, &(value, colour)) in series.iter().enumerate() {
-        let colour = panel.encoding.pack(rgb(colour));
-        for (column, cost) in history.costs().enumerate() {
-            let x = left + start + column;
-            let height = (value(cost) * (PLOT_HEIGHT as u64 - 1) / largest) as usize;
-            let lowest = if index == 0 { 0 } else { height };
-            let first = (bottom - height) * width + x;
-            let last = (bottom - lowest) * width + x;
-            for pixel in panel.pixels[first..=last].iter_mut().step_by(width) {
-                *pixel = colour;
+    for (heights, (value, _)) in heights.iter_mut().zip(&series) {
+        for (height, cost) in heights[start..].iter_mut().zip(history.costs()) {
+            // At most PLOT_HEIGHT, which fits.
+            *height = (1 + value(cost) * (PLOT_HEIGHT as u64 - 1) / largest) as u8;
+        }
+    }
+    panel.clear_rows(top, PLOT_HEIGHT);
+    let pack = |colour| panel.encoding.pack(rgb(colour));
+    let (background, axis) = (pack(BACKGROUND), pack(AXIS_COLOUR));
+    let colours = series.map(|(_, colour)| pack(colour));
+    // Row by row, each pixel chosen without a branch, so that a row is a
+    // few vector operations.
+    let width = panel.width;
+    for level in 1..=PLOT_HEIGHT as u8 {
+        let y = (top + PLOT_HEIGHT) as usize - usize::from(level);
+        let row = &mut panel.pixels[y * width + MARGIN as usize..][..PLOT_FRAMES];
+        let empty = if level == 1 { axis } else { background };
+        for (column, pixel) in row.iter_mut().enumerate() {
+            let mut colour = if level <= heights[0][column] {
+                colours[0]
+            } else {
+                empty
+            };
+            for (heights, &point) in heights.iter().zip(&colours).skip(1) {
+                if level == heights[column] {
+                    colour = point;
+                }
             }
+            *pixel = colour;
         }
     }
     let mut digits = itoa::Buffer::new();

@@ -341,7 +341,7 @@ fn a_plot_is_a_bar_and_a_point_a_frame_newest_on_the_right() {
         &mut panel,
         &history,
         BUS_PLOT_TOP,
-        &[(vram, VRAM_COLOUR), (bound, BOUND_COLOUR)],
+        [(vram, VRAM_COLOUR), (bound, BOUND_COLOUR)],
     );
     let pack = |colour| Encoding::Xrgb.pack(rgb(colour));
     let bottom = (BUS_PLOT_TOP + PLOT_HEIGHT - 1) as usize;
