@@ -856,6 +856,62 @@ fn a_browser_without_webassembly_simd_gets_a_message() {
     });
 }
 
+#[test]
+fn a_paused_page_asks_for_no_refreshes_and_playing_asks_again() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = browser.open("about:blank").unwrap();
+        // The page's requestAnimationFrame calls, counted; the test's own
+        // go to the browser's, uncounted.
+        page.call(
+            "Page.addScriptToEvaluateOnNewDocument",
+            serde_json::json!({ "source": "(() => { \
+                const request = window.requestAnimationFrame.bind(window); \
+                window.uncountedFrame = request; \
+                window.frameRequests = 0; \
+                window.requestAnimationFrame = (callback) => { \
+                    window.frameRequests++; return request(callback); }; })()" }),
+        )
+        .unwrap();
+        page.navigate(&format!("{}?paused=1", page_url())).unwrap();
+        page.wait_for("window.modexPage && modexPage.ready", PAGE_TIMEOUT)
+            .unwrap();
+        // Twenty refreshes of the display, counted by the test itself.
+        let twenty_refreshes = "new Promise((done) => { let n = 0; \
+            const next = () => (++n >= 20 ? done(n) : uncountedFrame(next)); \
+            uncountedFrame(next); })";
+        let requests_over_twenty_refreshes = || {
+            let before = evaluate_u64(&page, "frameRequests");
+            page.evaluate(twenty_refreshes).unwrap();
+            evaluate_u64(&page, "frameRequests") - before
+        };
+        // Paused from the start: no frame runs, and none is asked for.
+        assert_eq!(requests_over_twenty_refreshes(), 0);
+        assert_eq!(evaluate_u64(&page, "modexPage.frames()"), 0);
+        // Play: frames run on the refreshes again.
+        page.evaluate("document.getElementById('play').click()")
+            .unwrap();
+        page.wait_for("modexPage.frames() >= 10", PAGE_TIMEOUT)
+            .expect("frames run after Play");
+        assert!(requests_over_twenty_refreshes() >= 10);
+        // Pause: at most the refresh already asked for, then nothing.
+        page.evaluate("document.getElementById('play').click()")
+            .unwrap();
+        assert!(evaluate_string(&page, "document.getElementById('play').textContent") == "Play");
+        requests_over_twenty_refreshes();
+        let frames = evaluate_u64(&page, "modexPage.frames()");
+        assert_eq!(requests_over_twenty_refreshes(), 0);
+        assert_eq!(evaluate_u64(&page, "modexPage.frames()"), frames);
+        // The hook's play asks again too.
+        page.evaluate("modexPage.play()").unwrap();
+        page.wait_for(
+            &format!("modexPage.frames() >= {}", frames + 10),
+            PAGE_TIMEOUT,
+        )
+        .expect("frames run after the hook's play");
+    });
+}
+
 /// The loader's SIMD probe, as written in `web/page/modex.js`: the bytes
 /// of a module whose one function uses a SIMD instruction, as a JavaScript
 /// array.

@@ -182,6 +182,7 @@
       if (w.paused()) w.play();
       else w.pause();
       draw();
+      tickWhilePlaying();
     }));
     $("step-frame").addEventListener("click", guarded(() => {
       w.step_frames(1);
@@ -205,12 +206,24 @@
       textsVersion = -1; // the module's message replaces it at the next draw, as before
     }));
 
-    // Frames on the display's refresh; the module runs as many frames of
-    // the software VGA's 59.7 Hz as are due, three at most.
+    // Frames on the display's refresh while the page plays; the module
+    // runs as many frames of the software VGA's 59.7 Hz as are due, three
+    // at most. A paused page asks for no refreshes, so the browser has
+    // nothing to do for it at each one; playing asks again.
+    let ticking = false;
     function tick(now) {
-      if (stopped) return;
+      if (stopped || w.paused()) {
+        ticking = false;
+        return;
+      }
       if (guarded(w.frame)(now) > 0) draw();
       requestAnimationFrame(tick);
+    }
+    function tickWhilePlaying() {
+      if (!ticking && !stopped && !w.paused()) {
+        ticking = true;
+        requestAnimationFrame(tick);
+      }
     }
 
     // The test hook (tests/web_page.rs drives the page through it).
@@ -219,7 +232,7 @@
     }
     Object.assign(hook, {
       pause: guarded(() => { w.pause(); draw(); }),
-      play: guarded(() => { w.play(); draw(); }),
+      play: guarded(() => { w.play(); draw(); tickWhilePlaying(); }),
       stepFrames: guarded((n) => { const ran = w.step_frames(n); draw(); return ran; }),
       stepOps: guarded((n) => { const done = w.step_ops(n); draw(); return done; }),
       frames: () => w.frames(),
@@ -239,6 +252,6 @@
     draw();
     hook.ready = true;
     screen.focus();
-    requestAnimationFrame(tick);
+    tickWhilePlaying();
   }
 })();
