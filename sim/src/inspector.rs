@@ -64,7 +64,7 @@ pub fn lower_bound(old_page: &[u8], new_page: &[u8]) -> u64 {
 /// and after. Sixteen addresses at a time: a stretch unchanged in all four
 /// planes (most of a frame's) costs a comparison of each plane's sixteen
 /// bytes, and a changed one is counted without a branch, each address's
-/// lane as [`address_bound`] counts it, so that the compiler makes it
+/// lane as `address_bound` counts it, so that the compiler makes it
 /// sixteen lanes a step where there are vectors (SSE2, WebAssembly's SIMD).
 pub fn lower_bound_in_planes(old: [&[u8]; 4], new: [&[u8]; 4]) -> u64 {
     let addresses = old.iter().chain(&new).map(|plane| plane.len()).min();
