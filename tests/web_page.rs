@@ -840,15 +840,14 @@ fn a_browser_without_webassembly_simd_gets_a_message() {
             true
         );
         // A browser without SIMD says no to that module and to no other.
-        page.call(
-            "Page.addScriptToEvaluateOnNewDocument",
-            serde_json::json!({ "source": format!(
+        run_before_the_page(
+            &page,
+            &format!(
                 "(() => {{ const validate = WebAssembly.validate; \
                    WebAssembly.validate = (bytes) => \
                      bytes.join() === {probe}.join() ? false : validate(bytes); }})()"
-            ) }),
-        )
-        .unwrap();
+            ),
+        );
         page.navigate(page_url()).unwrap();
         let message = evaluate_string(&page, "document.getElementById('message').textContent");
         assert!(message.contains("WebAssembly SIMD"), "{message:?}");
@@ -863,16 +862,15 @@ fn a_paused_page_asks_for_no_refreshes_and_playing_asks_again() {
         let page = browser.open("about:blank").unwrap();
         // The page's requestAnimationFrame calls, counted; the test's own
         // go to the browser's, uncounted.
-        page.call(
-            "Page.addScriptToEvaluateOnNewDocument",
-            serde_json::json!({ "source": "(() => { \
+        run_before_the_page(
+            &page,
+            "(() => { \
                 const request = window.requestAnimationFrame.bind(window); \
                 window.uncountedFrame = request; \
                 window.frameRequests = 0; \
                 window.requestAnimationFrame = (callback) => { \
-                    window.frameRequests++; return request(callback); }; })()" }),
-        )
-        .unwrap();
+                    window.frameRequests++; return request(callback); }; })()",
+        );
         page.navigate(&format!("{}?paused=1", page_url())).unwrap();
         page.wait_for("window.modexPage && modexPage.ready", PAGE_TIMEOUT)
             .unwrap();
@@ -910,6 +908,16 @@ fn a_paused_page_asks_for_no_refreshes_and_playing_asks_again() {
         )
         .expect("frames run after the hook's play");
     });
+}
+
+/// Has `script` run in `page` before each document's own scripts, from
+/// its next navigation on.
+fn run_before_the_page(page: &Page, script: &str) {
+    page.call(
+        "Page.addScriptToEvaluateOnNewDocument",
+        serde_json::json!({ "source": script }),
+    )
+    .expect("the script is installed");
 }
 
 /// The loader's SIMD probe, as written in `web/page/modex.js`: the bytes
