@@ -819,9 +819,7 @@ fn a_browser_without_webassembly_gets_a_message() {
         assert_eq!(page.evaluate("typeof WebAssembly").unwrap(), "undefined");
         // The loader checks first thing, as it runs: by the load event the
         // message is up.
-        let message = evaluate_string(&page, "document.getElementById('message').textContent");
-        assert!(message.contains("WebAssembly"), "{message:?}");
-        assert_eq!(page.evaluate("window.modexPage.ready").unwrap(), false);
+        assert_stopped_saying(&page, "WebAssembly");
     });
 }
 
@@ -849,9 +847,7 @@ fn a_browser_without_webassembly_simd_gets_a_message() {
             ),
         );
         page.navigate(page_url()).unwrap();
-        let message = evaluate_string(&page, "document.getElementById('message').textContent");
-        assert!(message.contains("WebAssembly SIMD"), "{message:?}");
-        assert_eq!(page.evaluate("window.modexPage.ready").unwrap(), false);
+        assert_stopped_saying(&page, "WebAssembly SIMD");
     });
 }
 
@@ -908,6 +904,13 @@ fn a_paused_page_asks_for_no_refreshes_and_playing_asks_again() {
         )
         .expect("frames run after the hook's play");
     });
+}
+
+/// The page shows a message with `words` in it and never got ready.
+fn assert_stopped_saying(page: &Page, words: &str) {
+    let message = evaluate_string(page, "document.getElementById('message').textContent");
+    assert!(message.contains(words), "{message:?}");
+    assert_eq!(page.evaluate("window.modexPage.ready").unwrap(), false);
 }
 
 /// Has `script` run in `page` before each document's own scripts, from
