@@ -164,8 +164,8 @@ fn write_page_with_book(
         written.push((path, bytes.len() as u64));
         Ok(())
     };
-    // The module deflated: 683,375 bytes were 97,893 in zlib's format
-    // (most of the module is tables and zeroed data).
+    // The module deflated, to under a third of its size (most of it is
+    // tables and zeroed data; docs/web.md has the day's figures).
     let module = deflate(wasm);
     let page = INDEX_HTML.replace(BOOK_MARK, book);
     if files.single_file {
