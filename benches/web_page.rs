@@ -24,6 +24,10 @@
 //!
 //! It prints a table and a machine-readable last line.
 //!
+//! With `WEB_PAGE_PACED=1` each timed frame waits for the next display
+//! refresh (`requestAnimationFrame`), as a playing page's frames do, instead
+//! of following the one before at once; 400 frames take 6.7 s a case.
+//!
 //! With `WEB_PAGE_PROFILE=1` it profiles instead of timing: each crowd case
 //! runs its frames under the DevTools `Profiler` (sampling every
 //! [`SAMPLE_US`] µs) and the bench prints, per case, where the frames spent
@@ -173,6 +177,38 @@ fn frame_costs(page: &Page) -> Vec<f64> {
         .collect()
 }
 
+/// Times `FRAMES` frames of the paused page, one `stepFrames(1)` at each
+/// display refresh (`requestAnimationFrame`), after the same untimed ones
+/// back to back: the frames as a playing page runs them, the machine idle
+/// between them (`WEB_PAGE_PACED=1`).
+fn paced_frame_costs(page: &Page) -> Vec<f64> {
+    let costs = page
+        .evaluate_within(
+            &format!(
+                "new Promise((resolve) => {{
+                    modexPage.stepFrames({WARM_UP});
+                    const costs = [];
+                    const frame = () => {{
+                        const start = performance.now();
+                        modexPage.stepFrames(1);
+                        costs.push(performance.now() - start);
+                        if (costs.length < {FRAMES}) requestAnimationFrame(frame);
+                        else resolve(costs);
+                    }};
+                    requestAnimationFrame(frame);
+                }})"
+            ),
+            Duration::from_secs(60),
+        )
+        .unwrap();
+    costs
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_f64().unwrap())
+        .collect()
+}
+
 /// Profile mode: runs `FRAMES` frames of the paused page under the DevTools
 /// Profiler and prints where they spent their time, over all frames and
 /// over the slowest [`SLOWEST`] of them.
@@ -181,7 +217,7 @@ fn frame_costs(page: &Page) -> Vec<f64> {
 /// and `oddFrame`, so that each frame's samples lie between two changes of
 /// the one in the stack; samples outside either (garbage collection, the
 /// loop) belong to the frame they fall in.
-fn profile_frames(page: &Page, case: &str) {
+fn profile_frames(page: &Page, case: &str, paced: bool) {
     page.evaluate(&format!("modexPage.stepFrames({WARM_UP})"))
         .unwrap();
     page.call("Profiler.enable", json!({})).unwrap();
@@ -191,15 +227,29 @@ fn profile_frames(page: &Page, case: &str) {
     )
     .unwrap();
     page.call("Profiler.start", json!({})).unwrap();
-    page.evaluate(&format!(
-        "(() => {{
-            function evenFrame() {{ return modexPage.stepFrames(1); }}
-            function oddFrame() {{ return modexPage.stepFrames(1); }}
-            for (let i = 0; i < {FRAMES}; i++) {{
-                if (i % 2) oddFrame(); else evenFrame();
-            }}
-        }})()"
-    ))
+    let frames = if paced {
+        // One frame a display refresh, as in `paced_frame_costs`.
+        format!(
+            "new Promise((resolve) => {{
+                let i = 0;
+                const frame = () => {{
+                    if (i % 2) oddFrame(); else evenFrame();
+                    if (++i < {FRAMES}) requestAnimationFrame(frame); else resolve();
+                }};
+                requestAnimationFrame(frame);
+            }})"
+        )
+    } else {
+        format!("(() => {{ for (let i = 0; i < {FRAMES}; i++) {{ if (i % 2) oddFrame(); else evenFrame(); }} }})()")
+    };
+    page.evaluate_within(
+        &format!(
+            "function evenFrame() {{ return modexPage.stepFrames(1); }}
+             function oddFrame() {{ return modexPage.stepFrames(1); }}
+             {frames}"
+        ),
+        Duration::from_secs(60),
+    )
     .unwrap();
     let profile = page.call("Profiler.stop", json!({})).unwrap()["profile"].take();
     page.call("Profiler.disable", json!({})).unwrap();
@@ -332,6 +382,7 @@ fn key(page: &Page, code: &str, key: &str) {
 
 fn main() {
     let profiling = std::env::var_os("WEB_PAGE_PROFILE").is_some();
+    let paced = std::env::var_os("WEB_PAGE_PACED").is_some();
     let dir = tempfile::tempdir().expect("a scratch directory");
     let built = web::build_page(dir.path()).expect("the page builds");
     let single_dir = tempfile::tempdir().expect("a scratch directory");
@@ -412,16 +463,23 @@ fn main() {
         let shown = page.evaluate("modexPage.inspectorRgba() !== null").unwrap();
         assert_eq!(shown, Value::Bool(inspector), "the inspector is as set");
         if profiling {
-            profile_frames(&page, name);
+            profile_frames(&page, name, paced);
             continue;
         }
-        cases[case].costs.extend(frame_costs(&page));
+        if paced {
+            cases[case].costs.extend(paced_frame_costs(&page));
+        } else {
+            cases[case].costs.extend(frame_costs(&page));
+        }
     }
     if profiling {
         return;
     }
 
     println!();
+    if paced {
+        println!("Frames timed one a display refresh (WEB_PAGE_PACED), not back to back.");
+    }
     println!("| measure | median | 99th percentile | worst |");
     println!("|---|---:|---:|---:|");
     println!(
