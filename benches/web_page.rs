@@ -153,49 +153,35 @@ fn fetched(page: &Page) -> Vec<(String, u64)> {
         .collect()
 }
 
-/// Times `FRAMES` frames of the paused page, one `stepFrames(1)` each.
-fn frame_costs(page: &Page) -> Vec<f64> {
-    let costs = page
-        .evaluate(&format!(
-            "(() => {{
-                modexPage.stepFrames({WARM_UP});
-                const costs = [];
-                for (let i = 0; i < {FRAMES}; i++) {{
-                    const start = performance.now();
-                    modexPage.stepFrames(1);
-                    costs.push(performance.now() - start);
-                }}
-                return costs;
-            }})()"
-        ))
-        .unwrap();
-    costs
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c.as_f64().unwrap())
-        .collect()
-}
-
-/// Times `FRAMES` frames of the paused page, one `stepFrames(1)` at each
-/// display refresh (`requestAnimationFrame`), after the same untimed ones
-/// back to back: the frames as a playing page runs them, the machine idle
-/// between them (`WEB_PAGE_PACED=1`).
-fn paced_frame_costs(page: &Page) -> Vec<f64> {
+/// Times `FRAMES` frames of the paused page, one `stepFrames(1)` each,
+/// after [`WARM_UP`] untimed ones: back to back, or with `paced`
+/// (`WEB_PAGE_PACED=1`) one at each display refresh
+/// (`requestAnimationFrame`), with the browser rendering between them as it
+/// does for a playing page.
+fn frame_costs(page: &Page, paced: bool) -> Vec<f64> {
+    let run = if paced {
+        "const next = () => {
+            frame();
+            if (costs.length < FRAMES) requestAnimationFrame(next); else resolve(costs);
+        };
+        requestAnimationFrame(next);"
+    } else {
+        "while (costs.length < FRAMES) frame();
+        resolve(costs);"
+    };
     let costs = page
         .evaluate_within(
             &format!(
                 "new Promise((resolve) => {{
+                    const FRAMES = {FRAMES};
                     modexPage.stepFrames({WARM_UP});
                     const costs = [];
                     const frame = () => {{
                         const start = performance.now();
                         modexPage.stepFrames(1);
                         costs.push(performance.now() - start);
-                        if (costs.length < {FRAMES}) requestAnimationFrame(frame);
-                        else resolve(costs);
                     }};
-                    requestAnimationFrame(frame);
+                    {run}
                 }})"
             ),
             Duration::from_secs(60),
@@ -228,7 +214,7 @@ fn profile_frames(page: &Page, case: &str, paced: bool) {
     .unwrap();
     page.call("Profiler.start", json!({})).unwrap();
     let frames = if paced {
-        // One frame a display refresh, as in `paced_frame_costs`.
+        // One frame a display refresh, as in `frame_costs`.
         format!(
             "new Promise((resolve) => {{
                 let i = 0;
@@ -466,11 +452,7 @@ fn main() {
             profile_frames(&page, name, paced);
             continue;
         }
-        if paced {
-            cases[case].costs.extend(paced_frame_costs(&page));
-        } else {
-            cases[case].costs.extend(frame_costs(&page));
-        }
+        cases[case].costs.extend(frame_costs(&page, paced));
     }
     if profiling {
         return;
