@@ -977,6 +977,71 @@ impl Page<'_> {
         self.browser.console(&self.session)
     }
 
+    /// Runs `run` while the browser records a trace of the event
+    /// `categories` (DevTools `Tracing`), and returns what `run` gave with
+    /// the trace's events, in Chrome's JSON trace format: each with its
+    /// `name`, `cat`, `ph`, `pid`, `tid`, `ts` (µs, the monotonic clock) and,
+    /// for most, `tts` (µs of its thread's CPU time) and `args`.
+    pub fn trace<T>(
+        &self,
+        categories: &[&str],
+        run: impl FnOnce() -> Result<T>,
+    ) -> Result<(T, Vec<Value>)> {
+        self.call(
+            "Tracing.start",
+            json!({
+                "traceConfig": { "includedCategories": categories },
+                "transferMode": "ReturnAsStream",
+            }),
+        )?;
+        let ran = run();
+        // End the trace whatever `run` gave, so that the tab can trace again.
+        self.call("Tracing.end", json!({}))?;
+        let session = self.session.clone();
+        let complete =
+            self.browser
+                .wait_event("the end of a trace", self.browser.timeout, |event| {
+                    event["sessionId"] == session.as_str()
+                        && event["method"] == "Tracing.tracingComplete"
+                })?;
+        let ran = ran?;
+        let stream = string_field(&complete["params"], "stream")?;
+        let mut text = String::new();
+        loop {
+            let chunk = self.call("IO.read", json!({"handle": stream, "size": 1 << 20}))?;
+            if chunk["base64Encoded"] == true {
+                return Err(BrowserError::Unexpected {
+                    what: "a trace in base64 (asked for JSON)".into(),
+                    value: truncated(&chunk),
+                });
+            }
+            text += &string_field(&chunk, "data")?;
+            if chunk["eof"] == true {
+                break;
+            }
+        }
+        self.call("IO.close", json!({"handle": stream}))?;
+        let trace: Value =
+            serde_json::from_str(&text).map_err(|error| BrowserError::Unexpected {
+                what: format!("a trace (not JSON: {error})"),
+                value: truncated(&Value::from(text.clone())),
+            })?;
+        match trace {
+            Value::Object(mut trace) => match trace.remove("traceEvents") {
+                Some(Value::Array(events)) => Ok((ran, events)),
+                other => Err(BrowserError::Unexpected {
+                    what: "a trace's traceEvents".into(),
+                    value: truncated(&other.unwrap_or(Value::Null)),
+                }),
+            },
+            Value::Array(events) => Ok((ran, events)),
+            other => Err(BrowserError::Unexpected {
+                what: "a trace".into(),
+                value: truncated(&other),
+            }),
+        }
+    }
+
     /// The session this page's commands go to.
     pub fn session(&self) -> &str {
         &self.session

@@ -1,6 +1,6 @@
 //! The harness against the real Chromium: pages load, JavaScript runs and
 //! throws, key and mouse events arrive as a page sees real ones, waits end
-//! at their bound, and a dead browser is reported with its stderr.
+//! at their bound, a trace holds the page's marks, and a dead browser is reported with its stderr.
 //! Pages come from `data:` URLs, so no server is needed.
 
 use std::time::{Duration, Instant};
@@ -118,6 +118,48 @@ fn a_wait_ends_when_the_page_says_so_or_at_its_bound() {
         other => panic!("expected a timeout, got {other:?}"),
     }
     assert!(started.elapsed() < Duration::from_secs(30));
+}
+
+#[test]
+fn a_trace_holds_the_marks_with_their_threads_cpu_time() {
+    let browser = Browser::start().unwrap();
+    let page = browser.open("data:text/html,x").unwrap();
+    for round in 0..2 {
+        // Twice, so that a trace ends and the tab can trace again.
+        let (value, events) = page
+            .trace(&["blink.user_timing"], || {
+                page.evaluate(
+                    "(() => { performance.mark('first'); let s = 0; \
+                     for (let i = 0; i < 1e6; i++) s += i; \
+                     performance.mark('second'); return s; })()",
+                )
+            })
+            .unwrap();
+        assert_eq!(value.as_f64(), Some(499_999_500_000.0), "round {round}");
+        let mark = |name: &str| {
+            let found: Vec<_> = events.iter().filter(|e| e["name"] == name).collect();
+            assert_eq!(
+                found.len(),
+                1,
+                "one {name} mark in round {round}: {found:?}"
+            );
+            found[0].clone()
+        };
+        let (first, second) = (mark("first"), mark("second"));
+        assert_eq!(first["tid"], second["tid"], "both on the page's thread");
+        for field in ["tts", "ts"] {
+            let (a, b) = (first[field].as_u64(), second[field].as_u64());
+            assert!(a.is_some() && b.is_some(), "{field}: {first} {second}");
+            assert!(a <= b, "{field} runs forward: {first} {second}");
+        }
+        let called = |e: &serde_json::Value| e["args"]["data"]["callTime"].as_u64();
+        assert!(called(&first) <= called(&second) && called(&first).is_some());
+    }
+    // A failing run still ends the trace, and its error comes back.
+    assert!(page
+        .trace(&["blink.user_timing"], || page.evaluate("throw 1"))
+        .is_err());
+    assert!(page.trace(&["blink.user_timing"], || Ok(())).is_ok());
 }
 
 #[test]
