@@ -14,7 +14,10 @@
 //!   and the same lit, L), inspector on and off: the page paused, each frame
 //!   run by the hook's `stepFrames(1)`, which does what a frame on
 //!   `requestAnimationFrame` does (the module's frame, the picture and panels
-//!   rendered, the canvases painted), timed with `performance.now()`; and
+//!   rendered, the canvases painted), each between two `performance.mark`s
+//!   read from a DevTools trace: how long it lasted, to the microsecond,
+//!   and how much of that the page's thread ran (its CPU time), with V8's
+//!   work on the module that overlapped the timed frames; and
 //!   the crowd with the inspector on once more in a browser that compiles
 //!   the module ahead with V8's optimising compiler ([`COMPILED_AHEAD`]),
 //!   so that no background compile competes with the frames;
@@ -47,11 +50,14 @@ const COLD_LOADS: usize = 7;
 /// machine does not fall on one case alone.
 const FRAMES: usize = 400;
 const ROUNDS: usize = 3;
-/// Untimed frames first: V8 compiles the module with its baseline compiler
-/// and, meanwhile, the functions that turn out hot with its optimising one,
-/// in the background; not always finished after these (docs/performance.md,
-/// "What the slowest frames were").
-const WARM_UP: usize = 300;
+/// Untimed frames first, one a call as the timed ones: V8 compiles the
+/// module with its baseline compiler and then, in the background, each
+/// function that turns out hot with its optimising one, and the wrapper of
+/// each call from JavaScript on the page's thread. On Chromium 156 the last
+/// of that work came about 1,510 frames in (docs/performance.md, "A warm-up
+/// that warms what is timed"); the table shows any that overlapped the
+/// timed frames.
+const WARM_UP: usize = 1600;
 /// The flags of the browser for the case "compiled ahead": V8 compiles the
 /// module with its optimising compiler (TurboFan) before it runs, rather
 /// than with its baseline compiler (Liftoff) and then, in the background,
@@ -60,6 +66,24 @@ const WARM_UP: usize = 300;
 /// time (docs/performance.md, "What the slowest frames were"); this case
 /// times the page's own work without them.
 const COMPILED_AHEAD: &str = "--js-flags=--no-liftoff";
+/// The marks around each timed frame.
+const START: &str = "frame-start";
+const END: &str = "frame-end";
+/// The trace's categories: the page's marks, and V8's work on the module.
+const TRACED: &[&str] = &[
+    "blink.user_timing",
+    "v8.wasm",
+    "disabled-by-default-v8.wasm.detailed",
+];
+/// V8's work on the module while it runs, from the trace: a hot function
+/// compiled by the optimising compiler (on another thread), the wrapper
+/// of a call from JavaScript compiled, code it replaced freed (both on the
+/// page's thread).
+const V8_WASM_WORK: &[&str] = &[
+    "wasm.TopTierCompilation",
+    "wasm.CompileJSToWasmWrapper",
+    "V8.WasmCodeGC",
+];
 /// How long the page may take to draw its first frame.
 const READY_TIMEOUT: Duration = Duration::from_secs(120);
 const MIB: f64 = 1024.0 * 1024.0;
@@ -100,7 +124,9 @@ struct Case<'browser> {
     lit: bool,
     inspector: bool,
     browser: &'browser Browser,
-    costs: Vec<f64>,
+    costs: Vec<FrameCost>,
+    /// V8's work on the module during the timed frames ([`V8_WASM_WORK`]).
+    v8_work: Vec<String>,
 }
 
 /// One cold load: milliseconds from navigation start to the first frame,
@@ -153,46 +179,121 @@ fn fetched(page: &Page) -> Vec<(String, u64)> {
         .collect()
 }
 
+/// One timed frame, in ms: how long it lasted, and how much of that the
+/// page's thread ran (its CPU time; the rest it waited for a core).
+#[derive(Clone, Copy)]
+struct FrameCost {
+    elapsed: f64,
+    cpu: f64,
+}
+
 /// Times `FRAMES` frames of the paused page, one `stepFrames(1)` each,
 /// after [`WARM_UP`] untimed ones: back to back, or with `paced`
 /// (`WEB_PAGE_PACED=1`) one at each display refresh
 /// (`requestAnimationFrame`), with the browser rendering between them as it
-/// does for a playing page.
-fn frame_costs(page: &Page, paced: bool) -> Vec<f64> {
+/// does for a playing page. Also gives V8's work on the module that overlapped
+/// the timed frames ([`V8_WASM_WORK`]).
+///
+/// Each frame lies between two `performance.mark`s, read from a DevTools
+/// trace: their call times give its length to the microsecond (the page's
+/// `performance.now()` counts in steps of 0.1 ms), and their thread
+/// timestamps the CPU time of the page's thread between them.
+fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
     let run = if paced {
         "const next = () => {
             frame();
-            if (costs.length < FRAMES) requestAnimationFrame(next); else resolve(costs);
+            if (++done < FRAMES) requestAnimationFrame(next); else resolve(done);
         };
         requestAnimationFrame(next);"
     } else {
-        "while (costs.length < FRAMES) frame();
-        resolve(costs);"
+        "while (done < FRAMES) { frame(); done++; }
+        resolve(done);"
     };
-    let costs = page
-        .evaluate_within(
-            &format!(
-                "new Promise((resolve) => {{
-                    const FRAMES = {FRAMES};
-                    modexPage.stepFrames({WARM_UP});
-                    const costs = [];
-                    const frame = () => {{
-                        const start = performance.now();
-                        modexPage.stepFrames(1);
-                        costs.push(performance.now() - start);
-                    }};
-                    {run}
-                }})"
-            ),
-            Duration::from_secs(60),
-        )
+    let (done, events) = page
+        .trace(TRACED, || {
+            page.evaluate_within(
+                &format!(
+                    "new Promise((resolve) => {{
+                        const FRAMES = {FRAMES};
+                        // One frame a call, as timed (`stepFrames(n)` would
+                        // render the page only once), and in the same
+                        // evaluation, so that the browser does not render
+                        // between these and the timed frames.
+                        for (let i = 0; i < {WARM_UP}; i++) modexPage.stepFrames(1);
+                        // The marks' first use makes objects of its own.
+                        performance.mark('{START}');
+                        performance.mark('{END}');
+                        performance.clearMarks();
+                        let done = 0;
+                        const frame = () => {{
+                            performance.mark('{START}');
+                            modexPage.stepFrames(1);
+                            performance.mark('{END}');
+                            performance.clearMarks();
+                        }};
+                        {run}
+                    }})"
+                ),
+                Duration::from_secs(60),
+            )
+        })
         .unwrap();
-    costs
-        .as_array()
-        .unwrap()
+    assert_eq!(done.as_u64(), Some(FRAMES as u64), "every frame ran");
+
+    // Each mark: its name, call time and thread time (µs), on one thread.
+    let marks: Vec<(&str, f64, f64)> = events
         .iter()
-        .map(|c| c.as_f64().unwrap())
-        .collect()
+        .filter(|e| e["cat"] == "blink.user_timing" && (e["name"] == START || e["name"] == END))
+        .map(|e| {
+            let at = |value: &Value| {
+                value
+                    .as_f64()
+                    .unwrap_or_else(|| panic!("a mark's time: {e}"))
+            };
+            (
+                e["name"].as_str().unwrap(),
+                at(&e["args"]["data"]["callTime"]),
+                at(&e["tts"]),
+            )
+        })
+        .collect();
+    let threads: std::collections::HashSet<String> = events
+        .iter()
+        .filter(|e| e["cat"] == "blink.user_timing")
+        .map(|e| e["tid"].to_string())
+        .collect();
+    assert_eq!(threads.len(), 1, "the marks come from the page's thread");
+    // Two marks a frame, after the two of the warm-up.
+    assert_eq!(marks.len(), 2 * FRAMES + 2, "two marks a frame");
+    let mut sorted = marks.clone();
+    sorted.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let sorted = &sorted[2..];
+    let costs: Vec<FrameCost> = sorted
+        .chunks(2)
+        .map(|pair| {
+            let [(START, start, start_cpu), (END, end, end_cpu)] = pair else {
+                panic!("marks in turn, start then end: {pair:?}");
+            };
+            FrameCost {
+                elapsed: (end - start) / 1000.0,
+                cpu: (end_cpu - start_cpu) / 1000.0,
+            }
+        })
+        .collect();
+    let (first, last) = (sorted[0].1, sorted[sorted.len() - 1].1);
+    let v8_work = events
+        .iter()
+        .filter(|e| e["ph"] == "X")
+        .filter(|e| {
+            // Any that overlaps the timed frames.
+            let ts = e["ts"].as_f64().unwrap_or(f64::NAN);
+            ts <= last && ts + e["dur"].as_f64().unwrap_or(0.0) >= first
+        })
+        .filter_map(|e| e["name"].as_str())
+        .filter(|name| V8_WASM_WORK.contains(name))
+        .map(str::to_owned)
+        .collect();
+    (costs, v8_work)
 }
 
 /// Profile mode: runs `FRAMES` frames of the paused page under the DevTools
@@ -204,8 +305,10 @@ fn frame_costs(page: &Page, paced: bool) -> Vec<f64> {
 /// the one in the stack; samples outside either (garbage collection, the
 /// loop) belong to the frame they fall in.
 fn profile_frames(page: &Page, case: &str, paced: bool) {
-    page.evaluate(&format!("modexPage.stepFrames({WARM_UP})"))
-        .unwrap();
+    page.evaluate(&format!(
+        "for (let i = 0; i < {WARM_UP}; i++) modexPage.stepFrames(1)"
+    ))
+    .unwrap();
     page.call("Profiler.enable", json!({})).unwrap();
     page.call(
         "Profiler.setSamplingInterval",
@@ -406,6 +509,7 @@ fn main() {
         inspector,
         browser,
         costs: Vec::new(),
+        v8_work: Vec::new(),
     };
     let mut cases = [
         case("crowd, inspector on", false, true, &browser),
@@ -452,7 +556,9 @@ fn main() {
             profile_frames(&page, name, paced);
             continue;
         }
-        cases[case].costs.extend(frame_costs(&page, paced));
+        let (costs, v8_work) = frame_costs(&page, paced);
+        cases[case].costs.extend(costs);
+        cases[case].v8_work.extend(v8_work);
     }
     if profiling {
         return;
@@ -474,13 +580,42 @@ fn main() {
         percentile(&after_load, 0.5),
         max(&after_load)
     );
-    for Case { name, costs, .. } in &cases {
+    for Case {
+        name,
+        costs,
+        v8_work,
+        ..
+    } in &cases
+    {
+        let elapsed: Vec<f64> = costs.iter().map(|c| c.elapsed).collect();
+        let cpu: Vec<f64> = costs.iter().map(|c| c.cpu).collect();
+        for (what, times) in [("", &elapsed), (", CPU time", &cpu)] {
+            println!(
+                "| frame cost{what}, {name} ({} frames) | {:.2} ms | {:.2} ms | {:.2} ms |",
+                times.len(),
+                percentile(times, 0.5),
+                percentile(times, 0.99),
+                max(times)
+            );
+        }
+        let mut counted: Vec<(&String, usize)> = Vec::new();
+        for work in v8_work {
+            match counted.iter_mut().find(|(name, _)| *name == work) {
+                Some((_, count)) => *count += 1,
+                None => counted.push((work, 1)),
+            }
+        }
+        let counted: Vec<String> = counted
+            .iter()
+            .map(|(name, n)| format!("{n} {name}"))
+            .collect();
         println!(
-            "| frame cost, {name} ({} frames) | {:.2} ms | {:.2} ms | {:.2} ms |",
-            costs.len(),
-            percentile(costs, 0.5),
-            percentile(costs, 0.99),
-            max(costs)
+            "|   V8's work on the module during those frames: {} | | | |",
+            if counted.is_empty() {
+                "none".to_owned()
+            } else {
+                counted.join(", ")
+            }
         );
     }
     let fetched_total: u64 = weight.iter().map(|(_, bytes)| bytes).sum();
@@ -502,16 +637,21 @@ fn main() {
         single.book_bytes
     );
     println!(
-        "(performance.now() in a page that is not cross-origin isolated counts in steps of 0.1 ms)"
+        "(frames timed between two performance.marks, from a DevTools trace: \
+         their call times, and the page's thread's CPU time)"
     );
     let summary: Vec<String> = cases
         .iter()
         .map(|Case { name, costs, .. }| {
             let key = name.replace(", ", "_").replace(' ', "_");
+            let elapsed: Vec<f64> = costs.iter().map(|c| c.elapsed).collect();
+            let cpu: Vec<f64> = costs.iter().map(|c| c.cpu).collect();
             format!(
-                "{key}_median_ms={:.2} {key}_p99_ms={:.2}",
-                percentile(costs, 0.5),
-                percentile(costs, 0.99)
+                "{key}_median_ms={:.2} {key}_p99_ms={:.2} {key}_worst_ms={:.2} {key}_cpu_worst_ms={:.2}",
+                percentile(&elapsed, 0.5),
+                percentile(&elapsed, 0.99),
+                max(&elapsed),
+                max(&cpu)
             )
         })
         .collect();
