@@ -124,9 +124,7 @@ struct Case<'browser> {
     lit: bool,
     inspector: bool,
     browser: &'browser Browser,
-    costs: Vec<FrameCost>,
-    /// V8's work on the module during the timed frames ([`V8_WASM_WORK`]).
-    v8_work: Vec<String>,
+    costs: FrameCosts,
 }
 
 /// One cold load: milliseconds from navigation start to the first frame,
@@ -179,26 +177,41 @@ fn fetched(page: &Page) -> Vec<(String, u64)> {
         .collect()
 }
 
-/// One timed frame, in ms: how long it lasted, and how much of that the
-/// page's thread ran (its CPU time; the rest it waited for a core).
-#[derive(Clone, Copy)]
-struct FrameCost {
-    elapsed: f64,
-    cpu: f64,
+/// Timed frames, in ms: how long each lasted, and how much of that the
+/// page's thread ran (its CPU time; the rest it waited for a core); and
+/// V8's work on the module that overlapped them ([`V8_WASM_WORK`]).
+#[derive(Default)]
+struct FrameCosts {
+    elapsed: Vec<f64>,
+    cpu: Vec<f64>,
+    v8_work: Vec<String>,
+}
+
+impl FrameCosts {
+    fn extend(&mut self, more: FrameCosts) {
+        self.elapsed.extend(more.elapsed);
+        self.cpu.extend(more.cpu);
+        self.v8_work.extend(more.v8_work);
+    }
+}
+
+/// The untimed frames before the timed ones, one `stepFrames(1)` a call as
+/// timed: `stepFrames(n)` renders the page only once.
+fn warm_up_script() -> String {
+    format!("for (let i = 0; i < {WARM_UP}; i++) modexPage.stepFrames(1);")
 }
 
 /// Times `FRAMES` frames of the paused page, one `stepFrames(1)` each,
 /// after [`WARM_UP`] untimed ones: back to back, or with `paced`
 /// (`WEB_PAGE_PACED=1`) one at each display refresh
 /// (`requestAnimationFrame`), with the browser rendering between them as it
-/// does for a playing page. Also gives V8's work on the module that overlapped
-/// the timed frames ([`V8_WASM_WORK`]).
+/// does for a playing page.
 ///
 /// Each frame lies between two `performance.mark`s, read from a DevTools
 /// trace: their call times give its length to the microsecond (the page's
 /// `performance.now()` counts in steps of 0.1 ms), and their thread
 /// timestamps the CPU time of the page's thread between them.
-fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
+fn frame_costs(page: &Page, paced: bool) -> FrameCosts {
     let run = if paced {
         "const next = () => {
             frame();
@@ -215,11 +228,9 @@ fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
                 &format!(
                     "new Promise((resolve) => {{
                         const FRAMES = {FRAMES};
-                        // One frame a call, as timed (`stepFrames(n)` would
-                        // render the page only once), and in the same
-                        // evaluation, so that the browser does not render
-                        // between these and the timed frames.
-                        for (let i = 0; i < {WARM_UP}; i++) modexPage.stepFrames(1);
+                        // In the same evaluation as the timed frames, so
+                        // that the browser renders nothing between them.
+                        {warm_up}
                         // The marks' first use makes objects of its own.
                         performance.mark('{START}');
                         performance.mark('{END}');
@@ -232,7 +243,8 @@ fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
                             performance.clearMarks();
                         }};
                         {run}
-                    }})"
+                    }})",
+                    warm_up = warm_up_script(),
                 ),
                 Duration::from_secs(60),
             )
@@ -241,7 +253,7 @@ fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
     assert_eq!(done.as_u64(), Some(FRAMES as u64), "every frame ran");
 
     // Each mark: its name, call time and thread time (µs), on one thread.
-    let marks: Vec<(&str, f64, f64)> = events
+    let mut marks: Vec<(&str, f64, f64)> = events
         .iter()
         .filter(|e| e["cat"] == "blink.user_timing" && (e["name"] == START || e["name"] == END))
         .map(|e| {
@@ -265,23 +277,18 @@ fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
     assert_eq!(threads.len(), 1, "the marks come from the page's thread");
     // Two marks a frame, after the two of the warm-up.
     assert_eq!(marks.len(), 2 * FRAMES + 2, "two marks a frame");
-    let mut sorted = marks.clone();
-    sorted.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let sorted = &sorted[2..];
-    let costs: Vec<FrameCost> = sorted
-        .chunks(2)
-        .map(|pair| {
-            let [(START, start, start_cpu), (END, end, end_cpu)] = pair else {
-                panic!("marks in turn, start then end: {pair:?}");
-            };
-            FrameCost {
-                elapsed: (end - start) / 1000.0,
-                cpu: (end_cpu - start_cpu) / 1000.0,
-            }
-        })
-        .collect();
-    let (first, last) = (sorted[0].1, sorted[sorted.len() - 1].1);
-    let v8_work = events
+    marks.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let timed = &marks[2..];
+    let mut costs = FrameCosts::default();
+    for pair in timed.chunks(2) {
+        let [(START, start, start_cpu), (END, end, end_cpu)] = pair else {
+            panic!("marks in turn, start then end: {pair:?}");
+        };
+        costs.elapsed.push((end - start) / 1000.0);
+        costs.cpu.push((end_cpu - start_cpu) / 1000.0);
+    }
+    let (first, last) = (timed[0].1, timed[timed.len() - 1].1);
+    costs.v8_work = events
         .iter()
         .filter(|e| e["ph"] == "X")
         .filter(|e| {
@@ -293,7 +300,7 @@ fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
         .filter(|name| V8_WASM_WORK.contains(name))
         .map(str::to_owned)
         .collect();
-    (costs, v8_work)
+    costs
 }
 
 /// Profile mode: runs `FRAMES` frames of the paused page under the DevTools
@@ -305,10 +312,7 @@ fn frame_costs(page: &Page, paced: bool) -> (Vec<FrameCost>, Vec<String>) {
 /// the one in the stack; samples outside either (garbage collection, the
 /// loop) belong to the frame they fall in.
 fn profile_frames(page: &Page, case: &str, paced: bool) {
-    page.evaluate(&format!(
-        "for (let i = 0; i < {WARM_UP}; i++) modexPage.stepFrames(1)"
-    ))
-    .unwrap();
+    page.evaluate(&warm_up_script()).unwrap();
     page.call("Profiler.enable", json!({})).unwrap();
     page.call(
         "Profiler.setSamplingInterval",
@@ -508,8 +512,7 @@ fn main() {
         lit,
         inspector,
         browser,
-        costs: Vec::new(),
-        v8_work: Vec::new(),
+        costs: FrameCosts::default(),
     };
     let mut cases = [
         case("crowd, inspector on", false, true, &browser),
@@ -556,9 +559,7 @@ fn main() {
             profile_frames(&page, name, paced);
             continue;
         }
-        let (costs, v8_work) = frame_costs(&page, paced);
-        cases[case].costs.extend(costs);
-        cases[case].v8_work.extend(v8_work);
+        cases[case].costs.extend(frame_costs(&page, paced));
     }
     if profiling {
         return;
@@ -580,16 +581,8 @@ fn main() {
         percentile(&after_load, 0.5),
         max(&after_load)
     );
-    for Case {
-        name,
-        costs,
-        v8_work,
-        ..
-    } in &cases
-    {
-        let elapsed: Vec<f64> = costs.iter().map(|c| c.elapsed).collect();
-        let cpu: Vec<f64> = costs.iter().map(|c| c.cpu).collect();
-        for (what, times) in [("", &elapsed), (", CPU time", &cpu)] {
+    for Case { name, costs, .. } in &cases {
+        for (what, times) in [("", &costs.elapsed), (", CPU time", &costs.cpu)] {
             println!(
                 "| frame cost{what}, {name} ({} frames) | {:.2} ms | {:.2} ms | {:.2} ms |",
                 times.len(),
@@ -598,12 +591,9 @@ fn main() {
                 max(times)
             );
         }
-        let mut counted: Vec<(&String, usize)> = Vec::new();
-        for work in v8_work {
-            match counted.iter_mut().find(|(name, _)| *name == work) {
-                Some((_, count)) => *count += 1,
-                None => counted.push((work, 1)),
-            }
+        let mut counted = std::collections::BTreeMap::<&str, usize>::new();
+        for work in &costs.v8_work {
+            *counted.entry(work).or_default() += 1;
         }
         let counted: Vec<String> = counted
             .iter()
@@ -644,14 +634,12 @@ fn main() {
         .iter()
         .map(|Case { name, costs, .. }| {
             let key = name.replace(", ", "_").replace(' ', "_");
-            let elapsed: Vec<f64> = costs.iter().map(|c| c.elapsed).collect();
-            let cpu: Vec<f64> = costs.iter().map(|c| c.cpu).collect();
             format!(
                 "{key}_median_ms={:.2} {key}_p99_ms={:.2} {key}_worst_ms={:.2} {key}_cpu_worst_ms={:.2}",
-                percentile(&elapsed, 0.5),
-                percentile(&elapsed, 0.99),
-                max(&elapsed),
-                max(&cpu)
+                percentile(&costs.elapsed, 0.5),
+                percentile(&costs.elapsed, 0.99),
+                max(&costs.elapsed),
+                max(&costs.cpu)
             )
         })
         .collect();
