@@ -1016,6 +1016,13 @@ impl Qemu {
         Ok(())
     }
 
+    /// Raises an NMI on every CPU (QMP `inject-nmi`, the monitor's `nmi`),
+    /// as a watchdog or a parity error would on a real PC.
+    pub fn inject_nmi(&mut self) -> Result<()> {
+        self.execute(json!({ "execute": "inject-nmi" }))?;
+        Ok(())
+    }
+
     /// Presses and releases a key, named as QEMU's `sendkey` names keys
     /// (`a`, `4`, `kp_4`, `f1`, `left`, `esc`, `spc`, `shift-a`, ...).
     pub fn send_key(&mut self, key: &str) -> Result<()> {

@@ -122,6 +122,67 @@ fn panic_is_reported_and_the_kernel_halts() {
 }
 
 #[test]
+fn debug_exception_is_reported_by_name() {
+    assert_reported_and_halted(
+        Fault::Debug,
+        FaultLine::Exception("debug exception (vector 1)"),
+    );
+}
+
+#[test]
+fn machine_check_is_reported_by_name() {
+    assert_reported_and_halted(
+        Fault::MachineCheck,
+        FaultLine::Exception("machine check (vector 18)"),
+    );
+}
+
+/// `int 0x80` reaches an IDT entry that is not there: the CPU raises a
+/// segment-not-present fault whose error code names the vector (0x80 << 3,
+/// with the IDT bit), and the report says which vector it was.
+#[test]
+fn a_vector_without_a_handler_is_reported_with_its_number() {
+    assert_reported_and_halted(
+        Fault::NoHandler,
+        FaultLine::Exception("interrupt vector 128 has no handler (segment not present)"),
+    );
+}
+
+/// Three NMIs while the cube spins, each told in the log; the cube still
+/// answers a key, and Esc still powers the machine off.
+#[test]
+fn nmis_are_logged_and_the_kernel_carries_on() {
+    let mut qemu = boot(None);
+    qemu.wait_for_serial(boot::READY_LINE, BOOT_TIMEOUT)
+        .unwrap();
+    qemu.send_key("spc").unwrap();
+    qemu.wait_for_serial(&line::CommandDone(1).to_string(), BOOT_TIMEOUT)
+        .unwrap();
+    for n in 1..=3 {
+        qemu.inject_nmi().unwrap();
+        let told = format!("({n} since boot)");
+        let console = qemu.wait_for_serial(&told, BOOT_TIMEOUT).unwrap();
+        let nmi_lines: Vec<&str> = console
+            .lines()
+            .filter(|text| text.starts_with("NMI received: "))
+            .collect();
+        assert_eq!(nmi_lines.len(), n, "{console}");
+        assert!(
+            nmi_lines[n - 1].contains("reason unknown") && nmi_lines[n - 1].contains("port 0x61"),
+            "{console}"
+        );
+    }
+    qemu.send_key("right").unwrap();
+    let console = qemu
+        .wait_for_serial(&line::CommandDone(2).to_string(), BOOT_TIMEOUT)
+        .unwrap();
+    assert!(!console.contains(line::HALTED), "{console}");
+    qemu.send_key("esc").unwrap();
+    let status = qemu.wait_for_exit(BOOT_TIMEOUT).unwrap();
+    assert_eq!(status.code(), Some(EXIT_SUCCESS), "{}", qemu.serial());
+}
+
+#[test]
 fn breakpoint_is_reported_and_execution_resumes() {
     let mut qemu = boot(Some(BootOption::Fault(Fault::Breakpoint)));
     let console = qemu

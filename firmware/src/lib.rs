@@ -4,7 +4,9 @@
 //! by the memory map ([`boot_firmware`]), and QEMU's fw_cfg file directory,
 //! where the test harness leaves the boot option ([`fw_cfg`]), from which
 //! firmware booted, which display the kernel drives ([`display`]), and
-//! whether Secure Boot was on, from the UEFI loader's record ([`secure_boot`]).
+//! whether Secure Boot was on, from the UEFI loader's record ([`secure_boot`]),
+//! and what an NMI's System Control Port B says and how many NMIs the log
+//! tells of ([`nmi`]).
 //!
 //! The kernel's shell, `kernel/src/platform/`, maps the tables and does the
 //! port writes.
@@ -21,4 +23,5 @@ pub mod acpi;
 pub mod boot_firmware;
 pub mod display;
 pub mod fw_cfg;
+pub mod nmi;
 pub mod secure_boot;

@@ -23,6 +23,7 @@ mod input;
 mod interrupts;
 mod legacy_vga;
 mod log;
+mod nmi;
 mod pat;
 mod pci;
 mod platform;

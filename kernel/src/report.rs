@@ -47,9 +47,10 @@ pub fn show_if_asked<B: VgaBus, R: core::borrow::BorrowMut<demo::frame::Renderer
     add_fact(&|fact| {
         let _ = write!(
             fact,
-            "counters: {} missed retraces, {} dropped scancodes",
+            "counters: {} missed retraces, {} dropped scancodes, {} NMIs",
             pacing.missed,
             ps2::SCANCODES.dropped(),
+            crate::nmi::count(),
         );
     });
     let frames = app.frames_drawn();

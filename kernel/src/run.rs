@@ -80,6 +80,7 @@ pub fn run_demo<B: VgaBus>(vga: &mut ModeX<B>) -> ! {
     loop {
         usb_input::poll();
         ps2::poll();
+        crate::nmi::log_news();
         let echoing = ECHO_SCANCODES.load(Ordering::Relaxed);
         let mut echoed = [0u8; ECHO_LINE_BYTES];
         let mut waiting = 0;

@@ -16,6 +16,9 @@ pub fn raise(fault: Fault) {
         }
         Fault::Divide => divide_error(),
         Fault::Panic => panic!("panic requested by the boot option"),
+        Fault::Debug => debug_exception(),
+        Fault::MachineCheck => machine_check(),
+        Fault::NoHandler => vector_without_handler(),
         Fault::Breakpoint => {
             x86_64::instructions::interrupts::int3();
             crate::serial_println!("breakpoint: resumed");
@@ -62,4 +65,22 @@ fn divide_error() {
 fn stack_overflow(depth: u64) -> u64 {
     let frame = core::hint::black_box([depth; 64]);
     stack_overflow(depth + 1) + frame[0]
+}
+
+fn debug_exception() {
+    // `int 1`, not ICEBP (0xF1): QEMU's TCG takes ICEBP for an invalid opcode.
+    // SAFETY: enters the debug handler, which reports it and never returns.
+    unsafe { core::arch::asm!("int 1") };
+}
+
+fn machine_check() {
+    // SAFETY: `int 18` enters the machine-check handler (which takes no
+    // error code, so the frame is the one it expects); it never returns.
+    unsafe { core::arch::asm!("int 18") };
+}
+
+fn vector_without_handler() {
+    // SAFETY: vector 0x80 has no IDT entry, so the CPU raises #NP with the
+    // vector in its error code; that handler never returns.
+    unsafe { core::arch::asm!("int 0x80") };
 }

@@ -23,6 +23,13 @@ pub enum Fault {
     Panic,
     /// `int3`, which is reported and resumed.
     Breakpoint,
+    /// `int 1`: a debug exception, which no debugger here asked for.
+    Debug,
+    /// `int 18`: the machine-check vector, as a CPU's check would reach it.
+    MachineCheck,
+    /// `int 0x80`: a vector with no handler, which the CPU turns into a
+    /// segment-not-present fault naming the vector.
+    NoHandler,
 }
 
 /// How to end QEMU through isa-debug-exit: the kernel's goodbye (success),
@@ -67,7 +74,7 @@ pub enum BootOption {
     Exit(Exit),
 }
 
-const FAULTS: [(Fault, &str); 7] = [
+const FAULTS: [(Fault, &str); 10] = [
     (Fault::InvalidOpcode, "invalid-opcode"),
     (Fault::Page, "page"),
     (Fault::GeneralProtection, "general-protection"),
@@ -75,6 +82,9 @@ const FAULTS: [(Fault, &str); 7] = [
     (Fault::Divide, "divide"),
     (Fault::Panic, "panic"),
     (Fault::Breakpoint, "breakpoint"),
+    (Fault::Debug, "debug"),
+    (Fault::MachineCheck, "machine-check"),
+    (Fault::NoHandler, "no-handler"),
 ];
 
 const EXITS: [(Exit, &str); 2] = [(Exit::Success, "success"), (Exit::Failure, "failure")];

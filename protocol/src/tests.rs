@@ -10,7 +10,7 @@ fn every_option_reads_back_as_written() {
         assert_eq!(BootOption::parse(&option.to_string()), Ok(option));
         count += 1;
     }
-    assert_eq!(count, 4 + 7 + 2);
+    assert_eq!(count, 4 + 10 + 2);
 }
 
 #[test]
