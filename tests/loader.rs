@@ -279,3 +279,62 @@ fn a_kernel_read_that_keeps_failing_stops_the_loader_with_a_message_and_no_reset
     assert_eq!(console.matches(line::LOADER_START).count(), 1, "{console}");
     common::assert_each_loader_line_once(&console);
 }
+
+/// A CPU without 64-bit mode, under SeaBIOS: stage 3 refuses it before it
+/// sets CR4.PAE and EFER.LME (which reset it in a loop), naming the CPU on
+/// COM1 and the screen, and the machine stays up. With `text_screen`, the
+/// adapter has no VBE linear mode, so stage 2 leaves the VGA in 80x25 text
+/// and the screen's words can be read back; otherwise stage 3 writes on the
+/// VESA framebuffer, which must then show something.
+fn a_32_bit_cpu_is_refused_by_name(cpu: &str, graphics: Graphics, named: &str) {
+    let mut qemu = start(Firmware::Bios, graphics, Some(cpu));
+    let console = qemu
+        .wait_for_console("the CPU's refusal", BOOT_TIMEOUT, |text| {
+            text.contains(loader_logic::cpu::REFUSAL_START) || text.contains(line::KERNEL_BANNER)
+        })
+        .unwrap_or_else(|e| panic!("{cpu}: {e}"));
+    let refusal = console
+        .lines()
+        .find(|text| {
+            text.starts_with("loader: stopped: ") && text.contains(loader_logic::cpu::REFUSAL_START)
+        })
+        .unwrap_or_else(|| panic!("{cpu}: no refusal on COM1:\n{console}"));
+    assert!(
+        refusal.contains(named) && refusal.contains("is a 32-bit CPU"),
+        "{cpu}: {refusal}"
+    );
+    if graphics == Graphics::IsaCirrus {
+        let screen = qemu.text_screen().unwrap();
+        let squeezed = |text: &str| -> String { text.split_whitespace().collect() };
+        assert!(
+            squeezed(&screen).contains(&squeezed(refusal)),
+            "{cpu}: not on the screen: {refusal:?}\n{screen}"
+        );
+    } else {
+        let screen = qemu.screendump().unwrap();
+        let lit = screen.pixels.iter().filter(|&&p| p != [0, 0, 0]).count();
+        assert!(
+            lit > 1000,
+            "{cpu}: the framebuffer shows nothing ({lit} pixels lit)"
+        );
+    }
+    common::stays_up_and_quiet(&mut qemu, &console);
+}
+
+#[test]
+fn an_atom_n270_is_refused_by_name_on_com1_and_the_text_screen() {
+    a_32_bit_cpu_is_refused_by_name(
+        "n270",
+        Graphics::IsaCirrus,
+        "(GenuineIntel, family 6 model 28, Intel(R) Atom(TM) CPU N270 @ 1.60GHz)",
+    );
+}
+
+#[test]
+fn a_pentium_iii_is_refused_by_name_on_com1_and_the_framebuffer() {
+    a_32_bit_cpu_is_refused_by_name(
+        "pentium3",
+        Graphics::StdVga,
+        "(GenuineIntel, family 6 model 7)",
+    );
+}

@@ -25,10 +25,10 @@ mod common;
 
 use boot::disk_layout::SECTOR;
 use boot::{line, Board, Firmware, Graphics, Qemu, QemuOptions, ReadError, ReadFailures};
-use common::BOOT_TIMEOUT;
+use common::{stays_up_and_quiet, BOOT_TIMEOUT};
 use loader_logic::file_hash::DAMAGED;
 use std::io::{Cursor, Read};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// OVMF boots in well under 20 s here, but emulation on a loaded machine is
 /// slow (as `tests/loader.rs`).
@@ -184,27 +184,6 @@ fn bios_a_sector_of_stage_4_failing_once_is_read_again() {
 #[test]
 fn bios_a_sector_of_the_kernel_failing_once_is_read_again() {
     retried_and_ready(Firmware::Bios, sectors().kernel_middle, 1, KERNEL);
-}
-
-/// After the failure's message: the guest runs on for a second of QEMU's CPU
-/// time (or five seconds, if it idles halted), and must still be up with
-/// nothing more on serial.
-fn stays_up_and_quiet(qemu: &mut Qemu, console: &str) {
-    let cpu = qemu.cpu_time().expect("QEMU runs");
-    let started = Instant::now();
-    while qemu
-        .cpu_time()
-        .is_some_and(|now| now < cpu + Duration::from_secs(1))
-        && started.elapsed() < Duration::from_secs(5)
-    {
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    assert!(
-        qemu.is_running(),
-        "QEMU ended (a reset, with -no-reboot) after the message:\n{}",
-        qemu.serial()
-    );
-    assert_eq!(qemu.serial(), console, "more happened after the message");
 }
 
 #[test]

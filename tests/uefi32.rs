@@ -28,7 +28,8 @@ const UEFI_BOOT_TIMEOUT: Duration = Duration::from_secs(120);
 /// The 32-bit UEFI loader's first line (`bootloader/uefi-ia32`).
 const IA32_LOADER_LINE: &str = "loader: loading kernel (UEFI IA32)";
 /// The loader's stop on a CPU without long mode.
-const NO_LONG_MODE: &str = "this PC's CPU has no 64-bit mode; modex-cube needs one";
+const NO_LONG_MODE: &str =
+    "is a 32-bit CPU: it has no 64-bit mode; the cube needs an x86-64 processor";
 
 fn start(cpu: Option<&str>) -> Qemu {
     start_with(cpu, None)

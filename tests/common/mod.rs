@@ -730,3 +730,24 @@ pub fn vars_from(
     run_virt_fw_vars(&all);
     output.to_owned()
 }
+
+/// After the failure's message: the guest runs on for a second of QEMU's CPU
+/// time (or five seconds, if it idles halted), and must still be up with
+/// nothing more on serial.
+pub fn stays_up_and_quiet(qemu: &mut Qemu, console: &str) {
+    let cpu = qemu.cpu_time().expect("QEMU runs");
+    let started = std::time::Instant::now();
+    while qemu
+        .cpu_time()
+        .is_some_and(|now| now < cpu + Duration::from_secs(1))
+        && started.elapsed() < Duration::from_secs(5)
+    {
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    assert!(
+        qemu.is_running(),
+        "QEMU ended (a reset, with -no-reboot) after the message:\n{}",
+        qemu.serial()
+    );
+    assert_eq!(qemu.serial(), console, "more happened after the message");
+}

@@ -5,6 +5,8 @@
 //! - [`gop`]: which UEFI Graphics Output Protocol instance to draw on.
 //! - [`console`]: whether a UEFI loader writes a line to COM1 itself or
 //!   the firmware's console already copies it there.
+//! - [`cpu`]: whether the processor has what the kernel needs (long mode,
+//!   PAE, SSE2), from CPUID, and the words of a refusal.
 //! - [`e820`]: the BIOS INT 15h, AX=E820h memory-map walk and how it ends.
 //! - [`file_hash`]: the SHA-256 of each file a loader starts, where the
 //!   build writes it, and the words of a mismatch.
@@ -19,6 +21,7 @@
 #![no_std]
 
 pub mod console;
+pub mod cpu;
 pub mod e820;
 pub mod file_hash;
 pub mod file_read;

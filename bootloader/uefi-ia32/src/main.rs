@@ -31,6 +31,7 @@ use bootloader_x86_64_bios_common::{
 use core::fmt::{self, Write as _};
 use core::ptr::{self, NonNull};
 use core::time::Duration;
+use loader_logic::cpu;
 use loader_logic::file_hash::{self, HashSlot};
 use loader_logic::uefi_map::{self, E820Entry, UefiRegion};
 use uefi::boot::{self, AllocateType, MemoryType};
@@ -225,7 +226,7 @@ const _: () =
 
 /// Why the loader stopped.
 enum Failure {
-    NoLongMode,
+    Cpu(cpu::Refusal),
     NotFound(&'static CStr16),
     Unreadable(&'static CStr16, Status),
     NotAFile(&'static CStr16),
@@ -241,9 +242,7 @@ enum Failure {
 impl fmt::Display for Failure {
     fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
         match self {
-            Failure::NoLongMode => {
-                write!(f, "this PC's CPU has no 64-bit mode; modex-cube needs one")
-            }
+            Failure::Cpu(refusal) => write!(f, "{refusal}"),
             Failure::NotFound(name) => write!(
                 f,
                 "{name} is not on the stick's EFI partition; write the stick again"
@@ -359,15 +358,11 @@ fn stop_after_exit(why: Failure) -> ! {
     }
 }
 
-/// Long mode (CPUID 0x80000001 EDX bit 29) and PAE (CPUID 1 EDX bit 6), or a
-/// stop that says so.
+/// What the kernel needs of the CPU (`loader_logic::cpu`: long mode, PAE,
+/// SSE2), or a stop that names the CPU. Every UEFI PC's CPU has CPUID.
 fn check_cpu() {
-    use core::arch::x86::__cpuid;
-    let max_extended = __cpuid(0x8000_0000).eax;
-    let long_mode = max_extended >= 0x8000_0001 && __cpuid(0x8000_0001).edx & (1 << 29) != 0;
-    let pae = __cpuid(1).edx & (1 << 6) != 0;
-    if !(long_mode && pae) {
-        stop(Failure::NoLongMode);
+    if let Err(refusal) = cpu::check(cpu::CpuidReadings::read()) {
+        stop(Failure::Cpu(refusal));
     }
 }
 

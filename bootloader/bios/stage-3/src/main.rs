@@ -5,6 +5,7 @@
 use crate::screen::Writer;
 use bootloader_x86_64_bios_common::{BiosInfo, Region, hlt, serial::Com1};
 use core::{arch::asm, fmt, fmt::Write as _, ptr};
+use loader_logic::cpu;
 use loader_logic::file_hash::{self, HashSlot};
 
 mod gdt;
@@ -21,6 +22,9 @@ pub extern "C" fn _start(info: &mut BiosInfo) {
     screen::init(info.framebuffer);
     // Writer.clear_screen();
     writeln!(Writer, "Third Stage ({info:x?})").unwrap();
+    // Patched (issue 61): before CR4.PAE and EFER.LME are set below, which
+    // on a 32-bit CPU fault and reset the PC in a loop, say why not.
+    check_cpu();
     // Patched (issue 48): nothing of stage 4 or the kernel runs unchecked.
     // The time it takes is said in TSC ticks: under QEMU's `-icount
     // shift=0` one tick is one instruction, so the figure repeats.
@@ -68,6 +72,45 @@ fn check_hash(file: file_hash::File, region: Region) {
     if let Err(mismatch) = expected.check(file, file_hash::sha256(bytes)) {
         stop(format_args!("{mismatch}"));
     }
+}
+
+/// Patched (issue 61): stops, naming the CPU, unless it has CPUID and what
+/// the kernel needs of it (`loader_logic::cpu`: long mode, PAE, SSE2).
+fn check_cpu() {
+    if !has_cpuid() {
+        stop(format_args!("loader: stopped: {}", cpu::NO_CPUID));
+    }
+    if let Err(refusal) = cpu::check(cpu::CpuidReadings::read()) {
+        stop(format_args!("loader: stopped: {refusal}"));
+    }
+}
+
+/// Patched (issue 61): whether CPUID exists, by the test the SDM gives: a
+/// CPU that has it lets EFLAGS.ID (bit 21) be flipped. A 486 without it
+/// would take CPUID for an invalid opcode.
+fn has_cpuid() -> bool {
+    const EFLAGS_ID: u32 = 1 << 21;
+    let (before, after): (u32, u32);
+    // SAFETY: only EFLAGS.ID is flipped and then put back as it was; the
+    // stack is balanced (two pushes, two pops).
+    unsafe {
+        asm!(
+            "pushfd",
+            "pop {before:e}",
+            "mov {after:e}, {before:e}",
+            "xor {after:e}, {id}",
+            "push {after:e}",
+            "popfd",
+            "pushfd",
+            "pop {after:e}",
+            "push {before:e}",
+            "popfd",
+            before = out(reg) before,
+            after = out(reg) after,
+            id = const EFLAGS_ID,
+        );
+    }
+    (before ^ after) & EFLAGS_ID != 0
 }
 
 /// Patched (issue 48): the time-stamp counter, for the cost of the check.

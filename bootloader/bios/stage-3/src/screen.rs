@@ -191,18 +191,29 @@ impl VgaText {
     }
 }
 
+/// Patched (issue 61): where the text screen's next character goes, so that
+/// a line written in pieces (`write!` writes each argument apart) stays one
+/// line; `usize::MAX` until the first write, which starts below the text
+/// already there.
+static VGA_TEXT_CURSOR: core::sync::atomic::AtomicUsize =
+    core::sync::atomic::AtomicUsize::new(usize::MAX);
+
 impl fmt::Write for VgaText {
     fn write_str(&mut self, s: &str) -> fmt::Result {
-        let mut row = Self::next_row();
-        let mut column = 0;
+        use core::sync::atomic::Ordering::Relaxed;
+        let cursor = match VGA_TEXT_CURSOR.load(Relaxed) {
+            usize::MAX => Self::next_row() * Self::COLUMNS,
+            cursor => cursor,
+        };
+        let (mut row, mut column) = (cursor / Self::COLUMNS, cursor % Self::COLUMNS);
         for byte in s.bytes() {
             if byte == b'\n' || column == Self::COLUMNS {
                 row += 1;
                 column = 0;
             }
-            if row == Self::ROWS {
+            if row >= Self::ROWS {
                 Self::scroll();
-                row -= 1;
+                row = Self::ROWS - 1;
             }
             if byte != b'\n' {
                 let shown = if byte.is_ascii_graphic() || byte == b' ' {
@@ -214,6 +225,7 @@ impl fmt::Write for VgaText {
                 column += 1;
             }
         }
+        VGA_TEXT_CURSOR.store(row * Self::COLUMNS + column, Relaxed);
         Ok(())
     }
 }
