@@ -8,7 +8,8 @@
 #
 # What it does:
 # 1. Far-jumps to 0000:7C00, whatever CS:IP the BIOS used (07C0:0000 too).
-# 2. Zeroes the segment registers; SS:ESP = 0000:00007C00 (upper half clear).
+# 2. Zeroes the segment registers; SS:ESP = 0000:00007000 (upper half clear),
+#    the page boundary below this sector (boot-sector-link.ld).
 # 3. Takes DL as the boot drive only where it names a hard disk (80h-8Fh),
 #    as GRUB does; otherwise drive 80h (stage 2 says so).
 # 4. Checks for the INT 13h extensions (LBA reads).
@@ -50,7 +51,8 @@ normalised:
     # No interrupt comes between these two: `mov ss` holds them off for one
     # instruction.
     mov ss, ax
-    mov esp, 0x7c00
+    # Patched: 0000:7000, off this sector's 4 KiB page (boot-sector-link.ld).
+    mov esp, offset _stack_end
     sti
     cld
 

@@ -5,7 +5,7 @@ pub mod serial; // Patched
 
 /// Patched (see ../../CHANGES.md, "The boot path on real firmware"): the
 /// stacks the BIOS stages run on, and how their use is measured. Stages 2
-/// and 3 run on the stack the boot sector set up below 0000:7C00, which
+/// and 3 run on the stack the boot sector set up below 0000:7000, which
 /// stage 2 paints from [`STACK_BOTTOM`] up to just below where it runs; stage
 /// 4, which goes far deeper, has a stack of its own (`.stack` in its linker
 /// script) that it paints at entry. Before it jumps to the kernel, stage 4
@@ -14,8 +14,13 @@ pub mod stack {
     /// The lowest address of the boot sector's stack: conventional memory
     /// starts here.
     pub const STACK_BOTTOM: u32 = 0x500;
-    /// The boot sector's initial SS:ESP, 0000:7C00.
-    pub const STACK_TOP: u32 = 0x7c00;
+    /// The boot sector's initial SS:ESP, 0000:7000: the 4 KiB page boundary
+    /// below the boot sector (0x7C00) and stage 2 (0x7E00), so that no stack
+    /// write lands in a page of their code. Under QEMU's TCG each such write
+    /// takes the slow self-modifying-code check; at 0x7C00 that made the
+    /// BIOS boot twice as slow (../../CHANGES.md). `_stack_end` in
+    /// `boot_sector/boot-sector-link.ld` must match.
+    pub const STACK_TOP: u32 = 0x7000;
     /// The paint, one 32-bit word at a time.
     pub const PAINT: u32 = 0x5ca1_ab1e;
     /// Where stage 4 is linked (`bios/stage-4/stage-4-link.ld`).
