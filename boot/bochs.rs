@@ -1,5 +1,6 @@
 //! Bochs 2.7 as a second emulator, with its own VGA core and VGA BIOSes, for
-//! the same picture tests as QEMU.
+//! the same picture tests as QEMU, and with its own USB host controllers
+//! (chips QEMU has no model of) for a USB keyboard.
 //!
 //! Bochs has no monitor to take screenshots or type keys, so a `Bochs` runs
 //! it under its own Xvfb with the X display library (the `xvfb` crate, which
@@ -71,6 +72,55 @@ pub struct BochsOptions {
     pub vga: VgaExtension,
     /// Emulated instructions per second ([`DEFAULT_IPS`]).
     pub ips: u64,
+    /// A low-speed USB keyboard on one of Bochs's USB host controllers, or
+    /// none. With one attached, Bochs sends every key of its window to it
+    /// instead of the PS/2 keyboard.
+    pub usb_keyboard: Option<UsbKeyboard>,
+}
+
+/// Bochs's own USB host controllers, none of them a chip QEMU models.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BochsUsbHost {
+    /// The UHCI of the i440FX chipset's PIIX3 (PCI 00:01.2), 2 ports.
+    Uhci,
+    /// An OHCI on a PCI slot, 2 ports.
+    Ohci,
+    /// An EHCI with UHCI companions, 6 ports; a low-speed device is handed
+    /// to a companion.
+    Ehci,
+    /// An xHCI: ports 1 and 2 are USB 3 (SuperSpeed only), 3 and 4 USB 2.
+    Xhci,
+}
+
+impl BochsUsbHost {
+    /// The bochsrc option that enables it.
+    fn option(self) -> &'static str {
+        match self {
+            BochsUsbHost::Uhci => "usb_uhci",
+            BochsUsbHost::Ohci => "usb_ohci",
+            BochsUsbHost::Ehci => "usb_ehci",
+            BochsUsbHost::Xhci => "usb_xhci",
+        }
+    }
+
+    /// The first root port a low-speed keyboard may use: on the xHCI the
+    /// first USB 2 port, after the USB 3 ones.
+    pub fn first_low_speed_port(self) -> u8 {
+        match self {
+            BochsUsbHost::Xhci => 3,
+            BochsUsbHost::Uhci | BochsUsbHost::Ohci | BochsUsbHost::Ehci => 1,
+        }
+    }
+}
+
+/// A low-speed USB keyboard (`speed:low`, as most cheap keyboards are) on a
+/// root port (numbered from 1) of one of Bochs's USB host controllers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UsbKeyboard {
+    /// The controller.
+    pub host: BochsUsbHost,
+    /// Its root port, from 1.
+    pub port: u8,
 }
 
 impl BochsOptions {
@@ -80,6 +130,7 @@ impl BochsOptions {
             image: image.into(),
             vga,
             ips: DEFAULT_IPS,
+            usb_keyboard: None,
         }
     }
 }
@@ -512,6 +563,18 @@ fn bochsrc_text(options: &BochsOptions, disk: &Path, cylinders: u64, dir: &Path)
              vgaromimage: file={CIRRUS_VGA_BIOS}\n"
         ),
     };
+    // The USB controllers are PCI devices, on the PCI bus Bochs has by
+    // default (an i440FX); it places them in free slots itself, and the
+    // UHCI is the chipset's own.
+    let usb = options
+        .usb_keyboard
+        .map(|UsbKeyboard { host, port }| {
+            format!(
+                "{option}: enabled=1, port{port}=keyboard, options{port}=\"speed:low\"\n",
+                option = host.option()
+            )
+        })
+        .unwrap_or_default();
     format!(
         "# Written by boot/bochs.rs for one test run.\n\
          # A 64-bit CPU for the kernel's long mode.\n\
@@ -519,6 +582,7 @@ fn bochsrc_text(options: &BochsOptions, disk: &Path, cylinders: u64, dir: &Path)
          memory: guest=256, host=256\n\
          romimage: file={SYSTEM_BIOS}\n\
          {vga}\
+         {usb}\
          ata0-master: type=disk, path={disk}, mode=flat, cylinders={cylinders}, heads=16, spt=63\n\
          boot: disk\n\
          com1: enabled=1, mode=file, dev={serial}\n\

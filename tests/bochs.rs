@@ -3,7 +3,10 @@
 //! software VGA shows for the same scene, with Bochs's standard VGA (Bochs
 //! VBE and the LGPL VGA BIOS) and with its Cirrus Logic GD5446 (and the
 //! Cirrus VGA BIOS); Esc must bring back an 80x25 text screen with the
-//! goodbye line.
+//! goodbye line. And a low-speed USB keyboard on each of Bochs's own USB
+//! host controllers (xHCI, EHCI, OHCI, UHCI; none of them a chip QEMU
+//! models) must be heard: the kernel says it has it, and a key typed into
+//! the window (which Bochs then sends to the USB keyboard alone) acts.
 //!
 //! Bochs draws its window from video memory on its own display timer, so
 //! after the kernel reports a command done the tests wait for the window to
@@ -12,7 +15,7 @@
 
 mod common;
 
-use boot::bochs::{Bochs, BochsError, BochsOptions, VgaExtension};
+use boot::bochs::{Bochs, BochsError, BochsOptions, BochsUsbHost, UsbKeyboard, VgaExtension};
 use boot::line;
 use boot::RgbImage;
 use common::{soft_vga_in_mode_x, PIXELS};
@@ -125,10 +128,12 @@ fn with_window_saved(error: BochsError, name: &str) -> String {
     }
 }
 
-fn boot(vga: VgaExtension) -> Bochs {
+fn boot(vga: VgaExtension, usb_keyboard: Option<UsbKeyboard>) -> Bochs {
     let images = boot::images::publish().expect("the build script made the images");
     // The one image (GPT with a hybrid MBR): Bochs's BIOS boots its MBR.
-    Bochs::start(&BochsOptions::new(images.hybrid, vga)).unwrap_or_else(|e| panic!("{e}"))
+    let mut options = BochsOptions::new(images.hybrid, vga);
+    options.usb_keyboard = usb_keyboard;
+    Bochs::start(&options).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn wait_for_serial(bochs: &mut Bochs, needle: &str, timeout: Duration) {
@@ -145,7 +150,7 @@ fn wait_for_serial(bochs: &mut Bochs, needle: &str, timeout: Duration) {
 fn picture_and_goodbye(vga: VgaExtension) {
     let name = format!("bochs-{vga:?}").to_lowercase();
     let started = Instant::now();
-    let mut bochs = boot(vga);
+    let mut bochs = boot(vga, None);
     wait_for_serial(&mut bochs, boot::READY_LINE, BOOT_TIMEOUT);
     // Each of Bochs's VGA BIOSes (the LGPL VGABIOS with VBE, and its Cirrus
     // build) takes the kernel out of the bootloader's VESA mode by itself.
@@ -252,4 +257,77 @@ fn bochs_vbe_shows_the_software_vga_picture_and_says_goodbye() {
 #[test]
 fn bochs_cirrus_shows_the_software_vga_picture_and_says_goodbye() {
     picture_and_goodbye(VgaExtension::Cirrus);
+}
+
+/// Boots with a low-speed keyboard on `host`'s first port that takes one;
+/// by the ready line the kernel must have found it at boot on a controller
+/// of kind `heard_on` (an EHCI hands a low-speed device to its UHCI
+/// companion) at that port, and nothing else. Then R and Esc pressed on it
+/// must each act, with no byte from the PS/2 keyboard: Bochs sends the
+/// window's keys to the USB keyboard alone once one is attached.
+fn low_speed_keyboard_heard(host: BochsUsbHost, heard_on: &str) {
+    let started = Instant::now();
+    let port = host.first_low_speed_port();
+    let mut bochs = boot(VgaExtension::Vbe, Some(UsbKeyboard { host, port }));
+    wait_for_serial(&mut bochs, boot::READY_LINE, BOOT_TIMEOUT);
+    let console = bochs.serial();
+    let mut expected = line::UsbKeyboards::default();
+    expected.on[line::usb_host_index(heard_on).expect("a USB host kind")] = 1;
+    let found_at_boot = console
+        .lines()
+        .find_map(|text| line::UsbKeyboards::parse(text.strip_prefix(line::MACHINE_FACT)?));
+    assert_eq!(
+        found_at_boot,
+        Some(expected),
+        "{host:?}: the USB keyboards found at boot; serial:\n{console}"
+    );
+    let keyboards: Vec<_> = console
+        .lines()
+        .filter_map(line::UsbKeyboardOn::parse)
+        .map(|on| (on.kind, on.location))
+        .collect();
+    assert_eq!(
+        keyboards,
+        [(heard_on, port.to_string().as_str())],
+        "{host:?}: where the kernel has keyboards; serial:\n{console}"
+    );
+    // Bochs gave it the speed asked for, and the kernel addressed it so.
+    let enumerated = format!("usb: {heard_on} port {port}: enumerated in ");
+    assert!(
+        console
+            .lines()
+            .any(|text| text.starts_with(&enumerated) && text.contains(" us at low speed, ")),
+        "{host:?}: no low-speed enumeration on {heard_on} port {port}; serial:\n{console}"
+    );
+    bochs.send_key("r").unwrap_or_else(|e| panic!("{e}"));
+    wait_for_serial(&mut bochs, &line::CommandDone(1).to_string(), KEY_TIMEOUT);
+    bochs.send_key("Escape").unwrap_or_else(|e| panic!("{e}"));
+    wait_for_serial(&mut bochs, line::GOODBYE, KEY_TIMEOUT);
+    // Said before the goodbye: no key came by PS/2.
+    let console = bochs.serial();
+    assert!(
+        console.contains("ps2: 0 keyboard bytes taken by IRQ 1, 0 by the poll"),
+        "{host:?}: keys came by PS/2 too; serial:\n{console}"
+    );
+    println!("{host:?}: passed in {:.1?}", started.elapsed());
+}
+
+#[test]
+fn bochs_xhci_hears_a_low_speed_keyboard() {
+    low_speed_keyboard_heard(BochsUsbHost::Xhci, "xhci");
+}
+
+#[test]
+fn bochs_ehci_hands_a_low_speed_keyboard_to_its_companion() {
+    low_speed_keyboard_heard(BochsUsbHost::Ehci, "uhci");
+}
+
+#[test]
+fn bochs_ohci_hears_a_low_speed_keyboard() {
+    low_speed_keyboard_heard(BochsUsbHost::Ohci, "ohci");
+}
+
+#[test]
+fn bochs_uhci_hears_a_low_speed_keyboard() {
+    low_speed_keyboard_heard(BochsUsbHost::Uhci, "uhci");
 }

@@ -619,8 +619,12 @@ impl<C: HostController> Bus<C> {
     fn root_ports_changed(&mut self, out: &mut impl FnMut(u8)) {
         for port in 1..=self.root_ports {
             let status = self.controller.port_status(port);
-            // A companion's port is its business.
-            if !status.connect_changed || status.companion_owned {
+            // A companion's port is its business; a port in reset, the
+            // reset's, while the device is still there.
+            if !status.connect_changed
+                || status.companion_owned
+                || (status.connected && self.root_port_in_reset(port))
+            {
                 continue;
             }
             self.controller.clear_port_change(port);

@@ -82,6 +82,18 @@ pub enum Speed {
     Super,
 }
 
+impl fmt::Display for Speed {
+    /// The log's word for it: `low`, `full`, `high`, `super`.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Speed::Low => "low",
+            Speed::Full => "full",
+            Speed::High => "high",
+            Speed::Super => "super",
+        })
+    }
+}
+
 /// A root port as the controller reports it.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct PortStatus {

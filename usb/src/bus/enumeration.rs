@@ -623,6 +623,19 @@ impl<C: HostController> Bus<C> {
         }
     }
 
+    /// Whether root port `port` is being reset for an enumeration. Its
+    /// state is unknown until the reset ends (Linux's hub_port_wait_reset):
+    /// some controllers report a connect change for the reset itself
+    /// (Bochs's UHCI as it begins, real UHCIs as it ends), which the reset's
+    /// end clears; a device pulled out meanwhile fails the reset.
+    pub(super) fn root_port_in_reset(&self, port: u8) -> bool {
+        self.job.as_ref().is_some_and(|job| {
+            job.location == Location::root(port)
+                && job.step == Step::ResettingRootPort
+                && !job.abandoned
+        })
+    }
+
     /// Forgets the queued and running work at `location` and below, and
     /// for the devices `gone` names (bit n: device n); a control transfer
     /// still running is cancelled.
@@ -1746,14 +1759,14 @@ impl<C: HostController> Bus<C> {
             return;
         };
         let took = self.now_micros().saturating_sub(job.started);
-        let (location, longest) = (job.location, job.longest_step);
+        let (location, longest, speed) = (job.location, job.longest_step, job.speed);
         if let Some(Role::Hub(hub)) = self.devices[index].as_ref().map(|d| &d.role) {
             let ports = hub.ports;
             self.say_at(location, format_args!("hub with {ports} ports set up"));
         }
         self.say_at(
             location,
-            format_args!("enumerated in {took} us, its longest step {longest} us"),
+            format_args!("enumerated in {took} us at {speed} speed, its longest step {longest} us"),
         );
     }
 

@@ -121,6 +121,11 @@ pub struct UhciModel {
     /// The first this many Port Enabled writes after a port reset are
     /// ignored.
     pub port_enable_refusals: u32,
+    /// Setting Port Reset on a connected port sets Connect Status Change,
+    /// as Bochs 2.7's UHCI does (its reset reconnects the device, in
+    /// uhci_core.cc); Linux's uhci_check_ports clears such changes when it
+    /// ends the reset.
+    pub reset_sets_connect_change: bool,
 
     // Registers.
     usbcmd: u16,
@@ -183,6 +188,7 @@ impl UhciModel {
             frames_late_until: 0,
             port_nonsense: None,
             port_enable_refusals: 0,
+            reset_sets_connect_change: false,
             usbcmd: 0,
             usbsts: STS_HALTED,
             usbintr: 0,
@@ -775,6 +781,9 @@ impl UhciModel {
         let reset = value & PORT_RESET != 0;
         if reset && !was_reset {
             stored = (stored | PORT_RESET) & !PORT_ENABLED;
+            if connected && self.reset_sets_connect_change {
+                stored |= PORT_CONNECT_CHANGE;
+            }
             self.port_reset_since[index] = Some(self.now);
         } else if !reset && was_reset {
             stored &= !PORT_RESET;

@@ -210,6 +210,37 @@ fn a_low_speed_keyboard_is_reached_with_the_ls_bit() {
 }
 
 #[test]
+fn a_connect_change_the_port_reset_makes_is_not_a_new_device() {
+    // Bochs 2.7's UHCI (and its EHCI's UHCI companions) sets Connect
+    // Status Change as the reset starts: the device is still there, and
+    // is found at boot, not taken for one plugged in again.
+    let mut model = UhciModel::new(2);
+    model.reset_sets_connect_change = true;
+    let keyboard = model.plug(&[1], UsbDevice::Keyboard(Speed::Low));
+    let mut bus = bus_with(model);
+    assert_eq!(bus.enumerate(), 1, "{:?}", bus.controller().hardware().log);
+    let model = bus.controller().hardware();
+    assert!(
+        !model.log.iter().any(|line| line.contains("went away")),
+        "{:?}",
+        model.log
+    );
+    assert!(
+        model
+            .log
+            .iter()
+            .any(|line| line.starts_with("usb: uhci port 1: enumerated in ")
+                && line.contains(" us at low speed, ")),
+        "{:?}",
+        model.log
+    );
+    assert!(model.tree.send_report(keyboard, KEY_B));
+    assert!(model.tree.send_report(keyboard, RELEASED));
+    assert_eq!(typed(&mut bus, 100), [0x30, 0xB0]);
+    assert_clean(bus.controller().hardware());
+}
+
+#[test]
 fn keyboards_behind_a_hub_type_through_the_device_layer() {
     let mut model = UhciModel::new(2);
     model.plug(
