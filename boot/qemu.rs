@@ -31,6 +31,13 @@ pub const EXIT_FAILURE: i32 = Exit::Failure.qemu_status();
 
 /// OVMF from Debian's `ovmf` package.
 pub const OVMF_CODE: &str = "/usr/share/OVMF/OVMF_CODE.fd";
+/// The variables template for [`OVMF_CODE`], copied for a boot that sets
+/// [`QemuOptions::uefi_resolution`].
+pub const OVMF_VARS: &str = "/usr/share/OVMF/OVMF_VARS.fd";
+
+/// The vendor GUID of OVMF's `PlatformConfig` variable
+/// (`gOvmfPlatformConfigGuid`, OvmfPkg/PlatformDxe).
+const OVMF_PLATFORM_CONFIG_GUID: &str = "7235c51c-0c80-4cab-87ac-3b084a6304b1";
 
 /// 32-bit OVMF (a 32-bit UEFI, as on Bay Trail tablets and Compute Sticks)
 /// from Debian's `ovmf-ia32` package: only a Secure Boot build, which needs
@@ -449,6 +456,12 @@ pub struct QemuOptions {
     /// With 32-bit UEFI (always the Secure Boot build): its variables in
     /// this file instead of a fresh copy of the empty [`OVMF32_VARS`].
     pub secure_boot_vars: Option<PathBuf>,
+    /// With UEFI (without [`QemuOptions::secure_boot_vars`]): the screen
+    /// size OVMF sets its console to, as its setup page would: OVMF runs
+    /// from flash with a fresh copy of [`OVMF_VARS`] whose `PlatformConfig`
+    /// variable holds it (written by virt-fw-vars). OVMF picks its mode of
+    /// that size; on a Cirrus, 1024x768 is a 24-bit one.
+    pub uefi_resolution: Option<(u32, u32)>,
     /// QEMU's `-cpu` value, when not the board's default (for example
     /// `qemu64,-nx`: a CPU without the no-execute bit).
     pub cpu: Option<String>,
@@ -482,6 +495,7 @@ impl QemuOptions {
             keep_after_power_off: false,
             instruction_clock: false,
             secure_boot_vars: None,
+            uefi_resolution: None,
             cpu: None,
             memory_mib: DEFAULT_MEMORY_MIB,
             option_roms: Vec::new(),
@@ -489,6 +503,41 @@ impl QemuOptions {
             ram_files: Vec::new(),
         }
     }
+}
+
+/// A copy of [`OVMF_VARS`] in `dir` whose `PlatformConfig` variable asks
+/// OVMF for this console resolution: the struct's first two fields,
+/// HorizontalResolution and VerticalResolution, little-endian UINT32s;
+/// non-volatile and boot-service access, as OVMF's setup page saves it.
+fn platform_config_vars(dir: &Path, (width, height): (u32, u32)) -> Result<PathBuf> {
+    let data: String = [width, height]
+        .iter()
+        .flat_map(|value| value.to_le_bytes())
+        .map(|byte| format!("{byte:02x}"))
+        .collect();
+    let json = format!(
+        r#"{{"version": 2, "variables": [{{"name": "PlatformConfig", "guid": "{OVMF_PLATFORM_CONFIG_GUID}", "attr": 3, "data": "{data}"}}]}}"#
+    );
+    let json_path = dir.join("platform-config.json");
+    let vars = dir.join("OVMF_VARS.fd");
+    std::fs::write(&json_path, json)
+        .map_err(|e| QemuError::Io(format!("cannot write {}: {e}", json_path.display())))?;
+    let tool =
+        crate::secure_boot::virt_fw_vars().map_err(|e| QemuError::NotInstalled(e.to_string()))?;
+    let output = Command::new(&tool)
+        .args(["--input", OVMF_VARS, "--output"])
+        .arg(&vars)
+        .arg("--set-json")
+        .arg(&json_path)
+        .output()
+        .map_err(|e| QemuError::Io(format!("cannot run {}: {e}", tool.display())))?;
+    if !output.status.success() {
+        return Err(QemuError::Io(format!(
+            "virt-fw-vars could not write PlatformConfig into a copy of {OVMF_VARS}: {}",
+            String::from_utf8_lossy(&output.stderr)
+        )));
+    }
+    Ok(vars)
 }
 
 /// What went wrong with QEMU; each carries a message that says what to do.
@@ -774,9 +823,24 @@ impl Qemu {
                     ))
                     .args(["-global", "driver=cfi.pflash01,property=secure,value=on"]);
             }
-            (None, Firmware::Uefi) => {
-                command.args(["-bios", OVMF_CODE]);
-            }
+            (None, Firmware::Uefi) => match options.uefi_resolution {
+                None => {
+                    command.args(["-bios", OVMF_CODE]);
+                }
+                Some(resolution) => {
+                    let vars = platform_config_vars(scratch.path(), resolution)?;
+                    command
+                        .arg("-drive")
+                        .arg(format!(
+                            "if=pflash,format=raw,unit=0,readonly=on,file={OVMF_CODE}"
+                        ))
+                        .arg("-drive")
+                        .arg(format!(
+                            "if=pflash,format=raw,unit=1,file={}",
+                            vars.display()
+                        ));
+                }
+            },
             (given, Firmware::Uefi32) => {
                 // The given variables, else a fresh copy of the empty ones
                 // each boot.

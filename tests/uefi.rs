@@ -46,6 +46,16 @@ fn boot_with(
     request: BootRequest,
     debug_exit: bool,
 ) -> Qemu {
+    Qemu::start(&options_for(firmware, graphics, request, debug_exit))
+        .unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn options_for(
+    firmware: Firmware,
+    graphics: Graphics,
+    request: BootRequest,
+    debug_exit: bool,
+) -> QemuOptions {
     // The one image, under either firmware; OVMF on a Q35, as UEFI PCs are.
     let images = boot::images::publish().expect("the build script made the images");
     let mut options = QemuOptions::new(images.hybrid);
@@ -57,7 +67,7 @@ fn boot_with(
     options.boot = request;
     options.debug_exit = debug_exit;
     options.keep_after_power_off = !debug_exit;
-    Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"))
+    options
 }
 
 /// The framebuffer as the kernel reported it on serial:
@@ -215,4 +225,52 @@ fn uefi_with_the_standard_vga_and_the_option_runs_true_mode_x() {
     );
     let screen = qemu.screendump().unwrap();
     assert_same_picture(&screen, &pattern_picture(0), "true mode x under uefi");
+}
+
+/// OVMF on a Cirrus at 1024x768 (its `PlatformConfig` variable, as OVMF's
+/// setup page sets it): GOP's mode is 24-bit, 3 bytes a pixel, and the
+/// Cirrus has no 4-byte mode of that size. The loader keeps the mode and
+/// hands on 3 bytes (it said 4, and the kernel refused the buffer as too
+/// small: a black screen); the cube is drawn, QEMU's picture equal to the
+/// software VGA's presented after each key.
+#[test]
+fn uefi_on_a_cirrus_at_1024x768_draws_the_cube_in_3_byte_pixels() {
+    const KEYS: [(&str, Command); 3] = [
+        ("r", Command::Scene(SceneCommand::Reset)),
+        ("6", common::turn(Axis::Y, Sense::Positive)),
+        ("l", Command::Scene(SceneCommand::ToggleLighting)),
+    ];
+    let mut options = options_for(
+        Firmware::Uefi,
+        Graphics::Cirrus,
+        BootRequest::default(),
+        true,
+    );
+    options.uefi_resolution = Some((1024, 768));
+    let mut qemu = Qemu::start(&options).unwrap_or_else(|e| panic!("{e}"));
+    let console = qemu
+        .wait_for_serial(boot::READY_LINE, UEFI_BOOT_TIMEOUT)
+        .unwrap();
+    assert!(
+        console.contains("1024x768 Bitmask (console): usable, 3 bytes/pixel"),
+        "{console}"
+    );
+    assert!(
+        console.contains(
+            "loader: keeping the current mode, 1024x768 at 3 bytes/pixel: \
+             no mode of its size has 4 bytes a pixel"
+        ),
+        "{console}"
+    );
+    let reported = reported_framebuffer(&console);
+    assert_eq!(
+        (reported.width, reported.height, reported.bytes_per_pixel),
+        (1024, 768, 3),
+        "{console}"
+    );
+    common::after_each_key_on(&mut qemu, &KEYS, |screen, model, _, what| {
+        assert_eq!((screen.width, screen.height), (1024, 768), "{what}");
+        let expected = presented(model, screen.width, screen.height);
+        assert_pictures_equal(screen, &expected, &format!("cirrus 1024x768, {what}"));
+    });
 }

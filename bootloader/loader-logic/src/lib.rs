@@ -18,6 +18,8 @@
 //!   signature database for the loader's certificate.
 //! - [`uefi_map`]: the 32-bit UEFI loader's memory map for stage 4, UEFI
 //!   memory types as E820 entries.
+//! - [`vesa`]: BIOS stage 2's VBE mode: its pixels' size and stride, and
+//!   which of two modes it takes.
 #![no_std]
 
 pub mod console;
@@ -29,6 +31,7 @@ pub mod gop;
 pub mod identity_map;
 pub mod secure_boot;
 pub mod uefi_map;
+pub mod vesa;
 
 #[cfg(test)]
 extern crate std;

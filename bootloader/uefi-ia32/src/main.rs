@@ -328,8 +328,9 @@ fn check_hash(file: file_hash::File, region: Region) {
     let expected = unsafe { ptr::read_volatile(&raw const FILE_HASHES) };
     // SAFETY: `region` is the file as `read_file` read it into pages of our
     // loader data, below 4 GiB; read only.
-    let bytes =
-        unsafe { core::slice::from_raw_parts(region.start as usize as *const u8, region.len as usize) };
+    let bytes = unsafe {
+        core::slice::from_raw_parts(region.start as usize as *const u8, region.len as usize)
+    };
     if let Err(mismatch) = expected.check(file, file_hash::sha256(bytes)) {
         wait_forever(format_args!("{mismatch}\n"));
     }
@@ -586,7 +587,7 @@ fn framebuffer() -> BiosFramebufferInfo {
 }
 
 fn choose_gop() -> Option<BiosFramebufferInfo> {
-    use loader_logic::gop::{GopCandidate, GopFormat, UsableFormat, choose, judge, usable_format};
+    use loader_logic::gop::{GopCandidate, GopFormat, UsableFormat, choose, judge, usable_layout};
     const MAX_GOPS: usize = 16;
     struct Found {
         candidate: GopCandidate,
@@ -630,6 +631,7 @@ fn choose_gop() -> Option<BiosFramebufferInfo> {
                     red: mask.red,
                     green: mask.green,
                     blue: mask.blue,
+                    reserved: mask.reserved,
                 },
                 None => GopFormat::BltOnly,
             },
@@ -662,10 +664,7 @@ fn choose_gop() -> Option<BiosFramebufferInfo> {
             } else {
                 ""
             },
-            match judge(&candidate) {
-                Ok(_) => "usable",
-                Err(why) => why.as_str(),
-            }
+            loader_logic::gop::Verdict(judge(&candidate))
         ));
         found[count] = Some(Found {
             candidate,
@@ -694,7 +693,10 @@ fn choose_gop() -> Option<BiosFramebufferInfo> {
         ));
         return None;
     };
-    let pixel_format = match usable_format(chosen.candidate.format).ok()? {
+    // Issue 61: the pixel's size as its masks say (3 bytes for a 24-bit
+    // mode), not always 4.
+    let layout = usable_layout(chosen.candidate.format).ok()?;
+    let pixel_format = match layout.format {
         UsableFormat::Rgb => PixelFormat::Rgb,
         UsableFormat::Bgr => PixelFormat::Bgr,
         UsableFormat::BitPositions { red, green, blue } => PixelFormat::Unknown {
@@ -711,7 +713,7 @@ fn choose_gop() -> Option<BiosFramebufferInfo> {
         },
         width,
         height,
-        bytes_per_pixel: 4,
+        bytes_per_pixel: layout.bytes_per_pixel as u8, // 3 or 4
         stride,
         pixel_format,
     })

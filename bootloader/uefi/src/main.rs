@@ -32,8 +32,8 @@ use x86_64::{
     structures::paging::{FrameAllocator, OffsetPageTable, PageTable, PhysFrame, Size4KiB},
 };
 
-mod memory_descriptor;
 mod firmware_console; // Patched (issue 48)
+mod memory_descriptor;
 mod secure_boot_state; // Patched (issue 39)
 
 struct BootFile {
@@ -550,7 +550,7 @@ fn init_logger(config: &BootConfig) -> Option<RawFrameBufferInfo> {
         // Patched: only modes whose format the kernel can take.
         let modes = gop
             .modes()
-            .filter(|m| loader_logic::gop::usable_format(gop_format(&m.info())).is_ok());
+            .filter(|m| loader_logic::gop::usable_layout(gop_format(m.info())).is_ok());
         match (
             config
                 .frame_buffer
@@ -569,7 +569,9 @@ fn init_logger(config: &BootConfig) -> Option<RawFrameBufferInfo> {
                 .last(),
             (Some(height), None) => modes.filter(|m| m.info().resolution().1 >= height).last(),
             (None, Some(width)) => modes.filter(|m| m.info().resolution().0 >= width).last(),
-            _ => None,
+            // Patched (issue 61): no size asked for: a 4-byte mode of the
+            // current size if the current one is not.
+            _ => mode_of_four_bytes(&gop),
         }
     };
     if let Some(mode) = mode {
@@ -578,19 +580,18 @@ fn init_logger(config: &BootConfig) -> Option<RawFrameBufferInfo> {
     }
 
     let mode_info = gop.current_mode_info();
-    // Patched: the current mode is judged again (a set mode may differ).
-    let pixel_format = match loader_logic::gop::usable_format(gop_format(&mode_info)) {
-        Ok(format) => bootloader_pixel_format(format),
-        Err(_) => return None,
-    };
+    // Patched: the current mode is judged again (a set mode may differ), and
+    // its pixel size handed on as its masks say (issue 61: 3 bytes for
+    // OVMF's 24-bit modes, which upstream called 4).
+    let layout = loader_logic::gop::usable_layout(gop_format(&mode_info)).ok()?;
     let mut framebuffer = gop.frame_buffer();
     let slice = unsafe { slice::from_raw_parts_mut(framebuffer.as_mut_ptr(), framebuffer.size()) };
     let info = FrameBufferInfo {
         byte_len: framebuffer.size(),
         width: mode_info.resolution().0,
         height: mode_info.resolution().1,
-        pixel_format, // Patched
-        bytes_per_pixel: 4,
+        pixel_format: bootloader_pixel_format(layout.format), // Patched
+        bytes_per_pixel: layout.bytes_per_pixel,              // Patched
         stride: mode_info.stride(),
     };
 
@@ -619,10 +620,47 @@ fn gop_format(info: &uefi::proto::console::gop::ModeInfo) -> loader_logic::gop::
                 red: mask.red,
                 green: mask.green,
                 blue: mask.blue,
+                reserved: mask.reserved,
             },
             None => GopFormat::BltOnly,
         },
         PixelFormat::BltOnly => GopFormat::BltOnly,
+    }
+}
+
+/// Patched (issue 61): the mode `loader_logic::gop::choose_mode` picks over
+/// the current one (a 4-byte mode of the same size when the current mode
+/// is not 4 bytes a pixel), each mode asked of `QueryMode`; None keeps the
+/// current mode. Says which and why on the UEFI console and COM1.
+fn mode_of_four_bytes(gop: &GraphicsOutput) -> Option<uefi::proto::console::gop::Mode> {
+    use loader_logic::gop::{GopMode, ModeChoice, choose_mode, usable_layout};
+    let described = |info: &uefi::proto::console::gop::ModeInfo| GopMode {
+        format: gop_format(info),
+        width: info.resolution().0,
+        height: info.resolution().1,
+    };
+    let current = described(&gop.current_mode_info());
+    let bytes = |mode: &GopMode| usable_layout(mode.format).map_or(0, |l| l.bytes_per_pixel);
+    match choose_mode(&current, gop.modes().map(|m| described(m.info()))) {
+        ModeChoice::Keep(why) => {
+            say(format_args!(
+                "loader: keeping the current mode, {}x{} at {} bytes/pixel: {}",
+                current.width,
+                current.height,
+                bytes(&current),
+                why.as_str()
+            ));
+            None
+        }
+        ModeChoice::Set { position, mode } => {
+            say(format_args!(
+                "loader: setting a {}x{} mode at 4 bytes/pixel in place of the current one at {}: the same size, so the same timing",
+                mode.width,
+                mode.height,
+                bytes(&current),
+            ));
+            gop.modes().nth(position)
+        }
     }
 }
 
@@ -696,10 +734,7 @@ fn choose_gop() -> Option<(uefi::Handle, loader_logic::gop::GopCandidate)> {
             } else {
                 ""
             },
-            match judge(&candidate) {
-                Ok(_) => "usable",
-                Err(why) => why.as_str(),
-            }
+            loader_logic::gop::Verdict(judge(&candidate)) // Patched (issue 61)
         ));
         found[count] = Some((handle, candidate));
         candidates[count] = candidate;

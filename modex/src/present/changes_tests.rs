@@ -291,3 +291,99 @@ fn short_tiles_cropped_pictures_and_short_buffers_match_a_full_present() {
         }
     }
 }
+
+/// Every colour of a distinct palette as a 20x15 block on page 0, and the
+/// framebuffer layout the kernel makes of what a loader described.
+fn every_colour() -> Box<SoftVga> {
+    let mut soft = mode_x();
+    let mut vga = ModeX::new(&mut *soft);
+    let palette: Vec<[u8; 3]> = (0..=255u8)
+        .map(|i| [i % 64, i.wrapping_mul(7) % 64, i.wrapping_mul(13) % 64])
+        .collect();
+    vga.load_palette(0, &palette);
+    for colour in 0..=255u8 {
+        let (x, y) = (i32::from(colour % 16) * 20, i32::from(colour / 16) * 15);
+        vga.fill_rect(Page::Zero, x, y, x + 20, y + 15, colour);
+    }
+    soft
+}
+
+/// A framebuffer a loader describes by its components' bit offsets, as the
+/// kernel lays it out (`FirmwareFramebuffer::layout`).
+fn described(bytes_per_pixel: usize, red: u8, green: u8, blue: u8) -> FramebufferLayout {
+    let described = FirmwareFramebuffer {
+        byte_len: 1024 * 768 * bytes_per_pixel,
+        width: 1024,
+        height: 768,
+        stride: 1024,
+        bytes_per_pixel,
+        format: FirmwareFormat::BitOffsets { red, green, blue },
+    };
+    let choice = described.layout().expect("a well-formed framebuffer");
+    assert!(!choice.grey_instead, "{described:?} is understood");
+    choice.layout
+}
+
+/// Presents `soft` through the presenter of changes onto `layout` and onto
+/// a 1024x768 4-byte RGB framebuffer, a pixel changed, then again; after
+/// each, every pixel of `layout` must be `from_rgb` of the RGB one's bytes,
+/// and the changes must leave what a full present does.
+fn draws_the_rgb_picture(
+    mut soft: Box<SoftVga>,
+    layout: FramebufferLayout,
+    from_rgb: fn(&[u8]) -> Vec<u8>,
+) {
+    let rgb = self::layout(1024, 768, 4, PixelOrder::Rgb);
+    let mut out = vec![0xEE; layout.required_bytes()];
+    let mut reference = vec![0xEE; rgb.required_bytes()];
+    let (mut presenter, mut rgb_presenter) =
+        (Box::new(Presenter::new()), Box::new(Presenter::new()));
+    for step in 0..2 {
+        if step == 1 {
+            ModeX::new(&mut *soft).put_pixel(Page::Zero, 100, 100, 77);
+        }
+        presenter.present(&soft, &layout, &mut out);
+        rgb_presenter.present(&soft, &rgb, &mut reference);
+        let n = layout.bytes_per_pixel;
+        for (index, (pixel, rgb_pixel)) in out.chunks(n).zip(reference.chunks(4)).enumerate() {
+            assert_eq!(
+                pixel,
+                from_rgb(rgb_pixel),
+                "step {step}, pixel ({}, {})",
+                index % 1024,
+                index / 1024
+            );
+        }
+        assert_eq!(out, full(&soft, &layout, out.len()), "step {step}");
+    }
+    // Not a picture of nothing: the colours reached the framebuffer.
+    assert!(reference.chunks(4).filter(|p| p[..3] != [0, 0, 0]).count() > 900 * 700);
+}
+
+/// OVMF's 24-bit mode on a Cirrus, as the loader hands it on: red, green,
+/// blue at bits 16, 8 and 0 of a 3-byte pixel (blue, green, red in byte
+/// order).
+#[test]
+fn a_24_bit_bgr_bit_mask_shows_the_picture_of_a_32_bit_framebuffer() {
+    draws_the_rgb_picture(every_colour(), described(3, 16, 8, 0), |rgb| {
+        vec![rgb[2], rgb[1], rgb[0]]
+    });
+}
+
+/// An order nobody names: red in the low byte, blue in the middle, green on
+/// top of a 3-byte pixel.
+#[test]
+fn a_24_bit_mask_in_an_unusual_order_shows_the_same_picture() {
+    draws_the_rgb_picture(every_colour(), described(3, 0, 16, 8), |rgb| {
+        vec![rgb[0], rgb[2], rgb[1]]
+    });
+}
+
+/// The colours in the top three bytes of a 4-byte pixel, the low byte
+/// reserved (left zero).
+#[test]
+fn a_32_bit_mask_with_the_colours_on_top_shows_the_same_picture() {
+    draws_the_rgb_picture(every_colour(), described(4, 24, 16, 8), |rgb| {
+        vec![0, rgb[2], rgb[1], rgb[0]]
+    });
+}

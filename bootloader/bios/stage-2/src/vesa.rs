@@ -92,7 +92,8 @@ impl<'a> VesaInfo<'a> {
             }
 
             // Patched: under 8 bits per pixel the stride division in `main.rs`
-            // would divide by zero.
+            // would divide by zero; 0 also marks pixels that cannot be
+            // described (issue 61: `loader_logic::vesa::pixels`).
             if mode_info.bytes_per_pixel == 0 {
                 continue;
             }
@@ -101,12 +102,18 @@ impl<'a> VesaInfo<'a> {
                 continue;
             }
 
+            // Patched (issue 61): upstream's rule, and at one size 4 bytes a
+            // pixel over 3 (`loader_logic::vesa::replaces`, host-tested).
+            let candidate = |mode: &VesaModeInfo| loader_logic::vesa::VesaCandidate {
+                width: mode.width,
+                height: mode.height,
+                bytes_per_pixel: mode.bytes_per_pixel,
+                known_format: !mode.pixel_format.is_unknown(),
+            };
             let replace = match &best {
                 None => true,
                 Some(best) => {
-                    best.pixel_format.is_unknown()
-                        || best.width < mode_info.width
-                        || (best.width == mode_info.width && best.height < mode_info.height)
+                    loader_logic::vesa::replaces(&candidate(best), &candidate(&mode_info))
                 }
             };
 
@@ -211,7 +218,13 @@ impl VesaModeInfo {
                     height: block.height,
                     framebuffer_start: block.framebuffer,
                     bytes_per_scanline: block.bytes_per_scanline,
-                    bytes_per_pixel: block.bits_per_pixel / 8,
+                    // Patched (issue 61): whole bytes (15-bit is 2, not 1),
+                    // and 0 when the line is no whole number of pixels.
+                    bytes_per_pixel: loader_logic::vesa::pixels(
+                        block.bits_per_pixel,
+                        block.bytes_per_scanline,
+                    )
+                    .map_or(0, |pixels| pixels.bytes_per_pixel),
                     pixel_format: match (
                         block.red_position,
                         block.green_position,
