@@ -4,6 +4,11 @@
 //! device, loads the MBR itself and jumps to it with junk everywhere. Built
 //! with NASM into a scratch directory at test time (no binary is kept) and
 //! given to QEMU with [`crate::qemu::OptionRom`].
+//!
+//! Also the E820 ROM of `tests/memory_map.rs` (`boot/roms/e820_map.asm`,
+//! issue 66): it answers the BIOS memory map call from the BIOS's own list
+//! with a reserved range laid inside the top of RAM, an entry twice, the
+//! entries reversed, or no usable RAM above 1 MiB.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -55,47 +60,121 @@ pub const NASM: &str = "nasm";
 /// Assembles the ROM for `boot` into `dir`, with its checksum fixed; returns
 /// its path. Fails, saying how to install it, without NASM.
 pub fn build_hostile_bios(dir: &Path, boot: HostileBoot) -> Result<PathBuf, String> {
-    let source = dir.join("hostile_bios.asm");
-    std::fs::write(&source, HOSTILE_BIOS_SOURCE)
-        .map_err(|e| format!("cannot write {}: {e}", source.display()))?;
-    let name = match boot {
-        HostileBoot::HooksOnly => "hostile-hooks.rom".to_owned(),
-        HostileBoot::NoExtensions => "hostile-no-extensions.rom".to_owned(),
+    let (name, defines) = match boot {
+        HostileBoot::HooksOnly => ("hostile-hooks.rom".to_owned(), vec![]),
+        HostileBoot::NoExtensions => (
+            "hostile-no-extensions.rom".to_owned(),
+            vec!["-DNO_EXTENSIONS=1".to_owned()],
+        ),
         HostileBoot::Bev {
             segment,
             offset,
             drive,
-        } => format!("hostile-bev-{segment:04x}-{offset:04x}-dl{drive:02x}.rom"),
+        } => (
+            format!("hostile-bev-{segment:04x}-{offset:04x}-dl{drive:02x}.rom"),
+            vec![
+                "-DBEV=1".to_owned(),
+                format!("-DJUMP_SEG={segment:#06x}"),
+                format!("-DJUMP_OFF={offset:#06x}"),
+                format!("-DBOOT_DRIVE={drive:#04x}"),
+                format!("-DJUMP_TEXT='{segment:04X}:{offset:04X}'"),
+                format!("-DDRIVE_TEXT='{drive:02X}'"),
+            ],
+        ),
     };
-    let rom = dir.join(name);
-    let mut nasm = Command::new(NASM);
-    nasm.args(["-f", "bin", "-o"]).arg(&rom);
-    if boot == HostileBoot::NoExtensions {
-        nasm.arg("-DNO_EXTENSIONS=1");
-    }
-    if let HostileBoot::Bev {
-        segment,
-        offset,
-        drive,
-    } = boot
-    {
-        nasm.arg("-DBEV=1")
-            .arg(format!("-DJUMP_SEG={segment:#06x}"))
-            .arg(format!("-DJUMP_OFF={offset:#06x}"))
-            .arg(format!("-DBOOT_DRIVE={drive:#04x}"))
-            .arg(format!("-DJUMP_TEXT='{segment:04X}:{offset:04X}'"))
-            .arg(format!("-DDRIVE_TEXT='{drive:02X}'"));
-    }
-    nasm.arg(&source);
-    let output = nasm.output().map_err(|e| {
-        format!(
-            "cannot run {NASM} ({e}): install it with `boot/setup.sh` (or `apt-get install nasm`)"
-        )
-    })?;
+    assemble(
+        dir,
+        "hostile_bios.asm",
+        HOSTILE_BIOS_SOURCE,
+        &name,
+        &defines,
+    )
+}
+
+/// The E820 ROM's source (issue 66): it answers INT 15h E820 from the
+/// BIOS's own list, changed as [`E820Changes`] says.
+pub const E820_MAP_SOURCE: &str = include_str!("roms/e820_map.asm");
+
+/// The line the E820 ROM writes to COM1 once its hook is in.
+pub const E820_HOOKED_LINE: &str = "e820-rom: INT 15h E820 hooked";
+
+/// Where the E820 ROM leaves the reserved range it added
+/// ([`E820Changes::reserve_top`]): its start, then its end, each a
+/// little-endian `u32`, in the interrupt table's slots of INT 64h and 65h
+/// (0 when it added none). The E820 calls it answered follow, at 0x198.
+pub const E820_RESERVED_RANGE: u64 = 0x190;
+
+/// What the E820 ROM wrote over the whole reserved range it added, one
+/// little-endian `u32` after another.
+pub const E820_PATTERN: u32 = 0xE820_C0DE;
+
+/// How the E820 ROM changes the BIOS's list; any together.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct E820Changes {
+    /// Adds a reserved entry [top - 4 MiB, top - 2 MiB), where top is the
+    /// end of the usable entry ending highest below 4 GiB, and fills it
+    /// with [`E820_PATTERN`].
+    pub reserve_top: bool,
+    /// Lists that usable entry twice.
+    pub twice: bool,
+    /// Answers the entries last first.
+    pub reverse: bool,
+    /// Makes every usable entry at or above 1 MiB reserved.
+    pub no_high_ram: bool,
+}
+
+/// Assembles the E820 ROM for `changes` into `dir`; as
+/// [`build_hostile_bios`].
+pub fn build_e820_rom(dir: &Path, changes: E820Changes) -> Result<PathBuf, String> {
+    let flags = [
+        (changes.reserve_top, "RESERVE_TOP"),
+        (changes.twice, "TWICE"),
+        (changes.reverse, "REVERSE"),
+        (changes.no_high_ram, "NO_HIGH_RAM"),
+    ];
+    let defines: Vec<String> = flags
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, name)| format!("-D{name}=1"))
+        .collect();
+    let name = flags
+        .iter()
+        .filter(|(on, _)| *on)
+        .fold("e820".to_owned(), |name, (_, flag)| {
+            format!("{name}-{}", flag.to_lowercase())
+        })
+        + ".rom";
+    assemble(dir, "e820_map.asm", E820_MAP_SOURCE, &name, &defines)
+}
+
+/// Writes `source` into `dir` as `source_name`, assembles it with NASM and
+/// `defines` into `dir/rom_name`, and fixes its checksum; returns its path.
+fn assemble(
+    dir: &Path,
+    source_name: &str,
+    source: &str,
+    rom_name: &str,
+    defines: &[String],
+) -> Result<PathBuf, String> {
+    let source_path = dir.join(source_name);
+    std::fs::write(&source_path, source)
+        .map_err(|e| format!("cannot write {}: {e}", source_path.display()))?;
+    let rom = dir.join(rom_name);
+    let output = Command::new(NASM)
+        .args(["-f", "bin", "-o"])
+        .arg(&rom)
+        .args(defines)
+        .arg(&source_path)
+        .output()
+        .map_err(|e| {
+            format!(
+                "cannot run {NASM} ({e}): install it with `boot/setup.sh` (or `apt-get install nasm`)"
+            )
+        })?;
     if !output.status.success() {
         return Err(format!(
             "{NASM} failed on {}: {}",
-            source.display(),
+            source_path.display(),
             String::from_utf8_lossy(&output.stderr)
         ));
     }

@@ -28,6 +28,15 @@ pub const LOADER_START: &str = "loader: loading kernel";
 /// kernel: `loader: stack: stages 2-3 used N of M bytes, stage 4 used N
 /// of M bytes`.
 pub const LOADER_STACK: &str = "loader: stack: ";
+/// The memory map stage 4 (BIOS and 32-bit UEFI) or the UEFI loader made,
+/// sanitised (issue 66): `loader: memory: 12 entries; 1 overlap split, 1
+/// duplicate merged; 13 ranges`; stage 4 then names each range as Linux
+/// prints E820 tables: `loader: memory: [mem 0x...-0x...] usable`.
+pub const LOADER_MEMORY: &str = "loader: memory: ";
+/// A loader stage's panic, on COM1 and the screen, with its file and line:
+/// `loader: PANIC: panicked at src/main.rs:80:9:` and the message on the
+/// next line.
+pub const LOADER_PANIC: &str = "loader: PANIC: ";
 /// The start of the goodbye line after Esc.
 pub const GOODBYE: &str = "demo: goodbye";
 /// The last line before a fault or panic halts the CPU.

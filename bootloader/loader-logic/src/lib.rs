@@ -13,6 +13,8 @@
 //! - [`file_read`]: reading a file through UEFI, one more try, the words of
 //!   a failure.
 //! - [`identity_map`]: what the UEFI loader's own page tables map.
+//! - [`memory_map`]: one sanitised memory map from the firmware's list:
+//!   sorted, overlaps split (the stricter kind wins), repeats merged.
 //! - [`secure_boot`]: the Secure Boot state record the UEFI loaders hand to
 //!   the kernel, what each variable read means, and the search of a
 //!   signature database for the loader's certificate.
@@ -29,6 +31,7 @@ pub mod file_hash;
 pub mod file_read;
 pub mod gop;
 pub mod identity_map;
+pub mod memory_map;
 pub mod secure_boot;
 pub mod uefi_map;
 pub mod vesa;

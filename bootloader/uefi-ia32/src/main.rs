@@ -722,7 +722,13 @@ fn choose_gop() -> Option<BiosFramebufferInfo> {
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     // Not expected (every firmware error is handled above), but never silent.
-    let _ = writeln!(serial::Com1, "loader: PANIC: {info}");
+    // Patched (issue 66): on the screen too while the UEFI console is there
+    // (before ExitBootServices); `say` writes COM1 unless it copies it.
+    if console_available() {
+        say(format_args!("loader: PANIC: {info}\n"));
+    } else {
+        let _ = writeln!(serial::Com1, "loader: PANIC: {info}");
+    }
     loop {
         // SAFETY: halting with interrupts off stops this CPU; nothing follows.
         unsafe { core::arch::asm!("cli", "hlt") };

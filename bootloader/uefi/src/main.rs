@@ -2,7 +2,6 @@
 #![no_main]
 #![deny(unsafe_op_in_unsafe_fn)]
 
-use crate::memory_descriptor::UefiMemoryDescriptor;
 use bootloader_api::info::FrameBufferInfo;
 use bootloader_boot_config::BootConfig;
 use bootloader_x86_64_common::{
@@ -135,8 +134,9 @@ fn main() -> Status {
 
     memory_map.sort();
 
+    // Patched (issue 66): one sanitised map for the allocator and the kernel.
     let mut frame_allocator =
-        LegacyFrameAllocator::new(memory_map.entries().copied().map(UefiMemoryDescriptor));
+        LegacyFrameAllocator::new(memory_descriptor::sanitised(memory_map.entries().copied()));
 
     let max_phys_addr = frame_allocator.max_phys_addr();
     let page_tables = create_page_tables(&mut frame_allocator, max_phys_addr, framebuffer.as_ref());

@@ -178,9 +178,10 @@ pub fn enter_long_mode_and_jump_to_stage_4(info: &mut BiosInfo) {
     }
 }
 
+/// Patched (issue 66): on COM1 too (and on the VGA text screen without a
+/// framebuffer), with the file and line, then halted for good.
 #[panic_handler]
 #[cfg(not(test))]
 pub fn panic(info: &core::panic::PanicInfo) -> ! {
-    let _ = writeln!(Writer, "PANIC: {info}");
-    loop {}
+    stop(format_args!("loader: PANIC: {info}"))
 }

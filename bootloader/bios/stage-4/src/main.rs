@@ -4,12 +4,15 @@
 use crate::memory_descriptor::MemoryRegion;
 use bootloader_api::info::{FrameBufferInfo, PixelFormat};
 use bootloader_boot_config::{BootConfig, LevelFilter};
-use bootloader_x86_64_bios_common::{BiosFramebufferInfo, BiosInfo, E820MemoryRegion};
+use bootloader_x86_64_bios_common::{
+    BiosFramebufferInfo, BiosInfo, E820MemoryRegion, racy_cell::RacyCell,
+};
 use bootloader_x86_64_common::RawFrameBufferInfo;
 use bootloader_x86_64_common::{
     Kernel, PageTables, SystemInfo, legacy_memory_region::LegacyFrameAllocator,
 };
 use core::{cmp, slice};
+use loader_logic::memory_map::Entry; // Patched (issue 66)
 use usize_conversions::usize_from;
 use x86_64::structures::paging::{FrameAllocator, OffsetPageTable};
 use x86_64::structures::paging::{
@@ -55,21 +58,27 @@ pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
     // SAFETY: first thing, in long mode with the first 10 GiB identity
     // mapped; no static used yet.
     unsafe { bootloader_x86_64_bios_common::zero_bss() };
-    let memory_map: &mut [E820MemoryRegion] = unsafe {
-        core::slice::from_raw_parts_mut(
-            info.memory_map_addr as *mut _,
+    // Patched (issue 66): the screen for a panic before the logger is up.
+    // SAFETY: nothing else runs; the panic handler only reads it later.
+    unsafe { *PANIC_SCREEN.get_mut() = Some(info.framebuffer) };
+    let memory_map: &[E820MemoryRegion] = unsafe {
+        core::slice::from_raw_parts(
+            info.memory_map_addr as *const _,
             usize::from(info.memory_map_len),
         )
     };
 
-    memory_map.sort_unstable_by_key(|e| e.start_addr);
+    // Patched (issue 66): one sanitised map, made here once, for the frame
+    // allocator and the kernel's boot info (../../CHANGES.md): upstream only
+    // sorted it, and a reserved range inside a usable one stayed usable.
+    let memory_map = sanitised_memory_map(memory_map);
 
     let max_phys_addr = {
         let max = memory_map
             .iter()
             .map(|r| {
-                log::info!("start: {:#x}, len: {:#x}", r.start_addr, r.len);
-                r.start_addr + r.len
+                log::info!("start: {:#x}, len: {:#x}", r.start, r.len);
+                r.start + r.len // Patched (issue 66): a sanitised range
             })
             .max()
             .expect("no physical memory regions found");
@@ -89,9 +98,16 @@ pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
     let uefi = info.firmware == bootloader_x86_64_bios_common::FIRMWARE_UEFI; // Patched
     let mut frame_allocator = LegacyFrameAllocator::new_starting_at(
         next_free_frame,
-        memory_map
-            .iter()
-            .map(move |region| MemoryRegion(*region, uefi)), // Patched
+        // Patched (issue 66): the sanitised ranges as E820 entries.
+        memory_map.iter().map(move |range| {
+            let region = E820MemoryRegion {
+                start_addr: range.start,
+                len: range.len,
+                region_type: range.kind,
+                acpi_extended_attributes: 1,
+            };
+            MemoryRegion(region, uefi)
+        }), // Patched
     );
 
     // We identity-mapped all memory, so the offset between physical and virtual addresses is 0
@@ -238,6 +254,73 @@ pub extern "C" fn stage_4(info: &mut BiosInfo) -> ! {
     );
     report_stack_use(uefi);
     bootloader_x86_64_common::switch_to_kernel(page_tables, mappings, boot_info);
+}
+
+/// Patched (issue 66): the sanitised map's room: two ranges for every entry
+/// of stage 2's table (100), more than the 32-bit UEFI loader's merged map
+/// has on any machine seen; ranges past it are dropped from the top and said.
+const SANITISED_CAPACITY: usize = 512;
+
+static SANITISED: RacyCell<[Entry<u32>; SANITISED_CAPACITY]> = RacyCell::new(
+    [Entry {
+        start: 0,
+        len: 0,
+        kind: 0,
+    }; SANITISED_CAPACITY],
+);
+
+/// Patched (issue 66): the firmware's map (stage 2's E820 table, or the
+/// 32-bit UEFI loader's from UEFI's descriptors) sanitised by
+/// `loader_logic::memory_map`, said on COM1 (`loader: memory: ...`, then each
+/// range as Linux prints E820 tables); a map without usable RAM above 1 MiB,
+/// where stage 4 and the kernel's page tables must go, is a panic that says
+/// so.
+fn sanitised_memory_map(given: &[E820MemoryRegion]) -> &'static [Entry<u32>] {
+    use core::fmt::Write as _;
+    use loader_logic::memory_map::{e820_strictness, sanitise, usable_above};
+    // SAFETY: called once, before anything else uses the table.
+    let table = unsafe { SANITISED.get_mut() };
+    let report = sanitise(
+        given.iter().map(|region| Entry {
+            start: region.start_addr,
+            len: region.len,
+            kind: region.region_type,
+        }),
+        e820_strictness,
+        table,
+    );
+    let mut com1 = bootloader_x86_64_bios_common::serial::Com1;
+    let _ = writeln!(com1, "loader: memory: {report}");
+    for range in &table[..report.ranges] {
+        let _ = writeln!(
+            com1,
+            "loader: memory: [mem {:#018x}-{:#018x}] {}",
+            range.start,
+            range.start + range.len - 1,
+            E820Kind(range.kind)
+        );
+    }
+    let table = &table[..report.ranges];
+    if !usable_above(table, e820_strictness, 0x10_0000) {
+        panic!("the memory map has no usable RAM above 1 MiB ({report})");
+    }
+    table
+}
+
+/// Patched (issue 66): an E820 type as Linux's dmesg names it.
+struct E820Kind(u32);
+
+impl core::fmt::Display for E820Kind {
+    fn fmt(&self, f: &mut core::fmt::Formatter) -> core::fmt::Result {
+        match self.0 {
+            1 => write!(f, "usable"),
+            2 => write!(f, "reserved"),
+            3 => write!(f, "ACPI data"),
+            4 => write!(f, "ACPI NVS"),
+            5 => write!(f, "unusable"),
+            other => write!(f, "type {other}"),
+        }
+    }
 }
 
 /// Patched: how deep stages 2 and 3 went on the boot sector's stack (on a
@@ -405,16 +488,69 @@ fn detect_rsdp() -> Option<PhysAddr> {
     }
 }
 
+/// Patched (issue 66): the framebuffer stage 2 or the 32-bit UEFI loader
+/// handed on, for a panic before the logger draws on it.
+static PANIC_SCREEN: RacyCell<Option<BiosFramebufferInfo>> = RacyCell::new(None);
+
+/// Patched (issue 66): a panic is said on COM1 and on the screen, with its
+/// file and line (`PanicInfo`'s text), however early: upstream only logged
+/// it, and before the logger is set up that went nowhere.
 #[cfg(target_os = "none")]
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
-    unsafe {
-        bootloader_x86_64_common::logger::LOGGER
-            .get()
-            .map(|l| l.force_unlock())
-    };
-    log::error!("{info}");
+    use core::fmt::Write as _;
+    let _ = writeln!(
+        bootloader_x86_64_bios_common::serial::Com1,
+        "loader: PANIC: {info}"
+    );
+    match bootloader_x86_64_common::logger::LOGGER.get() {
+        // SAFETY: this CPU stopped wherever it held the lock, and nothing
+        // else runs; the logger is only written from here on.
+        Some(logger) => unsafe { logger.force_unlock() },
+        // SAFETY: only read; set once at entry.
+        None => match unsafe { *PANIC_SCREEN.get_mut() } {
+            Some(screen) if screen.region.len != 0 => {
+                init_logger(screen, LevelFilter::Error, true, false);
+            }
+            _ => {
+                let _ = writeln!(VgaText, "loader: PANIC: {info}");
+            }
+        },
+    }
+    log::error!("loader: PANIC: {info}");
     loop {
+        // SAFETY: halting with interrupts off stops this CPU; nothing follows.
         unsafe { core::arch::asm!("cli; hlt") };
+    }
+}
+
+/// Patched (issue 66): the VGA text screen (0xB8000, identity-mapped), when
+/// stage 2 set no VESA mode: text from the top row, in white on red.
+struct VgaText;
+
+impl core::fmt::Write for VgaText {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        const CELLS: usize = 80 * 25;
+        static AT: RacyCell<usize> = RacyCell::new(0);
+        // SAFETY: only the panic handler writes, on this one CPU.
+        let at = unsafe { AT.get_mut() };
+        for byte in s.bytes() {
+            if byte == b'\n' {
+                *at = (*at / 80 + 1) * 80;
+                continue;
+            }
+            if *at >= CELLS {
+                break;
+            }
+            let shown = if byte.is_ascii_graphic() || byte == b' ' {
+                byte
+            } else {
+                b'?'
+            };
+            // SAFETY: a cell of the VGA text buffer (`at` below 80x25).
+            unsafe { ((0xb8000 as *mut u16).add(*at)).write_volatile(0x4f00 | u16::from(shown)) };
+            *at += 1;
+        }
+        Ok(())
     }
 }
