@@ -31,6 +31,27 @@ pub const BEV_JUMP_LINE: &str = "hostile-bios: BEV: MBR read, jumping to ";
 /// it refuses INT 13h AH=41h.
 pub const NO_EXTENSIONS_LINE: &str = "hostile-bios: INT 13h AH=41h: no extensions (CF set)";
 
+/// Where the ROM counts the waits of [`HostileBoot::VideoBiosWaits`]: those
+/// begun, then those ended, each a little-endian `u32` (the interrupt
+/// table's slots of INT 68h and 69h).
+pub const VIDEO_WAITS: u64 = 0x1A0;
+
+/// The start of the line the ROM writes to COM1 as a wait of
+/// [`HostileBoot::VideoBiosWaits`] begins.
+pub const VIDEO_WAIT_LINE: &str = "hostile-bios: INT 10h AX=0013h: ";
+
+/// How a video BIOS's mode set waits (issue 66), as real video BIOSes and
+/// CSMs do inside INT 10h AH=00h.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VideoWait {
+    /// 1 ms through INT 15h AH=86h, which SeaBIOS times on the RTC's IRQ 8.
+    Int15Delay,
+    /// `sti`, then until the BIOS tick at 0040:006C moves (IRQ 0).
+    BiosTick,
+    /// `sti`, then `hlt` for ever: the call never returns.
+    Forever,
+}
+
 /// What the ROM does besides hooking the BIOS.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HostileBoot {
@@ -52,6 +73,9 @@ pub enum HostileBoot {
         /// DL at the jump.
         drive: u8,
     },
+    /// As `HooksOnly`, but INT 10h AX=0013h (mode 13h, which only the
+    /// kernel sets) waits first, as [`VideoWait`] says.
+    VideoBiosWaits(VideoWait),
 }
 
 /// The NASM executable, found on PATH.
@@ -66,6 +90,17 @@ pub fn build_hostile_bios(dir: &Path, boot: HostileBoot) -> Result<PathBuf, Stri
             "hostile-no-extensions.rom".to_owned(),
             vec!["-DNO_EXTENSIONS=1".to_owned()],
         ),
+        HostileBoot::VideoBiosWaits(wait) => {
+            let (name, number) = match wait {
+                VideoWait::Int15Delay => ("int15-delay", 1),
+                VideoWait::BiosTick => ("bios-tick", 2),
+                VideoWait::Forever => ("forever", 3),
+            };
+            (
+                format!("hostile-video-wait-{name}.rom"),
+                vec![format!("-DVIDEO_WAIT={number}")],
+            )
+        }
         HostileBoot::Bev {
             segment,
             offset,
@@ -147,8 +182,13 @@ pub fn build_e820_rom(dir: &Path, changes: E820Changes) -> Result<PathBuf, Strin
     assemble(dir, "e820_map.asm", E820_MAP_SOURCE, &name, &defines)
 }
 
-/// Writes `source` into `dir` as `source_name`, assembles it with NASM and
-/// `defines` into `dir/rom_name`, and fixes its checksum; returns its path.
+/// What the ROMs share (the header, the checksum fix, the COM1 writer):
+/// NASM macros each ROM `%include`s.
+const PNP_ROM_INCLUDE: &str = include_str!("roms/pnp_rom.inc");
+
+/// Writes `source` into `dir` as `source_name`, beside the shared include,
+/// assembles it with NASM and `defines` into `dir/rom_name`, and fixes its
+/// checksum; returns its path.
 fn assemble(
     dir: &Path,
     source_name: &str,
@@ -157,10 +197,17 @@ fn assemble(
     defines: &[String],
 ) -> Result<PathBuf, String> {
     let source_path = dir.join(source_name);
-    std::fs::write(&source_path, source)
-        .map_err(|e| format!("cannot write {}: {e}", source_path.display()))?;
+    let include_path = dir.join("pnp_rom.inc");
+    for (path, text) in [(&source_path, source), (&include_path, PNP_ROM_INCLUDE)] {
+        std::fs::write(path, text).map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    }
     let rom = dir.join(rom_name);
+    // NASM finds `%include`s from its working directory and `-i` paths.
+    let mut include_dir = dir.as_os_str().to_owned();
+    include_dir.push("/");
     let output = Command::new(NASM)
+        .arg("-i")
+        .arg(include_dir)
         .args(["-f", "bin", "-o"])
         .arg(&rom)
         .args(defines)

@@ -18,9 +18,9 @@
 mod common;
 
 use boot::option_rom::{self, E820Changes};
-use boot::qemu::{DISPLAY_ID, EXIT_SUCCESS};
-use boot::{line, OptionRom, Qemu, QemuOptions};
-use common::{assert_same_picture, BOOT_TIMEOUT};
+use boot::qemu::DISPLAY_ID;
+use boot::{line, Qemu};
+use common::BOOT_TIMEOUT;
 
 /// RAM as in the report: the top of RAM below 4 GiB is 2 GiB less
 /// what SeaBIOS keeps.
@@ -29,20 +29,14 @@ const MEMORY_MIB: u32 = 2048;
 /// Starts SeaBIOS with the E820 ROM built for `changes` and `devices`; the
 /// scratch directory holds the ROM and must outlive QEMU.
 fn start(changes: E820Changes, devices: Vec<String>) -> (Qemu, tempfile::TempDir) {
-    let dir = tempfile::Builder::new()
-        .prefix("modex-cube-e820-")
-        .tempdir()
-        .expect("a scratch directory");
-    let rom = option_rom::build_e820_rom(dir.path(), changes).unwrap_or_else(|e| panic!("{e}"));
-    let images = boot::images::publish().expect("the build script made the images");
-    let mut options = QemuOptions::new(images.hybrid);
-    options.memory_mib = MEMORY_MIB;
-    options.devices = devices;
-    options.option_roms.push(OptionRom {
-        path: rom,
-        bootindex: None,
-    });
-    (Qemu::start(&options).unwrap_or_else(|e| panic!("{e}")), dir)
+    common::start_with_option_rom(
+        |dir| option_rom::build_e820_rom(dir, changes),
+        None,
+        |options| {
+            options.memory_mib = MEMORY_MIB;
+            options.devices = devices;
+        },
+    )
 }
 
 /// The reserved range the ROM added, and the E820 calls it answered.
@@ -108,18 +102,6 @@ fn assert_the_reserved_range_is_untouched(qemu: &mut Qemu, console: &str) {
     );
 }
 
-/// The cube test's keys on the PS/2 keyboard give the software VGA's
-/// pictures, and Esc powers off with success.
-fn assert_the_cube(qemu: &mut Qemu) {
-    common::after_each_key_on(qemu, &common::CUBE_KEYS, |screen, model, _, what| {
-        assert_same_picture(screen, model, what)
-    });
-    qemu.send_key("esc").unwrap();
-    qemu.wait_for_serial(line::GOODBYE, BOOT_TIMEOUT).unwrap();
-    let status = qemu.wait_for_exit(BOOT_TIMEOUT).unwrap();
-    assert_eq!(status.code(), Some(EXIT_SUCCESS), "{}", qemu.serial());
-}
-
 #[test]
 fn a_reserved_range_at_the_top_of_ram_keeps_its_pattern_and_the_cube_is_drawn() {
     // The xHCI makes the kernel take DMA and page tables from the top of
@@ -147,7 +129,7 @@ fn a_reserved_range_at_the_top_of_ram_keeps_its_pattern_and_the_cube_is_drawn() 
         "the xHCI was not used:\n{console}"
     );
     assert_the_reserved_range_is_untouched(&mut qemu, &console);
-    assert_the_cube(&mut qemu);
+    common::cube_keys_then_escape_powers_off(&mut qemu);
 }
 
 #[test]
@@ -203,7 +185,7 @@ fn the_top_usable_entry_listed_twice_still_boots_the_cube() {
         summary.contains("1 duplicate merged;"),
         "loader: memory: {summary}"
     );
-    assert_the_cube(&mut qemu);
+    common::cube_keys_then_escape_powers_off(&mut qemu);
 }
 
 #[test]

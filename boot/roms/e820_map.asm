@@ -27,6 +27,8 @@ bits 16
 cpu 386
 org 0
 
+%include "pnp_rom.inc"
+
 %ifndef RESERVE_TOP
 %define RESERVE_TOP 0
 %endif
@@ -50,36 +52,7 @@ PATTERN        equ 0xE820C0DE
 SMAP           equ 0x534D4150
 COM1           equ 0x3F8
 
-rom_start:
-    db 0x55, 0xAA
-    db ROM_BYTES / 512
-    jmp init                    ; offset 3: the init entry, called far
-    times 0x18 - ($ - $$) db 0
-    dw 0                        ; 18h: no PCI data structure
-    dw pnp_header               ; 1Ah: the PnP expansion header
-
-    align 16
-pnp_header:                     ; PnP BIOS spec 1.0A, the expansion header
-    db '$PnP'
-    db 1                        ; structure revision
-    db 2                        ; length in 16-byte units
-    dw 0                        ; no next header
-    db 0                        ; reserved
-    db 0                        ; header checksum, set by init
-    dd 0                        ; device identifier
-    dw manufacturer
-    dw product
-    db 0, 0, 0                  ; device type code: unspecified
-    db 0                        ; device indicators
-    dw 0                        ; Boot Connection Vector: none
-    dw 0                        ; Disconnect Vector: none
-    dw 0                        ; no Boot Entry Vector
-    dw 0                        ; reserved
-    dw 0                        ; static resource information vector
-pnp_end:
-
-manufacturer: db 'modex-cube tests', 0
-product:      db 'E820 map', 0
+    PNP_ROM_HEADER 'E820 map', 0
 
 old15: dd 0                     ; the BIOS's INT 15h (offset, segment)
 count: dd 0                     ; entries in the table
@@ -270,31 +243,10 @@ init:
     mov [cs:old15], eax
     mov word [0x15 * 4], hook15
     mov [0x15 * 4 + 2], cs
-    ; The PnP header's checksum, then the whole ROM's (SeaBIOS checks it
-    ; again after init).
     push ds
     push cs
     pop ds
-    mov byte [pnp_header + 9], 0
-    xor al, al
-    mov si, pnp_header
-    mov cx, pnp_end - pnp_header
-.pnp_sum:
-    add al, [si]
-    inc si
-    loop .pnp_sum
-    neg al
-    mov [pnp_header + 9], al
-    mov byte [checksum_fix], 0
-    xor al, al
-    xor si, si
-    mov cx, ROM_BYTES
-.rom_sum:
-    add al, [si]
-    inc si
-    loop .rom_sum
-    neg al
-    mov [checksum_fix], al
+    call fix_checksums
     pop ds
     mov si, msg_hooked
     call say
@@ -357,37 +309,7 @@ saved_gdtr:
     dd 0
 %endif
 
-; Writes the zero-terminated string at CS:SI to COM1 (each byte waits a
-; bounded time for the transmitter).
-say:
-    push ax
-    push cx
-    push dx
-    push si
-.next:
-    mov al, [cs:si]
-    test al, al
-    jz .end
-    mov ah, al
-    mov dx, COM1 + 5
-    mov cx, 0xFFFF
-.wait:
-    in al, dx
-    test al, 0x20
-    jnz .send
-    loop .wait
-.send:
-    mov al, ah
-    mov dx, COM1
-    out dx, al
-    inc si
-    jmp .next
-.end:
-    pop si
-    pop dx
-    pop cx
-    pop ax
-    ret
+    PNP_ROM_ROUTINES
 
 msg_hooked: db 'e820-rom: INT 15h E820 hooked', 10, 0
 msg_no_top: db 'e820-rom: no usable entry ends below 4 GiB; list unchanged', 10, 0
@@ -395,6 +317,4 @@ msg_no_top: db 'e820-rom: no usable entry ends below 4 GiB; list unchanged', 10,
 table:
     times MAX_ENTRIES * ENTRY_BYTES db 0
 
-    times ROM_BYTES - 1 - ($ - $$) db 0
-checksum_fix:
-    db 0                        ; set by boot/option_rom.rs, then by init
+    PNP_ROM_END

@@ -34,16 +34,28 @@
 ; NO_EXTENSIONS=1 makes INT 13h a BIOS without the extensions (issue 48):
 ; AH=41h (installation check) returns CF set and AH=01h (invalid function),
 ; counted and said on COM1, without calling the BIOS.
+; VIDEO_WAIT=1, 2 or 3 makes INT 10h AX=0013h (set mode 13h, which only the
+; kernel asks for) wait first, as real video BIOSes and CSMs do inside a
+; mode set (issue 66): 1 waits 1 ms through INT 15h AH=86h (which SeaBIOS
+; times on the RTC's IRQ 8), 2 enables interrupts and waits for the BIOS
+; tick at 0040:006Ch to move (IRQ 0), 3 enables interrupts and halts for
+; ever. The waits begun and the waits ended are counted at 0:01A0h and
+; 0:01A4h (INT 68h's and 69h's slots), and each begun wait is said on COM1.
 
 bits 16
 cpu 386
 org 0
+
+%include "pnp_rom.inc"
 
 %ifndef BEV
 %define BEV 0
 %endif
 %ifndef NO_EXTENSIONS
 %define NO_EXTENSIONS 0
+%endif
+%ifndef VIDEO_WAIT
+%define VIDEO_WAIT 0
 %endif
 %ifndef JUMP_SEG
 %define JUMP_SEG 0x0000
@@ -66,43 +78,16 @@ COUNT10     equ 0x180           ; INT 60h's slot: INT 10h calls so far
 COUNT13     equ 0x184           ; INT 61h's slot: INT 13h calls so far
 COUNT15     equ 0x188           ; INT 62h's slot: INT 15h calls so far
 SEED        equ 0x18C           ; INT 63h's slot: the junk generator's state
+WAITS_BEGUN equ 0x1A0           ; INT 68h's slot: VIDEO_WAIT waits begun
+WAITS_ENDED equ 0x1A4           ; and ended
 FIRST_SEED  equ 0x2545F491      ; fixed: every run gets the same junk
 COM1        equ 0x3F8
 
-rom_start:
-    db 0x55, 0xAA
-    db ROM_BYTES / 512
-    jmp init                    ; offset 3: the init entry, called far
-    times 0x18 - ($ - $$) db 0
-    dw 0                        ; 18h: no PCI data structure (not a PCI ROM)
-    dw pnp_header               ; 1Ah: the PnP expansion header
-
-    align 16
-pnp_header:                     ; PnP BIOS spec 1.0A, the expansion header
-    db '$PnP'
-    db 1                        ; structure revision
-    db 2                        ; length in 16-byte units
-    dw 0                        ; no next header
-    db 0                        ; reserved
-    db 0                        ; header checksum, set below (pnp_sum)
-    dd 0                        ; device identifier
-    dw manufacturer
-    dw product
-    db 0, 0, 0                  ; device type code: unspecified
-    db 0                        ; device indicators
-    dw 0                        ; Boot Connection Vector: none
-    dw 0                        ; Disconnect Vector: none
 %if BEV
-    dw bev                      ; Boot Entry Vector: this ROM can be booted
+    PNP_ROM_HEADER 'hostile BIOS', bev
 %else
-    dw 0                        ; no Boot Entry Vector: SeaBIOS only runs init
+    PNP_ROM_HEADER 'hostile BIOS', 0
 %endif
-    dw 0                        ; reserved
-    dw 0                        ; static resource information vector
-pnp_end:
-
-manufacturer: db 'modex-cube tests', 0
-product:      db 'hostile BIOS', 0
 
 ; The BIOS's own vectors (offset, segment), written once by init.
 old10: dd 0
@@ -169,6 +154,12 @@ old15: dd 0
 %endmacro
 
 hook10:
+%if VIDEO_WAIT
+    cmp ax, 0x0013              ; set mode 13h: wait first
+    jne .no_wait
+    call video_wait
+.no_wait:
+%endif
     cmp ax, 0x1130              ; get font information: returns ES:BP
     je hook10_font
     jmp hook10_any
@@ -210,6 +201,42 @@ hook15:
     HOOK hook15_any, old15, COUNT15, 0, 0
     HOOK hook15_e820, old15, COUNT15, 0, 1
 
+%if VIDEO_WAIT
+; The wait of a video BIOS's mode set, as the variant says; every register
+; and the flags are kept.
+video_wait:
+    pushf
+    push ds
+    pushad
+    xor ax, ax
+    mov ds, ax
+    inc dword [WAITS_BEGUN]
+    mov si, msg_wait
+    call say
+%if VIDEO_WAIT == 1
+    mov ah, 0x86                ; wait CX:DX microseconds
+    xor cx, cx
+    mov dx, 1000
+    int 0x15
+%elif VIDEO_WAIT == 2
+    sti
+    mov ax, [0x46C]             ; the BIOS tick's low word
+.tick:
+    cmp ax, [0x46C]
+    je .tick
+%else
+    sti
+.forever:
+    hlt
+    jmp .forever
+%endif
+    inc dword [WAITS_ENDED]
+    popad
+    pop ds
+    popf
+    ret
+%endif
+
 ; ---------------------------------------------------------------------------
 ; Init: hook the three vectors (once), zero the counters, seed the junk.
 ; ---------------------------------------------------------------------------
@@ -243,29 +270,11 @@ init:
     mov dword [COUNT13], 0
     mov dword [COUNT15], 0
     mov dword [SEED], FIRST_SEED
-    ; The PnP header's checksum, then the whole ROM's.
+    mov dword [WAITS_BEGUN], 0
+    mov dword [WAITS_ENDED], 0
     push cs
     pop ds
-    mov byte [pnp_header + 9], 0
-    xor al, al
-    mov si, pnp_header
-    mov cx, pnp_end - pnp_header
-.pnp_sum:
-    add al, [si]
-    inc si
-    loop .pnp_sum
-    neg al
-    mov [pnp_header + 9], al
-    mov byte [checksum_fix], 0
-    xor al, al
-    xor si, si
-    mov cx, ROM_BYTES
-.rom_sum:
-    add al, [si]
-    inc si
-    loop .rom_sum
-    neg al
-    mov [checksum_fix], al
+    call fix_checksums
     mov si, msg_hooked
     call say
 .done:
@@ -275,39 +284,16 @@ init:
     popf
     retf
 
-; Writes the zero-terminated string at CS:SI to COM1 (no UART set-up needed on
-; QEMU; each byte waits a bounded time for the transmitter).
-say:
-    push ax
-    push cx
-    push dx
-    push si
-.next:
-    mov al, [cs:si]
-    test al, al
-    jz .end
-    mov ah, al
-    mov dx, COM1 + 5            ; line status
-    mov cx, 0xFFFF
-.wait:
-    in al, dx
-    test al, 0x20               ; transmitter holding register empty
-    jnz .send
-    loop .wait
-.send:
-    mov al, ah
-    mov dx, COM1
-    out dx, al
-    inc si
-    jmp .next
-.end:
-    pop si
-    pop dx
-    pop cx
-    pop ax
-    ret
+    PNP_ROM_ROUTINES
 
 msg_hooked: db 'hostile-bios: INT 10h, 13h and 15h hooked', 10, 0
+%if VIDEO_WAIT == 1
+msg_wait: db 'hostile-bios: INT 10h AX=0013h: waiting 1 ms on INT 15h AH=86h', 10, 0
+%elif VIDEO_WAIT == 2
+msg_wait: db 'hostile-bios: INT 10h AX=0013h: waiting for the BIOS tick', 10, 0
+%elif VIDEO_WAIT == 3
+msg_wait: db 'hostile-bios: INT 10h AX=0013h: halting for ever', 10, 0
+%endif
 %if NO_EXTENSIONS
 msg_no_extensions: db 'hostile-bios: INT 13h AH=41h: no extensions (CF set)', 10, 0
 %endif
@@ -370,6 +356,4 @@ msg_bev:
 msg_fail: db 'hostile-bios: BEV: cannot read the MBR of drive 80h', 10, 0
 %endif
 
-    times ROM_BYTES - 1 - ($ - $$) db 0
-checksum_fix:
-    db 0                        ; set by boot/option_rom.rs, then by init
+    PNP_ROM_END

@@ -751,3 +751,47 @@ pub fn stays_up_and_quiet(qemu: &mut Qemu, console: &str) {
     );
     assert_eq!(qemu.serial(), console, "more happened after the message");
 }
+
+/// Starts SeaBIOS with one option ROM, which `build` assembles into a
+/// scratch directory (`boot::option_rom`), after `configure` has set the
+/// rest of the machine; the directory holds the ROM and must outlive QEMU.
+pub fn start_with_option_rom(
+    build: impl FnOnce(&std::path::Path) -> Result<std::path::PathBuf, String>,
+    bootindex: Option<u32>,
+    configure: impl FnOnce(&mut QemuOptions),
+) -> (Qemu, tempfile::TempDir) {
+    let dir = tempfile::Builder::new()
+        .prefix("modex-cube-rom-")
+        .tempdir()
+        .expect("a scratch directory");
+    let path = build(dir.path()).unwrap_or_else(|e| panic!("{e}"));
+    let images = boot::images::publish().expect("the build script made the images");
+    let mut options = QemuOptions::new(images.hybrid);
+    configure(&mut options);
+    options
+        .option_roms
+        .push(boot::OptionRom { path, bootindex });
+    (Qemu::start(&options).unwrap_or_else(|e| panic!("{e}")), dir)
+}
+
+/// The cube test's keys on the PS/2 keyboard give the software VGA's
+/// pictures; then [`escape_powers_off`].
+pub fn cube_keys_then_escape_powers_off(qemu: &mut Qemu) {
+    after_each_key_on(qemu, &CUBE_KEYS, |screen, model, _, what| {
+        assert_same_picture(screen, model, what)
+    });
+    escape_powers_off(qemu);
+}
+
+/// Esc says goodbye and powers off with success.
+pub fn escape_powers_off(qemu: &mut Qemu) {
+    qemu.send_key("esc").unwrap();
+    qemu.wait_for_serial(line::GOODBYE, BOOT_TIMEOUT).unwrap();
+    let status = qemu.wait_for_exit(BOOT_TIMEOUT).unwrap();
+    assert_eq!(
+        status.code(),
+        Some(boot::qemu::EXIT_SUCCESS),
+        "{}",
+        qemu.serial()
+    );
+}
