@@ -12,35 +12,36 @@
 //! hooks must have run: the ROM says so on COM1 and counts its calls in the
 //! interrupt table (`boot::option_rom::CALL_COUNTERS`), read through QMP.
 //!
+//! A video BIOS whose mode set waits (issue 66): the ROM's variants make
+//! INT 10h AX=0013h wait 1 ms through INT 15h AH=86h (SeaBIOS times it on
+//! the RTC's IRQ 8), wait for the BIOS tick (IRQ 0), or halt for ever. The
+//! kernel's call runs in the BIOS's world (PICs at 08h/70h, the firmware's
+//! masks, the PIT at 18.2 Hz, interrupts on): the first two return and the
+//! cube is set from the BIOS's mode 13h; the third is abandoned by the
+//! watchdog, said on COM1, and Mode X is set by registers.
+//!
 //! A BIOS without the INT 13h extensions (issue 48): the ROM's variant that
 //! fails AH=41h gets the boot sector's message on the screen (the VGA text
 //! buffer, read through QMP) and COM1, and no stage 2.
 
 mod common;
 
-use boot::option_rom::{self, HostileBoot};
-use boot::qemu::EXIT_SUCCESS;
-use boot::{line, OptionRom, Qemu, QemuOptions};
-use common::{assert_same_picture, BOOT_TIMEOUT};
+use boot::option_rom::{self, HostileBoot, VideoWait};
+use boot::{line, Qemu};
+use common::BOOT_TIMEOUT;
 
 /// Starts SeaBIOS with the hostile ROM built for `boot`; the scratch
 /// directory holds the ROM and must outlive QEMU.
 fn start(boot: HostileBoot) -> (Qemu, tempfile::TempDir) {
-    let dir = tempfile::Builder::new()
-        .prefix("modex-cube-rom-")
-        .tempdir()
-        .expect("a scratch directory");
-    let rom = option_rom::build_hostile_bios(dir.path(), boot).unwrap_or_else(|e| panic!("{e}"));
-    let images = boot::images::publish().expect("the build script made the images");
-    let mut options = QemuOptions::new(images.hybrid);
-    options.option_roms.push(OptionRom {
-        path: rom,
-        bootindex: match boot {
-            HostileBoot::HooksOnly | HostileBoot::NoExtensions => None,
-            HostileBoot::Bev { .. } => Some(0),
-        },
-    });
-    (Qemu::start(&options).unwrap_or_else(|e| panic!("{e}")), dir)
+    let bootindex = match boot {
+        HostileBoot::Bev { .. } => Some(0),
+        _ => None,
+    };
+    common::start_with_option_rom(
+        |dir| option_rom::build_hostile_bios(dir, boot),
+        bootindex,
+        |_| {},
+    )
 }
 
 /// The ROM's call counters: INT 10h, 13h, 15h.
@@ -87,14 +88,10 @@ fn cube_through(boot: HostileBoot, keys: bool) {
         "the hooks were not called: INT 10h {int10}, 13h {int13}, 15h {int15} times"
     );
     if keys {
-        common::after_each_key_on(&mut qemu, &common::CUBE_KEYS, |screen, model, _, what| {
-            assert_same_picture(screen, model, what)
-        });
+        common::cube_keys_then_escape_powers_off(&mut qemu);
+    } else {
+        common::escape_powers_off(&mut qemu);
     }
-    qemu.send_key("esc").unwrap();
-    qemu.wait_for_serial(line::GOODBYE, BOOT_TIMEOUT).unwrap();
-    let status = qemu.wait_for_exit(BOOT_TIMEOUT).unwrap();
-    assert_eq!(status.code(), Some(EXIT_SUCCESS), "{}", qemu.serial());
 }
 
 #[test]
@@ -138,6 +135,72 @@ fn a_boot_rom_giving_drive_00_boots_the_cube_from_80() {
     );
 }
 
+/// The ROM's counts of its video waits: begun, ended.
+fn video_waits(qemu: &mut Qemu) -> [u32; 2] {
+    let bytes = qemu.read_physical(option_rom::VIDEO_WAITS, 8).unwrap();
+    [0, 1].map(|i| u32::from_le_bytes(bytes[4 * i..4 * i + 4].try_into().unwrap()))
+}
+
+/// Boots with a video BIOS whose mode 13h waits as `wait` says, to the
+/// ready line; checks the kernel's call reached the wait; returns the
+/// console.
+fn boot_with_a_video_bios_that_waits(wait: VideoWait) -> (Qemu, tempfile::TempDir, String) {
+    let (mut qemu, rom) = start(HostileBoot::VideoBiosWaits(wait));
+    let console = qemu
+        .wait_for_serial(line::READY, BOOT_TIMEOUT)
+        .unwrap_or_else(|e| panic!("{wait:?}: {e}"));
+    let waited = console
+        .find(option_rom::VIDEO_WAIT_LINE)
+        .unwrap_or_else(|| panic!("the kernel's INT 10h never reached the wait:\n{console}"));
+    let kernel = console.find(line::KERNEL_BANNER).unwrap();
+    assert!(kernel < waited, "{console}");
+    (qemu, rom, console)
+}
+
+#[test]
+fn a_video_bios_waiting_on_int_15h_ah_86h_sets_mode_13h_and_the_cube_runs() {
+    let (mut qemu, _rom, console) = boot_with_a_video_bios_that_waits(VideoWait::Int15Delay);
+    assert_eq!(video_waits(&mut qemu), [1, 1], "{console}");
+    assert!(
+        console.contains("vga: mode 13h set by the video BIOS, then tweaked"),
+        "{console}"
+    );
+    common::cube_keys_then_escape_powers_off(&mut qemu);
+}
+
+#[test]
+fn a_video_bios_waiting_for_the_bios_tick_sets_mode_13h_and_escape_powers_off() {
+    let (mut qemu, _rom, console) = boot_with_a_video_bios_that_waits(VideoWait::BiosTick);
+    assert_eq!(video_waits(&mut qemu), [1, 1], "{console}");
+    assert!(
+        console.contains("vga: mode 13h set by the video BIOS, then tweaked"),
+        "{console}"
+    );
+    common::escape_powers_off(&mut qemu);
+}
+
+#[test]
+fn a_video_bios_that_never_returns_is_abandoned_and_mode_x_set_by_registers() {
+    let (mut qemu, _rom, console) = boot_with_a_video_bios_that_waits(VideoWait::Forever);
+    assert_eq!(video_waits(&mut qemu), [1, 0], "{console}");
+    let abandoned = format!(
+        "vga: the video BIOS did not return from INT 10h AH=00h within {} ms; Mode X set by registers",
+        memory::trampoline::bios_world::limit_millis()
+    );
+    assert!(console.contains(&abandoned), "no `{abandoned}`:\n{console}");
+    assert!(
+        console.contains("vga: Mode X 320x240 set, registers read back as written"),
+        "{console}"
+    );
+    common::cube_keys_then_escape_powers_off(&mut qemu);
+    // The goodbye did not call the BIOS again.
+    let console = qemu.serial();
+    assert!(
+        !console.contains("text mode 3 set by the video BIOS"),
+        "{console}"
+    );
+}
+
 /// The boot sector's words for a BIOS without the INT 13h extensions
 /// (`bootloader/bios/boot_sector/src/boot.s`).
 const NO_EXTENSIONS_MESSAGE: &str = "loader: no INT 13h extensions";
@@ -175,6 +238,9 @@ fn the_rom_builds_with_a_valid_checksum_and_pnp_header() {
     for boot in [
         HostileBoot::HooksOnly,
         HostileBoot::NoExtensions,
+        HostileBoot::VideoBiosWaits(VideoWait::Int15Delay),
+        HostileBoot::VideoBiosWaits(VideoWait::BiosTick),
+        HostileBoot::VideoBiosWaits(VideoWait::Forever),
         HostileBoot::Bev {
             segment: 0x07C0,
             offset: 0,

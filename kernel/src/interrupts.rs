@@ -23,6 +23,10 @@ const SPURIOUS_SLAVE_VECTOR: u8 = PIC_2_OFFSET + 7;
 static PICS: Mutex<ChainedPics> =
     Mutex::new(unsafe { ChainedPics::new(PIC_1_OFFSET, PIC_2_OFFSET) });
 
+/// The PIC masks as the firmware and the loader left them, read before the
+/// kernel changes them: a BIOS call gets them back (`with_pics_for_the_bios`).
+static FIRMWARE_MASKS: Mutex<[u8; 2]> = Mutex::new([0xFF, 0xFF]);
+
 static IDT: Lazy<InterruptDescriptorTable> = Lazy::new(|| {
     let mut idt = InterruptDescriptorTable::new();
     // Every exception vector the CPU defines has a handler that names it,
@@ -82,6 +86,7 @@ pub fn init() {
     // raise from the lines left unmasked below.
     unsafe {
         let mut pics = PICS.lock();
+        *FIRMWARE_MASKS.lock() = pics.read_masks();
         pics.initialize();
         // Unmask only IRQ 0 (timer), 1 (keyboard) and 2 (the slave's cascade).
         pics.write_masks(0b1111_1000, 0b1111_1111);
@@ -104,19 +109,37 @@ pub fn mask_keyboard_irq() {
     });
 }
 
-/// Runs `f` with every IRQ masked at both PICs, then restores the masks (a
-/// real-mode BIOS call must not see an IRQ meant for the kernel's vectors).
-/// Call with interrupts off, so no handler waits on the PIC lock held here.
-pub fn with_all_irqs_masked<R>(f: impl FnOnce() -> R) -> R {
+/// The masks the firmware left at the PICs, for the log.
+pub fn firmware_masks() -> [u8; 2] {
+    *FIRMWARE_MASKS.lock()
+}
+
+/// Runs `f` with the PICs as a real-mode BIOS expects them: its vectors
+/// (08h and 70h), the firmware's masks with the watchdog's IRQ 0 open
+/// (`memory::trampoline::bios_world`); then the kernel's vectors and masks
+/// again. Reinitialising drops whatever the BIOS left in service. Call with
+/// interrupts off, so no handler waits on the PIC lock held here.
+pub fn with_pics_for_the_bios<R>(f: impl FnOnce() -> R) -> R {
+    use memory::trampoline::bios_world;
     let mut pics = PICS.lock();
-    // SAFETY: reading and writing the PICs' mask registers changes only which
-    // IRQs are delivered; the old masks are put back below.
-    let masks = unsafe { pics.read_masks() };
-    // SAFETY: as above.
-    unsafe { pics.write_masks(0xFF, 0xFF) };
+    // SAFETY: interrupts are off, so no IRQ arrives while the vectors are
+    // the BIOS's; the trampoline enables them only in real mode, where the
+    // BIOS's handlers stand at those vectors.
+    let kernel_masks = unsafe { pics.read_masks() };
+    // SAFETY: as above; the bases and masks are the BIOS's own.
+    unsafe {
+        let mut bios_pics = ChainedPics::new(bios_world::MASTER_VECTORS, bios_world::SLAVE_VECTORS);
+        bios_pics.initialize();
+        let [master, slave] = bios_world::masks(*FIRMWARE_MASKS.lock());
+        bios_pics.write_masks(master, slave);
+    }
     let result = f();
-    // SAFETY: as above.
-    unsafe { pics.write_masks(masks[0], masks[1]) };
+    // SAFETY: back to the kernel's vectors, for which the IDT has handlers,
+    // and the masks it had.
+    unsafe {
+        pics.initialize();
+        pics.write_masks(kernel_masks[0], kernel_masks[1]);
+    }
     result
 }
 

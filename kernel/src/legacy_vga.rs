@@ -8,7 +8,7 @@ use crate::vga_bus::PortBus;
 use crate::{pci, serial_println};
 use bootloader_api::info::MemoryRegions;
 use firmware::boot_firmware::Firmware;
-use modex::card::{Card, Route, BIOS_MODE_13H};
+use modex::card::{BiosCallFailure, Card, Fallback, Route, BIOS_MODE_13H};
 use modex::ModeX;
 use spin::Mutex;
 
@@ -48,6 +48,13 @@ pub fn set_mode_x(
                 bios.rom.handler,
                 bios.area()
             );
+            let [master, slave] = crate::interrupts::firmware_masks();
+            serial_println!(
+                "vga: its calls run at the BIOS's PIC vectors 08h/70h, with the firmware's masks {:02x}/{:02x}, the PIT at 18.2 Hz and a {} ms watchdog",
+                master,
+                slave,
+                memory::trampoline::bios_world::limit_millis()
+            );
             Some(bios)
         }
         Err(why) => {
@@ -63,15 +70,31 @@ pub fn set_mode_x(
     let report = vga.set_mode_x_on_any_card(
         call_bios
             .as_mut()
-            .map(|call| call as &mut dyn FnMut() -> Result<(), u8>),
+            .map(|call| call as &mut dyn FnMut() -> Result<(), BiosCallFailure>),
     );
     match report.route {
         Route::VideoBios => serial_println!("vga: mode 13h set by the video BIOS, then tweaked"),
-        Route::RegistersOnly => serial_println!(
-            "vga: mode set by the registers alone, {:?} extensions reset ({:?})",
-            card,
-            report.fallback
-        ),
+        Route::RegistersOnly => {
+            if let Some(Fallback::BiosDidNotReturn {
+                function,
+                within_millis,
+            }) = report.fallback
+            {
+                // Whatever it was waiting for, it may wait again: never
+                // call it again (the goodbye sets text mode by registers).
+                serial_println!(
+                    "vga: the video BIOS did not return from INT 10h AH={:02X}h within {} ms; Mode X set by registers",
+                    function,
+                    within_millis
+                );
+                bios = None;
+            }
+            serial_println!(
+                "vga: mode set by the registers alone, {:?} extensions reset ({:?})",
+                card,
+                report.fallback
+            )
+        }
     }
     match report.verified {
         Ok(()) => serial_println!("vga: Mode X 320x240 set, registers read back as written"),

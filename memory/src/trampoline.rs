@@ -54,6 +54,14 @@ pub mod layout {
     pub const ES: usize = DS + 2;
     /// FLAGS out.
     pub const FLAGS: usize = ES + 2;
+    /// The BIOS's IRQ 0 vector (offset, segment), kept while the watchdog's
+    /// handler stands in the real-mode table.
+    pub const BIOS_TIMER_VECTOR: usize = 0xD4;
+    /// IRQ 0 ticks left before the call is abandoned (2 bytes, counted down
+    /// by the watchdog).
+    pub const WATCHDOG_TICKS: usize = 0xD8;
+    /// Nonzero out when the watchdog abandoned the call (2 bytes).
+    pub const TIMED_OUT: usize = 0xDA;
     /// Where the code starts.
     pub const CODE: usize = 0x100;
     /// The real-mode stack grows down from here (the area is 16 KiB).
@@ -74,6 +82,48 @@ pub mod selector {
     pub const CODE_16: u16 = 0x20;
     /// 16-bit data based at the area.
     pub const DATA_16: u16 = 0x28;
+}
+
+/// The machine as a BIOS call expects it (issue 66): a video BIOS may wait
+/// inside a mode set on the timer tick or on INT 15h AH=86h (the RTC's IRQ
+/// 8), so the call runs with the PICs at the BIOS's vectors, its own masks,
+/// PIT channel 0 at the BIOS's 18.2 Hz, and interrupts on; a watchdog on IRQ
+/// 0 abandons a call that has not returned within [`WATCHDOG_TICKS`] ticks.
+pub mod bios_world {
+    /// Where the BIOS has the master PIC's IRQs: INT 08h-0Fh.
+    pub const MASTER_VECTORS: u8 = 0x08;
+    /// And the slave's: INT 70h-77h.
+    pub const SLAVE_VECTORS: u8 = 0x70;
+    /// PIT channel 0's divisor as the BIOS sets it: 65,536 (written as 0).
+    pub const PIT_DIVISOR: u32 = 65_536;
+    /// The PIT's input clock, Hz.
+    pub const PIT_HZ: u32 = 1_193_182;
+    /// Ticks the watchdog counts before it abandons the call. The first may
+    /// come at once, so a call runs at least one tick less: 37 whole ticks,
+    /// [`limit_millis`], a little over 2 s (a video BIOS's mode set takes
+    /// milliseconds, and under emulation tens of them).
+    pub const WATCHDOG_TICKS: u16 = 38;
+
+    /// The least time a call runs before the watchdog abandons it, in ms.
+    pub const fn limit_millis() -> u32 {
+        ((WATCHDOG_TICKS as u64 - 1) * PIT_DIVISOR as u64 * 1000 / PIT_HZ as u64) as u32
+    }
+
+    /// The PIC masks for the call: the firmware's own (as it left them to
+    /// the loader), with IRQ 0 open, for the watchdog rides on it, and the
+    /// cascade (IRQ 2) open whenever a slave line is, or its IRQs could not
+    /// arrive.
+    pub const fn masks(firmware: [u8; 2]) -> [u8; 2] {
+        const IRQ0: u8 = 1 << 0;
+        const CASCADE: u8 = 1 << 2;
+        let [master, slave] = firmware;
+        let master = master & !IRQ0;
+        if slave == 0xFF {
+            [master, slave]
+        } else {
+            [master & !CASCADE, slave]
+        }
+    }
 }
 
 /// A descriptor as the CPU would mark it on first load, less that mark: the
@@ -128,6 +178,22 @@ mod tests {
     }
 
     #[test]
+    fn the_watchdog_waits_at_least_2_s() {
+        assert_eq!(bios_world::limit_millis(), 2032);
+        assert!(bios_world::limit_millis() >= 2000);
+    }
+
+    #[test]
+    fn the_bios_world_keeps_the_firmware_masks_but_opens_the_timer_and_cascade() {
+        // SeaBIOS: timer, keyboard, cascade open; RTC and the disks on the slave.
+        assert_eq!(bios_world::masks([0xB8, 0x8E]), [0xB8, 0x8E]);
+        // A loader that masked everything: only the watchdog's IRQ 0.
+        assert_eq!(bios_world::masks([0xFF, 0xFF]), [0xFE, 0xFF]);
+        // The RTC open on the slave, the cascade masked: the cascade opens.
+        assert_eq!(bios_world::masks([0xFF, 0xFE]), [0xFA, 0xFE]);
+    }
+
+    #[test]
     fn selectors_index_their_descriptors() {
         let gdt = descriptors(0x8000);
         let at = |selector: u16| gdt[usize::from(selector / 8)];
@@ -163,6 +229,9 @@ mod tests {
             (DS, 2),
             (ES, 2),
             (FLAGS, 2),
+            (BIOS_TIMER_VECTOR, 4),
+            (WATCHDOG_TICKS, 2),
+            (TIMED_OUT, 2),
         ];
         for pair in fields.windows(2) {
             let ((offset, size), (next, _)) = (pair[0], pair[1]);

@@ -5,14 +5,23 @@
 //!
 //! Used only on a BIOS boot whose video BIOS passed `modex::card::check_video_bios`,
 //! never on UEFI and never from a fault handler.
+//!
+//! Each call runs in the BIOS's own world (issue 66): the PICs at its
+//! vectors with its masks, PIT channel 0 at its 18.2 Hz, interrupts on in
+//! real mode, so a mode set that waits on the tick or on INT 15h AH=86h
+//! returns; and a watchdog on IRQ 0 abandons a call that has not returned
+//! within `bios_world::limit_millis()`, after which the BIOS is not called
+//! again.
 
 mod area;
 mod trampoline;
 
 use crate::interrupts;
+use crate::time::pit;
 use bootloader_api::info::MemoryRegions;
 use firmware::boot_firmware::Firmware;
-use modex::card::{check_video_bios, NoVideoBios, VideoBios as RomCheck};
+use memory::trampoline::bios_world;
+use modex::card::{check_video_bios, BiosCallFailure, NoVideoBios, VideoBios as RomCheck};
 use trampoline::layout;
 use x86_64::registers::control::{Cr4, Cr4Flags};
 
@@ -45,7 +54,14 @@ pub enum Unavailable {
     PcidEnabled,
     /// No place for the trampoline.
     Area(AreaError),
+    /// IRQ 0 was not seen to arrive: the watchdog could not bound a call.
+    NoTimerTicks,
 }
+
+/// The watchdog abandoned a call: the BIOS had not returned from it within
+/// `bios_world::limit_millis()`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct TimedOut;
 
 impl core::fmt::Display for Unavailable {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
@@ -54,6 +70,9 @@ impl core::fmt::Display for Unavailable {
             Unavailable::NoVideoBios(why) => write!(f, "no usable video BIOS ({why:?})"),
             Unavailable::PcidEnabled => f.write_str("CR4.PCIDE is set"),
             Unavailable::Area(why) => write!(f, "no place for the trampoline ({why:?})"),
+            Unavailable::NoTimerTicks => {
+                f.write_str("no PIT ticks arrive, so a call could not be bounded")
+            }
         }
     }
 }
@@ -87,6 +106,9 @@ impl VideoBios {
         if Cr4::read().contains(Cr4Flags::PCID) {
             return Err(Unavailable::PcidEnabled);
         }
+        if !pit::ticks_arrive() {
+            return Err(Unavailable::NoTimerTicks);
+        }
         let area = area::find(regions).map_err(Unavailable::Area)?;
         area::identity_map(area, regions, physical_memory_offset).map_err(Unavailable::Area)?;
         install(area);
@@ -99,10 +121,11 @@ impl VideoBios {
     }
 
     /// Calls `int 0x10` in real mode with `registers`; returns them as the
-    /// BIOS left them. Interrupts are off and every IRQ is masked at the
-    /// PICs throughout, so nothing can arrive while the IDT is the real-mode
-    /// one.
-    pub fn int10(&mut self, registers: Registers) -> Registers {
+    /// BIOS left them, or `TimedOut` if the watchdog had to abandon the
+    /// call. Interrupts are off until real mode, and on in it with the PICs
+    /// at the BIOS's vectors, so an IRQ reaches the BIOS's handlers, never
+    /// the kernel's IDT.
+    pub fn int10(&mut self, registers: Registers) -> Result<Registers, TimedOut> {
         let base = self.area as *mut u8;
         let put32 = |at: usize, value: u32| {
             // SAFETY: `at` is inside the identity-mapped area, which this
@@ -130,30 +153,35 @@ impl VideoBios {
         }
         put16(layout::DS, registers.ds);
         put16(layout::ES, registers.es);
+        put16(layout::WATCHDOG_TICKS, bios_world::WATCHDOG_TICKS);
+        put16(layout::TIMED_OUT, 0);
 
         let entry = self.area + trampoline::entry_offset() as u64;
         x86_64::instructions::interrupts::without_interrupts(|| {
-            interrupts::with_all_irqs_masked(|| {
-                // SAFETY: the trampoline was installed at `area` by `find`,
-                // identity-mapped; it preserves the callee-saved registers and
-                // restores GDT, IDT, control registers, EFER, stack and
-                // selectors before it returns. Interrupts are off. MXCSR and
-                // the x87 control word are kept around it, so a video BIOS
-                // that changed the rounding could not change the pictures.
-                unsafe {
-                    core::arch::asm!(
-                        "sub rsp, 16",
-                        "stmxcsr [rsp]",
-                        "fnstcw [rsp + 4]",
-                        "call {entry}",
-                        "fldcw [rsp + 4]",
-                        "ldmxcsr [rsp]",
-                        "add rsp, 16",
-                        entry = in(reg) entry,
-                        in("rdi") self.area,
-                        clobber_abi("C"),
-                    );
-                }
+            interrupts::with_pics_for_the_bios(|| {
+                pit::at_the_bios_rate(|| {
+                    // SAFETY: the trampoline was installed at `area` by `find`,
+                    // identity-mapped; it preserves the callee-saved registers and
+                    // restores GDT, IDT, control registers, EFER, stack and
+                    // selectors before it returns. Interrupts are off but in real
+                    // mode, where IRQs reach the BIOS's handlers. MXCSR and
+                    // the x87 control word are kept around it, so a video BIOS
+                    // that changed the rounding could not change the pictures.
+                    unsafe {
+                        core::arch::asm!(
+                            "sub rsp, 16",
+                            "stmxcsr [rsp]",
+                            "fnstcw [rsp + 4]",
+                            "call {entry}",
+                            "fldcw [rsp + 4]",
+                            "ldmxcsr [rsp]",
+                            "add rsp, 16",
+                            entry = in(reg) entry,
+                            in("rdi") self.area,
+                            clobber_abi("C"),
+                        );
+                    }
+                })
             })
         });
 
@@ -165,7 +193,10 @@ impl VideoBios {
             // SAFETY: inside the area, as above.
             unsafe { base.add(at).cast::<u16>().read_unaligned() }
         };
-        Registers {
+        if get16(layout::TIMED_OUT) != 0 {
+            return Err(TimedOut);
+        }
+        Ok(Registers {
             eax: get32(r),
             ebx: get32(r + 4),
             ecx: get32(r + 8),
@@ -176,24 +207,33 @@ impl VideoBios {
             ds: get16(layout::DS),
             es: get16(layout::ES),
             flags: get16(layout::FLAGS),
-        }
+        })
     }
 
     /// INT 10h AH=00h: sets a standard BIOS video mode, then AH=0Fh reads
     /// the current mode back. Ok only if the BIOS reports the mode asked for.
-    pub fn set_mode(&mut self, mode: u8) -> Result<(), u8> {
+    pub fn set_mode(&mut self, mode: u8) -> Result<(), BiosCallFailure> {
+        let timed_out = |function: u8| {
+            move |TimedOut| BiosCallFailure::DidNotReturn {
+                function,
+                within_millis: bios_world::limit_millis(),
+            }
+        };
         self.int10(Registers {
             eax: u32::from(mode),
             ..Registers::default()
-        });
-        let current = self.int10(Registers {
-            eax: 0x0F00,
-            ..Registers::default()
-        });
+        })
+        .map_err(timed_out(0x00))?;
+        let current = self
+            .int10(Registers {
+                eax: 0x0F00,
+                ..Registers::default()
+            })
+            .map_err(timed_out(0x0F))?;
         // AL = mode (bit 7: memory was not cleared), AH = columns.
         match (current.eax & 0x7F) as u8 {
             found if found == mode => Ok(()),
-            found => Err(found),
+            found => Err(BiosCallFailure::ReportedMode(found)),
         }
     }
 }

@@ -16,8 +16,14 @@
 //!    protected-mode segment whose base is the area.
 //! 3. 16-bit protected mode: 64 KiB data segments, a stack in the area;
 //!    protection off; far return into real mode at the area's segment.
-//! 4. Real mode: the real-mode interrupt table (0..0x3FF), the caller's
-//!    registers, `int 0x10`, the results saved.
+//! 4. Real mode: the real-mode interrupt table (0..0x3FF), with the
+//!    watchdog's handler in IRQ 0's vector (08h); the caller's registers;
+//!    interrupts on, as a BIOS caller has them (the Rust side has put the
+//!    PICs and the PIT as the BIOS expects them: `bios_world`); `int 0x10`;
+//!    the results saved; the BIOS's IRQ 0 vector put back.
+//!    The watchdog chains each tick to the BIOS's own handler and counts it;
+//!    when the ticks run out it abandons the call: the trampoline's own
+//!    stack again, `TIMED_OUT` set, and on from the return of `int 0x10`.
 //! 5. Back: protection on, 32-bit code; CR4, CR3, EFER, CR0 as saved (paging
 //!    on: compatibility mode); 64-bit code; the kernel's GDT, IDT, stack and
 //!    selectors; return to the caller.
@@ -135,6 +141,12 @@ bios_trampoline_entry:
     mov %ax, %fs
     mov %ax, %gs
     lidt {real_idtr}
+    // IRQ 0 reaches the watchdog first while the BIOS runs.
+    movl %fs:0x20, %eax              // vector 08h: 8 * 4
+    movl %eax, {bios_timer}
+    movw $(9f - bios_trampoline_start), %fs:0x20
+    movw %cs, %fs:0x22
+    movw $0, {timed_out}
     mov {es}, %ax
     mov %ax, %es
     movl {registers}+0, %eax
@@ -146,8 +158,9 @@ bios_trampoline_entry:
     movl {registers}+24, %ebp
     pushw {ds}
     popw %ds
+    sti
     int $0x10
-    cli
+8:  cli
     pushfw
     pushw %ds
     pushl %eax
@@ -166,6 +179,10 @@ bios_trampoline_entry:
     mov %es, %ax
     mov %ax, {es}
     cld
+    xor %ax, %ax
+    mov %ax, %fs
+    movl {bios_timer}, %eax
+    movl %eax, %fs:0x20
 
     // Back to protected mode, then long mode.
     xor %ebx, %ebx
@@ -179,6 +196,22 @@ bios_trampoline_entry:
     leal (5f - bios_trampoline_start)(%ebx), %eax
     pushl %eax
     lretl
+
+9:  // The watchdog, on IRQ 0 in real mode: the BIOS's handler first, as
+    // the interrupt would have called it (it counts the BIOS tick and
+    // acknowledges the PIC), then one tick less.
+    pushfw
+    lcallw *%cs:{bios_timer}
+    decw %cs:{watchdog_ticks}
+    jz 10f
+    iretw
+10: // Out of ticks: abandon the call where it is, on our own stack.
+    cli
+    mov %cs, %ax
+    mov %ax, %ss
+    mov ${stack_top}, %esp
+    movw $1, %cs:{timed_out}
+    jmp 8b
 
     .code32
 5:  mov ${data_32}, %ax
@@ -246,6 +279,9 @@ bios_trampoline_end:
     ds = const layout::DS,
     es = const layout::ES,
     flags = const layout::FLAGS,
+    bios_timer = const layout::BIOS_TIMER_VECTOR,
+    watchdog_ticks = const layout::WATCHDOG_TICKS,
+    timed_out = const layout::TIMED_OUT,
     stack_top = const layout::STACK_TOP,
     code_64 = const selector::CODE_64,
     code_32 = const selector::CODE_32,

@@ -42,6 +42,24 @@ pub fn init() {
     }
 }
 
+/// Runs `f` with channel 0 at the BIOS's rate, 18.2 Hz (mode 3, divisor
+/// 65,536), as a real-mode BIOS call expects its tick; then at the kernel's
+/// again. Call with interrupts off.
+pub fn at_the_bios_rate<R>(f: impl FnOnce() -> R) -> R {
+    /// Channel 0, low byte then high byte, mode 3 (square wave), binary.
+    const CHANNEL_0_SQUARE_WAVE: u8 = 0b0011_0110;
+    // SAFETY: programming PIT channel 0 only changes the rate of IRQ 0.
+    unsafe {
+        Port::<u8>::new(MODE_COMMAND).write(CHANNEL_0_SQUARE_WAVE);
+        let mut data = Port::<u8>::new(CHANNEL_0_DATA);
+        data.write(0); // 0 means 65,536
+        data.write(0);
+    }
+    let result = f();
+    init();
+    result
+}
+
 /// Counts a tick and notes when it came; called from the IRQ 0 handler.
 pub fn tick() {
     LAST_TICK_MICROS.store(crate::time::micros(), Ordering::Relaxed);
@@ -55,6 +73,21 @@ pub fn ticking() -> bool {
     TICKS.load(Ordering::Acquire) > 0
         && crate::time::micros().saturating_sub(LAST_TICK_MICROS.load(Ordering::Relaxed))
             <= TICKING_WITHIN_MICROS
+}
+
+/// Whether IRQ 0 arrives: waits for one tick, at most 50 ms (50 of the
+/// kernel's ticks). Call with interrupts on.
+pub fn ticks_arrive() -> bool {
+    const WITHIN_MICROS: u64 = 50_000;
+    let seen = TICKS.load(Ordering::Acquire);
+    let start = crate::time::micros();
+    while crate::time::micros().saturating_sub(start) < WITHIN_MICROS {
+        if TICKS.load(Ordering::Acquire) != seen {
+            return true;
+        }
+        core::hint::spin_loop();
+    }
+    false
 }
 
 /// Opens channel 2's gate, speaker off, and starts it counting down from

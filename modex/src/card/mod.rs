@@ -6,7 +6,7 @@ pub mod vendor;
 pub mod verify;
 pub mod video_bios;
 
-pub use mode_set::{Fallback, ModeSetReport, Route, BIOS_MODE_13H};
+pub use mode_set::{BiosCallFailure, Fallback, ModeSetReport, Route, BIOS_MODE_13H};
 pub use vendor::{Card, ExtensionProbe, ResetStep};
 pub use verify::{Mismatch, Register};
 pub use video_bios::{check_video_bios, Handler, NoVideoBios, VideoBios};

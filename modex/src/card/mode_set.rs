@@ -1,7 +1,7 @@
 //! Setting Mode X on any card: the video BIOS's mode 13h first when it can be
 //! called (only the card's BIOS knows how to leave its own extended modes),
 //! then the register tweak into Mode X, then a read-back. If the BIOS cannot
-//! be called, refuses, or leaves something the read-back catches, the
+//! be called, refuses, does not return in time, or leaves something the read-back catches, the
 //! register-only mode set with the card's extension reset is the fallback.
 
 use super::verify::Mismatch;
@@ -20,6 +20,21 @@ pub enum Route {
     RegistersOnly,
 }
 
+/// How a call of the video BIOS's mode set went wrong.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BiosCallFailure {
+    /// The BIOS reported a different mode (this one) after the call.
+    ReportedMode(u8),
+    /// The BIOS had not returned from INT 10h `function` (AH) within
+    /// `within_millis`, so the call was abandoned.
+    DidNotReturn {
+        /// AH of the call.
+        function: u8,
+        /// How long it had run when it was abandoned, at least.
+        within_millis: u32,
+    },
+}
+
 /// Why the BIOS route was not taken or not kept.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Fallback {
@@ -27,6 +42,13 @@ pub enum Fallback {
     NoVideoBios,
     /// The BIOS reported a different mode (this one) after the call.
     BiosRefusedMode(u8),
+    /// The BIOS did not return from the call in time; it was abandoned.
+    BiosDidNotReturn {
+        /// AH of the call.
+        function: u8,
+        /// How long it had run when it was abandoned, at least.
+        within_millis: u32,
+    },
     /// After the BIOS route the read-back failed.
     NotVerifiedAfterBios(Mismatch),
 }
@@ -49,12 +71,21 @@ impl<B: VgaBus> ModeX<B> {
     /// otherwise). Never reports a mode that did not read back.
     pub fn set_mode_x_on_any_card(
         &mut self,
-        bios_mode_13h: Option<&mut dyn FnMut() -> Result<(), u8>>,
+        bios_mode_13h: Option<&mut dyn FnMut() -> Result<(), BiosCallFailure>>,
     ) -> ModeSetReport {
         let fallback = match bios_mode_13h {
             None => Fallback::NoVideoBios,
             Some(call) => match call() {
-                Err(found) => Fallback::BiosRefusedMode(found),
+                Err(BiosCallFailure::ReportedMode(found)) => Fallback::BiosRefusedMode(found),
+                // Whatever it did to the registers, the register-only mode
+                // set below starts from any state.
+                Err(BiosCallFailure::DidNotReturn {
+                    function,
+                    within_millis,
+                }) => Fallback::BiosDidNotReturn {
+                    function,
+                    within_millis,
+                },
                 Ok(()) => {
                     // The BIOS wrote registers behind the driver's back.
                     self.invalidate_caches();
@@ -124,11 +155,41 @@ mod tests {
     #[test]
     fn a_bios_that_refuses_the_mode_falls_back() {
         let mut soft = in_vbe_mode();
-        let mut bios = || Err(0x03);
+        let mut bios = || Err(BiosCallFailure::ReportedMode(0x03));
         let report =
             ModeX::for_card(&mut *soft, Card::BochsDispi).set_mode_x_on_any_card(Some(&mut bios));
         assert_eq!(report.route, Route::RegistersOnly);
         assert_eq!(report.fallback, Some(Fallback::BiosRefusedMode(0x03)));
+        assert_eq!(report.verified, Ok(()));
+    }
+
+    #[test]
+    fn a_bios_abandoned_half_way_through_its_mode_set_falls_back_to_the_registers() {
+        let mut soft = in_vbe_mode();
+        // Half a mode set, as an abandoned BIOS leaves it: the sequencer
+        // held in reset, the memory mode and the CRTC's overflow changed.
+        for (index, value) in [(0x00, 0x01), (0x04, 0x06)] {
+            soft.write_port8(Port::SEQUENCER_INDEX, index);
+            soft.write_port8(Port::SEQUENCER_DATA, value);
+        }
+        soft.write_port8(Port::CRTC_INDEX, 0x07);
+        soft.write_port8(Port::CRTC_DATA, 0xFF);
+        let mut bios = || {
+            Err(BiosCallFailure::DidNotReturn {
+                function: 0x00,
+                within_millis: 2032,
+            })
+        };
+        let report =
+            ModeX::for_card(&mut *soft, Card::BochsDispi).set_mode_x_on_any_card(Some(&mut bios));
+        assert_eq!(report.route, Route::RegistersOnly);
+        assert_eq!(
+            report.fallback,
+            Some(Fallback::BiosDidNotReturn {
+                function: 0x00,
+                within_millis: 2032
+            })
+        );
         assert_eq!(report.verified, Ok(()));
     }
 

@@ -1,8 +1,9 @@
 //! Is there a video BIOS worth calling? Checked from the first MiB alone,
 //! before any call is made: the option ROM's signature at C000:0 and the
-//! real-mode interrupt vector 0x10 pointing into that ROM or into the system
-//! BIOS. An absent, erased or bogus ROM, or a vector into RAM, rules the call
-//! out.
+//! real-mode interrupt vector 0x10 pointing into that ROM, into the system
+//! BIOS, or into another option ROM that hooked it (as real PCs' network,
+//! RAID and CSM ROMs do, and chain to the card's). An absent, erased or bogus
+//! ROM, or a vector into RAM, rules the call out.
 
 /// The video BIOS option ROM's physical address (C000:0).
 pub const OPTION_ROM: u32 = 0xC_0000;
@@ -10,6 +11,10 @@ pub const OPTION_ROM: u32 = 0xC_0000;
 pub const SYSTEM_BIOS: u32 = 0xF_0000;
 /// Interrupt vector 0x10 in the real-mode interrupt table: offset, segment.
 pub const INT_10_VECTOR: u32 = 0x10 * 4;
+/// The end of the window where the firmware puts option ROMs (C0000-DFFFF).
+pub const OPTION_ROM_AREA_END: u32 = 0xE_0000;
+/// Option ROMs start on 2 KiB boundaries in that window.
+const OPTION_ROM_ALIGN: u32 = 2048;
 /// Option ROMs are sized in 512-byte blocks; a video BIOS is at most 64 KiB.
 const ROM_BLOCK: u32 = 512;
 const MAX_ROM_BLOCKS: u8 = 128;
@@ -21,6 +26,9 @@ pub enum Handler {
     OptionRom,
     /// Into the system BIOS, which some machines put in front of the card's.
     SystemBios,
+    /// Into another option ROM, starting at this physical address, which
+    /// hooked INT 10h after the card's BIOS.
+    AnotherOptionRom(u32),
 }
 
 /// A video BIOS that passed the checks.
@@ -63,6 +71,8 @@ pub fn check_video_bios(read: impl Fn(u32) -> u8) -> Result<VideoBios, NoVideoBi
         Handler::OptionRom
     } else if (SYSTEM_BIOS..SYSTEM_BIOS + 0x1_0000).contains(&target) {
         Handler::SystemBios
+    } else if let Some(start) = option_rom_holding(&read, target) {
+        Handler::AnotherOptionRom(start)
     } else {
         return Err(NoVideoBios::VectorOutsideBios(segment, offset));
     };
@@ -71,6 +81,26 @@ pub fn check_video_bios(read: impl Fn(u32) -> u8) -> Result<VideoBios, NoVideoBi
         vector: (segment, offset),
         handler,
     })
+}
+
+/// The start of the option ROM in the window after the card's whose bytes
+/// hold `target`: the nearest signature at or below it must be a ROM whose
+/// size byte reaches past it.
+fn option_rom_holding(read: &impl Fn(u32) -> u8, target: u32) -> Option<u32> {
+    if !(OPTION_ROM..OPTION_ROM_AREA_END).contains(&target) {
+        return None;
+    }
+    let mut start = target - target % OPTION_ROM_ALIGN;
+    while start >= OPTION_ROM {
+        if [read(start), read(start + 1)] == [0x55, 0xAA] {
+            let blocks = read(start + 2);
+            let fits = blocks != 0 && blocks <= MAX_ROM_BLOCKS;
+            let end = start + u32::from(blocks) * ROM_BLOCK;
+            return (fits && target < end).then_some(start);
+        }
+        start -= OPTION_ROM_ALIGN;
+    }
+    None
 }
 
 #[cfg(test)]
@@ -140,6 +170,28 @@ mod tests {
         );
         // Just past the 32 KiB ROM (in the next ROM's space).
         set_vector(&mut memory, 0xC800, 0x0000);
+        assert!(check(&memory).is_err());
+    }
+
+    #[test]
+    fn a_vector_into_an_option_rom_that_hooked_int_10h_passes() {
+        // A 2 KiB ROM at CD800, as SeaBIOS places the tests' hostile ROM.
+        let mut memory = low_memory();
+        memory[0xC_D800..][..3].copy_from_slice(&[0x55, 0xAA, 4]);
+        set_vector(&mut memory, 0xCD80, 0x006A);
+        assert_eq!(
+            check(&memory).unwrap().handler,
+            Handler::AnotherOptionRom(0xC_D800)
+        );
+        // Past that ROM's end, in no ROM.
+        set_vector(&mut memory, 0xCE00, 0x0010);
+        assert!(check(&memory).is_err());
+        // A ROM whose size byte is bogus is not one.
+        memory[0xC_D802] = 0;
+        set_vector(&mut memory, 0xCD80, 0x006A);
+        assert!(check(&memory).is_err());
+        // Above the window (E0000 and up is the system BIOS's, not a ROM's).
+        set_vector(&mut memory, 0xE000, 0x0000);
         assert!(check(&memory).is_err());
     }
 }
