@@ -1,5 +1,6 @@
 // The web page's loader: fetches the demo's WebAssembly (web/src, built by
-// `cargo run --release -p web`), passes key events and the URL in, and puts
+// `cargo run --release -p web`), passes key, touch and pointer events, the
+// register lab's edits and the URL in, and puts
 // the pixels it draws on the canvases. All logic is in the module; this
 // file only moves bytes. No bindings generator: the module exports plain
 // functions and buffers in its memory (docs/web.md lists them).
@@ -118,6 +119,7 @@
     }
 
     let textsVersion = -1;
+    let labOpen = false;
     let shownFrames = -1;
     function draw() {
       paint(screen, w.screen_ptr(), 320, 240, 0);
@@ -140,6 +142,7 @@
         shownFrames = frames;
         setText("frame-count", "frame " + frames);
       }
+      if (labOpen) showLab();
     }
 
     let stopped = false;
@@ -169,7 +172,6 @@
     // A key held when the focus leaves gets no key-up: release it now.
     screen.addEventListener("blur", guarded(() => w.release_keys()));
     window.addEventListener("blur", guarded(() => w.release_keys()));
-    screen.addEventListener("mousedown", () => screen.focus());
 
     screen.addEventListener("mousemove", guarded((event) => {
       const box = screen.getBoundingClientRect();
@@ -205,6 +207,167 @@
       say("Recorded " + length + " bytes of GIF.");
       textsVersion = -1; // the module's message replaces it at the next draw, as before
     }));
+
+    // The on-screen keys: each a tap of its key, through the same key
+    // events (key_down, key_up) the keyboard gives.
+    function tapKey(code) {
+      w.key_down(put(code));
+      w.key_up(put(code));
+    }
+    function connectKeypad() {
+      for (const button of document.querySelectorAll("#keypad button")) {
+        button.addEventListener("click", guarded(() => {
+          tapKey(button.dataset.code);
+          draw();
+        }));
+      }
+    }
+
+    // Touch, pen and mouse on the picture: one pointer dragged turns the
+    // solid, two pinched move it away (closing) and toward (opening), as
+    // does the wheel. The module turns the pixels into key taps.
+    function connectPointer() {
+      const down = new Map();
+      const spread = () => {
+        const [a, b] = Array.from(down.values());
+        return Math.hypot(a.x - b.x, a.y - b.y);
+      };
+      screen.addEventListener("pointerdown", guarded((event) => {
+        screen.focus();
+        screen.setPointerCapture(event.pointerId);
+        down.set(event.pointerId, { x: event.clientX, y: event.clientY });
+      }));
+      screen.addEventListener("pointermove", guarded((event) => {
+        const last = down.get(event.pointerId);
+        if (!last) return;
+        if (down.size === 1) {
+          w.drag(event.clientX - last.x, event.clientY - last.y);
+          down.set(event.pointerId, { x: event.clientX, y: event.clientY });
+        } else if (down.size === 2) {
+          const before = spread();
+          down.set(event.pointerId, { x: event.clientX, y: event.clientY });
+          w.zoom(before - spread());
+        }
+      }));
+      const lift = guarded((event) => {
+        down.delete(event.pointerId);
+        if (down.size === 0) w.pointer_end();
+      });
+      screen.addEventListener("pointerup", lift);
+      screen.addEventListener("pointercancel", lift);
+      screen.addEventListener("wheel", guarded((event) => {
+        event.preventDefault();
+        const scale = event.deltaMode === 1 ? 16 : event.deltaMode === 2 ? 400 : 1;
+        w.zoom(event.deltaY * scale);
+      }), { passive: false });
+    }
+
+    // The register lab: a table of every register from the module, made
+    // when first opened; while open, each value shown as the VGA holds it.
+    const labInputs = new Map();
+    let labRowWritten = null;
+    function buildLab() {
+      const groups = new Map();
+      for (const line of text(w.lab_table()).split("\n")) {
+        if (!line) continue;
+        const [key, group, index, name] = line.split("\t");
+        if (!groups.has(group)) groups.set(group, []);
+        groups.get(group).push({ key, index, name });
+      }
+      const holder = $("lab-registers");
+      const box = document.createElement("div");
+      box.className = "lab-groups";
+      for (const [group, rows] of groups) {
+        const table = document.createElement("table");
+        const caption = table.createCaption();
+        caption.textContent = group;
+        for (const row of rows) {
+          const tr = table.insertRow();
+          tr.insertCell().textContent = row.index;
+          tr.insertCell().textContent = row.name;
+          const input = document.createElement("input");
+          input.dataset.key = row.key;
+          input.spellcheck = false;
+          input.setAttribute("aria-label", group + " " + row.name);
+          // Enter writes the value even if it is the one shown (to hold
+          // it); leaving a changed field writes it too, once.
+          let written = null;
+          const write = guarded(() => {
+            written = input.value;
+            // Written, the field shows the value as the VGA took it; refused,
+            // it keeps the typing, and the message says why.
+            if (w.lab_edit(put(row.key + "=" + input.value))) labRowWritten = row.key;
+            draw();
+            labRowWritten = null;
+          });
+          input.addEventListener("keydown", (event) => {
+            if (event.key === "Enter") write();
+          });
+          input.addEventListener("change", () => {
+            if (input.value !== written) write();
+          });
+          input.addEventListener("focus", () => { written = null; });
+          tr.insertCell().appendChild(input);
+          const reason = tr.insertCell();
+          reason.className = "reason";
+          labInputs.set(row.key, { input, tr, reason, value: null, mark: null });
+        }
+        if (group === "DAC") {
+          const more = document.createElement("details");
+          more.appendChild(document.createElement("summary")).textContent = "DAC: pixel mask and 256 entries";
+          more.appendChild(table);
+          box.appendChild(more);
+        } else {
+          box.appendChild(table);
+        }
+      }
+      holder.appendChild(box);
+    }
+    function showLab() {
+      for (const line of text(w.lab_table()).split("\n")) {
+        const [key, , , , value, mark] = line.split("\t");
+        const row = labInputs.get(key);
+        if (!row) continue;
+        const typing = document.activeElement === row.input && key !== labRowWritten;
+        if ((row.value !== value || key === labRowWritten) && !typing) {
+          row.value = value;
+          row.input.value = value;
+        }
+        if (row.mark !== mark) {
+          row.mark = mark;
+          row.reason.textContent = mark;
+          row.tr.classList.toggle("harm", mark !== "");
+        }
+      }
+      const params = new URLSearchParams(location.search);
+      const edits = text(w.lab_url_value());
+      if (edits) params.set("lab", edits);
+      else params.delete("lab");
+      $("lab-url").href = "?" + params.toString();
+    }
+    function connectLab() {
+      $("lab").addEventListener("toggle", guarded(() => {
+        labOpen = $("lab").open;
+        if (labOpen && labInputs.size === 0) buildLab();
+        draw();
+      }));
+      $("lab-restore").addEventListener("click", guarded(() => {
+        w.lab_restore();
+        for (const row of labInputs.values()) row.value = null;
+        draw();
+      }));
+      $("lab-export").addEventListener("click", guarded(() => {
+        const blob = new Blob([text(w.lab_export())], { type: "text/csv" });
+        const link = document.createElement("a");
+        link.href = URL.createObjectURL(blob);
+        link.download = "modex-lab-mode.csv";
+        link.click();
+        setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+      }));
+    }
+    connectKeypad();
+    connectPointer();
+    connectLab();
 
     // Frames on the display's refresh while the page plays; the module
     // runs as many frames of the software VGA's 59.7 Hz as are due, three
@@ -245,6 +408,8 @@
       lastOp: () => text(w.last_op()),
       message: () => text(w.message()),
       gif: guarded(() => { const length = w.gif(); return base64(bytes(w.output_ptr(), length)); }),
+      labExport: () => text(w.lab_export()),
+      labUrlValue: () => text(w.lab_url_value()),
     });
 
     guarded(() => w.init(put(location.search)))();
