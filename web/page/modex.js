@@ -194,16 +194,19 @@
       w.step_ops(1);
       draw();
     }));
+    function download(blob, name) {
+      const link = document.createElement("a");
+      link.href = URL.createObjectURL(blob);
+      link.download = name;
+      link.click();
+      setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+    }
     $("record-gif").addEventListener("click", guarded(() => {
       const length = w.gif();
       draw();
       if (!length) return;
       const blob = new Blob([bytes(w.output_ptr(), length).slice()], { type: "image/gif" });
-      const link = document.createElement("a");
-      link.href = URL.createObjectURL(blob);
-      link.download = "modex-cube-" + w.frames() + "-frames.gif";
-      link.click();
-      setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+      download(blob, "modex-cube-" + w.frames() + "-frames.gif");
       say("Recorded " + length + " bytes of GIF.");
       textsVersion = -1; // the module's message replaces it at the next draw, as before
     }));
@@ -223,120 +226,50 @@
       }
     }
 
-    // Touch, pen and mouse on the picture: one pointer dragged turns the
-    // solid, two pinched move it away (closing) and toward (opening), as
-    // does the wheel. The module turns the pixels into key taps.
+    // Touch, pen and mouse on the picture: the module turns one pointer
+    // dragged, two pinched and the wheel into the keys that turn and move.
     function connectPointer() {
-      const down = new Map();
-      const spread = () => {
-        const [a, b] = Array.from(down.values());
-        return Math.hypot(a.x - b.x, a.y - b.y);
-      };
       screen.addEventListener("pointerdown", guarded((event) => {
         screen.focus();
         screen.setPointerCapture(event.pointerId);
-        down.set(event.pointerId, { x: event.clientX, y: event.clientY });
+        w.pointer_down(event.pointerId, event.clientX, event.clientY);
       }));
       screen.addEventListener("pointermove", guarded((event) => {
-        const last = down.get(event.pointerId);
-        if (!last) return;
-        if (down.size === 1) {
-          w.drag(event.clientX - last.x, event.clientY - last.y);
-          down.set(event.pointerId, { x: event.clientX, y: event.clientY });
-        } else if (down.size === 2) {
-          const before = spread();
-          down.set(event.pointerId, { x: event.clientX, y: event.clientY });
-          w.zoom(before - spread());
-        }
+        w.pointer_move(event.pointerId, event.clientX, event.clientY);
       }));
-      const lift = guarded((event) => {
-        down.delete(event.pointerId);
-        if (down.size === 0) w.pointer_end();
-      });
+      const lift = guarded((event) => w.pointer_up(event.pointerId));
       screen.addEventListener("pointerup", lift);
       screen.addEventListener("pointercancel", lift);
       screen.addEventListener("wheel", guarded((event) => {
         event.preventDefault();
-        const scale = event.deltaMode === 1 ? 16 : event.deltaMode === 2 ? 400 : 1;
-        w.zoom(event.deltaY * scale);
+        w.zoom(event.deltaY * [1, 16, 400][event.deltaMode]);
       }), { passive: false });
     }
 
-    // The register lab: a table of every register from the module, made
-    // when first opened; while open, each value shown as the VGA holds it.
-    const labInputs = new Map();
-    let labRowWritten = null;
-    function buildLab() {
-      const groups = new Map();
-      for (const line of text(w.lab_table()).split("\n")) {
-        if (!line) continue;
-        const [key, group, index, name] = line.split("\t");
-        if (!groups.has(group)) groups.set(group, []);
-        groups.get(group).push({ key, index, name });
-      }
-      const holder = $("lab-registers");
-      const box = document.createElement("div");
-      box.className = "lab-groups";
-      for (const [group, rows] of groups) {
-        const table = document.createElement("table");
-        const caption = table.createCaption();
-        caption.textContent = group;
-        for (const row of rows) {
-          const tr = table.insertRow();
-          tr.insertCell().textContent = row.index;
-          tr.insertCell().textContent = row.name;
-          const input = document.createElement("input");
-          input.dataset.key = row.key;
-          input.spellcheck = false;
-          input.setAttribute("aria-label", group + " " + row.name);
-          // Enter writes the value even if it is the one shown (to hold
-          // it); leaving a changed field writes it too, once.
-          let written = null;
-          const write = guarded(() => {
-            written = input.value;
-            // Written, the field shows the value as the VGA took it; refused,
-            // it keeps the typing, and the message says why.
-            if (w.lab_edit(put(row.key + "=" + input.value))) labRowWritten = row.key;
-            draw();
-            labRowWritten = null;
-          });
-          input.addEventListener("keydown", (event) => {
-            if (event.key === "Enter") write();
-          });
-          input.addEventListener("change", () => {
-            if (input.value !== written) write();
-          });
-          input.addEventListener("focus", () => { written = null; });
-          tr.insertCell().appendChild(input);
-          const reason = tr.insertCell();
-          reason.className = "reason";
-          labInputs.set(row.key, { input, tr, reason, value: null, mark: null });
-        }
-        if (group === "DAC") {
-          const more = document.createElement("details");
-          more.appendChild(document.createElement("summary")).textContent = "DAC: pixel mask and 256 entries";
-          more.appendChild(table);
-          box.appendChild(more);
-        } else {
-          box.appendChild(table);
-        }
-      }
-      holder.appendChild(box);
+    // The register lab: its table comes from the module (lab_html) when
+    // first opened; while open, each field shows the value the VGA holds.
+    const lab = $("lab-registers");
+    let labWritten = null;
+    function writeLab(input) {
+      input.dataset.written = input.value;
+      // Written, the field shows what the VGA took; refused, it keeps the
+      // typing, and the message says why.
+      if (w.lab_edit(put(input.dataset.key + "=" + input.value))) labWritten = input;
+      draw();
+      labWritten = null;
     }
     function showLab() {
-      for (const line of text(w.lab_table()).split("\n")) {
-        const [key, , , , value, mark] = line.split("\t");
-        const row = labInputs.get(key);
-        if (!row) continue;
-        const typing = document.activeElement === row.input && key !== labRowWritten;
-        if ((row.value !== value || key === labRowWritten) && !typing) {
-          row.value = value;
-          row.input.value = value;
-        }
-        if (row.mark !== mark) {
-          row.mark = mark;
-          row.reason.textContent = mark;
-          row.tr.classList.toggle("harm", mark !== "");
+      const inputs = lab.getElementsByTagName("input");
+      const lines = text(w.lab_table()).split("\n");
+      for (let i = 0; i < inputs.length; i++) {
+        const [, , , , value, mark] = lines[i].split("\t");
+        const input = inputs[i];
+        const typing = document.activeElement === input && labWritten !== input;
+        if (input.value !== value && !typing) input.value = value;
+        const reason = input.parentElement.nextElementSibling;
+        if (reason.textContent !== mark) {
+          reason.textContent = mark;
+          reason.parentElement.classList.toggle("harm", mark !== "");
         }
       }
       const params = new URLSearchParams(location.search);
@@ -348,21 +281,24 @@
     function connectLab() {
       $("lab").addEventListener("toggle", guarded(() => {
         labOpen = $("lab").open;
-        if (labOpen && labInputs.size === 0) buildLab();
+        if (labOpen && !lab.firstChild) lab.innerHTML = text(w.lab_html());
         draw();
       }));
+      // Enter writes the value even if it is the one shown (to hold it);
+      // leaving a changed field writes it too, once.
+      lab.addEventListener("keydown", guarded((event) => {
+        if (event.key === "Enter" && event.target.dataset.key) writeLab(event.target);
+      }));
+      lab.addEventListener("change", guarded((event) => {
+        if (event.target.value !== event.target.dataset.written) writeLab(event.target);
+      }));
+      lab.addEventListener("focusin", (event) => delete event.target.dataset.written);
       $("lab-restore").addEventListener("click", guarded(() => {
         w.lab_restore();
-        for (const row of labInputs.values()) row.value = null;
         draw();
       }));
       $("lab-export").addEventListener("click", guarded(() => {
-        const blob = new Blob([text(w.lab_export())], { type: "text/csv" });
-        const link = document.createElement("a");
-        link.href = URL.createObjectURL(blob);
-        link.download = "modex-lab-mode.csv";
-        link.click();
-        setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+        download(new Blob([text(w.lab_export())], { type: "text/csv" }), "modex-lab-mode.csv");
       }));
     }
     connectKeypad();

@@ -288,23 +288,34 @@ pub extern "C" fn gif() -> usize {
     output(&bytes)
 }
 
-/// The pointer dragged over the picture by (`dx`, `dy`) CSS pixels; returns
-/// the turning keys tapped.
+/// A pointer went down on the picture at (`x`, `y`) CSS pixels.
 #[no_mangle]
-pub extern "C" fn drag(dx: f64, dy: f64) -> u32 {
-    with_page(|page| page.drag(dx, dy))
+pub extern "C" fn pointer_down(id: i32, x: f64, y: f64) {
+    with_page(|page| page.pointer_down(id, x, y));
 }
 
-/// A wheel turned or a pinch closed by `pixels`; returns the keys tapped.
+/// Pointer `id` moved to (`x`, `y`); returns the keys tapped.
+#[no_mangle]
+pub extern "C" fn pointer_move(id: i32, x: f64, y: f64) -> u32 {
+    with_page(|page| page.pointer_move(id, x, y))
+}
+
+/// Pointer `id` came up or was cancelled.
+#[no_mangle]
+pub extern "C" fn pointer_up(id: i32) {
+    with_page(|page| page.pointer_up(id));
+}
+
+/// The wheel turned by `pixels`; returns the keys tapped.
 #[no_mangle]
 pub extern "C" fn zoom(pixels: f64) -> u32 {
     with_page(|page| page.zoom(pixels))
 }
 
-/// The pointer let go.
+/// The register lab's table of inputs, as HTML, into the output buffer.
 #[no_mangle]
-pub extern "C" fn pointer_end() {
-    with_page(Page::pointer_end);
+pub extern "C" fn lab_html() -> usize {
+    output(crate::lab::html().as_bytes())
 }
 
 /// A register lab edit, `key=value` (`crtc.13=50`) in the input buffer;

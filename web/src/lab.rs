@@ -470,6 +470,40 @@ pub fn table(vga: &SoftVga, lab: &Lab) -> String {
     out
 }
 
+/// The lab's fields as HTML, one table per group (the DAC's inside a
+/// `<details>`): a row per register in [`table`]'s order, with its index,
+/// name, an input for its value and a cell for the reason it is marked.
+/// The page fills the values in from [`table`].
+pub fn html() -> String {
+    use std::fmt::Write;
+    let mut out = String::from("<div class=\"lab-groups\">");
+    let mut group = "";
+    for register in Register::all() {
+        let name = register.group_name();
+        if name != group {
+            if !group.is_empty() {
+                out.push_str("</table>");
+            }
+            if name == "DAC" {
+                out.push_str("<details><summary>DAC: pixel mask and 256 entries</summary>");
+            }
+            let _ = write!(out, "<table><caption>{name}</caption>");
+            group = name;
+        }
+        let _ = write!(
+            out,
+            "<tr><td>{:02X}</td><td>{}</td><td><input data-key=\"{}\" spellcheck=\"false\" \
+             aria-label=\"{name} {}\"></td><td class=\"reason\"></td></tr>",
+            register.index(),
+            register.name(),
+            register.key(),
+            register.name()
+        );
+    }
+    out.push_str("</table></details></div>");
+    out
+}
+
 /// The mode the VGA holds, as a table (CSV: register, index, value): every
 /// register of the five groups and the DAC pixel mask, and the DAC entries
 /// the lab changed.

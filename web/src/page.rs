@@ -79,6 +79,8 @@ pub struct Page {
     lab: Lab,
     /// Drag and zoom not yet a whole turn or move: (x, y, zoom) pixels.
     pointer_rest: (f64, f64, f64),
+    /// The pointers down on the picture: (id, x, y).
+    pointers: Vec<(i32, f64, f64)>,
 }
 
 /// A canvas whose rows the page tracks, so that it takes only those changed.
@@ -128,6 +130,7 @@ impl Page {
             runs: Vec::new(),
             lab: Lab::default(),
             pointer_rest: (0.0, 0.0, 0.0),
+            pointers: Vec::new(),
         };
         for (register, value) in std::mem::take(&mut page.replay.lab) {
             page.edit_register(register, value);
@@ -204,9 +207,41 @@ impl Page {
         taps.unsigned_abs()
     }
 
-    /// The pointer let go: what was left of its drag is dropped.
-    pub fn pointer_end(&mut self) {
-        self.pointer_rest = (0.0, 0.0, 0.0);
+    /// A pointer (a finger, a pen, the mouse's button) went down on the
+    /// picture at (`x`, `y`), in CSS pixels.
+    pub fn pointer_down(&mut self, id: i32, x: f64, y: f64) {
+        self.pointers.retain(|&(known, _, _)| known != id);
+        self.pointers.push((id, x, y));
+    }
+
+    /// Pointer `id` moved to (`x`, `y`): one pointer down drags
+    /// ([`Page::drag`]), two pinch ([`Page::zoom`] by how much closer they
+    /// came). Returns the keys tapped.
+    pub fn pointer_move(&mut self, id: i32, x: f64, y: f64) -> u32 {
+        let spread = |pointers: &[(i32, f64, f64)]| match pointers {
+            [(_, x0, y0), (_, x1, y1)] => Some((x0 - x1).hypot(y0 - y1)),
+            _ => None,
+        };
+        let before = spread(&self.pointers);
+        let Some(pointer) = self.pointers.iter_mut().find(|p| p.0 == id) else {
+            return 0;
+        };
+        let (dx, dy) = (x - pointer.1, y - pointer.2);
+        (pointer.1, pointer.2) = (x, y);
+        match (self.pointers.len(), before, spread(&self.pointers)) {
+            (1, _, _) => self.drag(dx, dy),
+            (_, Some(before), Some(after)) => self.zoom(before - after),
+            _ => 0,
+        }
+    }
+
+    /// Pointer `id` came up (or was cancelled); when none is left down,
+    /// what was left of the drag or pinch is dropped.
+    pub fn pointer_up(&mut self, id: i32) {
+        self.pointers.retain(|&(known, _, _)| known != id);
+        if self.pointers.is_empty() {
+            self.pointer_rest = (0.0, 0.0, 0.0);
+        }
     }
 
     /// Edits the register named `key` (`crtc.13`) to `value` (hex) through

@@ -195,15 +195,28 @@ fn the_url_carries_the_edits() {
 fn a_drag_and_a_wheel_are_the_keys_that_turn_and_move() {
     crate::with_big_stack(|| {
         let mut dragged = Page::new("?paused=1");
-        // 3.5 turns right, 1 down; the half turn is dropped at the end.
+        // 3.5 turns right, 1 down; the half turn is dropped when the
+        // pointer comes up.
         assert_eq!(dragged.drag(40.0, 0.0), 2);
         assert_eq!(dragged.drag(16.0, 17.0), 2);
-        dragged.pointer_end();
-        assert_eq!(dragged.drag(8.0, 0.0), 0);
-        assert_eq!(dragged.zoom(-85.0), 2);
+        dragged.pointer_up(0);
+        assert_eq!(dragged.drag(8.0, 0.0), 0, "the rest was dropped");
+        // Two fingers from 120 pixels apart to 35: 85 pixels closer, two
+        // moves away (A); the rest (5 pixels) goes with the fingers.
+        dragged.pointer_down(1, 0.0, 0.0);
+        dragged.pointer_down(2, 120.0, 0.0);
+        assert_eq!(dragged.pointer_move(2, 35.0, 0.0), 2);
+        dragged.pointer_up(1);
+        dragged.pointer_up(2);
+        // One finger: a drag, 16 pixels up, an 8.
+        dragged.pointer_down(3, 50.0, 50.0);
+        assert_eq!(dragged.pointer_move(3, 50.0, 34.0), 1);
+        dragged.pointer_up(3);
         dragged.step_frames(1);
         let mut keyed = Page::new("?paused=1");
-        for code in ["Digit6", "Digit6", "Digit6", "Digit2", "KeyT", "KeyT"] {
+        for code in [
+            "Digit6", "Digit6", "Digit6", "Digit2", "KeyA", "KeyA", "Digit8",
+        ] {
             keyed.key_down(code);
             keyed.key_up(code);
         }
@@ -212,4 +225,22 @@ fn a_drag_and_a_wheel_are_the_keys_that_turn_and_move() {
         let still = Page::new("?paused=1");
         assert!(dragged.screen_rgba() != still.screen_rgba());
     });
+}
+
+#[test]
+fn the_fields_are_in_the_tables_order() {
+    let html = html();
+    let keys: Vec<&str> = html
+        .split("data-key=\"")
+        .skip(1)
+        .map(|rest| &rest[..rest.find('"').unwrap()])
+        .collect();
+    let vga = SoftVga::new();
+    let table = table(&vga, &Lab::default());
+    let table_keys: Vec<&str> = table
+        .lines()
+        .map(|l| l.split('\t').next().unwrap())
+        .collect();
+    assert_eq!(keys, table_keys);
+    assert_eq!(html.matches("<table>").count(), 6);
 }
