@@ -107,6 +107,9 @@ impl ClockedVga {
     /// The word a program's 16-bit write of `value` to `port` becomes: an
     /// index port's data byte is the held register's own value.
     fn held_word(&self, port: Port, value: u16) -> u16 {
+        if self.held.is_empty() {
+            return value;
+        }
         let [index, _] = value.to_le_bytes();
         let pair = [
             IndexedPair::Sequencer,
