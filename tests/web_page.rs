@@ -1137,3 +1137,299 @@ fn the_page_with_the_book_weighs_under_1_mib() {
         );
     }
 }
+
+/// The page as a phone shows it: 390x844 CSS pixels at three device
+/// pixels each, a mobile viewport, touch events on.
+fn emulate_phone(page: &Page) {
+    page.call(
+        "Emulation.setDeviceMetricsOverride",
+        serde_json::json!({"width": 390, "height": 844, "deviceScaleFactor": 3, "mobile": true}),
+    )
+    .unwrap();
+    page.call(
+        "Emulation.setTouchEmulationEnabled",
+        serde_json::json!({"enabled": true, "maxTouchPoints": 5}),
+    )
+    .unwrap();
+    assert_eq!(
+        evaluate_u64(page, "document.documentElement.clientWidth"),
+        390
+    );
+}
+
+/// The middle of the picture, in CSS pixels from the viewport's top left.
+fn screen_centre(page: &Page) -> (f64, f64) {
+    let centre = page
+        .evaluate(
+            "(() => { const s = document.getElementById('screen'); s.scrollIntoView({block: 'center'});
+               const b = s.getBoundingClientRect(); return [b.left + b.width / 2, b.top + b.height / 2]; })()",
+        )
+        .unwrap();
+    (centre[0].as_f64().unwrap(), centre[1].as_f64().unwrap())
+}
+
+/// The page's picture after `keys` (KeyboardEvent code and key) typed
+/// and one frame, on a new page.
+fn picture_after_keys(browser: &Browser, keys: &[(&str, &str)]) -> Vec<[u8; 3]> {
+    let page = open(browser, "?paused=1");
+    for &(code, key) in keys {
+        page.key(code, key).unwrap();
+    }
+    step_frames(&page, 1);
+    page_screen(&page)
+}
+
+#[test]
+fn on_a_phone_a_drag_and_the_on_screen_keys_do_what_the_keys_do() {
+    with_big_stack(|| {
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?paused=1");
+        emulate_phone(&page);
+        // The cube spins by itself: a frame with no input is the baseline.
+        let still = picture_after_keys(&browser, &[]);
+
+        // Nothing lies past the screen's sides: the page does not scroll
+        // sideways, and every box shown is inside the viewport (or inside
+        // a box that scrolls, such as a wide table of the book).
+        let outside = page
+            .evaluate(
+                "(() => {
+                    const width = document.documentElement.clientWidth;
+                    const scrolls = (e) => { for (let a = e.parentElement; a; a = a.parentElement) {
+                        const x = getComputedStyle(a).overflowX; if (x === 'auto' || x === 'scroll' || x === 'hidden') return true; }
+                        return false; };
+                    const out = [];
+                    for (const e of document.querySelectorAll('body *')) {
+                        const b = e.getBoundingClientRect();
+                        if (b.width > 0 && (b.left < -0.5 || b.right > width + 0.5) && !scrolls(e))
+                            out.push(e.tagName + '#' + e.id + '.' + e.className + ' ' + Math.round(b.left) + '..' + Math.round(b.right));
+                    }
+                    return [width, document.documentElement.scrollWidth, out.slice(0, 8), matchMedia('(max-width: 720px)').matches, getComputedStyle(document.getElementById('inspector')).width, getComputedStyle(document.querySelector('.row')).flexDirection, getComputedStyle(document.getElementById('inspector').parentElement).width];
+                })()",
+            )
+            .unwrap();
+        assert_eq!(outside[0], 390, "{outside}");
+        assert_eq!(outside[1], 390, "the page scrolls sideways: {outside}");
+        assert_eq!(
+            outside[2],
+            serde_json::json!([]),
+            "boxes past the sides: {outside}"
+        );
+        // The picture first, at the screen's width; the inspector below it.
+        let layout = page
+            .evaluate(
+                "(() => { const s = document.getElementById('screen').getBoundingClientRect();
+                   const i = document.getElementById('inspector').getBoundingClientRect();
+                   return [s.width, s.height, i.top - s.bottom]; })()",
+            )
+            .unwrap();
+        let (width, height) = (layout[0].as_f64().unwrap(), layout[1].as_f64().unwrap());
+        assert!(width > 360.0 && width <= 390.0, "{layout}");
+        assert!(
+            (height * 4.0 / 3.0 - width).abs() < 1.0,
+            "4:3 kept: {layout}"
+        );
+        assert!(
+            layout[2].as_f64().unwrap() > 0.0,
+            "the inspector below: {layout}"
+        );
+
+        // A finger dragged 64 pixels right in four moves: four turns of 6
+        // degrees about Y, as four presses of 6 give.
+        let (x, y) = screen_centre(&page);
+        page.touch("touchStart", &[(x - 40.0, y)]).unwrap();
+        for step in 1..=4 {
+            page.touch("touchMove", &[(x - 40.0 + 16.0 * f64::from(step), y)])
+                .unwrap();
+        }
+        page.touch("touchEnd", &[]).unwrap();
+        step_frames(&page, 1);
+        let dragged = page_screen(&page);
+        assert!(dragged != still, "the drag turned nothing");
+        let keyed = picture_after_keys(&browser, &[("Digit6", "6"); 4]);
+        assert_same_pixels("a drag and four 6s", WIDTH, &dragged, &keyed);
+
+        // Two fingers pinched from 120 pixels apart to 40: two moves away (A).
+        let page = open(&browser, "?paused=1");
+        emulate_phone(&page);
+        let (x, y) = screen_centre(&page);
+        page.touch("touchStart", &[(x - 60.0, y), (x + 60.0, y)])
+            .unwrap();
+        page.touch("touchMove", &[(x - 20.0, y), (x + 20.0, y)])
+            .unwrap();
+        page.touch("touchEnd", &[]).unwrap();
+        step_frames(&page, 1);
+        let pinched = page_screen(&page);
+        assert!(pinched != still, "the pinch moved nothing");
+        let keyed = picture_after_keys(&browser, &[("KeyA", "a"); 2]);
+        assert_same_pixels("a pinch and two As", WIDTH, &pinched, &keyed);
+
+        // A tap on the on-screen N and on the on-screen 8: the keys' pictures.
+        let page = open(&browser, "?paused=1");
+        emulate_phone(&page);
+        page.tap("#keypad button[data-code=KeyN]").unwrap();
+        page.tap("#keypad button[data-code=Digit8]").unwrap();
+        step_frames(&page, 1);
+        let tapped = page_screen(&page);
+        assert!(tapped != still, "the on-screen keys did nothing");
+        let keyed = picture_after_keys(&browser, &[("KeyN", "n"), ("Digit8", "8")]);
+        assert_same_pixels("on-screen N and 8", WIDTH, &tapped, &keyed);
+    });
+}
+
+/// Types `value` into the register lab's field for `key` (`crtc.13`) and
+/// presses Enter, as a reader does.
+fn type_in_lab(page: &Page, key: &str, value: &str) {
+    page.evaluate(&format!(
+        "(() => {{ const i = document.querySelector('#lab input[data-key=\"{key}\"]');
+           i.scrollIntoView({{block: 'center'}}); i.focus(); i.select(); }})()"
+    ))
+    .unwrap();
+    for c in value.chars() {
+        let code = if c.is_ascii_digit() {
+            format!("Digit{c}")
+        } else {
+            format!("Key{}", c.to_ascii_uppercase())
+        };
+        page.key(&code, &c.to_string()).unwrap();
+    }
+    // Enter types a carriage return, which commits the field (its change).
+    for kind in ["keyDown", "keyUp"] {
+        page.call(
+            "Input.dispatchKeyEvent",
+            serde_json::json!({"type": kind, "code": "Enter", "key": "Enter",
+                "windowsVirtualKeyCode": 13, "text": "\r"}),
+        )
+        .unwrap();
+    }
+    let changed = page
+        .evaluate(&format!(
+            "document.querySelector('#lab input[data-key=\"{key}\"]').value"
+        ))
+        .unwrap();
+    let shown = changed.as_str().unwrap_or_default();
+    assert!(
+        shown.eq_ignore_ascii_case(value),
+        "typed {value} into {key}: {changed}"
+    );
+}
+
+/// The lab's field for `key`: its value, and the reason its row is marked.
+fn lab_row(page: &Page, key: &str) -> (String, String) {
+    let row = page
+        .evaluate(&format!(
+            "(() => {{ const i = document.querySelector('#lab input[data-key=\"{key}\"]');
+               const tr = i.closest('tr');
+               return [i.value, tr.classList.contains('harm') ? tr.lastChild.textContent : ''];
+            }})()"
+        ))
+        .unwrap();
+    (
+        row[0].as_str().unwrap().to_owned(),
+        row[1].as_str().unwrap().to_owned(),
+    )
+}
+
+#[test]
+fn the_register_lab_edits_the_vga_by_its_ports_and_goes_back_to_mode_x() {
+    with_big_stack(|| {
+        use modex::VgaBus;
+        let browser = Browser::start().unwrap();
+        let page = open(&browser, "?paused=1");
+        let host = Host::new();
+        let start = page_screen(&page);
+        page.click("#lab summary").unwrap();
+        page.wait_for(
+            "document.querySelectorAll('#lab input').length > 300",
+            PAGE_TIMEOUT,
+        )
+        .unwrap();
+        assert_eq!(lab_row(&page, "crtc.13"), ("28".into(), String::new()));
+
+        // Offset 0x50 (160 bytes a line) and start address 0x1234, typed;
+        // on the host, the same VGA given the same writes by hand.
+        type_in_lab(&page, "crtc.13", "50");
+        type_in_lab(&page, "crtc.0c", "12");
+        type_in_lab(&page, "crtc.0d", "34");
+        assert_eq!(
+            evaluate_string(&page, "modexPage.labUrlValue()"),
+            "crtc.13:50,crtc.0c:12,crtc.0d:34",
+            "{}",
+            evaluate_string(&page, "modexPage.message()")
+        );
+        let mut by_hand = Box::new(host.machine.vga().clone());
+        for (index, value) in [(0x13u8, 0x50u8), (0x0C, 0x12), (0x0D, 0x34)] {
+            by_hand.write_port16(Port::CRTC_INDEX, u16::from_le_bytes([index, value]));
+        }
+        by_hand.let_a_frame_pass();
+        let mut expected = vec![[0; 3]; PICTURE_PIXELS];
+        assert_eq!(by_hand.scanout_rgb(&mut expected), (WIDTH, HEIGHT));
+        assert_same_pixels(
+            "offset and start address",
+            WIDTH,
+            &page_screen(&page),
+            &expected,
+        );
+        let (width, _, painted) = canvas_pixels(&page, "screen");
+        assert_same_pixels("the canvas", width, &painted, &expected);
+        assert_eq!(lab_row(&page, "crtc.0d").0, "34");
+        assert_eq!(
+            evaluate_string(&page, "document.getElementById('lab-url').search"),
+            "?paused=1&lab=crtc.13%3A50%2Ccrtc.0c%3A12%2Ccrtc.0d%3A34"
+        );
+        let export = evaluate_string(&page, "modexPage.labExport()");
+        assert!(export.contains("\nCRTC Offset,0x13,0x50\n"), "{export}");
+
+        page.click("#lab-restore").unwrap();
+        assert_same_pixels("back to Mode X", WIDTH, &page_screen(&page), &start);
+        assert_eq!(lab_row(&page, "crtc.13").0, "28");
+
+        // Map Mask 0x01, held while a frame draws: the page is the host's
+        // page given the same edits, and not the plain demo's
+        // (web/src/lab/tests.rs checks that such a frame writes plane 0 only).
+        type_in_lab(&page, "seq.02", "01");
+        assert_eq!(
+            evaluate_string(&page, "modexPage.message()"),
+            "Sequencer Map Mask = 01"
+        );
+        step_frames(&page, 1);
+        let mut host_page = web::page::Page::new("?paused=1");
+        for (key, value) in [("crtc.13", "50"), ("crtc.0c", "12"), ("crtc.0d", "34")] {
+            assert!(host_page.lab_edit(key, value));
+        }
+        host_page.lab_restore();
+        assert!(host_page.lab_edit("seq.02", "01"));
+        host_page.step_frames(1);
+        assert_same_pixels(
+            "a held Map Mask",
+            WIDTH,
+            &page_screen(&page),
+            &rgb_of(host_page.screen_rgba(), "the host page"),
+        );
+        let mut plain = Host::new();
+        plain.frames(1);
+        assert!(page_screen(&page) != plain.machine.scanout_rgb());
+
+        // Horizontal Total 0x2F: 60.5 kHz, marked with the reason.
+        type_in_lab(&page, "crtc.00", "2f");
+        let (value, reason) = lab_row(&page, "crtc.00");
+        assert_eq!(value, "2F");
+        assert!(
+            reason.starts_with("would harm a real monitor: horizontal 60.52 kHz"),
+            "{reason}"
+        );
+        assert!(evaluate_string(&page, "modexPage.message()").contains("would harm"));
+
+        // A value that is not one is named, and nothing changes.
+        type_in_lab(&page, "seq.02", "fff");
+        assert_eq!(
+            evaluate_string(&page, "modexPage.message()"),
+            "Sequencer Map Mask: \"fff\" is not a hex value from 0 to FF"
+        );
+        assert_eq!(
+            lab_row(&page, "seq.02").0,
+            "fff",
+            "the field keeps the typing"
+        );
+    });
+}

@@ -921,11 +921,52 @@ impl Page<'_> {
         Ok(())
     }
 
+    /// A touch event: `kind` is `touchStart`, `touchMove`, `touchEnd` or
+    /// `touchCancel`, `points` the fingers down in CSS pixels from the
+    /// viewport's top left (none for the end). The page must have touch
+    /// emulation on (`Emulation.setTouchEmulationEnabled`) to take it.
+    pub fn touch(&self, kind: &str, points: &[(f64, f64)]) -> Result<()> {
+        let points: Vec<Value> = points
+            .iter()
+            .enumerate()
+            .map(|(id, &(x, y))| json!({"x": x, "y": y, "id": id}))
+            .collect();
+        self.call(
+            "Input.dispatchTouchEvent",
+            json!({"type": kind, "touchPoints": points}),
+        )?;
+        Ok(())
+    }
+
+    /// A finger's tap on the middle of the first element `selector`
+    /// matches, scrolled into the window first if it is out of it.
+    pub fn tap(&self, selector: &str) -> Result<()> {
+        let (x, y) = self.centre_of(selector)?;
+        self.touch("touchStart", &[(x, y)])?;
+        self.touch("touchEnd", &[])
+    }
+
     /// A left click on the first element `selector` matches, as a reader
     /// makes it: the element scrolled to the middle of the window if it is
     /// out of it, the mouse on the middle of its first line box (a link
     /// that wraps has a gap, or other text, in the middle of its whole box).
     pub fn click(&self, selector: &str) -> Result<()> {
+        let (x, y) = self.centre_of(selector)?;
+        self.mouse_move(x, y)?;
+        for kind in ["mousePressed", "mouseReleased"] {
+            self.call(
+                "Input.dispatchMouseEvent",
+                json!({"type": kind, "x": x, "y": y, "button": "left", "clickCount": 1}),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The middle of the first line box of the first element `selector`
+    /// matches (a link that wraps has a gap, or other text, in the middle
+    /// of its whole box), scrolled to the middle of the window first if it
+    /// is out of it.
+    fn centre_of(&self, selector: &str) -> Result<(f64, f64)> {
         let quoted = Value::from(selector).to_string();
         let centre = self.evaluate(&format!(
             "(() => {{
@@ -944,14 +985,7 @@ impl Page<'_> {
                 value: centre.to_string(),
             });
         };
-        self.mouse_move(x, y)?;
-        for kind in ["mousePressed", "mouseReleased"] {
-            self.call(
-                "Input.dispatchMouseEvent",
-                json!({"type": kind, "x": x, "y": y, "button": "left", "clickCount": 1}),
-            )?;
-        }
-        Ok(())
+        Ok((x, y))
     }
 
     /// The page as the browser composites it, a PNG: the region `clip`

@@ -10,7 +10,7 @@ use std::rc::Rc;
 
 use demo::app::App;
 use demo::frame::Renderer;
-use modex::regs::Port;
+use modex::regs::{Crtc, Graphics, IndexedPair, Port, Sequencer};
 use modex::soft::SoftVga;
 use modex::{ModeX, VgaBus, PAGE_BYTES, SCREEN_HEIGHT, SCREEN_WIDTH};
 
@@ -35,9 +35,97 @@ struct ClockedVga {
     soft: Box<SoftVga>,
     micros: Rc<Cell<u64>>,
     log: OpLog,
+    /// Registers whose value the program's writes do not change
+    /// ([`Machine::hold`]).
+    held: Vec<HeldRegister>,
+}
+
+/// A register a program writes by port: Misc Output, or one of an
+/// index/data pair's (its index). The register lab holds its edits so.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum HeldRegister {
+    /// Miscellaneous Output.
+    MiscOutput,
+    /// Register `index` of the pair.
+    Pair(IndexedPair, u8),
+}
+
+/// One byte-wide port access of [`Machine::access_ports`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PortAccess {
+    /// An OUT of the byte.
+    Write(Port, u8),
+    /// An IN, its value dropped (Input Status 1's read resets the
+    /// Attribute Controller's flip-flop).
+    Read(Port),
+}
+
+/// The value register `index` of `pair` holds in `soft` (0 past the group).
+fn pair_value(soft: &SoftVga, pair: IndexedPair, index: u8) -> u8 {
+    match pair {
+        IndexedPair::Sequencer => Sequencer::from_index(index).map(|r| soft.sequencer(r)),
+        IndexedPair::Graphics => Graphics::from_index(index).map(|r| soft.graphics(r)),
+        IndexedPair::Crtc => Crtc::from_index(index).map(|r| soft.crtc(r)),
+    }
+    .unwrap_or(0)
+}
+
+/// The pair whose data port `port` is.
+fn pair_of_data_port(port: Port) -> Option<IndexedPair> {
+    [
+        IndexedPair::Sequencer,
+        IndexedPair::Graphics,
+        IndexedPair::Crtc,
+    ]
+    .into_iter()
+    .find(|pair| pair.data_port() == port)
 }
 
 impl ClockedVga {
+    /// The byte a program's 8-bit write of `value` to `port` becomes: a
+    /// held register's own value again, so the write costs what it costs
+    /// and changes nothing.
+    fn held_byte(&self, port: Port, value: u8) -> u8 {
+        if self.held.is_empty() {
+            return value;
+        }
+        let held = if port == Port::MISC_OUTPUT_WRITE {
+            self.held
+                .contains(&HeldRegister::MiscOutput)
+                .then(|| self.soft.misc_output())
+        } else {
+            pair_of_data_port(port).and_then(|pair| {
+                let index = self.soft.pair_index(pair);
+                self.held
+                    .contains(&HeldRegister::Pair(pair, index))
+                    .then(|| pair_value(&self.soft, pair, index))
+            })
+        };
+        held.unwrap_or(value)
+    }
+
+    /// The word a program's 16-bit write of `value` to `port` becomes: an
+    /// index port's data byte is the held register's own value.
+    fn held_word(&self, port: Port, value: u16) -> u16 {
+        if self.held.is_empty() {
+            return value;
+        }
+        let [index, _] = value.to_le_bytes();
+        let pair = [
+            IndexedPair::Sequencer,
+            IndexedPair::Graphics,
+            IndexedPair::Crtc,
+        ]
+        .into_iter()
+        .find(|pair| pair.index_port() == port);
+        match pair {
+            Some(pair) if self.held.contains(&HeldRegister::Pair(pair, index)) => {
+                u16::from_le_bytes([index, pair_value(&self.soft, pair, index)])
+            }
+            _ => value,
+        }
+    }
+
     fn tick(&self) {
         self.micros.set(self.soft.now_ns() / NANOS_PER_MICRO);
     }
@@ -61,12 +149,14 @@ impl ClockedVga {
 
 impl VgaBus for ClockedVga {
     fn write_port8(&mut self, port: Port, value: u8) {
+        let value = self.held_byte(port, value);
         self.operate(
             |()| BusOp::WritePort8 { port, value },
             |soft| soft.write_port8(port, value),
         );
     }
     fn write_port16(&mut self, port: Port, value: u16) {
+        let value = self.held_word(port, value);
         self.operate(
             |()| BusOp::WritePort16 { port, value },
             |soft| soft.write_port16(port, value),
@@ -182,6 +272,7 @@ impl Machine {
             soft: Box::new(SoftVga::new()),
             micros: Rc::clone(&micros),
             log,
+            held: Vec::new(),
         };
         let mut vga = ModeX::new(bus);
         vga.set_mode();
@@ -289,6 +380,40 @@ impl Machine {
             bus.soft.advance_ns(IDLE_STEP_NS);
         }
         bus.tick();
+    }
+
+    /// Makes `accesses` on the VGA's ports, in order, as another program on
+    /// the machine would (a register tweaker): through the bus, behind the
+    /// driver's back, so the driver then forgets what it cached. Held
+    /// registers take these writes; then a frame passes, so that the VGA
+    /// shows them (a start address is latched at a retrace).
+    pub fn access_ports(&mut self, accesses: &[PortAccess]) {
+        let bus = self.vga.bus_mut();
+        for &access in accesses {
+            match access {
+                PortAccess::Write(port, value) => bus.operate(
+                    |()| BusOp::WritePort8 { port, value },
+                    |soft| soft.write_port8(port, value),
+                ),
+                PortAccess::Read(port) => {
+                    bus.operate(
+                        |value| BusOp::ReadPort8 { port, value },
+                        |soft| soft.read_port8(port),
+                    );
+                }
+            }
+        }
+        bus.flush();
+        self.vga.invalidate_caches();
+    }
+
+    /// From now on the program's writes leave `held` as they are (each
+    /// write still costs its time, writing the register's own value): the
+    /// register lab's edits stay while the demo runs. Empty: none held.
+    pub fn hold(&mut self, held: &[HeldRegister]) {
+        let bus = self.vga.bus_mut();
+        bus.held.clear();
+        bus.held.extend_from_slice(held);
     }
 
     /// The software VGA.

@@ -1,5 +1,6 @@
 // The web page's loader: fetches the demo's WebAssembly (web/src, built by
-// `cargo run --release -p web`), passes key events and the URL in, and puts
+// `cargo run --release -p web`), passes key, touch and pointer events, the
+// register lab's edits and the URL in, and puts
 // the pixels it draws on the canvases. All logic is in the module; this
 // file only moves bytes. No bindings generator: the module exports plain
 // functions and buffers in its memory (docs/web.md lists them).
@@ -118,6 +119,7 @@
     }
 
     let textsVersion = -1;
+    let labOpen = false;
     let shownFrames = -1;
     function draw() {
       paint(screen, w.screen_ptr(), 320, 240, 0);
@@ -140,6 +142,7 @@
         shownFrames = frames;
         setText("frame-count", "frame " + frames);
       }
+      if (labOpen) showLab();
     }
 
     let stopped = false;
@@ -169,7 +172,6 @@
     // A key held when the focus leaves gets no key-up: release it now.
     screen.addEventListener("blur", guarded(() => w.release_keys()));
     window.addEventListener("blur", guarded(() => w.release_keys()));
-    screen.addEventListener("mousedown", () => screen.focus());
 
     screen.addEventListener("mousemove", guarded((event) => {
       const box = screen.getBoundingClientRect();
@@ -192,19 +194,116 @@
       w.step_ops(1);
       draw();
     }));
+    function download(blob, name) {
+      const link = document.createElement("a");
+      link.href = URL.createObjectURL(blob);
+      link.download = name;
+      link.click();
+      setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+    }
     $("record-gif").addEventListener("click", guarded(() => {
       const length = w.gif();
       draw();
       if (!length) return;
       const blob = new Blob([bytes(w.output_ptr(), length).slice()], { type: "image/gif" });
-      const link = document.createElement("a");
-      link.href = URL.createObjectURL(blob);
-      link.download = "modex-cube-" + w.frames() + "-frames.gif";
-      link.click();
-      setTimeout(() => URL.revokeObjectURL(link.href), 10000);
+      download(blob, "modex-cube-" + w.frames() + "-frames.gif");
       say("Recorded " + length + " bytes of GIF.");
       textsVersion = -1; // the module's message replaces it at the next draw, as before
     }));
+
+    // The on-screen keys: each a tap of its key, through the same key
+    // events (key_down, key_up) the keyboard gives.
+    function tapKey(code) {
+      w.key_down(put(code));
+      w.key_up(put(code));
+    }
+    function connectKeypad() {
+      for (const button of document.querySelectorAll("#keypad button")) {
+        button.addEventListener("click", guarded(() => {
+          tapKey(button.dataset.code);
+          draw();
+        }));
+      }
+    }
+
+    // Touch, pen and mouse on the picture: the module turns one pointer
+    // dragged, two pinched and the wheel into the keys that turn and move.
+    function connectPointer() {
+      screen.addEventListener("pointerdown", guarded((event) => {
+        screen.focus();
+        screen.setPointerCapture(event.pointerId);
+        w.pointer_down(event.pointerId, event.clientX, event.clientY);
+      }));
+      screen.addEventListener("pointermove", guarded((event) => {
+        w.pointer_move(event.pointerId, event.clientX, event.clientY);
+      }));
+      const lift = guarded((event) => w.pointer_up(event.pointerId));
+      screen.addEventListener("pointerup", lift);
+      screen.addEventListener("pointercancel", lift);
+      screen.addEventListener("wheel", guarded((event) => {
+        event.preventDefault();
+        w.zoom(event.deltaY * [1, 16, 400][event.deltaMode]);
+      }), { passive: false });
+    }
+
+    // The register lab: its table comes from the module (lab_html) when
+    // first opened; while open, each field shows the value the VGA holds.
+    const lab = $("lab-registers");
+    let labWritten = null;
+    function writeLab(input) {
+      input.dataset.written = input.value;
+      // Written, the field shows what the VGA took; refused, it keeps the
+      // typing, and the message says why.
+      if (w.lab_edit(put(input.dataset.key + "=" + input.value))) labWritten = input;
+      draw();
+      labWritten = null;
+    }
+    function showLab() {
+      const inputs = lab.getElementsByTagName("input");
+      const lines = text(w.lab_table()).split("\n");
+      for (let i = 0; i < inputs.length; i++) {
+        const [, , , , value, mark] = lines[i].split("\t");
+        const input = inputs[i];
+        const typing = document.activeElement === input && labWritten !== input;
+        if (input.value !== value && !typing) input.value = value;
+        const reason = input.parentElement.nextElementSibling;
+        if (reason.textContent !== mark) {
+          reason.textContent = mark;
+          reason.parentElement.classList.toggle("harm", mark !== "");
+        }
+      }
+      const params = new URLSearchParams(location.search);
+      const edits = text(w.lab_url_value());
+      if (edits) params.set("lab", edits);
+      else params.delete("lab");
+      $("lab-url").href = "?" + params.toString();
+    }
+    function connectLab() {
+      $("lab").addEventListener("toggle", guarded(() => {
+        labOpen = $("lab").open;
+        if (labOpen && !lab.firstChild) lab.innerHTML = text(w.lab_html());
+        draw();
+      }));
+      // Enter writes the value even if it is the one shown (to hold it);
+      // leaving a changed field writes it too, once.
+      lab.addEventListener("keydown", guarded((event) => {
+        if (event.key === "Enter" && event.target.dataset.key) writeLab(event.target);
+      }));
+      lab.addEventListener("change", guarded((event) => {
+        if (event.target.value !== event.target.dataset.written) writeLab(event.target);
+      }));
+      lab.addEventListener("focusin", (event) => delete event.target.dataset.written);
+      $("lab-restore").addEventListener("click", guarded(() => {
+        w.lab_restore();
+        draw();
+      }));
+      $("lab-export").addEventListener("click", guarded(() => {
+        download(new Blob([text(w.lab_export())], { type: "text/csv" }), "modex-lab-mode.csv");
+      }));
+    }
+    connectKeypad();
+    connectPointer();
+    connectLab();
 
     // Frames on the display's refresh while the page plays; the module
     // runs as many frames of the software VGA's 59.7 Hz as are due, three
@@ -245,6 +344,8 @@
       lastOp: () => text(w.last_op()),
       message: () => text(w.message()),
       gif: guarded(() => { const length = w.gif(); return base64(bytes(w.output_ptr(), length)); }),
+      labExport: () => text(w.lab_export()),
+      labUrlValue: () => text(w.lab_url_value()),
     });
 
     guarded(() => w.init(put(location.search)))();

@@ -287,3 +287,69 @@ pub extern "C" fn gif() -> usize {
     });
     output(&bytes)
 }
+
+/// A pointer went down on the picture at (`x`, `y`) CSS pixels.
+#[no_mangle]
+pub extern "C" fn pointer_down(id: i32, x: f64, y: f64) {
+    with_page(|page| page.pointer_down(id, x, y));
+}
+
+/// Pointer `id` moved to (`x`, `y`); returns the keys tapped.
+#[no_mangle]
+pub extern "C" fn pointer_move(id: i32, x: f64, y: f64) -> u32 {
+    with_page(|page| page.pointer_move(id, x, y))
+}
+
+/// Pointer `id` came up or was cancelled.
+#[no_mangle]
+pub extern "C" fn pointer_up(id: i32) {
+    with_page(|page| page.pointer_up(id));
+}
+
+/// The wheel turned by `pixels`; returns the keys tapped.
+#[no_mangle]
+pub extern "C" fn zoom(pixels: f64) -> u32 {
+    with_page(|page| page.zoom(pixels))
+}
+
+/// The register lab's table of inputs, as HTML, into the output buffer.
+#[no_mangle]
+pub extern "C" fn lab_html() -> usize {
+    output(crate::lab::html().as_bytes())
+}
+
+/// A register lab edit, `key=value` (`crtc.13=50`) in the input buffer;
+/// 1 if made, 0 if refused (the message says why).
+#[no_mangle]
+pub extern "C" fn lab_edit(len: usize) -> u32 {
+    let edit = input(len);
+    let (key, value) = edit.split_once('=').unwrap_or((&edit, ""));
+    with_page(|page| u32::from(page.lab_edit(key, value)))
+}
+
+/// "Back to Mode X": the lab's edits undone.
+#[no_mangle]
+pub extern "C" fn lab_restore() {
+    with_page(Page::lab_restore);
+}
+
+/// The lab's table of every register, into the output buffer.
+#[no_mangle]
+pub extern "C" fn lab_table() -> usize {
+    let text = with_page(|page| page.lab_table());
+    output(text.as_bytes())
+}
+
+/// The mode as a table (CSV), into the output buffer.
+#[no_mangle]
+pub extern "C" fn lab_export() -> usize {
+    let text = with_page(|page| page.lab_export());
+    output(text.as_bytes())
+}
+
+/// The edits as the URL's `lab` value, into the output buffer.
+#[no_mangle]
+pub extern "C" fn lab_url_value() -> usize {
+    let text = with_page(|page| page.lab_url_value());
+    output(text.as_bytes())
+}

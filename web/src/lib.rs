@@ -9,6 +9,7 @@
 //! * [`url`]: the URL's replay script (`?keys=left,up&frames=120&paused=1`);
 //! * [`pacing`]: frames on `requestAnimationFrame` at the model's retrace rate;
 //! * [`hover`]: the readout for the pixel under the mouse;
+//! * [`lab`]: the register lab, every VGA register edited in place;
 //! * [`slow`]: one frame's bus operations stepped one by one, named by the
 //!   `modex` function that issued each;
 //! * [`page`]: the page's state, which the WebAssembly exports drive;
@@ -40,6 +41,7 @@
 
 pub mod hover;
 pub mod keys;
+pub mod lab;
 pub mod pacing;
 pub mod page;
 pub mod slow;

@@ -17,6 +17,7 @@ use sim::record::{record_gif_with, RecordError};
 
 use crate::hover::hover_text;
 use crate::keys::action_for_code;
+use crate::lab::{self, Lab, Register};
 use crate::pacing::Pacer;
 use crate::slow::{self, SlowMotion};
 use crate::url::{parse_query, Replay};
@@ -35,6 +36,10 @@ pub const GIF_MAX_FRAMES: u32 = 3600;
 /// Changed rows this close are painted as one run, unchanged rows between
 /// included.
 pub const PAINT_GAP_ROWS: usize = 16;
+/// CSS pixels of drag for one turn of 6 degrees (a tap of 4, 6, 8 or 2).
+pub const DRAG_PIXELS_PER_TURN: f64 = 16.0;
+/// Pixels of wheel or pinch for one move of 3 units away or toward (A or T).
+pub const ZOOM_PIXELS_PER_MOVE: f64 = 40.0;
 /// The byte before the make code of an extended key.
 const EXTENDED_PREFIX: u8 = 0xE0;
 
@@ -70,6 +75,12 @@ pub struct Page {
     ops_panel: Vec<u8>,
     /// The runs of rows last taken by [`Page::take_changed_rows`].
     runs: Vec<Range<usize>>,
+    /// The register lab's edits.
+    lab: Lab,
+    /// Drag and zoom not yet a whole turn or move: (x, y, zoom) pixels.
+    pointer_rest: (f64, f64, f64),
+    /// The pointers down on the picture: (id, x, y).
+    pointers: Vec<(i32, f64, f64)>,
 }
 
 /// A canvas whose rows the page tracks, so that it takes only those changed.
@@ -117,7 +128,13 @@ impl Page {
             panel: Panel::inspector(INSPECTOR_HEIGHT, Encoding::Rgba),
             ops_panel: Vec::new(),
             runs: Vec::new(),
+            lab: Lab::default(),
+            pointer_rest: (0.0, 0.0, 0.0),
+            pointers: Vec::new(),
         };
+        for (register, value) in std::mem::take(&mut page.replay.lab) {
+            page.edit_register(register, value);
+        }
         let ops = page.replay.ops;
         if ops > 0 {
             page.step_ops(ops);
@@ -149,6 +166,155 @@ impl Page {
         self.held.retain(|&key| key != action.scancode);
         self.queue.extend(action.scancode.release().iter());
         action.prevent_default
+    }
+
+    /// A key pressed and let go, as an on-screen key or a drag makes it.
+    fn tap(&mut self, code: &str) {
+        self.key_down(code);
+        self.key_up(code);
+    }
+
+    /// The pointer dragged by (`dx`, `dy`) CSS pixels over the picture:
+    /// every [`DRAG_PIXELS_PER_TURN`] across is a tap of 6 (right) or 4,
+    /// down of 2 or up of 8, the keys that turn the solid. Returns the taps.
+    pub fn drag(&mut self, dx: f64, dy: f64) -> u32 {
+        let (x, y, zoom) = self.pointer_rest;
+        let (x, x_taps) = whole_steps(x + dx, DRAG_PIXELS_PER_TURN);
+        let (y, y_taps) = whole_steps(y + dy, DRAG_PIXELS_PER_TURN);
+        self.pointer_rest = (x, y, zoom);
+        let x_code = if x_taps > 0 { "Digit6" } else { "Digit4" };
+        let y_code = if y_taps > 0 { "Digit2" } else { "Digit8" };
+        for _ in 0..x_taps.unsigned_abs() {
+            self.tap(x_code);
+        }
+        for _ in 0..y_taps.unsigned_abs() {
+            self.tap(y_code);
+        }
+        x_taps.unsigned_abs() + y_taps.unsigned_abs()
+    }
+
+    /// A wheel turned or a pinch closed by `pixels` (negative: a pinch
+    /// opened): every [`ZOOM_PIXELS_PER_MOVE`] is a tap of A (away) or,
+    /// negative, T (toward). Returns the taps.
+    pub fn zoom(&mut self, pixels: f64) -> u32 {
+        let (x, y, zoom) = self.pointer_rest;
+        let (zoom, taps) = whole_steps(zoom + pixels, ZOOM_PIXELS_PER_MOVE);
+        self.pointer_rest = (x, y, zoom);
+        let code = if taps > 0 { "KeyA" } else { "KeyT" };
+        for _ in 0..taps.unsigned_abs() {
+            self.tap(code);
+        }
+        taps.unsigned_abs()
+    }
+
+    /// A pointer (a finger, a pen, the mouse's button) went down on the
+    /// picture at (`x`, `y`), in CSS pixels.
+    pub fn pointer_down(&mut self, id: i32, x: f64, y: f64) {
+        self.pointers.retain(|&(known, _, _)| known != id);
+        self.pointers.push((id, x, y));
+    }
+
+    /// Pointer `id` moved to (`x`, `y`): one pointer down drags
+    /// ([`Page::drag`]), two pinch ([`Page::zoom`] by how much closer they
+    /// came). Returns the keys tapped.
+    pub fn pointer_move(&mut self, id: i32, x: f64, y: f64) -> u32 {
+        let spread = |pointers: &[(i32, f64, f64)]| match pointers {
+            [(_, x0, y0), (_, x1, y1)] => Some((x0 - x1).hypot(y0 - y1)),
+            _ => None,
+        };
+        let before = spread(&self.pointers);
+        let Some(pointer) = self.pointers.iter_mut().find(|p| p.0 == id) else {
+            return 0;
+        };
+        let (dx, dy) = (x - pointer.1, y - pointer.2);
+        (pointer.1, pointer.2) = (x, y);
+        match (self.pointers.len(), before, spread(&self.pointers)) {
+            (1, _, _) => self.drag(dx, dy),
+            (_, Some(before), Some(after)) => self.zoom(before - after),
+            _ => 0,
+        }
+    }
+
+    /// Pointer `id` came up (or was cancelled); when none is left down,
+    /// what was left of the drag or pinch is dropped.
+    pub fn pointer_up(&mut self, id: i32) {
+        self.pointers.retain(|&(known, _, _)| known != id);
+        if self.pointers.is_empty() {
+            self.pointer_rest = (0.0, 0.0, 0.0);
+        }
+    }
+
+    /// Edits the register named `key` (`crtc.13`) to `value` (hex) through
+    /// the VGA's ports, as a program would; false, with the reason as the
+    /// message, if the key or the value is bad.
+    pub fn lab_edit(&mut self, key: &str, value: &str) -> bool {
+        let Some(register) = Register::from_key(key) else {
+            self.set_message(format!("the register lab has no register {key:?}"));
+            return false;
+        };
+        match register.parse(value) {
+            Ok(value) => {
+                self.edit_register(register, value);
+                self.render();
+                true
+            }
+            Err(line) => {
+                self.set_message(line);
+                false
+            }
+        }
+    }
+
+    /// Writes `value` to `register` on the demo's VGA and holds it there.
+    fn edit_register(&mut self, register: Register, value: u32) {
+        // A frame being stepped through is finished first: the edit is
+        // made between frames, on the demo's own VGA.
+        self.slow = None;
+        let before = register.value(self.machine.vga());
+        let accesses = lab::port_accesses(self.machine.vga(), register, value);
+        self.machine.access_ports(&accesses);
+        let now = register.value(self.machine.vga());
+        self.lab.note(register, before, now);
+        self.machine.hold(&self.lab.held());
+        let name = format!("{} {}", register.group_name(), register.name());
+        let line = match lab::monitor_problem(&self.machine.vga().timing()) {
+            Some(reason) => format!("{name} = {}: {reason}", register.format(now)),
+            None if now != value => format!(
+                "{name} = {} (of {} written: the other bits are not implemented)",
+                register.format(now),
+                register.format(value)
+            ),
+            None => format!("{name} = {}", register.format(now)),
+        };
+        self.set_message(line);
+    }
+
+    /// "Back to Mode X": every register the lab edited gets back, through
+    /// the ports, what it held before, and the demo writes them again.
+    pub fn lab_restore(&mut self) {
+        self.slow = None;
+        for (register, value) in self.lab.take_restore() {
+            let accesses = lab::port_accesses(self.machine.vga(), register, value);
+            self.machine.access_ports(&accesses);
+        }
+        self.machine.hold(&[]);
+        self.set_message("Back to Mode X: every register the lab edited is as it was".into());
+        self.render();
+    }
+
+    /// The lab's table of every register (`lab::table`).
+    pub fn lab_table(&self) -> String {
+        lab::table(self.machine.vga(), &self.lab)
+    }
+
+    /// The mode as it stands, as a table (`lab::export`).
+    pub fn lab_export(&self) -> String {
+        lab::export(self.machine.vga(), &self.lab)
+    }
+
+    /// The edits as the URL's `lab` parameter's value (empty: none).
+    pub fn lab_url_value(&self) -> String {
+        self.lab.url_value()
     }
 
     /// The page lost the focus: every key still down comes up, so none is
@@ -534,6 +700,12 @@ impl Picture {
             self.changed.mark(row..row + 1);
         }
     }
+}
+
+/// `total` pixels as whole steps of `step` (toward zero) and the rest.
+fn whole_steps(total: f64, step: f64) -> (f64, i32) {
+    let steps = (total / step).trunc();
+    (total - steps * step, steps as i32)
 }
 
 /// Joins runs of rows (top down, apart) fewer than [`PAINT_GAP_ROWS`]

@@ -5,10 +5,15 @@
 //! step-by-step views: `&modeset=1` starts in slow motion before the mode
 //! set, and `&ops=N` steps N bus operations at once (in slow motion).
 //!
+//! `&lab=crtc.13:50,seq.02:01` makes the register lab's edits once the
+//! page is loaded (`crate::lab`), before the first frame runs.
+//!
 //! A bad token does not stop the page: it is left out, and the first one is
 //! named in one line for the page to show.
 
 use keyboard::keys::scancode_for_name;
+
+use crate::lab::{self, Register};
 use sim::record::Script;
 
 /// The most frames a URL may ask for: an hour at 59.7 frames a second.
@@ -27,6 +32,8 @@ pub struct Replay {
     pub mode_set: bool,
     /// Bus operations to step in slow motion once loaded.
     pub ops: u32,
+    /// The register lab's edits, made in order once loaded.
+    pub lab: Vec<(Register, u32)>,
 }
 
 impl Default for Replay {
@@ -40,6 +47,7 @@ impl Default for Replay {
             paused: false,
             mode_set: false,
             ops: 0,
+            lab: Vec::new(),
         }
     }
 }
@@ -96,6 +104,13 @@ pub fn parse_query(query: &str) -> (Replay, Option<String>) {
                     "bad operation count {value:?} in the URL's ops (0 to {MAX_FRAMES})"
                 )),
             },
+            "lab" => {
+                let (edits, problem) = lab::parse_url_value(&value);
+                replay.lab.extend(edits);
+                if let Some(line) = problem {
+                    complain(line);
+                }
+            }
             _ => complain(format!("unknown URL parameter {name:?}")),
         }
     }
@@ -175,6 +190,16 @@ mod tests {
             parse_query(&query_for(&["l", "m"], 5, 99)).0.frames,
             Some(99)
         );
+        let (replay, problem) = parse_query("lab=crtc.13%3A50,seq.02:01,dac.05:2a1510");
+        assert_eq!(problem, None);
+        assert_eq!(
+            replay.lab,
+            [
+                (Register::Crtc(modex::regs::Crtc::Offset), 0x50),
+                (Register::Sequencer(modex::regs::Sequencer::MapMask), 0x01),
+                (Register::DacEntry(5), 0x2A1510),
+            ]
+        );
     }
 
     #[test]
@@ -198,6 +223,22 @@ mod tests {
             ("keys=%zz", "malformed escape in the URL's keys: \"%zz\""),
             ("keys=left%2", "malformed escape in the URL's keys"),
             ("colour=red", "unknown URL parameter \"colour\""),
+            (
+                "lab=crtc.13",
+                "\"crtc.13\" in the URL's lab is not register:value",
+            ),
+            (
+                "lab=crtc.99:00",
+                "unknown register \"crtc.99\" in the URL's lab",
+            ),
+            (
+                "lab=seq.02:100",
+                "Sequencer Map Mask: \"100\" is not a hex value",
+            ),
+            (
+                "lab=dac.01:404040",
+                "DAC Entry 0x01 (RRGGBB): \"404040\" is not",
+            ),
         ];
         for (query, start) in cases {
             let (_, problem) = parse_query(query);

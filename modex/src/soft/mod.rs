@@ -39,7 +39,7 @@ mod text_scanout;
 mod tiles;
 mod timing;
 
-use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
+use crate::regs::{Attribute, Crtc, Graphics, IndexedPair, Port, Sequencer};
 use core::ops::Range;
 
 use crate::mode::TEXT_80X25;
@@ -244,6 +244,12 @@ impl SoftVga {
     /// An Attribute Controller register.
     pub fn attribute(&self, register: Attribute) -> u8 {
         self.registers.attribute[register.slot()]
+    }
+
+    /// The index last written to `pair`'s index port: the register its
+    /// data port reaches now.
+    pub fn pair_index(&self, pair: IndexedPair) -> u8 {
+        self.registers.pair_index(pair)
     }
 
     /// DAC entry `index`, 6 bits per component.

@@ -7,7 +7,7 @@
 use crate::mode::ModeRegisters;
 use crate::palette::Rgb6;
 use crate::regs::{ac, crtc, misc, vbe};
-use crate::regs::{Attribute, Crtc, Graphics, Port, Sequencer};
+use crate::regs::{Attribute, Crtc, Graphics, IndexedPair, Port, Sequencer};
 
 /// Implemented bits of each sequencer register.
 const SEQUENCER_BITS: [u8; Sequencer::COUNT] = [0x03, 0x3D, 0x0F, 0x3F, 0x0E];
@@ -153,6 +153,15 @@ impl Registers {
     /// The sequencer register the data port writes now.
     pub(super) fn sequencer_index(&self) -> u8 {
         self.sequencer_index
+    }
+
+    /// The register `pair`'s data port writes now.
+    pub(super) fn pair_index(&self, pair: IndexedPair) -> u8 {
+        match pair {
+            IndexedPair::Sequencer => self.sequencer_index,
+            IndexedPair::Graphics => self.graphics_index,
+            IndexedPair::Crtc => self.crtc_index,
+        }
     }
 
     /// The port of Input Status 1 under the current I/O addressing.
