@@ -144,6 +144,22 @@ fn a_keyboard_on_a_root_port_types_what_the_drivers_own_enumeration_typed() {
     }
 }
 
+/// A chipset's xHCI: 26 root ports, its USB 2 ports listed after its USB
+/// 3 ones, the keyboard on USB 2 port 24, past the first 15: it is heard.
+#[test]
+fn a_keyboard_on_root_port_24_of_26_usb_2_ports_last_types() {
+    let mut model = XhciModel::new();
+    model.wide_ports(26, 24);
+    let mut bus = with_keyboards(model, 1);
+    assert_eq!(locations(&bus), ["24"]);
+    assert!(!logged(&mut bus, "are used"), "{:#?}", log(&mut bus));
+    assert!(hw(&mut bus).send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut bus), [0x1E]);
+    assert!(hw(&mut bus).send_report([0; 8]));
+    assert_eq!(poll(&mut bus), [0x9E]);
+    assert_clean(&mut bus);
+}
+
 #[test]
 fn a_keyboard_behind_one_and_three_hubs_is_reached_through_its_route_string() {
     for (tiers, at) in [(1, "1.2"), (3, "1.2.2.2")] {
