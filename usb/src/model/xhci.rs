@@ -484,7 +484,8 @@ impl XhciModel {
                         && slot_dw0 >> 27 == 1
                         && (root_port == u32::from(self.keyboard_port) || root_port == 2)
                         && (ep0_dw1 >> 3) & 7 == 4
-                        && ep0_dw1 >> 16 == u32::from(ep0_packet)
+                        && (ep0_dw1 >> 16 == u32::from(ep0_packet)
+                            || (speed == 1 && matches!(ep0_dw1 >> 16, 8 | 16 | 32 | 64)))
                         && !(superspeed && translator != 0)
                         && (!self.high_speed_hub || translator == expected_translator)
                         && ep0_dequeue != 0
@@ -520,6 +521,11 @@ impl XhciModel {
                         self.errors.push(std::format!(
                             "second Address Device: endpoint 0 dequeue {ep0_dequeue:#x} is not where the ring stands"
                         ));
+                    }
+                    if speed == 1 {
+                        // A full-speed endpoint 0 is the host's guess
+                        // until evaluated (Linux's xHCI driver guesses 64).
+                        self.slots[usize::from(slot)].ep0_max_packet = (ep0_dw1 >> 16) as u16;
                     }
                     let output = self.output_context(slot);
                     let slot_state = if block_set_address { 1 } else { 2 };
