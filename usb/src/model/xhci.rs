@@ -196,6 +196,11 @@ pub struct XhciModel {
     pub usb3_link_micros: u64,
     /// When root port 1's USB 3 link is trained and the port enabled.
     usb3_enabled_at: Option<u64>,
+    /// With `usb3`: root port 1's link falls into SS.Inactive after the
+    /// controller's reset and stays there until a warm reset (WPR).
+    pub usb3_link_stuck: bool,
+    /// Warm resets (WPR) the driver asked for.
+    pub warm_resets: u32,
     /// Root ports (MaxPorts); see [`XhciModel::wide_ports`].
     ports: u8,
     /// The port the model's "root port 1" (the keyboard, or the hubs) is.
@@ -264,6 +269,8 @@ impl XhciModel {
             port_reset_stuck: false,
             usb3_link_micros: 0,
             usb3_enabled_at: None,
+            usb3_link_stuck: false,
+            warm_resets: 0,
             keyboard2: KeyboardState {
                 protocol: 1,
                 ..KeyboardState::default()
@@ -1264,6 +1271,10 @@ impl Hardware for XhciModel {
                     let kb = self.kb();
                     self.portsc[kb] = if self.empty_at_start {
                         1 << 9
+                    } else if self.usb3 && self.usb3_link_stuck {
+                        // Connected, its link in SS.Inactive.
+                        self.usb3_enabled_at = None;
+                        1 | 6 << 5 | 1 << 9 | 4 << 10
                     } else if self.usb3 {
                         // A USB 3 port trains and enables by itself.
                         self.usb3_enabled_at = Some(self.now + self.usb3_link_micros);
@@ -1317,6 +1328,12 @@ impl Hardware for XhciModel {
                 if value & (1 << 9) == 0 {
                     // Port power off: the device is gone from the port.
                     *status &= !(1 << 9 | 0b11);
+                }
+                if value & (1 << 31) != 0 && *status & 1 != 0 {
+                    // A warm reset: the link trains to U0, the port enables,
+                    // WRC and PRC say it is over.
+                    self.warm_resets += 1;
+                    *status = (*status & !(0xF << 5)) | 1 << 1 | 1 << 19 | 1 << 21;
                 }
                 if value & (1 << 4) != 0 && *status & 1 != 0 {
                     *status |= if self.port_reset_stuck {
