@@ -410,6 +410,26 @@ fn a_keyboard_plugged_into_a_hub_after_boot_acts_and_goes_with_the_hub() {
     }
 }
 
+/// A qemu-xhci with 30 root ports, its 15 USB 2 ones after its 15 USB 3
+/// ones (QEMU's bus port n is xHCI port 15 + n): a keyboard on bus port 9
+/// hangs on root port 24, past the first 15, and its keys act.
+#[test]
+fn a_usb_keyboard_on_root_port_24_of_30_acts() {
+    let devices = vec![
+        "qemu-xhci,id=xhci,p2=15,p3=15".to_string(),
+        usb_keyboard("bus=xhci.0,port=9"),
+    ];
+    let (mut qemu, console) = boot_uefi_without_ps2(devices, BootRequest::default());
+    assert!(console.contains(", 30 ports, "), "{console}");
+    let keyboard_line = usb_keyboard_line(&console);
+    assert!(
+        keyboard_line.ends_with(" on xhci port 24"),
+        "the keyboard is on root port 24: {keyboard_line}"
+    );
+    let done = send_and_wait_on(&mut qemu, DISPLAY_ID, &[("6", true), ("6", false)], 0, 1);
+    send_and_wait_on(&mut qemu, DISPLAY_ID, &[("4", true), ("4", false)], done, 1);
+}
+
 #[test]
 fn a_usb_keyboard_behind_three_tiers_of_hubs_drives_the_demo() {
     let devices = vec![

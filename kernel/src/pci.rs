@@ -287,3 +287,26 @@ pub fn hand_intel_ports_back_to_ehci(f: Function) -> Option<(u32, u32)> {
         read(f.bus, f.device, f.function, USB3_PSSEN),
     ))
 }
+
+/// Brings the function to D0 if the firmware left it in D1 to D3hot
+/// (`usb::pci_power` decides what to write), waiting what the PCI Power
+/// Management specification asks. Gives the state it was in, if it was not
+/// D0, and whether it is in D0 now.
+pub fn wake_to_d0(f: Function) -> Option<(u8, bool)> {
+    let mut read = |offset: u8| config_read(f, offset);
+    let mut write = |offset: u8, value: u32| config_write(f, offset, value);
+    match usb::pci_power::wake(&mut read, &mut write) {
+        usb::pci_power::Wake::NoCapability | usb::pci_power::Wake::AlreadyOn => None,
+        usb::pci_power::Wake::Waking {
+            pmcsr,
+            from,
+            wait_micros,
+        } => {
+            let until = crate::time::micros().saturating_add(wait_micros);
+            while crate::time::micros() < until {
+                core::hint::spin_loop();
+            }
+            Some((from, usb::pci_power::is_on(&mut read, pmcsr)))
+        }
+    }
+}

@@ -44,8 +44,6 @@ pub const MAX_HUB_TIERS: usize = 5;
 /// A hub's ports this layer looks at (a port bitmap is 32 bits, bit 0
 /// the hub itself); ports past it are left alone, logged.
 pub const MAX_HUB_PORTS: u8 = 31;
-/// Root ports looked at (EHCI and OHCI count them in four bits).
-pub const MAX_ROOT_PORTS: u8 = 15;
 /// Failed reports in a row after which an interrupt pipe is given up (a
 /// device that fails every transfer is gone or broken; hot-plug finds it
 /// again). The same bound as xHCI's.
@@ -410,6 +408,9 @@ impl Addresses {
 pub struct Bus<C: HostController> {
     controller: C,
     kind: ControllerKind,
+    /// Every root port the controller has (xHCI's MaxPorts: up to 255,
+    /// chipsets' 20 to 30 with USB 2 ports often past 15); nothing is
+    /// kept per port, so none is left out.
     root_ports: u8,
     devices: [Option<Device>; MAX_DEVICES],
     addresses: Addresses,
@@ -436,7 +437,7 @@ impl<C: HostController> Bus<C> {
     /// started; nothing is touched until [`Bus::enumerate`] or [`Bus::poll`].
     pub fn new(controller: C) -> Bus<C> {
         let kind = controller.kind();
-        let root_ports = controller.root_ports().min(MAX_ROOT_PORTS);
+        let root_ports = controller.root_ports();
         Bus {
             controller,
             kind,
@@ -471,12 +472,6 @@ impl<C: HostController> Bus<C> {
     /// clock (keys pressed meanwhile are dropped: nobody listens yet);
     /// what is left carries on from later polls. Gives the keyboards found.
     pub fn enumerate(&mut self) -> usize {
-        let reported = self.controller.root_ports();
-        if reported > MAX_ROOT_PORTS {
-            self.say(format_args!(
-                "{reported} root ports; the first {MAX_ROOT_PORTS} are used"
-            ));
-        }
         let start = self.now_micros();
         self.scan_at = Some(start + enumeration::CONNECT_MICROS);
         while !self.enumeration_idle() && !self.stopped {

@@ -16,6 +16,8 @@
 //! - [`hid`]: HID report descriptors, for keyboards that do not keep to
 //!   the boot report (N-key rollover bitmaps, report IDs).
 //!
+//! - [`pci_power`]: a controller left in D1-D3hot brought to D0 first.
+//!
 //! The host controller drivers:
 //! - [`uhci`]: UHCI (Intel and VIA USB 1.1): I/O registers, the frame list,
 //!   queue heads and transfer descriptors;
@@ -42,6 +44,7 @@ pub mod ehci;
 pub mod hid;
 pub mod host;
 pub mod ohci;
+pub mod pci_power;
 pub mod report;
 pub mod uhci;
 pub mod xhci;

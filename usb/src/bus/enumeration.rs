@@ -43,6 +43,10 @@ pub const SET_ADDRESS_RECOVERY_MICROS: u64 = 2_000;
 pub(crate) const HUB_CONNECT_MICROS: u64 = 100_000;
 /// Ports and hubs waiting for their turn (a hub's worth of ports).
 const QUEUE_LENGTH: usize = MAX_DEVICES;
+/// Tries a device gets to be reset, addressed and describe itself, a port
+/// reset before each: Linux's `PORT_INIT_TRIES` (hub.c, 4), as real
+/// devices often fail the first ("device descriptor read/64, error -71").
+pub const ENUMERATION_TRIES: u8 = 4;
 
 /// Hub port status (wPortStatus, low half) and change (wPortChange, high
 /// half) bits, USB 2.0 11.24.2.7.
@@ -79,6 +83,8 @@ pub(super) enum Work {
         location: Location,
         first_change: u64,
         last_change: u64,
+        /// Tries it has had already ([`ENUMERATION_TRIES`]).
+        tries: u8,
     },
     /// A hub (by its place in the table) whose status change endpoint said
     /// these changed (bit n: port n; bit 0: the hub itself).
@@ -442,6 +448,11 @@ pub(super) struct Job {
     /// The device went away during its root port's reset: the reset is
     /// polled to its end (a driver may have to end it), and that is all.
     abandoned: bool,
+    /// Tries before this one ([`ENUMERATION_TRIES`]).
+    tries: u8,
+    /// The device descriptor's first 8 bytes were read (and endpoint 0's
+    /// packet size set).
+    header_read: bool,
 }
 
 impl Job {
@@ -466,6 +477,8 @@ impl Job {
             hub_setup: HubSetUp::default(),
             changes_only: false,
             abandoned: false,
+            tries: 0,
+            header_read: false,
         }
     }
 
@@ -493,6 +506,47 @@ impl Job {
         self.device.ok_or(BusError::Gone)
     }
 
+    /// Whether a failure `e` gets another try: one of the device's own
+    /// while it is reset, addressed and read its device descriptor (what
+    /// Linux's `hub_port_init` retries), while tries are left. A lack of
+    /// room or addresses, a driver's refusal, a controller error or a
+    /// device gone are not the device's fault, and a try more changes
+    /// nothing. Nor is a transfer that ran into its 5 s bound tried again
+    /// (Linux does): a device that ignored a request that long rarely
+    /// answers the next, and every other port waits while it is tried.
+    fn may_try_again(&self, e: BusError) -> bool {
+        let device_phase = matches!(
+            self.step,
+            Step::ResettingRootPort
+                | Step::CheckingHubPortReset
+                | Step::ClearingHubPortReset
+                | Step::RecoveringFromReset
+                | Step::ReadingDeviceHeader
+                | Step::Addressing
+                | Step::RecoveringFromSetAddress
+                | Step::ReadingDeviceDescriptor
+        );
+        let devices_fault = !matches!(
+            e,
+            BusError::NoRoom
+                | BusError::NoAddress
+                | BusError::Host(_)
+                | BusError::Gone
+                | BusError::Timeout
+                | BusError::Failed(TransferError::Controller | TransferError::NoRoom)
+        );
+        device_phase && devices_fault && self.tries + 1 < ENUMERATION_TRIES
+    }
+
+    /// Linux's schemes, two tries each (hub.c's `use_new_scheme`): the new
+    /// one reads up to 64 bytes of the device descriptor at the default
+    /// address before SET_ADDRESS (what Windows does, and many devices
+    /// expect); the old one sends SET_ADDRESS first, then reads 8 bytes and
+    /// the 18 (what some older devices need).
+    fn old_scheme(&self) -> bool {
+        self.tries / 2 == 1
+    }
+
     fn hub(&self) -> Result<usize> {
         self.hub.ok_or(BusError::Gone)
     }
@@ -507,6 +561,11 @@ impl Job {
         }
     }
 }
+
+/// The new scheme's first read of the device descriptor: Linux asks for
+/// 64 bytes (hub.c, `GET_DESCRIPTOR_BUFSIZE`), which a device answers
+/// with a short packet, however large endpoint 0 is.
+const NEW_SCHEME_HEADER_BYTES: u16 = 64;
 
 /// Endpoint 0's packet size a device of `speed` says in bMaxPacketSize0,
 /// if allowed (USB 2.0 5.5.3; USB 3.2 9.6.1: SuperSpeed gives 2^9).
@@ -601,6 +660,7 @@ impl<C: HostController> Bus<C> {
             location,
             first_change,
             last_change: changed,
+            tries: 0,
         };
         if !self.queue.push(work) {
             self.say_at(
@@ -833,8 +893,11 @@ impl<C: HostController> Bus<C> {
             return;
         };
         let (mut job, result) = match work {
-            Work::Port { location, .. } => {
+            Work::Port {
+                location, tries, ..
+            } => {
                 let mut job = Job::new(location, now);
+                job.tries = tries;
                 let result = match location.hub() {
                     None => self.start_root_port_reset(&mut job),
                     Some(hub) => self.start_hub_port_reset(&mut job, hub),
@@ -1149,7 +1212,26 @@ impl<C: HostController> Bus<C> {
             role: Role::Enumerating,
         });
         job.device = Some(index);
-        self.get_descriptor(job, Step::ReadingDeviceHeader, descriptor::kind::DEVICE, 8)
+        if job.old_scheme() {
+            let address = self.addresses.take().ok_or(BusError::NoAddress)?;
+            if let Some(device) = self.devices[index].as_mut() {
+                device.address = address;
+            }
+            self.controller.address_begin(id, address)?;
+            return self.await_control(job, Step::Addressing, index, 0);
+        }
+        if job.speed == Speed::Full {
+            // Linux's first guess at full speed: a device whose endpoint 0
+            // is smaller ends the read with a short packet, one whose
+            // endpoint 0 is 64 is not cut short (a babble).
+            self.controller.device_set_max_packet(id, 64)?;
+        }
+        self.get_descriptor(
+            job,
+            Step::ReadingDeviceHeader,
+            descriptor::kind::DEVICE,
+            NEW_SCHEME_HEADER_BYTES,
+        )
     }
 
     fn reading_device_header(&mut self, job: &mut Job, done: Result<()>) -> Result<Next> {
@@ -1160,6 +1242,21 @@ impl<C: HostController> Bus<C> {
         let Some(packet) = endpoint_0_packet(job.speed, size) else {
             return Err(BusError::PacketSize(size));
         };
+        job.header_read = true;
+        if let Some(id) = self.devices[index]
+            .as_ref()
+            .filter(|d| d.address != 0)
+            .map(|d| d.id)
+        {
+            // The old scheme: addressed already.
+            self.controller.device_set_max_packet(id, packet)?;
+            return self.get_descriptor(
+                job,
+                Step::ReadingDeviceDescriptor,
+                descriptor::kind::DEVICE,
+                18,
+            );
+        }
         let address = self.addresses.take().ok_or(BusError::NoAddress)?;
         let device = self.devices[index].as_mut().ok_or(BusError::Gone)?;
         // Kept with the device from now on, so that its removal frees it.
@@ -1177,6 +1274,14 @@ impl<C: HostController> Bus<C> {
     }
 
     fn recovering_from_set_address(&mut self, job: &mut Job) -> Result<Next> {
+        if !job.header_read {
+            return self.get_descriptor(
+                job,
+                Step::ReadingDeviceHeader,
+                descriptor::kind::DEVICE,
+                8,
+            );
+        }
         self.get_descriptor(
             job,
             Step::ReadingDeviceDescriptor,
@@ -1790,12 +1895,32 @@ impl<C: HostController> Bus<C> {
             self.say_at(location, format_args!("hub port not disabled ({e})"));
             return;
         }
-        self.say_at(
-            location,
-            format_args!(
-                "{e} while {step}; port disabled, left until it changes again (after {took} us)"
-            ),
-        );
+        let tries = job.tries + 1;
+        if job.may_try_again(e) {
+            let scheme = if tries / 2 == 1 { "old" } else { "new" };
+            self.say_at(
+                location,
+                format_args!(
+                    "{e} while {step}, try {tries} of {ENUMERATION_TRIES} (after {took} us); the port is reset for try {} ({scheme} scheme)",
+                    tries + 1
+                ),
+            );
+            self.queue_retry(location, tries);
+        } else if tries > 1 {
+            self.say_at(
+                location,
+                format_args!(
+                    "{e} while {step}; port disabled after {tries} tries, left until it changes again (after {took} us)"
+                ),
+            );
+        } else {
+            self.say_at(
+                location,
+                format_args!(
+                    "{e} while {step}; port disabled, left until it changes again (after {took} us)"
+                ),
+            );
+        }
         // Ports of a hub that failed half set up were queued: dropped.
         self.queue.remove(|work| match *work {
             Work::Port { location: at, .. } => location.holds(at) && at != location,
@@ -1821,6 +1946,24 @@ impl<C: HostController> Bus<C> {
                     Err(e) => self.say_at(location, format_args!("hub port not disabled ({e})")),
                 }
             }
+        }
+    }
+
+    /// Queues the port whose device failed try `tries` for the next one, at
+    /// once (its connection settled long ago); a reset starts it.
+    fn queue_retry(&mut self, location: Location, tries: u8) {
+        let now = self.now_micros();
+        let work = Work::Port {
+            location,
+            first_change: now,
+            last_change: now.saturating_sub(DEBOUNCE_MICROS),
+            tries,
+        };
+        if !self.queue.push(work) {
+            self.say_at(
+                location,
+                format_args!("too many ports waiting; left until it changes again"),
+            );
         }
     }
 

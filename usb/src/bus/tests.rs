@@ -496,6 +496,87 @@ fn errors_on_the_interrupt_pipe_are_recovered_until_they_never_stop() {
     assert_clean(&mut bus);
 }
 
+/// A device that fails its first two enumerations (its device descriptor
+/// stalled) is found on the third, the old scheme's first, each failure
+/// said with its cause, a port reset before each try; at a root port and
+/// behind a hub, on every kind of controller.
+#[test]
+fn a_device_that_fails_its_first_two_enumerations_is_found_on_the_third() {
+    for kind in [
+        ControllerKind::Uhci,
+        ControllerKind::Ohci,
+        ControllerKind::Ehci,
+    ] {
+        let mut bus = bus(kind, 2);
+        let speed = if kind == ControllerKind::Ehci {
+            Speed::High
+        } else {
+            Speed::Full
+        };
+        let hub = UsbDevice::Hub {
+            speed,
+            ports: 4,
+            multi_tt: false,
+        };
+        let on_root = tree(&mut bus).plug(&[1], UsbDevice::Keyboard(speed));
+        tree(&mut bus).plug(&[2], hub);
+        let behind_hub = tree(&mut bus).plug(&[2, 3], UsbDevice::Keyboard(Speed::Full));
+        tree(&mut bus).stall_device_descriptor(on_root, 2);
+        tree(&mut bus).stall_device_descriptor(behind_hub, 2);
+        bus.enumerate();
+        settle(&mut bus);
+        assert_eq!(
+            keyboards(&bus),
+            ["1", "2.3"],
+            "{kind}: {:#?}",
+            log(&mut bus)
+        );
+        for at in ["1", "2.3"] {
+            for (try_, scheme) in [(1, "new"), (2, "old")] {
+                let said = format!(
+                    "port {at}: request stalled while reading the device descriptor's first 8 bytes, try {try_} of 4"
+                );
+                let next = format!("the port is reset for try {} ({scheme} scheme)", try_ + 1);
+                assert!(
+                    log(&mut bus)
+                        .iter()
+                        .any(|l| l.contains(&said) && l.contains(&next)),
+                    "{kind} {at} try {try_}: {:#?}",
+                    log(&mut bus)
+                );
+            }
+        }
+        assert!(tree(&mut bus).send_report(behind_hub, A));
+        assert_eq!(poll(&mut bus), [0x1E]);
+        assert_eq!(bus.devices(), 3);
+        assert_eq!(
+            bus.addresses_in_use(),
+            3,
+            "the failed tries' addresses given back"
+        );
+        assert_clean(&mut bus);
+    }
+}
+
+/// A device that fails every try is given up after the fourth.
+#[test]
+fn a_device_that_fails_four_enumerations_is_given_up() {
+    let mut bus = bus(ControllerKind::Uhci, 1);
+    let keyboard = tree(&mut bus).plug(&[1], UsbDevice::Keyboard(Speed::Full));
+    tree(&mut bus).stall_device_descriptor(keyboard, 4);
+    bus.enumerate();
+    settle(&mut bus);
+    assert_eq!(keyboards(&bus), Vec::<String>::new());
+    assert!(
+        logged(&mut bus, "port 1: request stalled while reading the device descriptor's first 8 bytes; port disabled after 4 tries"),
+        "{:#?}",
+        log(&mut bus)
+    );
+    assert!(!bus.controller().port_enabled(1));
+    assert_eq!((bus.devices(), bus.addresses_in_use()), (0, 0));
+    assert_clean(&mut bus);
+}
+
 #[test]
 fn a_dead_device_is_given_up_and_its_port_left_alone() {
     let mut bus = bus(ControllerKind::Uhci, 2);
@@ -504,7 +585,10 @@ fn a_dead_device_is_given_up_and_its_port_left_alone() {
     assert!(
         logged(
             &mut bus,
-            "usb: uhci port 2: control transfer failed (no response) while reading the device descriptor's first 8 bytes; port disabled"
+            "usb: uhci port 2: control transfer failed (no response) while reading the device descriptor's first 8 bytes, try 1 of 4"
+        ) && logged(
+            &mut bus,
+            "usb: uhci port 2: control transfer failed (no response) while setting the address; port disabled after 4 tries"
         ),
         "{:#?}",
         log(&mut bus)

@@ -1232,3 +1232,39 @@ fn the_model_refuses_a_schedule_over_budget_or_with_bad_split_masks() {
         );
     }
 }
+
+/// Through the real driver: keyboards that stall their device descriptor
+/// twice (a high-speed one on a root port, a full-speed one behind a
+/// high-speed hub's translator) are found on their third try, the old
+/// scheme's first, after the new scheme's 64-byte reads failed.
+#[test]
+fn keyboards_that_fail_their_first_two_enumerations_are_found_on_the_third() {
+    let mut m = EhciModel::new(4);
+    m.port_power_control = true;
+    let keyboard = m.tree.plug(&[1], UsbDevice::Keyboard(Speed::High));
+    m.tree.plug(
+        &[2],
+        UsbDevice::Hub {
+            speed: Speed::High,
+            ports: 4,
+            multi_tt: false,
+        },
+    );
+    let behind = m.tree.plug(&[2, 1], UsbDevice::Keyboard(Speed::Full));
+    m.tree.stall_device_descriptor(keyboard, 2);
+    m.tree.stall_device_descriptor(behind, 2);
+    let (mut bus, _) = enumerated(m);
+    run(&mut bus, 2_000_000);
+    assert_eq!(bus.keyboards().count(), 2, "{:#?}", model(&mut bus).log);
+    let m = model(&mut bus);
+    for at in ["1", "2.1"] {
+        assert!(
+            logged(m, &std::format!("port {at}: request stalled while reading the device descriptor's first 8 bytes, try 2 of 4")),
+            "{:#?}",
+            m.log
+        );
+    }
+    assert_eq!(type_key(&mut bus, keyboard, KEY_A), [A_MAKE, A_BREAK]);
+    assert_eq!(type_key(&mut bus, behind, KEY_B), [B_MAKE, B_BREAK]);
+    assert_clean(model(&mut bus));
+}

@@ -552,6 +552,9 @@ struct Node {
     keyboard: Keyboard,
     /// A hub's ports (none for the rest).
     ports: Vec<HubPort>,
+    /// GET_DESCRIPTOR(DEVICE) requests still to be stalled (a device that
+    /// fails its first enumerations, as real ones often do).
+    descriptor_stalls: u32,
 }
 
 impl Node {
@@ -575,6 +578,7 @@ impl Node {
             interrupt_halted: false,
             keyboard: Keyboard::default(),
             ports,
+            descriptor_stalls: 0,
         }
     }
 
@@ -839,6 +843,12 @@ impl UsbTree {
         let node = &mut self.nodes[device];
         assert!(node.device.is_keyboard(), "device {device} is no keyboard");
         node.keyboard.repeat_next = true;
+    }
+
+    /// Makes `device` stall its next `times` GET_DESCRIPTOR(DEVICE)
+    /// requests, whatever its address.
+    pub fn stall_device_descriptor(&mut self, device: usize, times: u32) {
+        self.nodes[device].descriptor_stalls = times;
     }
 
     /// Makes keyboard `device` stall its interrupt endpoint until a
@@ -1417,6 +1427,10 @@ impl UsbTree {
                 let has_strings = node.device.is_keyboard();
                 let [number, kind] = setup.value.to_le_bytes();
                 match (kind, number) {
+                    (1, 0) if node.descriptor_stalls > 0 => {
+                        node.descriptor_stalls -= 1;
+                        None
+                    }
                     (1, 0) => Some(Response::In(device_descriptor)),
                     (2, 0) => Some(Response::In(configuration)),
                     (3, 0) if has_strings => Some(Response::In(LANGUAGES.to_vec())),

@@ -26,7 +26,8 @@ const OPERATIONAL: u32 = 0x20;
 const RUNTIME: u32 = 0x600;
 const DOORBELLS: u32 = 0x800;
 const EXTENDED: u32 = 0x1000;
-const PORTS: usize = 2;
+/// Root ports unless [`XhciModel::wide_ports`] says otherwise.
+const PORTS: u8 = 2;
 const MICROS_PER_CLOCK_READ: u64 = 5;
 
 /// The descriptors the xHCI model's devices give, shared with the tree
@@ -195,6 +196,15 @@ pub struct XhciModel {
     pub usb3_link_micros: u64,
     /// When root port 1's USB 3 link is trained and the port enabled.
     usb3_enabled_at: Option<u64>,
+    /// With `usb3`: root port 1's link falls into SS.Inactive after the
+    /// controller's reset and stays there until a warm reset (WPR).
+    pub usb3_link_stuck: bool,
+    /// Warm resets (WPR) the driver asked for.
+    pub warm_resets: u32,
+    /// Root ports (MaxPorts); see [`XhciModel::wide_ports`].
+    ports: u8,
+    /// The port the model's "root port 1" (the keyboard, or the hubs) is.
+    keyboard_port: u8,
     /// The keyboard on root port 2.
     pub keyboard2: KeyboardState,
     /// Command Aborts the driver asked for (CRCR's CA).
@@ -210,7 +220,7 @@ pub struct XhciModel {
     config: u32,
     dcbaap: u64,
     crcr: Cursor,
-    portsc: [u32; PORTS],
+    portsc: Vec<u32>,
     erstsz: u32,
     erstba: u64,
     erdp: u64,
@@ -259,6 +269,8 @@ impl XhciModel {
             port_reset_stuck: false,
             usb3_link_micros: 0,
             usb3_enabled_at: None,
+            usb3_link_stuck: false,
+            warm_resets: 0,
             keyboard2: KeyboardState {
                 protocol: 1,
                 ..KeyboardState::default()
@@ -273,7 +285,9 @@ impl XhciModel {
             config: 0,
             dcbaap: 0,
             crcr: Cursor::default(),
-            portsc: [0; PORTS],
+            portsc: vec![0; usize::from(PORTS)],
+            ports: PORTS,
+            keyboard_port: 1,
             erstsz: 0,
             erstba: 0,
             erdp: 0,
@@ -475,9 +489,10 @@ impl XhciModel {
                         && kind.is_some()
                         && (slot_dw0 >> 20) & 0xF == speed
                         && slot_dw0 >> 27 == 1
-                        && (root_port == 1 || root_port == 2)
+                        && (root_port == u32::from(self.keyboard_port) || root_port == 2)
                         && (ep0_dw1 >> 3) & 7 == 4
-                        && ep0_dw1 >> 16 == u32::from(ep0_packet)
+                        && (ep0_dw1 >> 16 == u32::from(ep0_packet)
+                            || (speed == 1 && matches!(ep0_dw1 >> 16, 8 | 16 | 32 | 64)))
                         && !(superspeed && translator != 0)
                         && (!self.high_speed_hub || translator == expected_translator)
                         && ep0_dequeue != 0
@@ -513,6 +528,11 @@ impl XhciModel {
                         self.errors.push(std::format!(
                             "second Address Device: endpoint 0 dequeue {ep0_dequeue:#x} is not where the ring stands"
                         ));
+                    }
+                    if speed == 1 {
+                        // A full-speed endpoint 0 is the host's guess
+                        // until evaluated (Linux's xHCI driver guesses 64).
+                        self.slots[usize::from(slot)].ep0_max_packet = (ep0_dw1 >> 16) as u16;
                     }
                     let output = self.output_context(slot);
                     let slot_state = if block_set_address { 1 } else { 2 };
@@ -852,6 +872,40 @@ impl XhciModel {
         self.port_2 == Some(OnRootPort2::SuperSpeedHalf)
     }
 
+    /// The Supported Protocol ranges, (major, first port, count): every
+    /// port USB 2 or USB 3; with a SuperSpeed half on port 2, port 1 USB 2
+    /// and port 2 USB 3; with [`XhciModel::wide_ports`], the USB 3 half
+    /// first and the USB 2 half last.
+    fn protocols(&self) -> Vec<(u32, u32, u32)> {
+        let ports = u32::from(self.ports);
+        if self.ports > PORTS {
+            vec![(3, 1, ports / 2), (2, ports / 2 + 1, ports - ports / 2)]
+        } else if self.split_protocols() {
+            vec![(2, 1, 1), (3, 2, 1)]
+        } else if self.usb3 {
+            vec![(3, 1, ports)]
+        } else {
+            vec![(2, 1, ports)]
+        }
+    }
+
+    /// `ports` root ports (MaxPorts), the USB 3 half first and the USB 2
+    /// half last (as Bochs's Renesas model and chipsets put them), the
+    /// keyboard (or the hubs) on USB 2 port `keyboard_port` instead of
+    /// port 1; port 2 keeps what `port_2` puts there.
+    pub fn wide_ports(&mut self, ports: u8, keyboard_port: u8) {
+        assert!(OPERATIONAL + 0x400 + 0x10 * u32::from(ports) <= RUNTIME);
+        assert!(keyboard_port > ports / 2 && keyboard_port <= ports && !self.usb3);
+        self.ports = ports;
+        self.keyboard_port = keyboard_port;
+        self.portsc = vec![0; usize::from(ports)];
+    }
+
+    /// The index in `portsc` of the keyboard's port.
+    fn kb(&self) -> usize {
+        usize::from(self.keyboard_port) - 1
+    }
+
     /// Root port 1's speed ID: full speed, or high with `high_speed_hub`.
     fn port_1_speed(&self) -> u32 {
         if self.hub && self.high_speed_hub {
@@ -968,10 +1022,11 @@ impl XhciModel {
     pub fn unplug(&mut self) {
         const CONNECT_CHANGE: u32 = 1 << 17;
         const ENABLE_CHANGE: u32 = 1 << 18;
-        self.portsc[0] &= !0b11;
-        self.portsc[0] |= CONNECT_CHANGE | ENABLE_CHANGE;
+        let kb = self.kb();
+        self.portsc[kb] &= !0b11;
+        self.portsc[kb] |= CONNECT_CHANGE | ENABLE_CHANGE;
         self.post_event(Trb([
-            1 << 24,
+            u32::from(self.keyboard_port) << 24,
             0,
             1 << 24,
             trb_type::PORT_STATUS_CHANGE << 10,
@@ -989,9 +1044,10 @@ impl XhciModel {
         };
         self.hub_states = fresh_hub_states();
         self.endpoint_stopped = false;
-        self.portsc[0] = 1 | 1 << 9 | self.port_1_speed() | CONNECT_CHANGE;
+        let kb = self.kb();
+        self.portsc[kb] = 1 | 1 << 9 | self.port_1_speed() | CONNECT_CHANGE;
         self.post_event(Trb([
-            1 << 24,
+            u32::from(self.keyboard_port) << 24,
             0,
             1 << 24,
             trb_type::PORT_STATUS_CHANGE << 10,
@@ -1061,7 +1117,7 @@ impl XhciModel {
 
     /// The root port's status change bits still set.
     pub fn root_port_changes(&self) -> u32 {
-        self.portsc[0] & (0x7F << 17)
+        self.portsc[self.kb()] & (0x7F << 17)
     }
 
     /// The keyboard's next report transfer fails with `code` (6: a stall,
@@ -1141,7 +1197,7 @@ impl Hardware for XhciModel {
         assert!(offset + 4 <= BAR_BYTES, "read outside the BAR: {offset:#x}");
         match offset {
             0x00 => 0x0100_0000 | OPERATIONAL,
-            0x04 => (PORTS as u32) << 24 | 1 << 8 | 8,
+            0x04 => u32::from(self.ports) << 24 | 1 << 8 | 8,
             0x08 => ((self.scratchpads >> 5) & 0x1F) << 21 | (self.scratchpads & 0x1F) << 27,
             0x10 => (EXTENDED / 4) << 16 | u32::from(self.csz) << 2 | 1,
             0x14 => DOORBELLS,
@@ -1150,11 +1206,14 @@ impl Hardware for XhciModel {
             o if o == OPERATIONAL + 0x04 => self.usbsts,
             o if o == OPERATIONAL + 0x08 => 1,
             o if o == OPERATIONAL + 0x38 => self.config,
-            o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * PORTS as u32).contains(&o) => {
+            o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * u32::from(self.ports))
+                .contains(&o) =>
+            {
                 let port = ((o - OPERATIONAL - 0x400) / 0x10) as usize;
-                if port == 0 && self.usb3_enabled_at.is_some_and(|at| self.now >= at) {
+                if port == self.kb() && self.usb3_enabled_at.is_some_and(|at| self.now >= at) {
                     self.usb3_enabled_at = None;
-                    self.portsc[0] |= 1 << 1;
+                    let kb = self.kb();
+                    self.portsc[kb] |= 1 << 1;
                 }
                 if (o - OPERATIONAL - 0x400) % 0x10 == 0 {
                     self.portsc[port]
@@ -1173,28 +1232,22 @@ impl Hardware for XhciModel {
                 self.legacy | 4 << 8 | 1
             }
             o if o == EXTENDED + 4 => self.legacy_control,
-            // Supported Protocol: every port USB 2 or USB 3, or (with a
-            // SuperSpeed half on port 2) port 1 USB 2 and port 2 USB 3,
-            // two capabilities, the first pointing at the second.
-            o if o == EXTENDED + 0x10 => {
-                if self.split_protocols() {
-                    0x0200_0000 | 4 << 8 | 2
-                } else if self.usb3 {
-                    0x0300_0000 | 2
-                } else {
-                    0x0200_0000 | 2
+            // Supported Protocol: one capability, or two, the first
+            // pointing at the second.
+            o if (EXTENDED + 0x10..EXTENDED + 0x30).contains(&o) => {
+                let protocols = self.protocols();
+                let index = ((o - EXTENDED - 0x10) / 0x10) as usize;
+                let Some(&(major, first, count)) = protocols.get(index) else {
+                    return 0;
+                };
+                let next = if index + 1 < protocols.len() { 4 } else { 0 };
+                match (o - EXTENDED) % 0x10 {
+                    0 => major << 24 | next << 8 | 2,
+                    4 => 0x2042_5355,
+                    8 => count << 8 | first,
+                    _ => 0,
                 }
             }
-            o if o == EXTENDED + 0x14 || o == EXTENDED + 0x24 => 0x2042_5355,
-            o if o == EXTENDED + 0x18 => {
-                if self.split_protocols() {
-                    1 << 8 | 1
-                } else {
-                    (PORTS as u32) << 8 | 1
-                }
-            }
-            o if o == EXTENDED + 0x20 && self.split_protocols() => 0x0300_0000 | 2,
-            o if o == EXTENDED + 0x28 && self.split_protocols() => 1 << 8 | 2,
             _ => 0,
         }
     }
@@ -1214,9 +1267,14 @@ impl Hardware for XhciModel {
                     }
                     self.usbcmd = 0;
                     self.usbsts = 1 | if self.cnr_stuck { 1 << 11 } else { 0 };
-                    self.portsc = [0; PORTS];
-                    self.portsc[0] = if self.empty_at_start {
+                    self.portsc = vec![1 << 9; usize::from(self.ports)];
+                    let kb = self.kb();
+                    self.portsc[kb] = if self.empty_at_start {
                         1 << 9
+                    } else if self.usb3 && self.usb3_link_stuck {
+                        // Connected, its link in SS.Inactive.
+                        self.usb3_enabled_at = None;
+                        1 | 6 << 5 | 1 << 9 | 4 << 10
                     } else if self.usb3 {
                         // A USB 3 port trains and enables by itself.
                         self.usb3_enabled_at = Some(self.now + self.usb3_link_micros);
@@ -1258,7 +1316,9 @@ impl Hardware for XhciModel {
             o if o == OPERATIONAL + 0x30 => self.dcbaap = set_low(self.dcbaap, value),
             o if o == OPERATIONAL + 0x34 => self.dcbaap = set_high(self.dcbaap, value),
             o if o == OPERATIONAL + 0x38 => self.config = value,
-            o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * PORTS as u32).contains(&o) => {
+            o if (OPERATIONAL + 0x400..OPERATIONAL + 0x400 + 0x10 * u32::from(self.ports))
+                .contains(&o) =>
+            {
                 let port = ((o - OPERATIONAL - 0x400) / 0x10) as usize;
                 if value & 0b10 != 0 {
                     self.ports_disabled.push(port as u8 + 1);
@@ -1268,6 +1328,12 @@ impl Hardware for XhciModel {
                 if value & (1 << 9) == 0 {
                     // Port power off: the device is gone from the port.
                     *status &= !(1 << 9 | 0b11);
+                }
+                if value & (1 << 31) != 0 && *status & 1 != 0 {
+                    // A warm reset: the link trains to U0, the port enables,
+                    // WRC and PRC say it is over.
+                    self.warm_resets += 1;
+                    *status = (*status & !(0xF << 5)) | 1 << 1 | 1 << 19 | 1 << 21;
                 }
                 if value & (1 << 4) != 0 && *status & 1 != 0 {
                     *status |= if self.port_reset_stuck {

@@ -88,6 +88,15 @@ const PORT_KEEP: u32 = (0x3 << 14) | (0x7 << 25);
 /// changes so that the next change raises a Port Status Change event again.
 const PORT_CONNECT_CHANGES: u32 = PORT_CHANGES & !PORT_RESET_CHANGE;
 const PORT_RESET_DONE_CHANGES: u32 = PORT_RESET_CHANGE | (1 << 19) | (1 << 18);
+/// PORTSC's Warm Port Reset (WPR, bit 31): a USB 3 port's BH reset, the
+/// way out of SS.Inactive and Compliance Mode (xHCI 4.19.5.1).
+const PORT_WARM_RESET: u32 = 1 << 31;
+/// PORTSC's Port Link State (PLS, bits 8:5) and the stuck ones.
+const PORT_LINK_STATE_SHIFT: u32 = 5;
+const LINK_INACTIVE: u32 = 6;
+const LINK_COMPLIANCE: u32 = 10;
+/// The [`RootReset`] stage of a USB 3 port whose warm reset was asked for.
+const WARM_RESET_STAGE: u32 = 1;
 /// Completion codes mapped to the device layer's errors.
 const COMPLETION_DATA_BUFFER: u8 = 2;
 const COMPLETION_BABBLE: u8 = 3;
@@ -1016,6 +1025,19 @@ impl<H: Hardware> Xhci<H> {
         }
     }
 
+    /// Starts a USB 3 port's warm reset (WPR), said with the link state.
+    fn warm_reset(&mut self, port: u8, status: u32) {
+        let link = (status >> PORT_LINK_STATE_SHIFT) & 0xF;
+        self.say(format_args!(
+            "port {port}: USB 3 link stuck (link state {link}); warm reset"
+        ));
+        let register = self.portsc(port);
+        self.write(
+            register,
+            PORT_POWER | (status & PORT_KEEP) | PORT_WARM_RESET,
+        );
+    }
+
     fn valid_port(&self, port: u8) -> bool {
         (1..=self.capabilities.ports).contains(&port)
     }
@@ -1202,13 +1224,17 @@ impl<H: Hardware> HostController for Xhci<H> {
         }
         let now = self.hw.now_micros();
         self.host.reset = Some(RootReset::begin(port, now, ROOT_RESET_BOUND_MICROS));
-        if self.usb3_port(port) {
-            // USB 3 ports train and enable by themselves.
-            return;
-        }
         let register = self.portsc(port);
         let status = self.read(register);
         if status == u32::MAX {
+            return;
+        }
+        if self.usb3_port(port) {
+            // USB 3 ports train and enable by themselves, unless the link
+            // is stuck.
+            if link_stuck(status) {
+                self.warm_reset(port, status);
+            }
             return;
         }
         self.write(register, PORT_POWER | (status & PORT_KEEP) | PORT_RESET);
@@ -1231,7 +1257,21 @@ impl<H: Hardware> HostController for Xhci<H> {
             (status & PORT_RESET != 0, reset.bound)
         };
         if status != u32::MAX && running {
-            if self.hw.now_micros() < deadline {
+            let now = self.hw.now_micros();
+            // A USB 3 link that fell into SS.Inactive or Compliance, or did
+            // not reach U0 within the hold: a warm reset, once, bounded
+            // as a USB 2 port's reset is (Linux's hub_port_reset does the
+            // same, "warm reset" in its log).
+            if usb3 && reset.stage != WARM_RESET_STAGE && (link_stuck(status) || now >= deadline) {
+                self.warm_reset(port, status);
+                self.host.reset = Some(RootReset {
+                    stage: WARM_RESET_STAGE,
+                    until: reset.bound,
+                    ..reset
+                });
+                return None;
+            }
+            if now < deadline {
                 self.host.reset = Some(reset);
                 return None;
             }
@@ -1247,6 +1287,13 @@ impl<H: Hardware> HostController for Xhci<H> {
             return Some(ResetOutcome::Failed);
         }
         if usb3 {
+            if reset.stage == WARM_RESET_STAGE {
+                // The warm reset's changes (WRC, PRC) are the reset's own.
+                self.write(
+                    register,
+                    PORT_POWER | (status & PORT_KEEP) | (status & PORT_RESET_DONE_CHANGES),
+                );
+            }
             return Some(ResetOutcome::Enabled(Speed::Super));
         }
         self.write(
@@ -1652,4 +1699,13 @@ impl<H: Hardware> HostController for Xhci<H> {
         self.host = HostState::new();
         self.shut_down().is_ok()
     }
+}
+
+/// Whether a USB 3 port's link is in SS.Inactive or Compliance Mode, out
+/// of which only a warm reset takes it.
+fn link_stuck(status: u32) -> bool {
+    matches!(
+        (status >> PORT_LINK_STATE_SHIFT) & 0xF,
+        LINK_INACTIVE | LINK_COMPLIANCE
+    )
 }

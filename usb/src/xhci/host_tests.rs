@@ -144,6 +144,22 @@ fn a_keyboard_on_a_root_port_types_what_the_drivers_own_enumeration_typed() {
     }
 }
 
+/// A chipset's xHCI: 26 root ports, its USB 2 ports listed after its USB
+/// 3 ones, the keyboard on USB 2 port 24, past the first 15: it is heard.
+#[test]
+fn a_keyboard_on_root_port_24_of_26_usb_2_ports_last_types() {
+    let mut model = XhciModel::new();
+    model.wide_ports(26, 24);
+    let mut bus = with_keyboards(model, 1);
+    assert_eq!(locations(&bus), ["24"]);
+    assert!(!logged(&mut bus, "are used"), "{:#?}", log(&mut bus));
+    assert!(hw(&mut bus).send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+    assert_eq!(poll(&mut bus), [0x1E]);
+    assert!(hw(&mut bus).send_report([0; 8]));
+    assert_eq!(poll(&mut bus), [0x9E]);
+    assert_clean(&mut bus);
+}
+
 #[test]
 fn a_keyboard_behind_one_and_three_hubs_is_reached_through_its_route_string() {
     for (tiers, at) in [(1, "1.2"), (3, "1.2.2.2")] {
@@ -475,6 +491,39 @@ fn a_usb_3_link_still_training_at_the_reset_gets_the_reset_s_50_ms() {
         log(&mut bus)
     );
     assert_clean(&mut bus);
+}
+
+/// A USB 3 link that fell into SS.Inactive after the controller's reset
+/// (and would stay there), or that has not reached U0 by the end of the
+/// reset's 50 ms, is warm-reset (PORTSC WPR) and its keyboard set up.
+#[test]
+fn a_usb_3_link_stuck_in_ss_inactive_or_short_of_u0_is_warm_reset() {
+    for (stuck, said) in [(true, "link state 6"), (false, "link state 0")] {
+        let mut model = XhciModel::new();
+        model.usb3 = true;
+        model.device_descriptor[2..4].copy_from_slice(&0x0300u16.to_le_bytes());
+        model.device_descriptor[7] = 9;
+        if stuck {
+            model.usb3_link_stuck = true;
+        } else {
+            // Never trained by itself.
+            model.usb3_link_micros = 1_000_000_000;
+        }
+        let mut bus = with_keyboards(model, 1);
+        assert_eq!(hw(&mut bus).warm_resets, 1);
+        assert!(
+            logged(
+                &mut bus,
+                &format!("port 1: USB 3 link stuck ({said}); warm reset")
+            ),
+            "{:#?}",
+            log(&mut bus)
+        );
+        assert!(!logged(&mut bus, "port reset failed"));
+        assert!(hw(&mut bus).send_report([0, 0, 0x04, 0, 0, 0, 0, 0]));
+        assert_eq!(poll(&mut bus), [0x1E]);
+        assert_clean(&mut bus);
+    }
 }
 
 #[test]

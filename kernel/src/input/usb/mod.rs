@@ -295,6 +295,27 @@ fn open(
     memory: &mut dma::Pages,
     physical_memory_offset: u64,
 ) -> Option<Controller> {
+    // In D3hot its BARs are not decoded: nothing below would work.
+    match pci::wake_to_d0(function) {
+        Some((from, true)) => {
+            serial_println!(
+                "usb: {} {}: brought from D{} to D0",
+                label(kind),
+                function,
+                from
+            )
+        }
+        Some((from, false)) => {
+            serial_println!(
+                "usb: {} {}: stayed in D{} though told to go to D0; not used",
+                label(kind),
+                function,
+                from
+            );
+            return None;
+        }
+        None => {}
+    }
     let window = match kind {
         ControllerKind::Uhci => io_window(function)?,
         _ => {
