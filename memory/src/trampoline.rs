@@ -88,7 +88,7 @@ pub mod selector {
 /// inside a mode set on the timer tick or on INT 15h AH=86h (the RTC's IRQ
 /// 8), so the call runs with the PICs at the BIOS's vectors, its own masks,
 /// PIT channel 0 at the BIOS's 18.2 Hz, and interrupts on; a watchdog on IRQ
-/// 0 abandons a call that has not returned within [`WATCHDOG_TICKS`] ticks.
+/// 0 abandons a call that has not returned within `WATCHDOG_TICKS` ticks.
 pub mod bios_world {
     /// Where the BIOS has the master PIC's IRQs: INT 08h-0Fh.
     pub const MASTER_VECTORS: u8 = 0x08;

@@ -50,7 +50,7 @@ pub enum Wake {
 
 /// The Power Management capability's offset, if the function has one: the
 /// capability list walked, every pointer checked (inside the 256 bytes,
-/// past the header, 4-aligned), at most [`MOST_CAPABILITIES`] of them.
+/// past the header, 4-aligned), at most `MOST_CAPABILITIES` of them.
 pub fn power_management_capability(read: &mut impl FnMut(u8) -> u32) -> Option<u8> {
     if read(0x04) & STATUS_CAPABILITIES == 0 {
         return None;
